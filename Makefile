@@ -1,0 +1,51 @@
+# Track & Stride — two commands on a fresh machine (Python 3.11 + make):
+#   make demo    the main job end to end (imports CMU mocap, writes build/demo/)
+#   make test    the whole test suite (core tests + headless Blender tests)
+# Each target creates the virtualenv with the pinned dependencies when it is missing.
+#
+# Blender 4.5 LTS: `make test BPY=4.5.15` runs the same suite against bpy 4.5 in its own venv.
+
+PYTHON ?= python3.11
+BPY ?= 5.0.1
+ifeq ($(BPY),5.0.1)
+VENV ?= .venv
+else
+VENV ?= .venv-bpy$(BPY)
+endif
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-$(BPY)
+VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
+ZIP := build/track_and_stride-$(VERSION).zip
+PYTEST_ARGS ?=
+
+.PHONY: venv demo test test-core test-blender extension bench bench-import clean
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check bpy==$(BPY) -r requirements.txt
+	touch $(STAMP)
+
+extension: $(STAMP)
+	$(PY) tools/build_extension.py --output $(ZIP)
+
+demo: extension
+	$(PY) sample_scenes/demo.py --extension $(ZIP) --output build/demo
+
+test: extension
+	$(PY) -m pytest $(PYTEST_ARGS) tests
+
+test-core: $(STAMP)
+	$(PY) -m pytest $(PYTEST_ARGS) tests/core
+
+test-blender: extension
+	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
+
+bench: bench-import
+
+bench-import: extension
+	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
+
+clean:
+	rm -rf build .pytest_cache
