@@ -1,0 +1,11 @@
+"""Track & Stride core: pure NumPy (no bpy, no SciPy, no mathutils).
+
+Plain-array interfaces only; conventions (frames, Euler orders, units, frame rates) are written
+once in ``docs/conventions.md``. Subpackages:
+
+``kinematics``  rotations, articulated skeletons, batched forward kinematics
+``mocap``       Acclaim ASF/AMC reading and writing, frame-rate resampling
+``armature``    core skeleton <-> Blender-style armature (bone Y along head->tail) layout
+"""
+
+__all__ = ["kinematics", "mocap", "armature"]

@@ -1,0 +1,32 @@
+"""Rotations, articulated skeletons and batched forward kinematics (NumPy only)."""
+
+from .rotations import (
+    AXIS_INDEX,
+    EULER_ORDERS,
+    axis_rotation,
+    euler_to_matrix,
+    exp_so3,
+    log_so3,
+    make_euler_continuous,
+    matrix_to_euler,
+    skew,
+)
+from .skeleton import Skeleton
+from .fk import bone_tails, forward_kinematics, local_rotations_from_dofs, rest_pose
+
+__all__ = [
+    "AXIS_INDEX",
+    "EULER_ORDERS",
+    "Skeleton",
+    "axis_rotation",
+    "bone_tails",
+    "euler_to_matrix",
+    "exp_so3",
+    "forward_kinematics",
+    "local_rotations_from_dofs",
+    "log_so3",
+    "make_euler_continuous",
+    "matrix_to_euler",
+    "rest_pose",
+    "skew",
+]

@@ -1,0 +1,251 @@
+"""Rotation helpers: axis rotations, Euler angles (Blender convention), exp/log maps.
+
+Conventions (see ``docs/conventions.md``): active rotations of column vectors, right-handed
+frames, radians. Euler angles are stored **by axis** like Blender's ``rotation_euler``:
+``angles[..., 0]`` is the angle about X, ``[..., 1]`` about Y, ``[..., 2]`` about Z, whatever the
+order. The order string names the axes in the order they are **applied**: ``'XYZ'`` rotates
+about X first, then Y, then Z, i.e. ``R = Rz @ Ry @ Rx`` (Blender's ``'XYZ'`` mode, SciPy's
+extrinsic ``'xyz'``).
+"""
+
+import numpy as np
+
+AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2}
+EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
+
+# Below this |cos(middle angle)| the Euler decomposition is treated as gimbal locked.
+_GIMBAL_EPS = 1e-9
+
+
+def _order_axes(order):
+    """Return the three axis indices of an Euler order string, validating it."""
+    if not isinstance(order, str) or order.upper() not in EULER_ORDERS:
+        raise ValueError(f"Euler order must be one of {EULER_ORDERS}, got {order!r}")
+    return tuple(AXIS_INDEX[c] for c in order.upper())
+
+
+def _parity(i, j, k):
+    """+1 when (i, j, k) is a cyclic (even) permutation of (0, 1, 2), else -1."""
+    return 1.0 if (j - i) % 3 == 1 else -1.0
+
+
+def skew(v):
+    """Cross-product matrix ``[v]x`` with ``[v]x @ u == cross(v, u)``.
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    v = np.asarray(v, dtype=float)
+    if v.shape[-1:] != (3,):
+        raise ValueError(f"Expected shape (..., 3), got {v.shape}")
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1] = -v[..., 2]
+    out[..., 0, 2] = v[..., 1]
+    out[..., 1, 0] = v[..., 2]
+    out[..., 1, 2] = -v[..., 0]
+    out[..., 2, 0] = -v[..., 1]
+    out[..., 2, 1] = v[..., 0]
+    return out
+
+
+def axis_rotation(axis, angle):
+    """Rotation matrices about a coordinate axis.
+
+    Parameters
+    ----------
+    axis : int
+        0, 1 or 2 for X, Y, Z.
+    angle : array_like, shape (...), radians
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    if axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2, got {axis!r}")
+    angle = np.asarray(angle, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(angle.shape + (3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    out[..., axis, axis] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., i, j] = -s
+    out[..., j, i] = s
+    return out
+
+
+def euler_to_matrix(angles, order="XYZ"):
+    """Rotation matrices from Euler angles stored by axis (Blender convention).
+
+    Parameters
+    ----------
+    angles : array_like, shape (..., 3), radians
+        Angles about X, Y, Z.
+    order : str
+        Application order, e.g. ``'XYZ'`` gives ``Rz @ Ry @ Rx``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape[-1:] != (3,):
+        raise ValueError(f"Expected shape (..., 3), got {angles.shape}")
+    i, j, k = _order_axes(order)
+    return (axis_rotation(k, angles[..., k]) @ axis_rotation(j, angles[..., j])
+            @ axis_rotation(i, angles[..., i]))
+
+
+def matrix_to_euler(matrix, order="XYZ"):
+    """Euler angles (stored by axis) of rotation matrices.
+
+    The middle angle is returned in [-pi/2, pi/2], the others in (-pi, pi]. At gimbal lock
+    (|cos(middle)| < 1e-9) the first-applied angle is set to 0 and the last one carries the
+    whole remaining rotation; the result still reproduces the matrix.
+
+    Parameters
+    ----------
+    matrix : array_like, shape (..., 3, 3)
+        Rotation matrices.
+    order : str
+        Application order (see :func:`euler_to_matrix`).
+
+    Returns
+    -------
+    ndarray, shape (..., 3), radians
+    """
+    R = np.asarray(matrix, dtype=float)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"Expected shape (..., 3, 3), got {R.shape}")
+    i, j, k = _order_axes(order)
+    s = _parity(i, j, k)
+    # R = R_k(c) R_j(b) R_i(a): R[k, i] = -s sin(b)
+    sin_b = np.clip(-s * R[..., k, i], -1.0, 1.0)
+    b = np.arcsin(sin_b)
+    cos_b = np.sqrt(np.maximum(0.0, 1.0 - sin_b**2))
+    locked = cos_b < _GIMBAL_EPS
+    a = np.where(locked, 0.0, np.arctan2(s * R[..., k, j], R[..., k, k]))
+    c_free = np.arctan2(s * R[..., j, i], R[..., i, i])
+    # With a = 0: column j of R is R_k(c) e_j.
+    c_locked = np.arctan2(-s * R[..., i, j], R[..., j, j])
+    c = np.where(locked, c_locked, c_free)
+    out = np.empty(R.shape[:-2] + (3,))
+    out[..., i] = a
+    out[..., j] = b
+    out[..., k] = c
+    return out
+
+
+def make_euler_continuous(angles, order="XYZ"):
+    """Pick, frame by frame, the Euler representation closest to the previous frame.
+
+    Each frame may be replaced by its equivalent triple ``(a + pi, pi - b, c + pi)`` (first,
+    middle, last applied axis) and every angle may move by multiples of 2 pi, so that F-curves
+    have no +-pi flips. Same idea as Blender's ``Matrix.to_euler(mode, compat)``.
+
+    Parameters
+    ----------
+    angles : array_like, shape (N, 3), radians
+    order : str
+
+    Returns
+    -------
+    ndarray, shape (N, 3), radians
+        Same rotations, continuous representation; the first frame is only wrapped to (-pi, pi].
+    """
+    angles = np.array(angles, dtype=float)
+    if angles.ndim != 2 or angles.shape[1] != 3:
+        raise ValueError(f"Expected shape (N, 3), got {angles.shape}")
+    i, j, k = _order_axes(order)
+    alternate = angles.copy()
+    alternate[:, i] += np.pi
+    alternate[:, j] = np.pi - alternate[:, j]
+    alternate[:, k] += np.pi
+    two_pi = 2.0 * np.pi
+    out = np.empty_like(angles)
+    if len(angles) == 0:
+        return out
+    out[0] = angles[0]
+    for t in range(1, len(angles)):
+        prev = out[t - 1]
+        best, best_cost = None, np.inf
+        for cand in (angles[t], alternate[t]):
+            cand = cand + two_pi * np.round((prev - cand) / two_pi)
+            cost = np.abs(cand - prev).sum()
+            if cost < best_cost:
+                best, best_cost = cand, cost
+        out[t] = best
+    return out
+
+
+def exp_so3(rotvec):
+    """Rotation matrices from rotation vectors (Rodrigues' formula, exact for any angle).
+
+    Parameters
+    ----------
+    rotvec : array_like, shape (..., 3), radians (axis * angle)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
+    w = np.asarray(rotvec, dtype=float)
+    if w.shape[-1:] != (3,):
+        raise ValueError(f"Expected shape (..., 3), got {w.shape}")
+    theta2 = np.sum(w * w, axis=-1)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    # Taylor series below 1e-4 rad keep full double precision.
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    K = skew(w)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def log_so3(matrix):
+    """Rotation vectors of rotation matrices (inverse of :func:`exp_so3`, angle in [0, pi]).
+
+    Parameters
+    ----------
+    matrix : array_like, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 3), radians
+    """
+    R = np.asarray(matrix, dtype=float)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"Expected shape (..., 3, 3), got {R.shape}")
+    vee = np.stack([R[..., 2, 1] - R[..., 1, 2],
+                    R[..., 0, 2] - R[..., 2, 0],
+                    R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    # atan2 of (sin, cos) keeps full precision near 0 and pi, where arccos(trace) does not.
+    sin_t = 0.5 * np.linalg.norm(vee, axis=-1)
+    cos_t = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    theta = np.arctan2(sin_t, cos_t)
+    small = theta < 1e-4
+    near_pi = (cos_t < 0) & (sin_t < 1e-4)
+    scale = np.where(small, 0.5 + theta**2 / 12.0,
+                     theta / (2.0 * np.where(small | near_pi, 1.0, sin_t)))
+    out = scale[..., None] * vee
+    if np.any(near_pi):
+        # Near pi the antisymmetric part vanishes: take the axis from the symmetric part,
+        # (R + R^T)/2 = cos(t) I + (1 - cos(t)) u u^T, sign fixed by the antisymmetric part.
+        Rp = R[near_pi]
+        c = cos_t[near_pi][..., None, None]
+        uuT = (0.5 * (Rp + np.swapaxes(Rp, -1, -2)) - c * np.eye(3)) / (1.0 - c)
+        col = np.argmax(np.diagonal(uuT, axis1=-2, axis2=-1), axis=-1)
+        u = uuT[np.arange(len(Rp)), :, col]
+        u /= np.linalg.norm(u, axis=-1, keepdims=True)
+        sign = np.sign(np.sum(u * vee[near_pi], axis=-1))
+        sign[sign == 0] = 1.0
+        out[near_pi] = (sign * theta[near_pi])[..., None] * u
+    return out

@@ -1,0 +1,97 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core.kinematics import (EULER_ORDERS, axis_rotation, euler_to_matrix, exp_so3, log_so3,
+                             make_euler_continuous, matrix_to_euler, skew)
+
+
+@pytest.mark.parametrize("order", EULER_ORDERS)
+def test_euler_to_matrix_matches_scipy_extrinsic(order):
+    rng = np.random.default_rng(0)
+    angles = rng.uniform(-np.pi, np.pi, (50, 3))
+    by_order = angles[:, ["XYZ".index(c) for c in order]]  # scipy wants them in order
+    expected = Rotation.from_euler(order.lower(), by_order).as_matrix()
+    np.testing.assert_allclose(euler_to_matrix(angles, order), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("order", EULER_ORDERS)
+def test_matrix_to_euler_round_trip(order):
+    rots = Rotation.random(200, random_state=1).as_matrix()
+    angles = matrix_to_euler(rots, order)
+    np.testing.assert_allclose(euler_to_matrix(angles, order), rots, atol=1e-12)
+    middle = "XYZ".index(order[1])
+    assert np.all(np.abs(angles[:, middle]) <= np.pi / 2 + 1e-15)
+
+
+@pytest.mark.parametrize("order", EULER_ORDERS)
+@pytest.mark.parametrize("middle", [np.pi / 2, -np.pi / 2])
+def test_matrix_to_euler_gimbal_lock_reproduces_matrix(order, middle):
+    rng = np.random.default_rng(2)
+    angles = np.zeros((20, 3))
+    angles[:, "XYZ".index(order[0])] = rng.uniform(-3, 3, 20)
+    angles[:, "XYZ".index(order[1])] = middle
+    angles[:, "XYZ".index(order[2])] = rng.uniform(-3, 3, 20)
+    rots = euler_to_matrix(angles, order)
+    back = matrix_to_euler(rots, order)
+    np.testing.assert_allclose(euler_to_matrix(back, order), rots, atol=1e-12)
+
+
+def test_make_euler_continuous_removes_flips_and_keeps_rotations():
+    t = np.linspace(0, 4 * np.pi, 400)
+    angles = np.stack([t, 0.3 * np.sin(t), 1.5 * np.cos(0.5 * t)], axis=1)  # X winds past pi
+    order = "XYZ"
+    principal = matrix_to_euler(euler_to_matrix(angles, order), order)
+    assert np.abs(np.diff(principal, axis=0)).max() > 3  # flips present
+    continuous = make_euler_continuous(principal, order)
+    np.testing.assert_allclose(euler_to_matrix(continuous, order), euler_to_matrix(angles, order), atol=1e-12)
+    assert np.abs(np.diff(continuous, axis=0)).max() < 0.1
+    np.testing.assert_allclose(continuous, angles - (angles[0] - continuous[0]), atol=1e-9)
+
+
+def test_make_euler_continuous_prefers_alternate_triple():
+    # Middle angle passing pi/2 (the other representation is the continuous one).
+    order = "ZXY"
+    t = np.linspace(0.2, 2.8, 100)
+    angles = np.stack([t, 0.4 * np.ones_like(t), 0.2 * t], axis=1)
+    mid = "XYZ".index(order[1])
+    angles[:, [0, 1, 2]] = angles[:, [1, 2, 0]]  # put the sweeping angle on the middle axis
+    assert mid == 0
+    principal = matrix_to_euler(euler_to_matrix(angles, order), order)
+    continuous = make_euler_continuous(principal, order)
+    assert np.abs(np.diff(continuous, axis=0)).max() < 0.1
+    np.testing.assert_allclose(euler_to_matrix(continuous, order), euler_to_matrix(angles, order), atol=1e-12)
+
+
+def test_axis_rotation_and_skew_identities():
+    rng = np.random.default_rng(3)
+    v, u = rng.normal(size=(2, 10, 3))
+    np.testing.assert_allclose(skew(v) @ u[..., None], np.cross(v, u)[..., None], atol=1e-14)
+    for axis in range(3):
+        e = np.eye(3)[axis]
+        np.testing.assert_allclose(axis_rotation(axis, 0.7), exp_so3(0.7 * e), atol=1e-15)
+    with pytest.raises(ValueError, match="axis must be"):
+        axis_rotation(3, 0.1)
+
+
+def test_exp_log_match_scipy_including_small_and_near_pi():
+    rng = np.random.default_rng(4)
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([rng.uniform(0, np.pi, 100), rng.uniform(0, 1e-6, 100),
+                             np.pi - rng.uniform(0, 1e-5, 100)])
+    rotvec = axes * angles[:, None]
+    R = exp_so3(rotvec)
+    np.testing.assert_allclose(R, Rotation.from_rotvec(rotvec).as_matrix(), atol=1e-13)
+    back = log_so3(R)
+    np.testing.assert_allclose(exp_so3(back), R, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(back, axis=1), angles, atol=1e-9)
+
+
+def test_bad_shapes_raise():
+    with pytest.raises(ValueError, match=r"Expected shape \(\.\.\., 3\)"):
+        euler_to_matrix(np.zeros(4))
+    with pytest.raises(ValueError, match="Euler order"):
+        euler_to_matrix(np.zeros(3), "XXY")
+    with pytest.raises(ValueError, match=r"\(\.\.\., 3, 3\)"):
+        matrix_to_euler(np.zeros((3, 2)))
