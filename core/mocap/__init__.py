@@ -1,0 +1,27 @@
+"""Motion-capture files: Acclaim ASF/AMC (CMU variant) and frame-rate resampling."""
+
+from .errors import MocapParseError
+from .asf import AsfBone, AsfSkeleton, format_asf, parse_asf, read_asf, write_asf
+from .acclaim_skeleton import YUP_TO_ZUP, ChannelLayout, asf_to_skeleton, channel_layout
+from .amc import AmcMotion, format_amc, parse_amc, read_amc, write_amc
+from .resample import resample
+
+__all__ = [
+    "AmcMotion",
+    "AsfBone",
+    "AsfSkeleton",
+    "ChannelLayout",
+    "MocapParseError",
+    "YUP_TO_ZUP",
+    "asf_to_skeleton",
+    "channel_layout",
+    "format_amc",
+    "format_asf",
+    "parse_amc",
+    "parse_asf",
+    "read_amc",
+    "read_asf",
+    "resample",
+    "write_amc",
+    "write_asf",
+]
