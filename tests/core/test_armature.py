@@ -1,0 +1,100 @@
+"""Core skeleton <-> Blender-style armature layout, checked with an emulation of Blender's pose
+evaluation (pose = parent_pose @ parent_rest^-1 @ rest @ basis)."""
+
+import numpy as np
+import pytest
+
+from core.armature import (armature_layout, channels_to_dofs, dofs_to_channels,
+                           plausible_envelope_radii)
+from core.kinematics import euler_to_matrix, forward_kinematics, local_rotations_from_dofs
+from core.mocap import asf_to_skeleton, read_amc, read_asf
+from tests.data import TRIALS, asf_path, cmu_path
+
+
+def blender_pose_heads(layout, channels):
+    """Bone heads as Blender computes them from rest matrices and F-curve values."""
+    rest = layout.bone_matrices()
+    n_frames = len(channels)
+    out = np.zeros((n_frames, len(layout.names), 3))
+    for t in range(n_frames):
+        loc = {}
+        euler = {}
+        for c, (name, path, index) in enumerate(layout.channels):
+            target = loc if path == "location" else euler
+            target.setdefault(name, np.zeros(3))[index] = channels[t, c]
+        pose = {}
+        for i, name in enumerate(layout.names):
+            basis = np.eye(4)
+            basis[:3, :3] = euler_to_matrix(euler.get(name, np.zeros(3)), layout.rotation_modes[i])
+            basis[:3, 3] = loc.get(name, np.zeros(3))
+            p = layout.parents[i]
+            parent_part = np.eye(4) if p < 0 else pose[p] @ np.linalg.inv(rest[p])
+            pose[i] = parent_part @ rest[i] @ basis
+            out[t, i] = pose[i][:3, 3]
+    return out
+
+
+@pytest.mark.parametrize("trial", ["08_01", "35_17"])
+def test_blender_evaluation_of_channels_reproduces_core_fk(trial):
+    asf = read_asf(asf_path(trial))
+    sk = asf_to_skeleton(asf)
+    layout = armature_layout(sk)
+    values = read_amc(cmu_path(trial + ".amc"), asf).values[::9]
+    channels = dofs_to_channels(sk, layout, values)
+    trans, local = local_rotations_from_dofs(sk, values)
+    _, heads = forward_kinematics(sk, local, trans)
+    np.testing.assert_allclose(blender_pose_heads(layout, channels), heads, atol=1e-12)
+
+
+def test_rest_bones_follow_directions_and_are_rotations():
+    sk = asf_to_skeleton(read_asf(cmu_path("08.asf")))
+    layout = armature_layout(sk)
+    R = layout.bone_rotations
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+    along = layout.tails - layout.heads
+    along /= np.linalg.norm(along, axis=1, keepdims=True)
+    np.testing.assert_allclose(R[:, :, 1], along, atol=1e-12)  # bone Y = head -> tail
+    children = [i for i in range(1, sk.n_joints) if sk.parents[i] > 0]
+    # Children start at their parent's tail (within the 1e-4 rad alignment snap of the tail).
+    np.testing.assert_allclose(layout.heads[children], layout.tails[sk.parents[children]], atol=1e-4)
+
+
+def test_aligned_bones_get_one_channel_per_dof():
+    sk = asf_to_skeleton(read_asf(cmu_path("08.asf")))
+    layout = armature_layout(sk)
+    for name in ("ltibia", "lfemur", "rhumerus", "lradius", "ltoes"):
+        i = sk.index(name)
+        assert layout.aligned[i]
+        n_channels = sum(1 for c in layout.channels if c[0] == name)
+        assert n_channels == len(sk.dof_axes[i])
+        assert layout.locked[i].sum() == 3 - len(sk.dof_axes[i])
+    # 62 DOFs: 4 off-axis 2-DOF bones (feet, clavicles) need a third channel.
+    assert len(layout.channels) == 66
+
+
+@pytest.mark.parametrize("trial", TRIALS)
+def test_channels_dofs_round_trip(trial):
+    asf = read_asf(asf_path(trial))
+    sk = asf_to_skeleton(asf)
+    layout = armature_layout(sk)
+    values = read_amc(cmu_path(trial + ".amc"), asf).values
+    channels = dofs_to_channels(sk, layout, values)
+    # Decomposed Euler channels move no more than the bone's DOFs do (no +-pi flips); the raw
+    # CMU data has genuine jumps of its own (e.g. 35_01 lfoot), hence the relative bound.
+    joint, _, _ = sk.dof_table()
+    for c, (name, path, _) in enumerate(layout.channels):
+        if path == "rotation_euler" and layout.channel_dofs[c] < 0:
+            dof_step = np.abs(np.diff(values[:, joint == sk.index(name)], axis=0)).sum(axis=1)
+            assert np.all(np.abs(np.diff(channels[:, c])) <= 2 * dof_step + 1e-9)
+    np.testing.assert_allclose(channels_to_dofs(sk, layout, channels), values, atol=1e-10)
+
+
+def test_envelope_radii_are_plausible():
+    sk = asf_to_skeleton(read_asf(cmu_path("08.asf")))
+    radii = plausible_envelope_radii(sk.names, np.linalg.norm(sk.tails, axis=1))
+    assert radii.shape == (sk.n_joints, 2)
+    assert np.all((radii > 0.01) & (radii < 0.2))
+    assert radii[sk.index("lfemur"), 0] > radii[sk.index("lradius"), 0]
+    unknown = plausible_envelope_radii(["wing"], [0.5])
+    np.testing.assert_allclose(unknown, [[0.1, 0.1]])
