@@ -1,0 +1,19 @@
+"""Everything that touches bpy: operators, panels, properties and the bridges between Blender
+state and the NumPy core (Blender state -> bridge -> arrays -> core -> arrays -> bridge ->
+F-curves). Operators are thin adapters; logic lives in ``core/`` and the ``*_bridge`` modules.
+"""
+
+from . import io_acclaim, ui
+
+# Registered in this order, unregistered in reverse.
+MODULES = (io_acclaim, ui)
+
+
+def register():
+    for module in MODULES:
+        module.register()
+
+
+def unregister():
+    for module in reversed(MODULES):
+        module.unregister()

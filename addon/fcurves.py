@@ -1,0 +1,136 @@
+"""Slotted-action F-curve access (Blender 4.4+ layered actions; 5.0 has no ``Action.fcurves``).
+
+Keys are written in bulk (``keyframe_points.add`` + ``foreach_set``), never one
+``keyframe_insert`` at a time. Nothing here writes a non-finite value: callers get a
+``ValueError`` first.
+"""
+
+import bpy
+import numpy as np
+
+
+def pose_bone_path(bone_name, prop):
+    """Data path of a pose-bone property, with the bone name escaped (``pose.bones["a\\"b"].x``)."""
+    return f'pose.bones["{bpy.utils.escape_identifier(bone_name)}"].{prop}'
+
+
+def _enum_value(struct, prop, identifier):
+    return struct.bl_rna.properties[prop].enum_items[identifier].value
+
+
+def ensure_action(obj, action_name):
+    """The object's action and slot, creating an empty slotted action (and slot) when missing.
+
+    Returns
+    -------
+    action : bpy.types.Action
+    slot : bpy.types.ActionSlot
+    """
+    anim = obj.animation_data or obj.animation_data_create()
+    if anim.action is None:
+        anim.action = bpy.data.actions.new(action_name)
+    action = anim.action
+    if anim.action_slot is None:
+        suitable = [s for s in action.slots if s.target_id_type in ("OBJECT", "UNSPECIFIED")]
+        anim.action_slot = suitable[0] if suitable else action.slots.new(id_type="OBJECT", name=obj.name)
+    return action, anim.action_slot
+
+
+def channelbag(action, slot, ensure=False):
+    """The channelbag of ``slot`` in the action's first keyframe strip (created if ``ensure``)."""
+    if not action.layers:
+        if not ensure:
+            return None
+        action.layers.new("Layer")
+    layer = action.layers[0]
+    if not layer.strips:
+        if not ensure:
+            return None
+        layer.strips.new(type="KEYFRAME")
+    return layer.strips[0].channelbag(slot, ensure=ensure)
+
+
+def object_channelbag(obj):
+    """The channelbag driving ``obj`` (its assigned action and slot), or ``None``."""
+    anim = obj.animation_data
+    if anim is None or anim.action is None or anim.action_slot is None:
+        return None
+    return channelbag(anim.action, anim.action_slot, ensure=False)
+
+
+def write_new_fcurves(bag, channels, frames, values, interpolation="LINEAR"):
+    """Create one F-curve per channel and fill it with keys in bulk.
+
+    Parameters
+    ----------
+    bag : bpy.types.ActionChannelbag
+    channels : sequence of (data_path, index, group_name)
+    frames : array_like, shape (N,)
+        Scene frames (may be fractional).
+    values : array_like, shape (N, C)
+    interpolation : str
+        Keyframe interpolation of every new key.
+
+    Returns
+    -------
+    list of bpy.types.FCurve
+    """
+    frames = np.asarray(frames, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    if values.shape != (len(frames), len(channels)):
+        raise ValueError(f"Expected values of shape ({len(frames)}, {len(channels)}), got {values.shape}")
+    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(frames))):
+        raise ValueError("refusing to write non-finite keyframe values")
+    n = len(frames)
+    interp = _enum_value(bpy.types.Keyframe, "interpolation", interpolation)
+    co = np.empty(2 * n, dtype=np.float32)
+    co[0::2] = frames
+    interp_array = np.full(n, interp, dtype=np.int32)
+    groups = {g.name: g for g in bag.groups}
+    curves = []
+    for c, (path, index, group_name) in enumerate(channels):
+        if bag.fcurves.find(path, index=index) is not None:
+            raise ValueError(f"F-curve {path}[{index}] already exists")
+        fcurve = bag.fcurves.new(path, index=index)
+        if group_name:
+            group = groups.get(group_name)
+            if group is None:
+                group = groups[group_name] = bag.groups.new(group_name)
+            fcurve.group = group
+        points = fcurve.keyframe_points
+        points.add(n)
+        co[1::2] = values[:, c]
+        points.foreach_set("co", co)
+        points.foreach_set("interpolation", interp_array)
+        fcurve.update()
+        curves.append(fcurve)
+    return curves
+
+
+def evaluate_fcurves(bag, channels, frames, defaults):
+    """Values of channels at frames (F-curve evaluation; ``defaults`` where no F-curve exists).
+
+    Parameters
+    ----------
+    bag : bpy.types.ActionChannelbag or None
+    channels : sequence of (data_path, index, ...)
+    frames : array_like, shape (N,)
+    defaults : array_like, shape (C,)
+
+    Returns
+    -------
+    values : ndarray, shape (N, C)
+    present : ndarray, shape (C,), bool
+        Which channels had an F-curve.
+    """
+    frames = np.asarray(frames, dtype=float)
+    out = np.tile(np.asarray(defaults, dtype=float), (len(frames), 1))
+    present = np.zeros(len(channels), dtype=bool)
+    for c, channel in enumerate(channels):
+        fcurve = bag.fcurves.find(channel[0], index=channel[1]) if bag is not None else None
+        if fcurve is None:
+            continue
+        present[c] = True
+        evaluate = fcurve.evaluate
+        out[:, c] = [evaluate(f) for f in frames]
+    return out, present
