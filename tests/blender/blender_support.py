@@ -1,0 +1,42 @@
+"""Shared helpers of the headless Blender tests (imported by conftest before anything else).
+
+Importing this module points ``HOME`` and ``BLENDER_USER_RESOURCES`` at a temp folder *before*
+bpy is imported, so nothing leaks into (or from) a real Blender setup.
+"""
+
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+USER_DIR = Path(tempfile.mkdtemp(prefix="ts-blender-home-"))
+os.environ["HOME"] = str(USER_DIR)
+os.environ["BLENDER_USER_RESOURCES"] = str(USER_DIR / "blender")
+
+import bpy  # noqa: E402  (must come after the environment is set)
+
+EXTENSION_ID = "track_and_stride"
+MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
+
+
+def _manifest_version():
+    import tomllib
+    with open(ROOT / "blender_manifest.toml", "rb") as fh:
+        return tomllib.load(fh)["version"]
+
+
+def extension_zip():
+    """Path of the built extension zip (built now if `make extension` has not run)."""
+    path = ROOT / "build" / f"{EXTENSION_ID}-{_manifest_version()}.zip"
+    if not path.exists():
+        subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"), "--output", str(path)],
+                       check=True)
+    return path
+
+
+def datablock_counts():
+    """Counts of the datablock kinds operators may create (for 'nothing changed' checks)."""
+    return {kind: len(getattr(bpy.data, kind)) for kind in
+            ("objects", "armatures", "actions", "meshes", "images", "movieclips", "cameras")}

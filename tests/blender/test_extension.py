@@ -1,0 +1,66 @@
+"""The built zip installs like a user's, registers its operators/menus, and unregisters cleanly."""
+
+import zipfile
+
+import addon_utils
+import bpy
+
+from blender_support import MODULE, extension_zip
+
+
+def _menu_draw_funcs(menu):
+    draw = menu.draw
+    return [f for f in getattr(draw, "_draw_funcs", []) if getattr(f, "__module__", "").startswith(MODULE)]
+
+
+def _our_handlers():
+    found = []
+    for name in dir(bpy.app.handlers):
+        handlers = getattr(bpy.app.handlers, name)
+        if isinstance(handlers, list):
+            found += [h for h in handlers if getattr(h, "__module__", "").startswith(MODULE)]
+    return found
+
+
+def _our_classes():
+    found = []
+    for base in (bpy.types.Operator, bpy.types.Panel, bpy.types.Menu, bpy.types.PropertyGroup,
+                 bpy.types.FileHandler):
+        found += [c for c in base.__subclasses__()
+                  if c.__module__.startswith(MODULE) and getattr(c, "is_registered", False)]
+    return found
+
+
+def test_zip_holds_only_what_the_extension_needs():
+    names = zipfile.ZipFile(extension_zip()).namelist()
+    assert "blender_manifest.toml" in names and "__init__.py" in names
+    assert any(n.startswith("core/") for n in names) and any(n.startswith("addon/") for n in names)
+    for bad in ("tests/", "benchmarks/", "sample_scenes/", "__pycache__", ".pyc", "build/", "docs/"):
+        assert not any(bad in n for n in names), bad
+
+
+def test_operators_and_menus_are_registered():
+    assert bpy.ops.import_anim.acclaim.idname() == "IMPORT_ANIM_OT_acclaim"
+    assert bpy.ops.export_anim.acclaim.idname() == "EXPORT_ANIM_OT_acclaim"
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 1
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_export)) == 1
+    assert hasattr(bpy.types, "VIEW3D_PT_track_and_stride")
+
+
+def test_register_unregister_register_leaves_nothing_stale():
+    registered = {c.__name__ for c in _our_classes()}
+    assert registered
+    handlers_before = len(_our_handlers())
+    addon_utils.disable(MODULE, default_set=True)
+    try:
+        assert _our_classes() == []
+        assert _menu_draw_funcs(bpy.types.TOPBAR_MT_file_import) == []
+        assert _menu_draw_funcs(bpy.types.TOPBAR_MT_file_export) == []
+        assert _our_handlers() == []
+        assert not hasattr(bpy.types, "VIEW3D_PT_track_and_stride")
+    finally:
+        addon_utils.enable(MODULE, default_set=True)
+    assert {c.__name__ for c in _our_classes()} == registered
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 1  # no duplicate entries
+    assert len(_our_handlers()) == handlers_before
+    assert bpy.ops.import_anim.acclaim.poll() in (True, False)
