@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import (AXIS_INDEX, euler_to_matrix, make_euler_continuous, matrix_to_euler,
+from .kinematics import (Skeleton, euler_to_matrix, make_euler_continuous, matrix_to_euler,
                          rest_pose)
 
 _LETTERS = "XYZ"
@@ -242,6 +242,91 @@ def channels_to_dofs(skeleton, layout, channels):
             out[:, cols] = euler[:, axis[cols]]
             done.add(i)
     return out
+
+
+def topological_order(parents):
+    """Order of bones with every parent before its children (stable: original order kept).
+
+    Parameters
+    ----------
+    parents : sequence of int, (B,)
+        Parent index per bone, -1 for roots.
+
+    Returns
+    -------
+    list of int
+
+    Raises
+    ------
+    ValueError
+        When the parent links have a cycle or point outside the list.
+    """
+    parents = [int(p) for p in parents]
+    n = len(parents)
+    if any(p < -1 or p >= n for p in parents):
+        raise ValueError("parent index out of range")
+    order, placed = [], [False] * n
+    while len(order) < n:
+        progress = False
+        for i in range(n):
+            if not placed[i] and (parents[i] < 0 or placed[parents[i]]):
+                order.append(i)
+                placed[i] = True
+                progress = True
+        if not progress:
+            raise ValueError("the parent links have a cycle")
+    return order
+
+
+def skeleton_from_bones(names, parents, bone_matrices, lengths, dof_axes=None, limits=None,
+                        root_translation=True):
+    """Core skeleton of a Blender armature whose joint frames are the bone frames.
+
+    Parameters
+    ----------
+    names : sequence of str, (B,)
+        In topological order, one root first (see :func:`topological_order`).
+    parents : sequence of int, (B,)
+    bone_matrices : array_like, shape (B, 4, 4)
+        Rest ``bone.matrix_local`` (bone frame -> armature space; Y along the bone).
+    lengths : array_like, shape (B,), metres
+    dof_axes : sequence of tuple, optional
+        Rotation DOF axes per bone (default: all three, X then Y then Z).
+    limits : array_like, shape (B, 3, 2), optional
+    root_translation : bool
+
+    Returns
+    -------
+    Skeleton
+        ``local_rotations`` of this skeleton are the pose bones' basis rotations, and its root
+        translation is ``B_root @ pose_location``.
+    """
+    M = np.asarray(bone_matrices, dtype=float)
+    n = len(names)
+    if M.shape != (n, 4, 4):
+        raise ValueError(f"Expected bone_matrices of shape ({n}, 4, 4), got {M.shape}")
+    R = M[:, :3, :3].copy()
+    # Blender stores float32 matrices: re-orthonormalise (polar decomposition via SVD).
+    u, _, vt = np.linalg.svd(R)
+    R = u @ vt
+    heads = M[:, :3, 3]
+    parents = np.asarray(parents, dtype=int)
+    rest = np.empty((n, 3, 3))
+    offsets = np.empty((n, 3))
+    for i in range(n):
+        p = parents[i]
+        if p < 0:
+            rest[i], offsets[i] = R[i], heads[i]
+        else:
+            rest[i] = R[p].T @ R[i]
+            offsets[i] = R[p].T @ (heads[i] - heads[p])
+    tails = np.zeros((n, 3))
+    tails[:, 1] = np.asarray(lengths, dtype=float)
+    if dof_axes is None:
+        dof_axes = [(0, 1, 2)] * n
+    return Skeleton(names=tuple(names), parents=parents, offsets=offsets, rest_rotations=rest,
+                    tails=tails, dof_axes=tuple(dof_axes), limits=limits,
+                    root_translation=root_translation)
 
 
 # Envelope radii as a fraction of a plausible adult body (metres), by CMU-style bone name

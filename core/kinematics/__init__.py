@@ -9,6 +9,8 @@ from .rotations import (
     log_so3,
     make_euler_continuous,
     matrix_to_euler,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
     skew,
 )
 from .skeleton import Skeleton
@@ -27,6 +29,8 @@ __all__ = [
     "log_so3",
     "make_euler_continuous",
     "matrix_to_euler",
+    "matrix_to_quaternion",
+    "quaternion_to_matrix",
     "rest_pose",
     "skew",
 ]

@@ -249,3 +249,84 @@ def log_so3(matrix):
         sign[sign == 0] = 1.0
         out[near_pi] = (sign * theta[near_pi])[..., None] * u
     return out
+
+
+def quaternion_to_matrix(quaternion):
+    """Rotation matrices from quaternions ``(w, x, y, z)`` (normalised first; Blender's order).
+
+    Parameters
+    ----------
+    quaternion : array_like, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+
+    Raises
+    ------
+    ValueError
+        For a zero quaternion (no rotation defined).
+    """
+    q = np.asarray(quaternion, dtype=float)
+    if q.shape[-1:] != (4,):
+        raise ValueError(f"Expected shape (..., 4), got {q.shape}")
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.any(norm < 1e-12):
+        raise ValueError("zero quaternion has no rotation")
+    w, x, y, z = np.moveaxis(q / norm, -1, 0)
+    out = np.empty(q.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    out[..., 0, 1] = 2 * (x * y - w * z)
+    out[..., 0, 2] = 2 * (x * z + w * y)
+    out[..., 1, 0] = 2 * (x * y + w * z)
+    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    out[..., 1, 2] = 2 * (y * z - w * x)
+    out[..., 2, 0] = 2 * (x * z - w * y)
+    out[..., 2, 1] = 2 * (y * z + w * x)
+    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+def matrix_to_quaternion(matrix):
+    """Unit quaternions ``(w, x, y, z)`` with ``w >= 0`` of rotation matrices.
+
+    Uses the largest of the four diagonal combinations for precision (Shepperd's method).
+
+    Parameters
+    ----------
+    matrix : array_like, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
+    R = np.asarray(matrix, dtype=float)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"Expected shape (..., 3, 3), got {R.shape}")
+    flat = R.reshape(-1, 3, 3)
+    trace = np.trace(flat, axis1=1, axis2=2)
+    diag = np.diagonal(flat, axis1=1, axis2=2)
+    choice = np.argmax(np.concatenate([trace[:, None], diag], axis=1), axis=1)
+    q = np.empty((len(flat), 4))
+    for c in range(4):
+        m = choice == c
+        if not np.any(m):
+            continue
+        r = flat[m]
+        if c == 0:
+            s = np.sqrt(1.0 + trace[m]) * 2.0
+            q[m] = np.stack([0.25 * s, (r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s,
+                             (r[:, 1, 0] - r[:, 0, 1]) / s], axis=1)
+        else:
+            i = c - 1
+            j, k = (i + 1) % 3, (i + 2) % 3
+            s = np.sqrt(1.0 + r[:, i, i] - r[:, j, j] - r[:, k, k]) * 2.0
+            vec = np.empty((len(r), 3))
+            vec[:, i] = 0.25 * s
+            vec[:, j] = (r[:, j, i] + r[:, i, j]) / s
+            vec[:, k] = (r[:, k, i] + r[:, i, k]) / s
+            w = (r[:, k, j] - r[:, j, k]) / s
+            q[m] = np.concatenate([w[:, None], vec], axis=1)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    return q.reshape(R.shape[:-2] + (4,))

@@ -98,3 +98,51 @@ def test_envelope_radii_are_plausible():
     assert radii[sk.index("lfemur"), 0] > radii[sk.index("lradius"), 0]
     unknown = plausible_envelope_radii(["wing"], [0.5])
     np.testing.assert_allclose(unknown, [[0.1, 0.1]])
+
+
+def test_skeleton_from_bones_reproduces_blender_evaluation():
+    from core.armature import skeleton_from_bones, topological_order
+    from core.pose_channels import rotations_from_channels
+
+    asf = read_asf(cmu_path("35.asf"))
+    sk = asf_to_skeleton(asf)
+    layout = armature_layout(sk)
+    lengths = np.linalg.norm(layout.tails - layout.heads, axis=1)
+    # Shuffle the bones as Blender might list them, then restore a topological order.
+    rng = np.random.default_rng(0)
+    perm = np.concatenate([[0], 1 + rng.permutation(sk.n_joints - 1)])
+    inverse = np.argsort(perm)
+    shuffled_parents = [int(inverse[layout.parents[i]]) if layout.parents[i] >= 0 else -1 for i in perm]
+    order = topological_order(shuffled_parents)
+    names = [layout.names[perm[i]] for i in order]
+    index = {name: k for k, name in enumerate(names)}
+    parents = [index[layout.names[layout.parents[sk.index(n)]]] if layout.parents[sk.index(n)] >= 0 else -1
+               for n in names]
+    matrices = layout.bone_matrices()[[sk.index(n) for n in names]]
+    bsk = skeleton_from_bones(names, parents, matrices, lengths[[sk.index(n) for n in names]])
+    values = read_amc(cmu_path("35_18.amc"), asf).values[::11]
+    channels = dofs_to_channels(sk, layout, values)
+    n = len(values)
+    local = np.broadcast_to(np.eye(3), (n, len(names), 3, 3)).copy()
+    root_location = np.zeros((n, 3))
+    for c, (name, path, idx) in enumerate(layout.channels):
+        if path == "location":
+            root_location[:, idx] = channels[:, c]
+    for name in names:
+        cols = [c for c, ch in enumerate(layout.channels) if ch[0] == name and ch[1] == "rotation_euler"]
+        euler = np.zeros((n, 3))
+        for c in cols:
+            euler[:, layout.channels[c][2]] = channels[:, c]
+        local[:, index[name]] = rotations_from_channels(euler, layout.rotation_modes[sk.index(name)])
+    translation = root_location @ bsk.rest_rotations[0].T
+    _, heads = forward_kinematics(bsk, local, translation)
+    expected = blender_pose_heads(layout, channels)[:, [sk.index(n) for n in names]]
+    np.testing.assert_allclose(heads, expected, atol=1e-12)
+
+
+def test_topological_order_rejects_cycles():
+    from core.armature import topological_order
+
+    assert topological_order([2, -1, 1]) == [1, 2, 0]
+    with pytest.raises(ValueError, match="cycle"):
+        topological_order([1, 0])

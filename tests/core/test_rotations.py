@@ -95,3 +95,20 @@ def test_bad_shapes_raise():
         euler_to_matrix(np.zeros(3), "XXY")
     with pytest.raises(ValueError, match=r"\(\.\.\., 3, 3\)"):
         matrix_to_euler(np.zeros((3, 2)))
+
+
+def test_quaternions_match_scipy_and_round_trip():
+    from core.kinematics import matrix_to_quaternion, quaternion_to_matrix
+
+    rot = Rotation.random(500, random_state=5)
+    xyzw = rot.as_quat()
+    wxyz = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    np.testing.assert_allclose(quaternion_to_matrix(wxyz * 3.0), rot.as_matrix(), atol=1e-12)
+    q = matrix_to_quaternion(rot.as_matrix())
+    assert np.all(q[:, 0] >= 0)
+    np.testing.assert_allclose(np.abs(np.sum(q * wxyz, axis=1)), 1.0, atol=1e-12)
+    # Half turns (w = 0) take the other branches of Shepperd's method.
+    half = np.stack([Rotation.from_rotvec(np.pi * np.eye(3)[i]).as_matrix() for i in range(3)])
+    np.testing.assert_allclose(quaternion_to_matrix(matrix_to_quaternion(half)), half, atol=1e-12)
+    with pytest.raises(ValueError, match="zero quaternion"):
+        quaternion_to_matrix(np.zeros(4))
