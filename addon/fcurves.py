@@ -134,3 +134,80 @@ def evaluate_fcurves(bag, channels, frames, defaults):
         evaluate = fcurve.evaluate
         out[:, c] = [evaluate(f) for f in frames]
     return out, present
+
+
+def _keyframe_state(points):
+    """Arrays describing every keyframe exactly (for preservation checks and restores)."""
+    n = len(points)
+    state = {}
+    for prop, width, dtype in (("co", 2, np.float32), ("handle_left", 2, np.float32),
+                               ("handle_right", 2, np.float32), ("interpolation", 1, np.int32),
+                               ("handle_left_type", 1, np.int32), ("handle_right_type", 1, np.int32),
+                               ("easing", 1, np.int32)):
+        array = np.empty(n * width, dtype=dtype)
+        points.foreach_get(prop, array)
+        state[prop] = array.reshape(n, width) if width > 1 else array
+    return state
+
+
+def keyframe_state(fcurve):
+    """Exact state (co, handles, interpolation, handle types, easing) of an F-curve's keys."""
+    return _keyframe_state(fcurve.keyframe_points)
+
+
+def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
+    """Add keys to an F-curve (created when missing) without changing any existing key.
+
+    New keys at frames that already carry a key are skipped: the user's key wins. Existing keys
+    keep their exact co, handles, interpolation, handle types and easing (handles are restored
+    after Blender re-sorts and recalculates the curve).
+
+    Parameters
+    ----------
+    bag : bpy.types.ActionChannelbag
+    data_path : str
+    index : int
+    group_name : str or None
+    frames : array_like, shape (N,)
+    values : array_like, shape (N,)
+
+    Returns
+    -------
+    int
+        Number of keys added.
+    """
+    frames = np.asarray(frames, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    if frames.shape != values.shape or frames.ndim != 1:
+        raise ValueError(f"frames and values must be 1-D of equal length, got {frames.shape}, {values.shape}")
+    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(frames))):
+        raise ValueError(f"refusing to write non-finite keyframe values to {data_path}[{index}]")
+    fcurve = bag.fcurves.find(data_path, index=index)
+    if fcurve is None:
+        fcurve = bag.fcurves.new(data_path, index=index)
+        if group_name:
+            group = next((g for g in bag.groups if g.name == group_name), None) or bag.groups.new(group_name)
+            fcurve.group = group
+    points = fcurve.keyframe_points
+    old = _keyframe_state(points)
+    old_frames = old["co"][:, 0].astype(np.float64)
+    keep = np.ones(len(frames), dtype=bool)
+    if len(old_frames):
+        nearest = np.min(np.abs(frames[:, None] - old_frames[None, :]), axis=1)
+        keep = nearest > 1e-4
+    frames, values = frames[keep], values[keep]
+    if len(frames) == 0:
+        return 0
+    n_old = len(old_frames)
+    points.add(len(frames))
+    co = np.concatenate([old["co"], np.stack([frames, values], axis=1).astype(np.float32)])
+    points.foreach_set("co", co.reshape(-1))
+    fcurve.update()  # sorts keys, computes handles of the new ones
+    if n_old:
+        new_state = _keyframe_state(points)
+        positions = np.searchsorted(new_state["co"][:, 0], old["co"][:, 0])
+        for prop in ("handle_left", "handle_right"):
+            array = new_state[prop]
+            array[positions] = old[prop]
+            points.foreach_set(prop, array.reshape(-1))
+    return int(len(frames))
