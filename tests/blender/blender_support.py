@@ -27,10 +27,16 @@ def _manifest_version():
         return tomllib.load(fh)["version"]
 
 
+def _newest_source_mtime():
+    files = [ROOT / "__init__.py", ROOT / "blender_manifest.toml"]
+    files += [p for d in ("core", "addon") for p in (ROOT / d).rglob("*.py")]
+    return max(p.stat().st_mtime for p in files)
+
+
 def extension_zip():
-    """Path of the built extension zip (built now if `make extension` has not run)."""
+    """Path of the built extension zip, rebuilt when missing or older than the sources."""
     path = ROOT / "build" / f"{EXTENSION_ID}-{_manifest_version()}.zip"
-    if not path.exists():
+    if not path.exists() or path.stat().st_mtime < _newest_source_mtime():
         subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"), "--output", str(path)],
                        check=True)
     return path
