@@ -12,8 +12,26 @@ Root travel     :func:`root_features`, :func:`integrate_root`, :class:`RootFrame
 Building blocks alignment, factorisation, MAP refinement, GP, EKF, grid initialisation, L-BFGS
 """
 
+from .alignment import AlignmentResult, align_sequences, cycle_profile, estimate_period, \
+    phase_shift
+from .factorization import choose_n_styles, factorize
+from .gp import PhaseGP, build_phase_gp, fit_phase_gp
+from .map_refinement import MapResult, map_objective, refine_map
 from .optimize import minimize_lbfgs
 
 __all__ = [
+    "AlignmentResult",
+    "MapResult",
+    "PhaseGP",
+    "align_sequences",
+    "build_phase_gp",
+    "choose_n_styles",
+    "cycle_profile",
+    "estimate_period",
+    "factorize",
+    "fit_phase_gp",
+    "map_objective",
     "minimize_lbfgs",
+    "phase_shift",
+    "refine_map",
 ]
