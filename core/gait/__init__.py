@@ -15,14 +15,27 @@ Building blocks alignment, factorisation, MAP refinement, GP, EKF, grid initiali
 from .alignment import AlignmentResult, align_sequences, cycle_profile, estimate_period, \
     phase_shift
 from .factorization import choose_n_styles, factorize
+from .features import ObservationStream, observations_from_dofs
 from .gp import PhaseGP, build_phase_gp, fit_phase_gp
+from .learning import learn_model
 from .map_refinement import MapResult, map_objective, refine_map
+from .model import FORMAT_VERSION, GaitModel, GaitModelFileError
 from .optimize import minimize_lbfgs
+from .prediction import interpolate_styles, mix_styles, predict, predict_dofs
+from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, RootFrame, integrate_root, \
+    root_features
 
 __all__ = [
     "AlignmentResult",
+    "FORMAT_VERSION",
+    "GaitModel",
+    "GaitModelFileError",
     "MapResult",
+    "ObservationStream",
     "PhaseGP",
+    "ROOT_DOF_NAMES",
+    "ROOT_FEATURE_NAMES",
+    "RootFrame",
     "align_sequences",
     "build_phase_gp",
     "choose_n_styles",
@@ -30,8 +43,16 @@ __all__ = [
     "estimate_period",
     "factorize",
     "fit_phase_gp",
+    "integrate_root",
+    "interpolate_styles",
+    "learn_model",
     "map_objective",
     "minimize_lbfgs",
+    "mix_styles",
+    "observations_from_dofs",
     "phase_shift",
+    "predict",
+    "predict_dofs",
     "refine_map",
+    "root_features",
 ]
