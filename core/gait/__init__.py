@@ -14,9 +14,13 @@ Building blocks alignment, factorisation, MAP refinement, GP, EKF, grid initiali
 
 from .alignment import AlignmentResult, align_sequences, cycle_profile, estimate_period, \
     phase_shift
+from .ekf import FilterContext, ekf_filter, ekf_predict, ekf_update, make_context, \
+    observation_jacobian
+from .em import AdaptResult, adapt, m_step
 from .factorization import choose_n_styles, factorize
 from .features import ObservationStream, observations_from_dofs
 from .gp import PhaseGP, build_phase_gp, fit_phase_gp
+from .initial_phase import GridResult, grid_search
 from .learning import learn_model
 from .map_refinement import MapResult, map_objective, refine_map
 from .model import FORMAT_VERSION, GaitModel, GaitModelFileError
@@ -26,29 +30,40 @@ from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, RootFrame, integrat
     root_features
 
 __all__ = [
+    "AdaptResult",
     "AlignmentResult",
     "FORMAT_VERSION",
+    "FilterContext",
     "GaitModel",
     "GaitModelFileError",
+    "GridResult",
     "MapResult",
     "ObservationStream",
     "PhaseGP",
     "ROOT_DOF_NAMES",
     "ROOT_FEATURE_NAMES",
     "RootFrame",
+    "adapt",
     "align_sequences",
     "build_phase_gp",
     "choose_n_styles",
     "cycle_profile",
+    "ekf_filter",
+    "ekf_predict",
+    "ekf_update",
     "estimate_period",
     "factorize",
     "fit_phase_gp",
+    "grid_search",
     "integrate_root",
     "interpolate_styles",
     "learn_model",
+    "m_step",
+    "make_context",
     "map_objective",
     "minimize_lbfgs",
     "mix_styles",
+    "observation_jacobian",
     "observations_from_dofs",
     "phase_shift",
     "predict",
