@@ -24,6 +24,8 @@ from .initial_phase import GridResult, grid_search
 from .learning import learn_model
 from .map_refinement import MapResult, map_objective, refine_map
 from .model import FORMAT_VERSION, GaitModel, GaitModelFileError
+from .online import OnlineConfig, OnlineEM, OnlineState, online_forecast, online_init, \
+    online_step
 from .optimize import minimize_lbfgs
 from .prediction import interpolate_styles, mix_styles, predict, predict_dofs
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, RootFrame, integrate_root, \
@@ -39,6 +41,9 @@ __all__ = [
     "GridResult",
     "MapResult",
     "ObservationStream",
+    "OnlineConfig",
+    "OnlineEM",
+    "OnlineState",
     "PhaseGP",
     "ROOT_DOF_NAMES",
     "ROOT_FEATURE_NAMES",
@@ -65,6 +70,9 @@ __all__ = [
     "mix_styles",
     "observation_jacobian",
     "observations_from_dofs",
+    "online_forecast",
+    "online_init",
+    "online_step",
     "phase_shift",
     "predict",
     "predict_dofs",
