@@ -27,6 +27,8 @@ scale        (Dc,)         physical = scaled × scale
 Q            (2, 2)        process noise per frame at the filter rate
 r            float         observation noise variance (scaled units²)
 omega_min/max float        clip range of ω, radians per frame
+omega_mean   float         geometric mean of the training ω (start value)
+omega_train  (S,)          training ω (cadence prior of the initial grid)
 w_mean       (J,)          style prior mean (M-step ridge)
 w_prec       (J, J)        style prior precision
 rate_mask    (Dc,) bool    channels that are time derivatives (scaled by retiming)
@@ -67,18 +69,45 @@ class FilterContext:
     omega_min: float = 0.0
     omega_max: float = np.inf
     omega_mean: float = 0.1
-    omega_log_sd: float = 0.15
+    omega_train: np.ndarray = field(default=None, repr=False)
     w_mean: np.ndarray = field(default=None, repr=False)
     w_prec: np.ndarray = field(default=None, repr=False)
     rate_mask: np.ndarray = field(default=None, repr=False)
 
     def __post_init__(self):
         set_ = object.__setattr__
-        set_(self, "cos_phases", np.cos(self.phases))
-        set_(self, "sin_phases", np.sin(self.phases))
-        set_(self, "inputs", np.stack([self.cos_phases, self.sin_phases], axis=1))  # X̃ (P, 2)
-        # β1 exp(β2 (cos Δ - 1)) = exp(β2 cos Δ + log β1 - β2)
-        set_(self, "log_rbf0", math.log(self.beta[0]) - self.beta[1])
+        cos_p, sin_p = np.cos(self.phases), np.sin(self.phases)
+        set_(self, "inputs", np.stack([cos_p, sin_p], axis=1))             # X̃ (P, 2)
+        # Homogeneous inputs [cos φ_i, sin φ_i, 1] (3, P): one small matrix product gives every
+        # kernel ingredient at a query phase (the hot path of the online filter).
+        set_(self, "_homog", np.stack([cos_p, sin_p, np.ones_like(cos_p)]))
+        b1, b2, b3 = (float(v) for v in self.beta[:3])
+        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle.
+        set_(self, "_b", (b1, b2, b3, math.log(b1) - b2))
+        p = len(self.phases)
+        weights = np.zeros((3, 2 * p))
+        weights[:2, :p] = b2 * self.inputs.T
+        weights[2, :p] = math.log(b1) - b2
+        weights[:2, p:] = b3 * self.inputs.T
+        set_(self, "_rows_weights", weights)                                # (3, 2P)
+        set_(self, "w_prior_term", self.w_prec @ self.w_mean)              # Λ w̄
+        set_(self, "_cache", {})
+
+    def steps(self, n):
+        """``[1, 2, …, n]`` as floats (cached; read-only)."""
+        key = ("steps", n)
+        if key not in self._cache:
+            arr = np.arange(1.0, n + 1.0)
+            arr.setflags(write=False)
+            self._cache[key] = arr
+        return self._cache[key]
+
+    def online_frames(self, config):
+        """``config.frames(fps)`` cached per configuration."""
+        key = ("frames", config)
+        if key not in self._cache:
+            self._cache[key] = config.frames(self.fps)
+        return self._cache[key]
 
     @property
     def n_bases(self):
@@ -100,27 +129,38 @@ class FilterContext:
         Evaluated on ``x̃ = [cos φ, sin φ]`` as in eq. 11: ``x̃ᵀx̃_i = cos(φ - φ_i)`` and
         ``∂k/∂φ = ∂k/∂x̃ · [-sin φ, cos φ] = (β2 k_rbf + β3) sin(φ_i - φ)``.
         """
+        pair = self.kernel_pair(phi)
+        return pair[0], pair[1]
+
+    def kernel_pair(self, phi):
+        """``[k; ∂k/∂φ]`` as one (2, P) array (see :meth:`kernel_row`)."""
         c, s = math.cos(phi), math.sin(phi)
-        cos_d = self.cos_phases * c + self.sin_phases * s           # x̃ᵀ x̃_i
-        rbf = np.exp(cos_d * self.beta[1] + self.log_rbf0)          # β1 exp(-β2/2 ||x̃-x̃_i||²)
-        return (rbf + self.beta[2] * cos_d,
-                (rbf * self.beta[1] + self.beta[2]) * (self.sin_phases * c - self.cos_phases * s))
+        b1, b2, b3, log0 = self._b
+        rows = np.array([[b2 * c, b2 * s, log0],      # β2 x̃ᵀx̃_i + log β1 - β2
+                         [0.0, 0.0, 1.0],             # 1
+                         [-b2 * s, b2 * c, 0.0],      # β2 sin(φ_i - φ)
+                         [b3 * c, b3 * s, 0.0],       # β3 x̃ᵀx̃_i
+                         [-b3 * s, b3 * c, 0.0]]) @ self._homog
+        # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin]
+        return np.exp(rows[0]) * rows[1:3] + rows[3:5]
 
     def kernel_value(self, phi):
         """``k(x̃(φ))`` only, (P,)."""
-        cos_d = self.cos_phases * math.cos(phi) + self.sin_phases * math.sin(phi)
-        return np.exp(cos_d * self.beta[1] + self.log_rbf0) + self.beta[2] * cos_d
+        c, s = math.cos(phi), math.sin(phi)
+        b1, b2, b3, log0 = self._b
+        rows = np.array([[b2 * c, b2 * s, log0], [b3 * c, b3 * s, 0.0]]) @ self._homog
+        return np.exp(rows[0]) + rows[1]
 
     def kernel_rows(self, phis):
         """``k`` for many phases, (n, P)."""
         phis = np.asarray(phis, dtype=float)
-        xt = np.empty((len(phis), 2))
-        xt[:, 0] = np.cos(phis)
-        xt[:, 1] = np.sin(phis)
-        cos_d = xt @ self.inputs.T
-        out = np.exp(cos_d * self.beta[1] + self.log_rbf0)
-        out += cos_d * self.beta[2]
-        return out
+        query = np.empty((len(phis), 3))
+        query[:, 0] = np.cos(phis)
+        query[:, 1] = np.sin(phis)
+        query[:, 2] = 1.0
+        both = query @ self._rows_weights                   # [exponent | β3 x̃ᵀx̃_i]
+        p = len(self.phases)
+        return np.exp(both[:, :p]) + both[:, p:]
 
     def means(self, phis):
         """``μ(x̃)`` of every basis at many phases, (n, J, Dc), scaled units."""
@@ -160,13 +200,14 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
     alpha_w = np.ascontiguousarray(alpha.reshape(n_bases, -1))
     alpha_flat = np.ascontiguousarray(alpha.transpose(1, 0, 2).reshape(n_phase, -1))
     omega_min, omega_max = model.omega_range(fps)
-    omega_mean, omega_log_sd = model.omega_prior(fps)
+    omega_train = model.training_omegas(fps)
     w_prec = np.linalg.inv(style_prior_scale * model.style_cov)
     return FilterContext(model=model, fps=fps, channels=index, phases=gp.phases, beta=gp.beta,
                          alpha_w=alpha_w, alpha_flat=alpha_flat,
                          scale=model.channel_scale[index], Q=model.process_noise(fps),
                          r=model.r, omega_min=omega_min, omega_max=omega_max,
-                         omega_mean=omega_mean, omega_log_sd=omega_log_sd,
+                         omega_mean=float(np.exp(np.mean(np.log(omega_train)))),
+                         omega_train=omega_train,
                          w_mean=model.style_mean.copy(), w_prec=0.5 * (w_prec + w_prec.T),
                          rate_mask=model.rate_mask[index])
 
@@ -208,16 +249,14 @@ def ekf_predict(x, P, Q):
 
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     """Scalar core of :func:`ekf_update`; returns floats and the squared innovation."""
-    k, dk = ctx.kernel_row(phi_pred)
-    mean = k @ alpha_comb
-    g = dk @ alpha_comb                          # ∂(μ w)/∂φ: the φ column of H (eq. 19)
-    e = y - mean                                 # innovation (eq. 21)
-    if not math.isfinite(e.sum()):
-        ok = np.isfinite(e)
-        e, g = e[ok], g[ok]
-    n = len(e)
+    both = ctx.kernel_pair(phi_pred) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g])
+    both[0] -= y
+    both[0] *= -1.0                                # innovation e = y - μ(x⁻) w (eq. 21)
+    if not math.isfinite(both[0].sum()):
+        both = both[:, np.isfinite(both[0])]
+    n = both.shape[1]
     r = ctx.r
-    gg, ge, ee = float(g @ g), float(g @ e), float(e @ e)
+    (ee, ge), (_, gg) = (both @ both.T).tolist()
     # Information form of eqs. 20-22: P⁺ = (P⁻⁻¹ + diag(0, gᵀg/r))⁻¹, x⁺ = x⁻ + P⁺ [0, gᵀe/r].
     det = a * c - b * b
     ia, ib, ic = c / det, -b / det, a / det + gg / r

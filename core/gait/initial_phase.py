@@ -7,10 +7,12 @@ the model's period range) and initial phases φ₀ (evenly spaced) is scored on 
 observations under a constant-ω model, ``φ_t = φ₀ + ω t``, with its own best style:
 
     cost(ω, φ₀) = min_w  Σ_t ||y_t - μ(φ_t) w||² / r  +  (w - w̄)ᵀ Λ (w - w̄)
-                         + ((log ω - log ω̄) / σ_log ω)²
+                         - 2 log Σ_s exp(-(log ω - log ω_s)² / (2 σ²))
 
 (-2 log posterior up to constants: the eq. 12 likelihood, the style prior of the M-step and a
-log-normal prior on the cadence from the training periods). Both the normal equations and the
+cadence prior: a mixture of log-normals around the training walkers' ω_s, σ = ``OMEGA_LOG_SD``
+(±10 %). A few frames hardly constrain ω; without that prior the grid picks cadences far from
+any walker's, with it a walk and a run are both plausible starting points). Both the normal equations and the
 residual use per-phase tables of ``μ`` and ``μᵀμ`` on a fine phase grid (``N_TABLE`` samples), so
 scoring ~10³ candidates over tens of frames costs about a millisecond. The best candidate seeds
 the EKF (and the online filter's re-acquisition after a change of walker).
@@ -23,6 +25,7 @@ import numpy as np
 __all__ = ["GridResult", "grid_search", "phase_tables"]
 
 N_TABLE = 360
+OMEGA_LOG_SD = 0.1
 DEFAULT_N_PHI = 36
 DEFAULT_N_OMEGA = 24
 
@@ -126,8 +129,11 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
     resid = yy - 2.0 * np.einsum("...j,...j->...", w, b_sum) \
         + np.einsum("...j,...jk,...k->...", w, a_sum, w)
     dw = w - ctx.w_mean
+    z = (np.log(omegas)[:, None] - np.log(ctx.omega_train)[None, :]) / OMEGA_LOG_SD
+    zmin = np.min(z**2, axis=1)
+    cadence = zmin - 2.0 * np.log(np.mean(np.exp(-0.5 * (z**2 - zmin[:, None])), axis=1))
     cost = np.maximum(resid, 0.0) / r + np.einsum("...j,jk,...k->...", dw, prec, dw) \
-        + (((np.log(omegas) - np.log(ctx.omega_mean)) / ctx.omega_log_sd) ** 2)[:, None]
+        + cadence[:, None]
     i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
     omega, phi0 = float(omegas[i]), float(phis[j])
     return GridResult(omega=omega, phi0=phi0,

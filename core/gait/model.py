@@ -214,16 +214,10 @@ class GaitModel:
         fps = self.fps if fps is None else float(fps)
         return 2.0 * np.pi / (self.lag_range[1] * fps), 2.0 * np.pi / (self.lag_range[0] * fps)
 
-    def omega_prior(self, fps=None):
-        """(geometric mean ω, standard deviation of log ω) of the training styles at ``fps``.
-
-        The log spread is floored at 0.15 (±15 %) so the prior never pins a new walker to the
-        training cadences.
-        """
+    def training_omegas(self, fps=None):
+        """Phase velocities 2π / T^s of the training styles, radians per frame at ``fps``."""
         fps = self.fps if fps is None else float(fps)
-        omegas = 2.0 * np.pi / (self.periods / self.fps * fps)
-        logs = np.log(omegas)
-        return float(np.exp(logs.mean())), float(max(logs.std(), 0.15))
+        return 2.0 * np.pi / (self.periods / self.fps * fps)
 
     def process_noise(self, fps=None):
         """Q at ``fps``: with k = model fps / fps frames, ``diag(q_ω k³, q_φ k)`` (a

@@ -106,14 +106,11 @@ class OnlineState(NamedTuple):
         η of the discounted averages.
     comb : ndarray, shape (P, Dc)
         ``Σ_j w_j α_j`` for the current w (cached for the next E-step and the forecast).
-    buffer : ndarray, shape (K, Dc)
-        Ring buffer of recent scaled observations.
-    buffer_sq : ndarray, shape (K,)
+    recent : tuple of ndarray, each shape (Dc,)
+        The last K scaled observations, oldest first (the arrays passed to
+        :func:`online_step`, not copied: do not modify them afterwards).
+    recent_nu : tuple of float
         Their normalised squared innovations ν (0 while acquiring).
-    position : int
-        Next ring slot.
-    count : int
-        Valid ring entries.
     frames : int
         Frames seen.
     window : int
@@ -135,10 +132,8 @@ class OnlineState(NamedTuple):
     s_my: np.ndarray
     eta: float
     comb: np.ndarray
-    buffer: np.ndarray
-    buffer_sq: np.ndarray
-    position: int
-    count: int
+    recent: tuple
+    recent_nu: tuple
     frames: int
     window: int
     locked: bool
@@ -149,22 +144,17 @@ class OnlineState(NamedTuple):
 
 def online_init(ctx, config):
     """Initial (unlocked) state: mean training cadence, phase 0, mean training style."""
-    acquire, relock = config.frames(ctx.fps)
-    size = max(acquire, relock)
     w = ctx.w_mean.copy()
     return OnlineState(x=np.array([ctx.omega_mean, 0.0]),
                        P=np.diag([(INIT_OMEGA_REL_SD * ctx.omega_mean) ** 2, np.pi**2]),
                        w=w, s_mm=np.zeros((len(w), len(w))), s_my=np.zeros(len(w)), eta=1.0,
-                       comb=ctx.combine(w), buffer=np.zeros((size, ctx.n_channels)),
-                       buffer_sq=np.zeros(size), position=0, count=0, frames=0, window=0,
+                       comb=ctx.combine(w), recent=(), recent_nu=(), frames=0, window=0,
                        locked=False, level=1.0, cooldown=0, relocks=0)
 
 
 def _recent(state, n):
-    """The last ``n`` buffered frames in time order and their squared innovations."""
-    size = len(state.buffer)
-    idx = (state.position - n + np.arange(n)) % size
-    return state.buffer[idx], state.buffer_sq[idx]
+    """The last ``n`` buffered frames (n, Dc) in time order and their ν (n,)."""
+    return np.array(state.recent[-n:]), np.array(state.recent_nu[-n:])
 
 
 def _from_grid(ctx, grid, state):
@@ -184,18 +174,14 @@ def online_step(ctx, config, state, y):
     -------
     OnlineState
     """
-    acquire, relock = config.frames(ctx.fps)
-    buffer = state.buffer.copy()
-    buffer_sq = state.buffer_sq.copy()
-    slot = state.position
-    buffer[slot] = y
-    size = len(buffer)
-    new = state._replace(buffer=buffer, buffer_sq=buffer_sq, position=(slot + 1) % size,
-                         count=min(state.count + 1, size), frames=state.frames + 1,
-                         window=state.window + 1, cooldown=max(state.cooldown - 1, 0))
+    acquire, relock = ctx.online_frames(config)
+    size = max(acquire, relock)
+    recent = state.recent[1 - size:] + (y,)            # size >= 2
+    new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
+                         cooldown=max(state.cooldown - 1, 0))
     if not state.locked:
-        buffer_sq[slot] = 0.0
-        frames = _recent(new, min(new.window, size))[0]
+        new = new._replace(recent_nu=state.recent_nu[1 - size:] + (0.0,))
+        frames = _recent(new, min(new.window, len(recent)))[0]
         new = _from_grid(ctx, grid_search(ctx, frames), new)
         # Refine the grid state (coarse in ω and φ) by the EKF over the window's frames.
         res = ekf_filter(ctx, frames, new.w, [new.x[0], new.x[1] - new.x[0] * (len(frames) - 1)],
@@ -212,7 +198,6 @@ def online_step(ctx, config, state, y):
                                                    state.comb)
     r = ctx.r
     nu = ee / (max(n_obs, 1) * r)
-    buffer_sq[slot] = nu
     level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
 
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
@@ -221,12 +206,14 @@ def online_step(ctx, config, state, y):
         ok = np.isfinite(y)
         mu, y = mu[:, ok], y[ok]
     eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
-    s_mm = (1.0 - eta) * state.s_mm + eta * (mu @ mu.T)                       # eq. 25
-    s_my = (1.0 - eta) * state.s_my + eta * (mu @ y)                          # eq. 26
-    ridge = (eta * r) * ctx.w_prec
-    w = np.linalg.solve(s_mm + ridge, s_my + ridge @ ctx.w_mean)              # eq. 24
+    # (1 - η) ⟪f⟫ + η f  written as  ⟪f⟫ + η (f - ⟪f⟫)
+    s_mm = state.s_mm + eta * (mu @ mu.T - state.s_mm)                        # eq. 25
+    s_my = state.s_my + eta * (mu @ y - state.s_my)                           # eq. 26
+    er = eta * r
+    w = np.linalg.solve(s_mm + er * ctx.w_prec, s_my + er * ctx.w_prior_term)  # eq. 24
     new = new._replace(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
                        s_mm=s_mm, s_my=s_my, eta=eta,
+                       recent_nu=state.recent_nu[1 - size:] + (nu,),
                        comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), level=level)
     if level > config.relock_threshold and new.cooldown == 0:
         new = _try_relock(ctx, config, new, relock)
@@ -235,7 +222,7 @@ def online_step(ctx, config, state, y):
 
 def _try_relock(ctx, config, state, relock):
     """Re-acquisition attempt on the frames since the apparent change (module docstring)."""
-    recent, recent_nu = _recent(state, min(relock, state.count))
+    recent, recent_nu = _recent(state, min(relock, len(state.recent)))
     high = recent_nu > config.relock_threshold
     n = int(np.argmin(high[::-1])) if not high.all() else len(high)   # length of the high tail
     n = min(max(n, 2), len(recent))
@@ -256,7 +243,7 @@ def online_forecast(ctx, state, n_frames, omega_scale=1.0):
     ``omega_scale``), computed from the cached ``Σ_j w_j α_j``.
     """
     omega, phi = float(state.x[0]), float(state.x[1])
-    phis = phi + omega * omega_scale * np.arange(1, n_frames + 1)
+    phis = ctx.steps(n_frames) * (omega * omega_scale) + phi
     out = (ctx.kernel_rows(phis) @ state.comb) * ctx.scale
     if omega_scale != 1.0:
         out[:, ctx.rate_mask] *= omega_scale
@@ -300,14 +287,14 @@ class OnlineEM:
         if y.shape != (self.context.n_channels,):
             raise ValueError(f"Expected an observation of shape ({self.context.n_channels},), "
                              f"got {y.shape}")
-        if np.any(np.isinf(y)):
+        if not math.isfinite(y.sum()) and np.isinf(y).any():
             raise ValueError("observation must be finite (NaN marks a missing value)")
         self.state = online_step(self.context, self.config, self.state, y / self.context.scale)
         return self.state
 
     def predict(self, n_frames, omega_scale=1.0):
         """Forecast of the next ``n_frames`` frames (n_frames, Dc), physical units."""
-        if not (np.isfinite(omega_scale) and omega_scale > 0):
+        if not (math.isfinite(omega_scale) and omega_scale > 0):
             raise ValueError(f"omega_scale must be positive, got {omega_scale}")
         return online_forecast(self.context, self.state, int(n_frames), float(omega_scale))
 

@@ -113,7 +113,7 @@ def test_missing_values_and_errors():
     online = OnlineEM(model, config=OnlineConfig(forgetting=0.95))
     for y in obs:
         state = online.step(y)
-        for name in ("x", "P", "w", "s_mm", "s_my", "eta", "comb", "buffer_sq", "level"):
+        for name in ("x", "P", "w", "s_mm", "s_my", "eta", "comb", "recent_nu", "level"):
             assert np.all(np.isfinite(getattr(state, name))), name
     assert np.all(np.isfinite(online.predict(30)))
     with pytest.raises(ValueError, match=r"shape \(63,\)"):
