@@ -52,7 +52,8 @@ def load(name):
     """(DOFs at 60 Hz (N, 62), DOF names) of a CMU trial."""
     asf = read_asf(CMU / (name.split("_")[0] + ".asf"))
     values = read_amc(CMU / (name + ".amc"), asf).values
-    return resample(values, 120.0, FPS, np.arange(3, values.shape[1])), asf_to_skeleton(asf).dof_names()
+    values = resample(values, 120.0, FPS, np.arange(3, values.shape[1]))
+    return values, asf_to_skeleton(asf).dof_names()
 
 
 def angle_rms_deg(pred, truth, columns=None):

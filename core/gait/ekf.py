@@ -267,7 +267,8 @@ def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     phi = (phi_pred + pc * s) % TWO_PI
     # log N(e; 0, c g gᵀ + r I) by the determinant lemma
     one = 1.0 + c * gg / r
-    loglik = -0.5 * (n * math.log(TWO_PI * r) + math.log(one) + ee / r - c * ge * ge / (r * r * one))
+    loglik = -0.5 * (n * math.log(TWO_PI * r) + math.log(one) + ee / r
+                     - c * ge * ge / (r * r * one))
     return omega, phi, pa, pb, pc, loglik, ee, n
 
 

@@ -10,12 +10,13 @@ observations under a constant-ω model, ``φ_t = φ₀ + ω t``, with its own be
                          - 2 log Σ_s exp(-(log ω - log ω_s)² / (2 σ²))
 
 (-2 log posterior up to constants: the eq. 12 likelihood, the style prior of the M-step and a
-cadence prior: a mixture of log-normals around the training walkers' ω_s, σ = ``OMEGA_LOG_SD``
-(±10 %). A few frames hardly constrain ω; without that prior the grid picks cadences far from
-any walker's, with it a walk and a run are both plausible starting points). Both the normal equations and the
-residual use per-phase tables of ``μ`` and ``μᵀμ`` on a fine phase grid (``N_TABLE`` samples), so
-scoring ~10³ candidates over tens of frames costs about a millisecond. The best candidate seeds
-the EKF (and the online filter's re-acquisition after a change of walker).
+cadence prior, a mixture of log-normals around the training walkers' ω_s with σ =
+``OMEGA_LOG_SD`` (±10 %)). A few frames hardly constrain ω: the prior keeps the grid near the
+cadences walkers actually have (one mixture component per training sequence). Both the
+normal equations and the residual use per-phase tables of ``μ`` and ``μᵀμ`` on a fine phase grid
+(``N_TABLE`` samples), so scoring ~10³ candidates over tens of frames costs about a
+millisecond. The best candidate seeds the EKF (and the online filter's re-acquisition after a
+change of walker).
 """
 
 from dataclasses import dataclass

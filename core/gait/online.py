@@ -47,7 +47,6 @@ from .initial_phase import grid_search
 __all__ = ["OnlineConfig", "OnlineEM", "OnlineState", "online_forecast", "online_init",
            "online_step"]
 
-TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True)
