@@ -213,7 +213,9 @@ def run_online(data):
     return ({"segments": result, "relocks": int(online.state.relocks),
              "forgetting": OnlineConfig().forgetting, "n_styles": ONLINE_J,
              "horizon_s": HORIZON_S, "goal_adapt_s": GOALS["adapt_s"],
-             "error_deg": errors.tolist(), "segment_starts": starts.tolist()}, speed)
+             # null where the 0.5 s window would cross into the next segment (strict JSON)
+             "error_deg": [None if np.isnan(e) else float(e) for e in errors],
+             "segment_starts": starts.tolist()}, speed)
 
 
 def _settle_time(err, valid, level):
@@ -237,7 +239,7 @@ def plot_online(online, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    err = np.array(online["error_deg"], dtype=float)
+    err = np.array([np.nan if e is None else e for e in online["error_deg"]], dtype=float)
     starts = online["segment_starts"]
     t = np.arange(len(err)) / FPS
     fig, ax = plt.subplots(figsize=(9, 3.2))
@@ -310,7 +312,7 @@ def main(argv=None):
     png = output.with_name("gait_online.png")
     plot_online(online, png)
     report["benchmark_s"] = time.perf_counter() - t_start
-    output.write_text(json.dumps(report, indent=1))
+    output.write_text(json.dumps(report, indent=1, allow_nan=False))
     print_table(report)
     print(f"\nwrote {output} and {png} in {report['benchmark_s']:.1f} s")
 
