@@ -1,0 +1,360 @@
+"""Extended Kalman filter on the phase state (Matsubara appendix A, eqs. 17-22).
+
+State ``x = [ω, φ]`` (radians per frame, radians), transition ``A = [[1, 0], [1, 1]]``
+(DESIGN.md §2 correction of the printed matrix), observation ``y = μ(x̃) w + v`` with
+``x̃ = [cos φ, sin φ]``, ``μ = [μ^1 … μ^J]`` the GP means (eq. 12) and ``v ~ N(0, R)``,
+``R = r I`` in the model's scaled units.
+
+**Information form.** ``H = ∂(μ(x) w)/∂x = [0, ∂μw/∂φ]`` (D × 2; the ω column is zero). With
+``R = r I`` the update needs only ``HᵀR⁻¹H = [[0, 0], [0, gᵀg / r]]`` and ``HᵀR⁻¹e = [0, gᵀe / r]``
+with ``g = ∂μw/∂φ`` and ``e`` the innovation: ``P⁺ = (P⁻⁻¹ + HᵀR⁻¹H)⁻¹`` and
+``x⁺ = x⁻ + P⁺ HᵀR⁻¹ e``, algebraically equal to eqs. 20-22 but inverting 2 × 2 matrices instead
+of the D × D ``H P Hᵀ + R``. The innovation log-likelihood uses the matrix determinant lemma on
+the rank-one ``H P Hᵀ``. The tests compare against the literal D × D form.
+
+**Safety.** After every update ω is clipped to the model's plausible range (the period search
+range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped.
+
+Symbol table (:class:`FilterContext`, Dc = observed channels)
+
+============ ============= ========================================================
+name         shape         meaning
+============ ============= ========================================================
+phases       (P,)          GP training phases 2π p / P
+alpha_w      (J, P·Dc)     K⁻¹ Ȳ^j per basis, flattened: ``w @ alpha_w`` gives Σ_j w_j α_j
+alpha_flat   (P, J·Dc)     same, laid out for ``k(φ) @ alpha_flat`` -> μ (J, Dc)
+scale        (Dc,)         physical = scaled × scale
+Q            (2, 2)        process noise per frame at the filter rate
+r            float         observation noise variance (scaled units²)
+omega_min/max float        clip range of ω, radians per frame
+omega_mean   float         geometric mean of the training ω (start value)
+omega_train  (S,)          training ω (cadence prior of the initial grid)
+w_mean       (J,)          style prior mean (M-step ridge)
+w_prec       (J, J)        style prior precision
+rate_mask    (Dc,) bool    channels that are time derivatives (scaled by retiming)
+============ ============= ========================================================
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["FilterContext", "FilterResult", "ekf_filter", "ekf_predict", "ekf_update",
+           "make_context", "observation_jacobian", "observation_mean"]
+
+TWO_PI = 2.0 * math.pi
+# The M-step prior is the training styles' spread widened by this factor (a new walker may lie
+# outside the training set's hull).
+DEFAULT_STYLE_PRIOR_SCALE = 4.0
+
+
+@dataclass(frozen=True, eq=False)
+class FilterContext:
+    """Everything the filters need, precomputed for one model, frame rate and channel set.
+
+    Build with :func:`make_context` (see the module symbol table).
+    """
+
+    model: object = field(repr=False)
+    fps: float
+    channels: np.ndarray
+    phases: np.ndarray = field(repr=False)
+    beta: np.ndarray = field(repr=False)
+    alpha_w: np.ndarray = field(repr=False)
+    alpha_flat: np.ndarray = field(repr=False)
+    scale: np.ndarray = field(repr=False)
+    Q: np.ndarray = field(repr=False)
+    r: float = 1.0
+    omega_min: float = 0.0
+    omega_max: float = np.inf
+    omega_mean: float = 0.1
+    omega_train: np.ndarray = field(default=None, repr=False)
+    w_mean: np.ndarray = field(default=None, repr=False)
+    w_prec: np.ndarray = field(default=None, repr=False)
+    rate_mask: np.ndarray = field(default=None, repr=False)
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        cos_p, sin_p = np.cos(self.phases), np.sin(self.phases)
+        set_(self, "inputs", np.stack([cos_p, sin_p], axis=1))             # X̃ (P, 2)
+        # Homogeneous inputs [cos φ_i, sin φ_i, 1] (3, P): one small matrix product gives every
+        # kernel ingredient at a query phase (the hot path of the online filter).
+        set_(self, "_homog", np.stack([cos_p, sin_p, np.ones_like(cos_p)]))
+        b1, b2, b3 = (float(v) for v in self.beta[:3])
+        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle.
+        set_(self, "_b", (b1, b2, b3, math.log(b1) - b2))
+        p = len(self.phases)
+        weights = np.zeros((3, 2 * p))
+        weights[:2, :p] = b2 * self.inputs.T
+        weights[2, :p] = math.log(b1) - b2
+        weights[:2, p:] = b3 * self.inputs.T
+        set_(self, "_rows_weights", weights)                                # (3, 2P)
+        set_(self, "w_prior_term", self.w_prec @ self.w_mean)              # Λ w̄
+        set_(self, "_cache", {})
+
+    def steps(self, n):
+        """``[1, 2, …, n]`` as floats (cached; read-only)."""
+        key = ("steps", n)
+        if key not in self._cache:
+            arr = np.arange(1.0, n + 1.0)
+            arr.setflags(write=False)
+            self._cache[key] = arr
+        return self._cache[key]
+
+    def online_frames(self, config):
+        """``config.frames(fps)`` cached per configuration."""
+        key = ("frames", config)
+        if key not in self._cache:
+            self._cache[key] = config.frames(self.fps)
+        return self._cache[key]
+
+    @property
+    def n_bases(self):
+        """J."""
+        return len(self.w_mean)
+
+    @property
+    def n_channels(self):
+        """Dc, number of observed channels."""
+        return len(self.channels)
+
+    def combine(self, w):
+        """``Σ_j w_j α_j`` (P, Dc): the GP weights of the observation mean for style ``w``."""
+        return (np.asarray(w, dtype=float) @ self.alpha_w).reshape(len(self.phases), -1)
+
+    def kernel_row(self, phi):
+        """``k(x̃(φ))`` and ``∂k/∂φ`` against the training phases; each (P,).
+
+        Evaluated on ``x̃ = [cos φ, sin φ]`` as in eq. 11: ``x̃ᵀx̃_i = cos(φ - φ_i)`` and
+        ``∂k/∂φ = ∂k/∂x̃ · [-sin φ, cos φ] = (β2 k_rbf + β3) sin(φ_i - φ)``.
+        """
+        pair = self.kernel_pair(phi)
+        return pair[0], pair[1]
+
+    def kernel_pair(self, phi):
+        """``[k; ∂k/∂φ]`` as one (2, P) array (see :meth:`kernel_row`)."""
+        c, s = math.cos(phi), math.sin(phi)
+        b1, b2, b3, log0 = self._b
+        rows = np.array([[b2 * c, b2 * s, log0],      # β2 x̃ᵀx̃_i + log β1 - β2
+                         [0.0, 0.0, 1.0],             # 1
+                         [-b2 * s, b2 * c, 0.0],      # β2 sin(φ_i - φ)
+                         [b3 * c, b3 * s, 0.0],       # β3 x̃ᵀx̃_i
+                         [-b3 * s, b3 * c, 0.0]]) @ self._homog
+        # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin]
+        return np.exp(rows[0]) * rows[1:3] + rows[3:5]
+
+    def kernel_value(self, phi):
+        """``k(x̃(φ))`` only, (P,)."""
+        c, s = math.cos(phi), math.sin(phi)
+        b1, b2, b3, log0 = self._b
+        rows = np.array([[b2 * c, b2 * s, log0], [b3 * c, b3 * s, 0.0]]) @ self._homog
+        return np.exp(rows[0]) + rows[1]
+
+    def kernel_rows(self, phis):
+        """``k`` for many phases, (n, P)."""
+        phis = np.asarray(phis, dtype=float)
+        query = np.empty((len(phis), 3))
+        query[:, 0] = np.cos(phis)
+        query[:, 1] = np.sin(phis)
+        query[:, 2] = 1.0
+        both = query @ self._rows_weights                   # [exponent | β3 x̃ᵀx̃_i]
+        p = len(self.phases)
+        return np.exp(both[:, :p]) + both[:, p:]
+
+    def means(self, phis):
+        """``μ(x̃)`` of every basis at many phases, (n, J, Dc), scaled units."""
+        k = self.kernel_rows(np.atleast_1d(phis))
+        return (k @ self.alpha_flat).reshape(len(k), self.n_bases, -1)
+
+
+def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+    """Precompute the filter quantities for ``model`` at frame rate ``fps``.
+
+    Parameters
+    ----------
+    model : GaitModel
+    fps : float, optional
+        Frame rate of the observations (default: the model's). ω is then in radians per frame
+        at this rate and Q is converted (:meth:`GaitModel.process_noise`).
+    channels : sequence of str, optional
+        Observed model channels (default: all). Unknown names raise ``ValueError``.
+    style_prior_scale : float
+        Widening of the training-style covariance used as the M-step prior.
+
+    Returns
+    -------
+    FilterContext
+    """
+    fps = model.fps if fps is None else float(fps)
+    if not (fps > 0 and np.isfinite(fps)):
+        raise ValueError(f"fps must be positive, got {fps}")
+    if not style_prior_scale > 0:
+        raise ValueError(f"style_prior_scale must be positive, got {style_prior_scale}")
+    index = np.arange(model.n_channels) if channels is None else model.channel_index(channels)
+    if len(index) == 0:
+        raise ValueError("at least one channel must be observed")
+    gp = model.gp
+    alpha = gp.alpha[:, :, index]                                     # (J, P, Dc)
+    n_bases, n_phase, n_ch = alpha.shape
+    alpha_w = np.ascontiguousarray(alpha.reshape(n_bases, -1))
+    alpha_flat = np.ascontiguousarray(alpha.transpose(1, 0, 2).reshape(n_phase, -1))
+    omega_min, omega_max = model.omega_range(fps)
+    omega_train = model.training_omegas(fps)
+    w_prec = np.linalg.inv(style_prior_scale * model.style_cov)
+    return FilterContext(model=model, fps=fps, channels=index, phases=gp.phases, beta=gp.beta,
+                         alpha_w=alpha_w, alpha_flat=alpha_flat,
+                         scale=model.channel_scale[index], Q=model.process_noise(fps),
+                         r=model.r, omega_min=omega_min, omega_max=omega_max,
+                         omega_mean=float(np.exp(np.mean(np.log(omega_train)))),
+                         omega_train=omega_train,
+                         w_mean=model.style_mean.copy(), w_prec=0.5 * (w_prec + w_prec.T),
+                         rate_mask=model.rate_mask[index])
+
+
+def observation_mean(ctx, phi, w):
+    """``μ(x̃(φ)) w`` (Dc,), scaled units (eq. 12 mean)."""
+    return ctx.kernel_row(float(phi))[0] @ ctx.combine(w)
+
+
+def observation_jacobian(ctx, x, w):
+    """``H = ∂(μ(x) w)/∂x`` (Dc, 2) at state ``x = [ω, φ]`` (eq. 19); the ω column is zero."""
+    h = np.zeros((ctx.n_channels, 2))
+    h[:, 1] = ctx.kernel_row(float(x[1]))[1] @ ctx.combine(w)
+    return h
+
+
+def ekf_predict(x, P, Q):
+    """Time update (eqs. 17-18): ``x⁻ = A x``, ``P⁻ = A P Aᵀ + Q`` with ``A = [[1,0],[1,1]]``.
+
+    Parameters
+    ----------
+    x : array_like, shape (2,)
+        ``[ω, φ]``.
+    P : array_like, shape (2, 2)
+    Q : array_like, shape (2, 2)
+
+    Returns
+    -------
+    x_pred : ndarray, shape (2,)
+        φ is *not* wrapped here (the update wraps it).
+    P_pred : ndarray, shape (2, 2)
+    """
+    w, phi = float(x[0]), float(x[1])
+    a, b, c = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+    # A P Aᵀ = [[a, a + b], [a + b, a + 2b + c]]
+    return (np.array([w, phi + w]),
+            np.array([[a + Q[0, 0], a + b + Q[0, 1]], [a + b + Q[1, 0], a + 2 * b + c + Q[1, 1]]]))
+
+
+def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
+    """Scalar core of :func:`ekf_update`; returns floats and the squared innovation."""
+    both = ctx.kernel_pair(phi_pred) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g])
+    both[0] -= y
+    both[0] *= -1.0                                # innovation e = y - μ(x⁻) w (eq. 21)
+    if not math.isfinite(both[0].sum()):
+        both = both[:, np.isfinite(both[0])]
+    n = both.shape[1]
+    r = ctx.r
+    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    # Information form of eqs. 20-22: P⁺ = (P⁻⁻¹ + diag(0, gᵀg/r))⁻¹, x⁺ = x⁻ + P⁺ [0, gᵀe/r].
+    det = a * c - b * b
+    ia, ib, ic = c / det, -b / det, a / det + gg / r
+    det_i = ia * ic - ib * ib
+    pa, pb, pc = ic / det_i, -ib / det_i, ia / det_i
+    s = ge / r
+    omega = min(max(w_pred + pb * s, ctx.omega_min), ctx.omega_max)
+    phi = (phi_pred + pc * s) % TWO_PI
+    # log N(e; 0, c g gᵀ + r I) by the determinant lemma
+    one = 1.0 + c * gg / r
+    loglik = -0.5 * (n * math.log(TWO_PI * r) + math.log(one) + ee / r
+                     - c * ge * ge / (r * r * one))
+    return omega, phi, pa, pb, pc, loglik, ee, n
+
+
+def ekf_update(ctx, x_pred, P_pred, y, w):
+    """Measurement update (eqs. 19-22) in information form.
+
+    Parameters
+    ----------
+    ctx : FilterContext
+    x_pred : array_like, shape (2,)
+    P_pred : array_like, shape (2, 2)
+    y : array_like, shape (Dc,)
+        Observation in *scaled* units (NaN = missing channel).
+    w : array_like, shape (J,)
+        Style.
+
+    Returns
+    -------
+    x : ndarray, shape (2,)
+        ω clipped to the plausible range, φ wrapped to [0, 2π).
+    P : ndarray, shape (2, 2)
+    loglik : float
+        ``log N(y; μ(x⁻) w, H P⁻ Hᵀ + R)`` over the observed channels.
+    """
+    out = _update(ctx, float(x_pred[0]), float(x_pred[1]), float(P_pred[0, 0]),
+                  float(P_pred[0, 1]), float(P_pred[1, 1]), np.asarray(y, dtype=float),
+                  ctx.combine(w))
+    omega, phi, pa, pb, pc, loglik = out[:6]
+    return np.array([omega, phi]), np.array([[pa, pb], [pb, pc]]), loglik
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """Output of :func:`ekf_filter`.
+
+    Attributes
+    ----------
+    states : ndarray, shape (N, 2)
+        Filtered ``[ω, φ]`` per frame.
+    covariances : ndarray, shape (N, 2, 2)
+    loglik : float
+        Sum of the innovation log-likelihoods.
+    innovation_sq : ndarray, shape (N,)
+        Mean squared innovation per observed channel (scaled units²).
+    """
+
+    states: np.ndarray
+    covariances: np.ndarray
+    loglik: float
+    innovation_sq: np.ndarray
+
+
+def ekf_filter(ctx, ys, w, x0, P0):
+    """Run the EKF over a window (the E-step of eq. 23's EM).
+
+    Parameters
+    ----------
+    ctx : FilterContext
+    ys : array_like, shape (N, Dc)
+        Observations in scaled units (NaN = missing).
+    w : array_like, shape (J,)
+    x0 : array_like, shape (2,)
+        Prior mean of frame 0's state (no time update before frame 0).
+    P0 : array_like, shape (2, 2)
+
+    Returns
+    -------
+    FilterResult
+    """
+    ys = np.asarray(ys, dtype=float)
+    comb = ctx.combine(w)
+    n = len(ys)
+    states = np.empty((n, 2))
+    covs = np.empty((n, 2, 2))
+    sq = np.empty(n)
+    q = ctx.Q
+    omega, phi = float(x0[0]), float(x0[1])
+    a, b, c = float(P0[0, 0]), float(P0[0, 1]), float(P0[1, 1])
+    total = 0.0
+    for t in range(n):
+        if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
+            phi = phi + omega
+            a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2 * b + c + q[1, 1]
+        omega, phi, a, b, c, loglik, ee, count = _update(ctx, omega, phi, a, b, c, ys[t], comb)
+        total += loglik
+        states[t] = omega, phi
+        covs[t] = [[a, b], [b, c]]
+        sq[t] = ee / max(count, 1)
+    return FilterResult(states=states, covariances=covs, loglik=total, innovation_sq=sq)

@@ -1,0 +1,168 @@
+"""Batch EM adaptation to a new walker (Matsubara §3.1, eqs. 13 and 23).
+
+E-step: the EKF of :mod:`.ekf` over the whole observed window with the current style.
+M-step (eq. 23 with the approximation of eq. 13, i.e. at the filtered state means):
+``ŵ = ⟨μᵀμ⟩⁻¹ ⟨μᵀy⟩``. With few frames this normal matrix can be ill-conditioned, so the style
+prior ``N(w̄, Σ_w)`` (the training styles' mean and widened covariance, ``Λ = Σ_w⁻¹``) enters as
+a ridge: ``ŵ = (Σ_t μ_tᵀμ_t / r + Λ)⁻¹ (Σ_t μ_tᵀ y_t / r + Λ w̄)``. E and M alternate until the
+innovation log-likelihood stops improving; the iterate with the best likelihood is returned (the
+EKF-based EM is not guaranteed monotone).
+
+Start: the (ω₀, φ₀) grid of :mod:`.initial_phase` on the first ``init_window`` seconds.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .ekf import DEFAULT_STYLE_PRIOR_SCALE, ekf_filter, make_context
+from .initial_phase import grid_search
+
+__all__ = ["AdaptResult", "adapt", "m_step", "scaled_observations", "sufficient_statistics"]
+
+DEFAULT_INIT_WINDOW = 0.5  # seconds scored by the initial (ω, φ) grid
+# Initial state spread after the grid: ±6 % in ω (about one grid step), 0.15 rad in φ.
+INIT_OMEGA_REL_SD = 0.06
+INIT_PHI_SD = 0.15
+
+
+@dataclass(frozen=True)
+class AdaptResult:
+    """Outcome of :func:`adapt`.
+
+    Attributes
+    ----------
+    state : ndarray, shape (2,)
+        ``[ω, φ]`` at the last observed frame (radians per frame at ``fps``, radians).
+    covariance : ndarray, shape (2, 2)
+    w : ndarray, shape (J,)
+        Style.
+    states : ndarray, shape (N, 2)
+        Filtered states of every frame.
+    covariances : ndarray, shape (N, 2, 2)
+    loglik : float
+        Innovation log-likelihood of the returned iterate.
+    loglik_history : ndarray, shape (n_iter + 1,)
+    n_iter : int
+    converged : bool
+    fps : float
+    channels : tuple of str
+        Observed channels.
+    """
+
+    state: np.ndarray
+    covariance: np.ndarray
+    w: np.ndarray
+    states: np.ndarray
+    covariances: np.ndarray
+    loglik: float
+    loglik_history: np.ndarray
+    n_iter: int
+    converged: bool
+    fps: float
+    channels: tuple
+
+
+def scaled_observations(ctx, observations):
+    """Check physical observations (N, Dc) against the context and convert to scaled units."""
+    obs = np.asarray(observations, dtype=float)
+    if obs.ndim == 1:
+        obs = obs[None]
+    if obs.ndim != 2 or obs.shape[1] != ctx.n_channels:
+        raise ValueError(f"Expected observations of shape (N, {ctx.n_channels}) for the "
+                         f"observed channels, got {obs.shape}")
+    if len(obs) == 0:
+        raise ValueError("no observations")
+    if np.any(np.isinf(obs)):
+        raise ValueError("observations must be finite (NaN marks a missing value)")
+    return obs / ctx.scale
+
+
+def sufficient_statistics(ctx, phis, ys):
+    """``Σ_t μ(φ_t)ᵀ μ(φ_t)`` (J, J) and ``Σ_t μ(φ_t)ᵀ y_t`` (J,) over observed entries.
+
+    Parameters
+    ----------
+    ctx : FilterContext
+    phis : array_like, shape (N,)
+    ys : array_like, shape (N, Dc), scaled units, NaN = missing
+    """
+    mu = ctx.means(np.asarray(phis, dtype=float))          # (N, J, Dc), eqs. 28-29
+    ys = np.asarray(ys, dtype=float)
+    ok = np.isfinite(ys)
+    if not ok.all():
+        mu = mu * ok[:, None, :]
+        ys = np.where(ok, ys, 0.0)
+    return np.einsum("njd,nkd->jk", mu, mu), np.einsum("njd,nd->j", mu, ys)
+
+
+def m_step(ctx, a_sum, b_sum):
+    """Eq. 23 with the style-prior ridge: ``(A/r + Λ)⁻¹ (b/r + Λ w̄)``; (J,)."""
+    lhs = np.asarray(a_sum) / ctx.r + ctx.w_prec
+    rhs = np.asarray(b_sum) / ctx.r + ctx.w_prec @ ctx.w_mean
+    return np.linalg.solve(lhs, rhs)
+
+
+def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
+          init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+    """Batch EM: estimate phase state and style of a new walker from an observed window.
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, Dc)
+        Model channels in physical units (from :func:`core.gait.observations_from_dofs`),
+        restricted to ``channels`` when given. NaN marks a missing value.
+    fps : float, optional
+        Frame rate of the observations (default: the model's).
+    channels : sequence of str, optional
+        Observed model channels (default: all, in model order).
+    style : array_like, shape (J,), optional
+        Keep this style fixed (no M-step); only the phase state is tracked.
+    max_iter : int
+        EM iterations.
+    tol : float
+        Stop when the log-likelihood changes by less than ``tol`` (relative).
+    init_window : float
+        Seconds at the start of the window scored by the initial (ω, φ) grid.
+    style_prior_scale : float
+        Widening of the training-style covariance in the M-step prior.
+
+    Returns
+    -------
+    AdaptResult
+    """
+    ctx = make_context(model, fps, channels, style_prior_scale)
+    ys = scaled_observations(ctx, observations)
+    k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
+    grid = grid_search(ctx, ys[:k])
+    x0 = np.array([grid.omega, grid.phi0])
+    p0 = np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2])
+    fixed = style is not None
+    if fixed:
+        w = np.asarray(style, dtype=float)
+        if w.shape != (model.n_bases,) or not np.all(np.isfinite(w)):
+            raise ValueError(f"style must be {model.n_bases} finite values, got {w.shape}")
+    else:
+        w = grid.w
+    res = ekf_filter(ctx, ys, w, x0, p0)
+    best = (res.loglik, w, res)
+    history = [res.loglik]
+    converged = fixed
+    n_iter = 0
+    if not fixed:
+        for n_iter in range(1, max_iter + 1):
+            w = m_step(ctx, *sufficient_statistics(ctx, res.states[:, 1], ys))
+            res = ekf_filter(ctx, ys, w, x0, p0)
+            history.append(res.loglik)
+            if res.loglik > best[0]:
+                best = (res.loglik, w, res)
+            if abs(history[-1] - history[-2]) <= tol * max(abs(history[-1]), 1.0):
+                converged = True
+                break
+    loglik, w, res = best
+    return AdaptResult(state=res.states[-1].copy(), covariance=res.covariances[-1].copy(),
+                       w=np.array(w, dtype=float), states=res.states,
+                       covariances=res.covariances, loglik=float(loglik),
+                       loglik_history=np.array(history), n_iter=n_iter, converged=converged,
+                       fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels))

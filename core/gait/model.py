@@ -1,0 +1,305 @@
+"""The learned stylistic gait model and its file format.
+
+Symbol table (D channels, J bases, S training styles, C phase samples per cycle)
+
+================ ============ ===============================================================
+name             shape        meaning
+================ ============ ===============================================================
+channel_names    (D,)         joint angles (training layout order), then root features
+units            (D,)         ``'rad'``, ``'m'``, ``'m/s'``, ``'rad/s'``
+angle_centre     (D,)         circular mean of every angle channel (rad; 0 elsewhere)
+channel_scale    (D,)         physical = scaled × scale (1 for angles; root features scaled to
+                              the angles' typical spread)
+fps              float        model frame rate; ω is in radians per frame at this rate
+bases            (J, C, D)    state bases Ȳ^j (scaled units), closed: row C-1 = row 0 (eq. 9)
+styles           (S, J)       style parameters w^s of the training sequences
+style_names      (S,)         their names
+beta             (4,)         GP hyper-parameters (eq. 11)
+A                (2, 2)       state transition [[1, 0], [1, 1]] on x = [ω, φ]
+Q                (2, 2)       process noise per model frame (rad²/frame², rad²)
+r                float        observation noise variance (scaled units²); R = r·I
+style_mean       (J,)         mean of the training styles (prior mean of the M-step)
+style_cov        (J, J)       their covariance (prior covariance before scaling)
+periods          (S,)         training periods, model frames
+lag_range        (2,)         period search range, seconds
+dof_names        (n_dofs,)    the training DOF layout (used to write predicted DOF frames)
+root_travel      bool         whether the seven root features are modelled
+root_rest, root_order, forward_axis    the :class:`.root_travel.RootFrame`
+================ ============ ===============================================================
+
+The model is saved as one ``.npz`` (no pickle; strings as fixed-width unicode arrays) with a
+``format_version``; :meth:`GaitModel.load` / :meth:`GaitModel.from_bytes` raise
+:class:`GaitModelFileError` for anything that is not a complete, consistent, finite model of a
+known version.
+"""
+
+import io
+import zipfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .gp import build_phase_gp
+from .root_travel import RATE_FEATURES, RootFrame
+
+__all__ = ["FORMAT_VERSION", "GaitModel", "GaitModelFileError", "TRANSITION"]
+
+FORMAT_VERSION = 1
+# Matsubara §2.3: x_t = A x_{t-1} + v with x = [ω, φ]; the printed A = [0 1; 1 1] is a typo
+# (DESIGN.md §2): ω stays constant and φ advances by ω.
+TRANSITION = np.array([[1.0, 0.0], [1.0, 1.0]])
+TRANSITION.setflags(write=False)
+
+
+class GaitModelFileError(ValueError):
+    """A model file (or byte string) is corrupt, incomplete or of an unknown format version."""
+
+
+_STR_FIELDS = ("channel_names", "units", "style_names", "dof_names")
+_ARRAY_FIELDS = ("angle_centre", "channel_scale", "bases", "styles", "beta", "A", "Q",
+                 "style_mean", "style_cov", "periods", "lag_range", "root_rest",
+                 "singular_values")
+_SCALAR_FIELDS = ("fps", "r")
+_TEXT_FIELDS = ("root_order", "alignment", "refinement")
+_INT_FIELDS = ("forward_axis", "root_travel")
+
+
+@dataclass(frozen=True, eq=False)
+class GaitModel:
+    """A learned stylistic gait model (see the module symbol table).
+
+    Build with :func:`core.gait.learn_model`; persist with :meth:`save` / :meth:`load` or
+    :meth:`to_bytes` / :meth:`from_bytes`. Immutable; arrays are read-only.
+    """
+
+    channel_names: tuple
+    units: tuple
+    angle_centre: np.ndarray
+    channel_scale: np.ndarray
+    fps: float
+    bases: np.ndarray
+    styles: np.ndarray
+    style_names: tuple
+    beta: np.ndarray
+    Q: np.ndarray
+    r: float
+    style_mean: np.ndarray
+    style_cov: np.ndarray
+    periods: np.ndarray
+    lag_range: np.ndarray
+    dof_names: tuple
+    root_travel: bool
+    root_rest: np.ndarray
+    root_order: str = "XYZ"
+    forward_axis: int = 2
+    A: np.ndarray = field(default_factory=lambda: TRANSITION.copy())
+    singular_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    alignment: str = "mean"
+    refinement: str = "map"
+    format_version: int = FORMAT_VERSION
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        for name in _STR_FIELDS:
+            set_(self, name, tuple(str(v) for v in getattr(self, name)))
+        for name in _ARRAY_FIELDS:
+            arr = np.array(getattr(self, name), dtype=float)
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"model field {name} must be finite")
+            arr.setflags(write=False)
+            set_(self, name, arr)
+        set_(self, "fps", float(self.fps))
+        set_(self, "r", float(self.r))
+        set_(self, "root_travel", bool(self.root_travel))
+        set_(self, "forward_axis", int(self.forward_axis))
+        self._validate()
+        set_(self, "root_frame", RootFrame(self.root_rest, self.root_order, self.forward_axis))
+        # Derived, not saved: the GP of eq. 11 on the distinct phase samples of the bases.
+        set_(self, "gp", build_phase_gp(self.bases[:, :-1], self.beta))
+        set_(self, "is_angle", np.array([u == "rad" for u in self.units]))
+        set_(self, "rate_mask", np.array([n in RATE_FEATURES for n in self.channel_names]))
+
+    def _validate(self):
+        d = len(self.channel_names)
+        j = self.bases.shape[0] if self.bases.ndim == 3 else -1
+        checks = [
+            (self.bases.ndim == 3 and self.bases.shape[2] == d and self.bases.shape[1] >= 5,
+             f"bases must be (J, C>=5, {d}), got {self.bases.shape}"),
+            (len(set(self.channel_names)) == d, "channel names must be unique"),
+            (len(self.units) == d, f"units must have {d} entries"),
+            (self.angle_centre.shape == (d,), f"angle_centre must be ({d},)"),
+            (self.channel_scale.shape == (d,) and np.all(self.channel_scale > 0),
+             f"channel_scale must be ({d},) positive"),
+            (self.styles.ndim == 2 and self.styles.shape[1] == j,
+             f"styles must be (S, {j}), got {self.styles.shape}"),
+            (len(self.style_names) == len(self.styles), "one style name per style"),
+            (self.beta.shape == (4,) and np.all(self.beta > 0), "beta must be 4 positive values"),
+            (self.A.shape == (2, 2) and np.array_equal(self.A, TRANSITION),
+             "A must be [[1, 0], [1, 1]]"),
+            (self.Q.shape == (2, 2) and np.all(np.linalg.eigvalsh(self.Q) > 0),
+             "Q must be a (2, 2) positive-definite matrix"),
+            (self.r > 0 and np.isfinite(self.r), "r must be positive"),
+            (self.style_mean.shape == (j,) and self.style_cov.shape == (j, j),
+             "style prior must be (J,) and (J, J)"),
+            (self.periods.shape == (len(self.styles),) and np.all(self.periods > 0),
+             "one positive period per style"),
+            (self.lag_range.shape == (2,) and 0 < self.lag_range[0] < self.lag_range[1],
+             "lag_range must be (min, max) seconds"),
+            (self.fps > 0 and np.isfinite(self.fps), "fps must be positive"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ValueError(f"inconsistent gait model: {message}")
+
+    # ---------------------------------------------------------------- sizes and lookups
+    @property
+    def n_channels(self):
+        """D."""
+        return len(self.channel_names)
+
+    @property
+    def n_bases(self):
+        """J (dimension of a style)."""
+        return self.bases.shape[0]
+
+    @property
+    def n_phase(self):
+        """C, phase samples per cycle including the closing one."""
+        return self.bases.shape[1]
+
+    @property
+    def n_angles(self):
+        """Number of joint-angle channels (they come first)."""
+        return self.n_channels - 7 * self.root_travel
+
+    @property
+    def angle_names(self):
+        """The joint-angle channel names (training DOF order)."""
+        return self.channel_names[:self.n_angles]
+
+    @property
+    def R(self):
+        """Observation noise covariance ``r·I`` (D × D, scaled units²)."""
+        return self.r * np.eye(self.n_channels)
+
+    def channel_index(self, names):
+        """Indices of model channels by name; ``ValueError`` naming unknown channels."""
+        lookup = {n: i for i, n in enumerate(self.channel_names)}
+        names = [str(n) for n in names]
+        unknown = [n for n in names if n not in lookup]
+        if unknown:
+            raise ValueError(f"unknown channels {unknown}; the model has "
+                             f"{', '.join(self.channel_names)}")
+        return np.array([lookup[n] for n in names], dtype=int)
+
+    def style(self, name):
+        """Style vector (J,) of a training sequence by name."""
+        try:
+            return self.styles[self.style_names.index(str(name))].copy()
+        except ValueError:
+            raise ValueError(f"unknown style {name!r}; known: {', '.join(self.style_names)}") \
+                from None
+
+    def to_scaled(self, y):
+        """Physical observations (..., D) -> scaled model units."""
+        return np.asarray(y, dtype=float) / self.channel_scale
+
+    def to_physical(self, z):
+        """Scaled model units (..., D) -> physical units."""
+        return np.asarray(z, dtype=float) * self.channel_scale
+
+    # ---------------------------------------------------------------- time parameters
+    def omega_range(self, fps=None):
+        """(ω_min, ω_max) in radians per frame at ``fps`` from the period search range."""
+        fps = self.fps if fps is None else float(fps)
+        return 2.0 * np.pi / (self.lag_range[1] * fps), 2.0 * np.pi / (self.lag_range[0] * fps)
+
+    def training_omegas(self, fps=None):
+        """Phase velocities 2π / T^s of the training styles, radians per frame at ``fps``."""
+        fps = self.fps if fps is None else float(fps)
+        return 2.0 * np.pi / (self.periods / self.fps * fps)
+
+    def process_noise(self, fps=None):
+        """Q at ``fps``: with k = model fps / fps frames, ``diag(q_ω k³, q_φ k)`` (a
+        continuous-time random walk of ω and of φ sampled at a different rate)."""
+        fps = self.fps if fps is None else float(fps)
+        k = self.fps / fps
+        return self.Q * np.array([[k**3, k**2], [k**2, k]])
+
+    # ---------------------------------------------------------------- persistence
+    def _arrays(self):
+        out = {"format_version": np.array(FORMAT_VERSION)}
+        for name in _STR_FIELDS:
+            out[name] = np.array(getattr(self, name), dtype=str)
+        for name in _ARRAY_FIELDS:
+            out[name] = np.asarray(getattr(self, name))
+        for name in _SCALAR_FIELDS:
+            out[name] = np.array(getattr(self, name), dtype=float)
+        for name in _TEXT_FIELDS:
+            out[name] = np.array(str(getattr(self, name)))
+        for name in _INT_FIELDS:
+            out[name] = np.array(int(getattr(self, name)))
+        return out
+
+    def to_bytes(self):
+        """The model as ``.npz`` bytes (what :meth:`save` writes)."""
+        buffer = io.BytesIO()
+        np.savez(buffer, **self._arrays())
+        return buffer.getvalue()
+
+    def save(self, path):
+        """Write the model to one ``.npz`` file at ``path``."""
+        with open(path, "wb") as handle:
+            handle.write(self.to_bytes())
+
+    @classmethod
+    def from_bytes(cls, data, source="<bytes>"):
+        """Model from :meth:`to_bytes` output; :class:`GaitModelFileError` if invalid."""
+        try:
+            with np.load(io.BytesIO(bytes(data)), allow_pickle=False) as npz:
+                arrays = {k: npz[k] for k in npz.files}
+        except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+            raise GaitModelFileError(f"{source}: not a gait model file ({exc})") from None
+        return cls._from_arrays(arrays, source)
+
+    @classmethod
+    def load(cls, path):
+        """Read a model written by :meth:`save`; :class:`GaitModelFileError` if invalid."""
+        with open(path, "rb") as handle:
+            data = handle.read()
+        return cls.from_bytes(data, source=str(path))
+
+    @classmethod
+    def _from_arrays(cls, arrays, source):
+        if "format_version" not in arrays:
+            raise GaitModelFileError(f"{source}: not a gait model file (no format_version)")
+        try:
+            version = int(arrays["format_version"])
+        except (TypeError, ValueError):
+            raise GaitModelFileError(f"{source}: unreadable format_version") from None
+        if version != FORMAT_VERSION:
+            raise GaitModelFileError(f"{source}: gait model format version {version} is not "
+                                     f"supported (this build reads version {FORMAT_VERSION})")
+        required = _STR_FIELDS + _ARRAY_FIELDS + _SCALAR_FIELDS + _TEXT_FIELDS + _INT_FIELDS
+        missing = [k for k in required if k not in arrays]
+        if missing:
+            raise GaitModelFileError(f"{source}: incomplete gait model, missing {missing}")
+        kwargs = {}
+        try:
+            for name in _STR_FIELDS:
+                if arrays[name].dtype.kind != "U":
+                    raise ValueError(f"{name} must be text")
+                kwargs[name] = tuple(arrays[name].tolist())
+            for name in _ARRAY_FIELDS:
+                if arrays[name].dtype.kind not in "fiu":
+                    raise ValueError(f"{name} must be numeric")
+                kwargs[name] = arrays[name]
+            for name in _SCALAR_FIELDS:
+                kwargs[name] = float(arrays[name])
+            for name in _TEXT_FIELDS:
+                kwargs[name] = str(arrays[name])
+            for name in _INT_FIELDS:
+                kwargs[name] = int(arrays[name])
+            return cls(**kwargs)
+        except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
+            raise GaitModelFileError(f"{source}: invalid gait model ({exc})") from None

@@ -1,0 +1,318 @@
+"""Online EM: per-frame adaptation with forgetting (Matsubara §3.2, eqs. 14-16 and 24-27).
+
+Every frame: one EKF step (eqs. 17-22, :mod:`.ekf`) with the current style, then the online
+M-step on discounted averages (Sato & Ishii's online EM)
+
+    η_t = 1 / (1 + λ / η_{t-1})                                   (eqs. 16, 27)
+    ⟪μᵀμ⟫_t = (1 - η_t) ⟪μᵀμ⟫_{t-1} + η_t μ(x̂_t)ᵀ μ(x̂_t)          (eq. 25)
+    ⟪μᵀy⟫_t = (1 - η_t) ⟪μᵀy⟫_{t-1} + η_t μ(x̂_t)ᵀ y_t             (eq. 26)
+    ŵ_t = (⟪μᵀμ⟫_t + η_t r Λ)⁻¹ (⟪μᵀy⟫_t + η_t r Λ w̄)              (eq. 24 + style-prior ridge)
+
+(eq. 31 of the paper repeats eq. 30; it means the discounted average of eq. 14 — DESIGN.md §2.)
+The ridge is the style prior of the batch M-step expressed in the normalised averages
+(the un-normalised sums are the averages divided by η). λ < 1 forgets old frames so the style
+follows a change of walker or of gait (walk → run).
+
+**Acquisition and re-acquisition** (the EKF alone can lock onto a wrong phase):
+
+* *Acquisition*: for the first ``acquire_frames`` frames of a window the filter is "unlocked":
+  every frame it scores the (ω, φ₀) grid of :mod:`.initial_phase` on the frames of the window
+  so far and takes the best candidate (state at the current frame, its style, and its
+  sufficient statistics as the discounted averages with η = 1/n). Then it locks and runs EKF +
+  online M-step. The filter starts in acquisition.
+* *Re-acquisition*: the normalised squared innovation ``ν_t = eᵀe / (n r)`` (about 1 or less
+  while tracking) is averaged with weight ``relock_rate`` on the newest frame. When the average
+  exceeds ``relock_threshold``, the frames at the end of the buffer whose own ν exceeds the
+  threshold (at least 2, at most ``relock_frames``: the frames since the change) are scored on
+  the grid; if the best candidate's residual is below ``relock_gain`` times the tracked
+  residual on the same frames, the filter restarts from it in acquisition (so the new window
+  grows frame by frame from the change point); otherwise it waits a third of ``relock_frames``
+  before trying again. This is how the back-to-back playback of different walkers (or walk → run)
+  recovers within a fraction of a second, where the EKF would drift or lock half a cycle off.
+
+Pure functions ``online_init(ctx, config) -> state`` and ``online_step(ctx, config, state, y) ->
+state`` do the work; :class:`OnlineEM` is a thin stateful shell over them.
+"""
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .ekf import DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_filter, make_context
+from .em import INIT_OMEGA_REL_SD, INIT_PHI_SD
+from .initial_phase import grid_search
+
+__all__ = ["OnlineConfig", "OnlineEM", "OnlineState", "online_forecast", "online_init",
+           "online_step"]
+
+
+
+@dataclass(frozen=True)
+class OnlineConfig:
+    """Tuning of the online filter.
+
+    Attributes
+    ----------
+    forgetting : float
+        λ in (0, 1]; 1 = no forgetting. Effective memory ≈ 1/(1-λ) frames.
+    acquire_s : float
+        Seconds of grid acquisition before the EKF takes over.
+    relock_s : float
+        Window (seconds) scored when re-acquiring.
+    relock_threshold : float
+        Trigger level of the averaged normalised squared innovation.
+    relock_rate : float
+        Weight of the newest frame in that average.
+    relock_gain : float
+        A re-acquisition candidate must have a residual below this fraction of the tracked one.
+    """
+
+    forgetting: float = 0.97
+    acquire_s: float = 0.2
+    relock_s: float = 0.15
+    relock_threshold: float = 3.0
+    relock_rate: float = 0.3
+    relock_gain: float = 0.5
+
+    def __post_init__(self):
+        if not 0 < self.forgetting <= 1:
+            raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting}")
+        for name in ("acquire_s", "relock_s", "relock_threshold", "relock_rate", "relock_gain"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive")
+
+    def frames(self, fps):
+        """(acquire_frames, relock_frames) at ``fps`` (at least 2 each)."""
+        return max(2, round(self.acquire_s * fps)), max(2, round(self.relock_s * fps))
+
+
+class OnlineState(NamedTuple):
+    """State of the online filter (all arrays are fresh copies per step).
+
+    Attributes
+    ----------
+    x : ndarray, shape (2,)
+        ``[ω, φ]`` at the last frame.
+    P : ndarray, shape (2, 2)
+    w : ndarray, shape (J,)
+    s_mm : ndarray, shape (J, J)
+        ⟪μᵀμ⟫.
+    s_my : ndarray, shape (J,)
+        ⟪μᵀy⟫.
+    eta : float
+        η of the discounted averages.
+    comb : ndarray, shape (P, Dc)
+        ``Σ_j w_j α_j`` for the current w (cached for the next E-step and the forecast).
+    recent : tuple of ndarray, each shape (Dc,)
+        The last K scaled observations, oldest first (the arrays passed to
+        :func:`online_step`, not copied: do not modify them afterwards).
+    recent_nu : tuple of float
+        Their normalised squared innovations ν (0 while acquiring).
+    frames : int
+        Frames seen.
+    window : int
+        Frames in the current acquisition window (counts on after locking).
+    locked : bool
+        False while acquiring.
+    level : float
+        Averaged normalised squared innovation.
+    cooldown : int
+        Frames to wait before the next re-acquisition attempt.
+    relocks : int
+        Number of re-acquisitions so far.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    w: np.ndarray
+    s_mm: np.ndarray
+    s_my: np.ndarray
+    eta: float
+    comb: np.ndarray
+    recent: tuple
+    recent_nu: tuple
+    frames: int
+    window: int
+    locked: bool
+    level: float
+    cooldown: int
+    relocks: int
+
+
+def online_init(ctx, config):
+    """Initial (unlocked) state: mean training cadence, phase 0, mean training style."""
+    w = ctx.w_mean.copy()
+    return OnlineState(x=np.array([ctx.omega_mean, 0.0]),
+                       P=np.diag([(INIT_OMEGA_REL_SD * ctx.omega_mean) ** 2, np.pi**2]),
+                       w=w, s_mm=np.zeros((len(w), len(w))), s_my=np.zeros(len(w)), eta=1.0,
+                       comb=ctx.combine(w), recent=(), recent_nu=(), frames=0, window=0,
+                       locked=False, level=1.0, cooldown=0, relocks=0)
+
+
+def _recent(state, n):
+    """The last ``n`` buffered frames (n, Dc) in time order and their ν (n,)."""
+    return np.array(state.recent[-n:]), np.array(state.recent_nu[-n:])
+
+
+def _from_grid(ctx, grid, state):
+    """State restarted at a grid candidate: its state at the last frame, its style and its
+    sufficient statistics as plain averages (η = 1/n, as if λ = 1 over those frames)."""
+    n = grid.n_frames
+    return state._replace(x=np.array([grid.omega, grid.phi_last]),
+                          P=np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2]),
+                          w=grid.w, s_mm=grid.a_sum / n, s_my=grid.b_sum / n, eta=1.0 / n,
+                          comb=ctx.combine(grid.w), level=1.0)
+
+
+def online_step(ctx, config, state, y):
+    """One online-EM step (module docstring) on a scaled observation ``y`` (Dc,).
+
+    Returns
+    -------
+    OnlineState
+    """
+    acquire, relock = ctx.online_frames(config)
+    size = max(acquire, relock)
+    recent = state.recent[1 - size:] + (y,)            # size >= 2
+    new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
+                         cooldown=max(state.cooldown - 1, 0))
+    if not state.locked:
+        new = new._replace(recent_nu=state.recent_nu[1 - size:] + (0.0,))
+        frames = _recent(new, min(new.window, len(recent)))[0]
+        new = _from_grid(ctx, grid_search(ctx, frames), new)
+        # Refine the grid state (coarse in ω and φ) by the EKF over the window's frames.
+        res = ekf_filter(ctx, frames, new.w, [new.x[0], new.x[1] - new.x[0] * (len(frames) - 1)],
+                         new.P)
+        return new._replace(x=res.states[-1], P=res.covariances[-1],
+                            locked=new.window >= acquire)
+
+    # E-step: eqs. 17-18 (A = [[1, 0], [1, 1]]), then 19-22 in information form.
+    q = ctx.Q
+    omega, phi = float(state.x[0]), float(state.x[1])
+    a, b, c = float(state.P[0, 0]), float(state.P[0, 1]), float(state.P[1, 1])
+    a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2.0 * b + c + q[1, 1]
+    omega, phi, pa, pb, pc, _, ee, n_obs = _update(ctx, omega, phi + omega, a, b, c, y,
+                                                   state.comb)
+    r = ctx.r
+    nu = ee / (max(n_obs, 1) * r)
+    level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
+
+    # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
+    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(len(state.w), -1)   # (J, Dc)
+    if n_obs < len(y):
+        ok = np.isfinite(y)
+        mu, y = mu[:, ok], y[ok]
+    eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
+    # (1 - η) ⟪f⟫ + η f  written as  ⟪f⟫ + η (f - ⟪f⟫)
+    s_mm = state.s_mm + eta * (mu @ mu.T - state.s_mm)                        # eq. 25
+    s_my = state.s_my + eta * (mu @ y - state.s_my)                           # eq. 26
+    er = eta * r
+    w = np.linalg.solve(s_mm + er * ctx.w_prec, s_my + er * ctx.w_prior_term)  # eq. 24
+    new = new._replace(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
+                       s_mm=s_mm, s_my=s_my, eta=eta,
+                       recent_nu=state.recent_nu[1 - size:] + (nu,),
+                       comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), level=level)
+    if level > config.relock_threshold and new.cooldown == 0:
+        new = _try_relock(ctx, config, new, relock)
+    return new
+
+
+def _try_relock(ctx, config, state, relock):
+    """Re-acquisition attempt on the frames since the apparent change (module docstring)."""
+    recent, recent_nu = _recent(state, min(relock, len(state.recent)))
+    high = recent_nu > config.relock_threshold
+    n = int(np.argmin(high[::-1])) if not high.all() else len(high)   # length of the high tail
+    n = min(max(n, 2), len(recent))
+    frames = recent[-n:]
+    if np.isfinite(frames).all(axis=0).any():
+        grid = grid_search(ctx, frames)
+        tracked = float(recent_nu[-n:].sum()) * ctx.r * ctx.n_channels
+        if grid.residual < config.relock_gain * tracked:
+            return _from_grid(ctx, grid, state)._replace(
+                locked=False, window=n, relocks=state.relocks + 1)
+    return state._replace(cooldown=max(2, relock // 3))
+
+
+def online_forecast(ctx, state, n_frames, omega_scale=1.0):
+    """Mean propagation from an online state (§3.3): (n_frames, Dc) physical units.
+
+    Same as :func:`core.gait.predict` for the context's channels (rate channels scaled by
+    ``omega_scale``), computed from the cached ``Σ_j w_j α_j``.
+    """
+    omega, phi = float(state.x[0]), float(state.x[1])
+    phis = ctx.steps(n_frames) * (omega * omega_scale) + phi
+    out = (ctx.kernel_rows(phis) @ state.comb) * ctx.scale
+    if omega_scale != 1.0:
+        out[:, ctx.rate_mask] *= omega_scale
+    return out
+
+
+class OnlineEM:
+    """Per-frame adaptation to a walker: ``step(y)`` then ``predict(n_frames)``.
+
+    A thin shell over :func:`online_init` / :func:`online_step` / :func:`online_forecast`.
+
+    Parameters
+    ----------
+    model : GaitModel
+    fps : float, optional
+        Frame rate of the stepped observations (default: the model's).
+    channels : sequence of str, optional
+        Observed model channels (default: all).
+    config : OnlineConfig, optional
+    style_prior_scale : float
+
+    Attributes
+    ----------
+    state : OnlineState
+    """
+
+    def __init__(self, model, fps=None, channels=None, config=None,
+                 style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+        self.model = model
+        self.context = make_context(model, fps, channels, style_prior_scale)
+        self.config = config or OnlineConfig()
+        self.state = online_init(self.context, self.config)
+
+    def reset(self):
+        """Start over (unlocked, no statistics)."""
+        self.state = online_init(self.context, self.config)
+
+    def step(self, y):
+        """Assimilate one observation (Dc,) in physical units (NaN = missing channel)."""
+        y = np.asarray(y, dtype=float)
+        if y.shape != (self.context.n_channels,):
+            raise ValueError(f"Expected an observation of shape ({self.context.n_channels},), "
+                             f"got {y.shape}")
+        if not math.isfinite(y.sum()) and np.isinf(y).any():
+            raise ValueError("observation must be finite (NaN marks a missing value)")
+        self.state = online_step(self.context, self.config, self.state, y / self.context.scale)
+        return self.state
+
+    def predict(self, n_frames, omega_scale=1.0):
+        """Forecast of the next ``n_frames`` frames (n_frames, Dc), physical units."""
+        if not (math.isfinite(omega_scale) and omega_scale > 0):
+            raise ValueError(f"omega_scale must be positive, got {omega_scale}")
+        return online_forecast(self.context, self.state, int(n_frames), float(omega_scale))
+
+    @property
+    def omega(self):
+        """Phase velocity, radians per frame."""
+        return float(self.state.x[0])
+
+    @property
+    def phase(self):
+        """Phase in [0, 2π)."""
+        return float(self.state.x[1])
+
+    @property
+    def w(self):
+        """Current style (J,)."""
+        return self.state.w.copy()
+
+    @property
+    def covariance(self):
+        """State covariance (2, 2)."""
+        return self.state.P.copy()

@@ -1,0 +1,155 @@
+"""Prediction by mean propagation, retiming and restyling (Matsubara §3.3).
+
+From a state ``x̂_t = [ω, φ]`` and a style ``w``: ``x_{t+k|t} = A^k x̂_t``, i.e.
+``φ_{t+k} = φ_t + k ω`` (ω constant), and ``ŷ_{t+k} = μ(x̃_{t+k}) w`` (eq. 12 mean).
+
+* **Retiming** scales ω by ``omega_scale``: cadence × 1.2 shortens the predicted cycle by 1/1.2.
+  Retiming plays the same motion faster, so channels that are time derivatives (root velocities
+  and yaw rate) scale by the same factor: the walker covers the same distance per cycle.
+* **Restyling** replaces ``w``: a learned style (:meth:`GaitModel.style`), an affine mix of
+  learned styles (:func:`mix_styles`) or an interpolation (:func:`interpolate_styles`).
+"""
+
+import numpy as np
+
+from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
+
+__all__ = ["interpolate_styles", "mix_styles", "predict", "predict_dofs", "predicted_phases"]
+
+
+def _check_state(state):
+    state = np.asarray(state, dtype=float)
+    if state.shape != (2,) or not np.all(np.isfinite(state)):
+        raise ValueError(f"state must be [omega, phi] (2 finite values), got {state!r}")
+    return state
+
+
+def _check_style(model, w):
+    w = np.asarray(w, dtype=float)
+    if w.shape != (model.n_bases,) or not np.all(np.isfinite(w)):
+        raise ValueError(f"style must be {model.n_bases} finite values, got shape {w.shape}")
+    return w
+
+
+def predicted_phases(state, n_frames, omega_scale=1.0):
+    """Phases ``φ + k ω s`` of frames k = 1 … n_frames, (n_frames,), radians (not wrapped)."""
+    omega, phi = _check_state(state)
+    if not (np.isfinite(omega_scale) and omega_scale > 0):
+        raise ValueError(f"omega_scale must be positive, got {omega_scale}")
+    if int(n_frames) != n_frames or n_frames < 0:
+        raise ValueError(f"n_frames must be a non-negative integer, got {n_frames}")
+    return phi + omega * float(omega_scale) * np.arange(1, int(n_frames) + 1)
+
+
+def predict(model, state, w, n_frames, omega_scale=1.0, channels=None):
+    """Predicted observations of the next ``n_frames`` frames.
+
+    Parameters
+    ----------
+    model : GaitModel
+    state : array_like, shape (2,)
+        ``[ω, φ]`` at the last observed frame (ω in radians per frame of the rate the state was
+        estimated at; predicted frames are at that rate).
+    w : array_like, shape (J,)
+        Style.
+    n_frames : int
+    omega_scale : float
+        Retiming factor (> 0): cadence multiplier.
+    channels : sequence of str, optional
+        Model channels to return (default: all).
+
+    Returns
+    -------
+    ndarray, shape (n_frames, D) (or (n_frames, len(channels)))
+        Physical units (radians, metres, metres per second, radians per second).
+    """
+    w = _check_style(model, w)
+    phis = predicted_phases(state, n_frames, omega_scale)
+    index = np.arange(model.n_channels) if channels is None else model.channel_index(channels)
+    scaled = model.gp.observation_mean(phis, w) if len(phis) else np.zeros((0, model.n_channels))
+    out = model.to_physical(scaled)
+    out[:, model.rate_mask] *= float(omega_scale)
+    return out[:, index]
+
+
+def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0):
+    """Predicted DOF frames in the training layout (``model.dof_names``).
+
+    Joint angles come from :func:`predict`, moved by whole turns onto the branch of the last
+    observed angles (continuous F-curves). With root travel, the root DOFs integrate the
+    predicted root features from the last observed root pose (:func:`.integrate_root`); without,
+    the root stays at its last pose.
+
+    Parameters
+    ----------
+    model : GaitModel
+    state, w, n_frames, omega_scale
+        As in :func:`predict`.
+    last_dofs : array_like, shape (n_dofs,)
+        The last observed DOF frame, metres and radians, in ``model.dof_names`` order.
+    fps : float
+        Frame rate of the predicted frames (the rate the state was estimated at).
+
+    Returns
+    -------
+    ndarray, shape (n_frames, n_dofs)
+    """
+    last = np.asarray(last_dofs, dtype=float)
+    names = model.dof_names
+    if last.shape != (len(names),) or not np.all(np.isfinite(last)):
+        raise ValueError(f"last_dofs must be {len(names)} finite values in the model's DOF "
+                         f"layout, got shape {last.shape}")
+    pred = predict(model, state, w, n_frames, omega_scale)
+    out = np.tile(last, (len(pred), 1))
+    lookup = {n: i for i, n in enumerate(names)}
+    angle_cols = np.array([lookup[n] for n in model.angle_names], dtype=int)
+    angles = pred[:, :model.n_angles]
+    if len(pred):
+        turns = np.round((last[angle_cols] - angles[0]) / (2.0 * np.pi))
+        out[:, angle_cols] = angles + 2.0 * np.pi * turns
+    if model.root_travel and len(pred):
+        root_cols = np.array([lookup[n] for n in ROOT_DOF_NAMES], dtype=int)
+        feats = pred[:, model.channel_index(ROOT_FEATURE_NAMES)]
+        out[:, root_cols] = integrate_root(feats, fps, last[root_cols], model.root_frame)
+    return out
+
+
+def mix_styles(model, weights):
+    """Affine combination of learned styles, ``Σ_s a_s w^s / Σ_s a_s``.
+
+    Parameters
+    ----------
+    model : GaitModel
+    weights : dict {style name: weight} or array_like, shape (S,)
+
+    Returns
+    -------
+    ndarray, shape (J,)
+    """
+    if isinstance(weights, dict):
+        a = np.zeros(len(model.styles))
+        for name, value in weights.items():
+            a[model.style_names.index(name) if name in model.style_names
+              else _unknown_style(model, name)] += float(value)
+    else:
+        a = np.asarray(weights, dtype=float)
+        if a.shape != (len(model.styles),):
+            raise ValueError(f"expected {len(model.styles)} weights, got shape {a.shape}")
+    total = float(np.sum(a))
+    if not (np.all(np.isfinite(a)) and abs(total) > 1e-12):
+        raise ValueError("style weights must be finite with a non-zero sum")
+    return (a / total) @ model.styles
+
+
+def interpolate_styles(model, a, b, t):
+    """``(1 - t) w_a + t w_b``; ``a``/``b`` are style names or (J,) vectors, t a float (values
+    outside [0, 1] extrapolate)."""
+    wa = model.style(a) if isinstance(a, str) else _check_style(model, a)
+    wb = model.style(b) if isinstance(b, str) else _check_style(model, b)
+    if not np.isfinite(t):
+        raise ValueError(f"t must be finite, got {t}")
+    return (1.0 - float(t)) * wa + float(t) * wb
+
+
+def _unknown_style(model, name):
+    raise ValueError(f"unknown style {name!r}; known: {', '.join(model.style_names)}")

@@ -1,0 +1,165 @@
+"""core.gait.learning and core.gait.model: learning from CMU walks, save/load, file errors."""
+
+import io
+import zipfile
+
+import numpy as np
+import pytest
+
+from core.gait import GaitModel, GaitModelFileError, learn_model, predict
+from core.gait.model import FORMAT_VERSION
+from tests.gait_data import SMALL_TRAIN, small_model, trial
+
+
+def test_learned_model_structure():
+    model = small_model()
+    assert model.n_channels == 63 and model.n_angles == 56 and model.n_bases == 3
+    assert model.channel_names[:56] == tuple(n for n in trial("35_01")[1] if not
+                                             n.startswith("root."))
+    assert model.units[:56] == ("rad",) * 56 and model.units[56:58] == ("m", "m/s")
+    np.testing.assert_array_equal(model.A, [[1.0, 0.0], [1.0, 1.0]])
+    np.testing.assert_array_equal(model.bases[:, 0], model.bases[:, -1])     # eq. 9
+    assert model.styles.shape == (5, 3) and model.style_names == SMALL_TRAIN
+    assert model.fps == 60.0 and model.n_phase == 33
+    np.testing.assert_array_equal(model.channel_scale[:56], 1.0)
+    assert np.all(model.channel_scale > 0) and model.r > 0
+    assert np.all(np.linalg.eigvalsh(model.style_cov) > 0)
+    # Periods in model frames: walks about 1.1-1.3 s, the run about 0.75 s.
+    np.testing.assert_allclose(model.periods / 60.0, [1.32, 1.29, 1.12, 1.13, 0.75], atol=0.03)
+    for name in ("bases", "styles", "beta", "Q", "angle_centre"):
+        assert np.all(np.isfinite(getattr(model, name)))
+
+
+def test_learning_from_120_hz_equals_learning_from_60_hz():
+    names = trial("35_01")[1]
+    raw = [np.asarray(trial(t, 120)[0]) for t in SMALL_TRAIN[:3]]
+    pre = [np.asarray(trial(t)[0]) for t in SMALL_TRAIN[:3]]
+    a = learn_model(raw, names, 120.0, n_styles=2, refinement="svd", gp_beta=[1, 1, 1, 1e4])
+    b = learn_model(pre, names, 60.0, n_styles=2, refinement="svd", gp_beta=[1, 1, 1, 1e4])
+    np.testing.assert_allclose(a.bases, b.bases, atol=1e-12)
+    np.testing.assert_allclose(a.styles, b.styles, atol=1e-12)
+
+
+def test_channel_scale_and_energy_default():
+    model = learn_model([np.asarray(trial(t)[0]) for t in SMALL_TRAIN], trial("35_01")[1], 60.0,
+                        refinement="svd")
+    s = model.singular_values
+    energy = np.cumsum(s**2) / np.sum(s**2)
+    assert model.n_bases == int(np.argmax(energy >= 0.99 - 1e-12)) + 1
+    # Root channels in scaled units have the median spread of the joint angles.
+    data = np.vstack([np.asarray(trial(t)[0]) for t in SMALL_TRAIN])
+    height_sd = data[:, 2].std()
+    ratio = height_sd / model.channel_scale[model.channel_names.index("root.height")]
+    angle_sd = np.median([d for d in data[:, 6:].std(0) if d > 1e-9])
+    np.testing.assert_allclose(ratio, angle_sd, rtol=0.05)
+
+
+def test_angle_only_model():
+    model = small_model(root_travel=False)
+    assert model.n_channels == 56 and model.angle_names == model.channel_names
+    assert not model.rate_mask.any()
+
+
+def test_save_load_roundtrip(tmp_path):
+    model = small_model()
+    path = tmp_path / "walk.npz"
+    model.save(path)
+    loaded = GaitModel.load(path)
+    for name in ("bases", "styles", "beta", "Q", "A", "channel_scale", "angle_centre",
+                 "style_mean", "style_cov", "periods", "root_rest"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(model, name))
+    for name in ("channel_names", "units", "style_names", "dof_names", "fps", "r",
+                 "root_travel", "root_order", "forward_axis", "alignment", "refinement"):
+        assert getattr(loaded, name) == getattr(model, name)
+    state = np.array([0.09, 1.3])
+    np.testing.assert_array_equal(predict(loaded, state, model.styles[1], 20),
+                                  predict(model, state, model.styles[1], 20))
+    again = GaitModel.from_bytes(model.to_bytes())
+    assert again.to_bytes() == model.to_bytes()
+    with zipfile.ZipFile(path) as zf:
+        assert all(name.endswith(".npy") for name in zf.namelist())
+    with np.load(path, allow_pickle=False) as npz:      # no object arrays anywhere
+        assert int(npz["format_version"]) == FORMAT_VERSION
+
+
+def _arrays(model):
+    with np.load(io.BytesIO(model.to_bytes()), allow_pickle=False) as npz:
+        return {k: npz[k] for k in npz.files}
+
+
+def _bytes(arrays):
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def test_corrupt_and_incompatible_files_raise(tmp_path):
+    model = small_model()
+    good = model.to_bytes()
+    with pytest.raises(GaitModelFileError, match="not a gait model file"):
+        GaitModel.from_bytes(b"certainly not a zip file")
+    with pytest.raises(GaitModelFileError):
+        GaitModel.from_bytes(good[: len(good) // 2])
+    arrays = _arrays(model)
+    arrays["format_version"] = np.array(FORMAT_VERSION + 1)
+    with pytest.raises(GaitModelFileError, match=f"version {FORMAT_VERSION + 1} is not supported"):
+        GaitModel.from_bytes(_bytes(arrays))
+    arrays = _arrays(model)
+    del arrays["bases"]
+    with pytest.raises(GaitModelFileError, match="missing .*bases"):
+        GaitModel.from_bytes(_bytes(arrays))
+    arrays = _arrays(model)
+    arrays["styles"] = arrays["styles"][:, :2]
+    with pytest.raises(GaitModelFileError, match="styles"):
+        GaitModel.from_bytes(_bytes(arrays))
+    arrays = _arrays(model)
+    arrays["Q"] = arrays["Q"] * np.nan
+    with pytest.raises(GaitModelFileError, match="finite"):
+        GaitModel.from_bytes(_bytes(arrays))
+    arrays = _arrays(model)
+    arrays["A"] = np.array([[0.0, 1.0], [1.0, 1.0]])                 # the paper's typo
+    with pytest.raises(GaitModelFileError, match="A must be"):
+        GaitModel.from_bytes(_bytes(arrays))
+    arrays = _arrays(model)
+    arrays["channel_names"] = np.array([object()] * 63, dtype=object)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)                                          # pickled object array
+    with pytest.raises(GaitModelFileError):
+        GaitModel.from_bytes(buf.getvalue())
+    path = tmp_path / "bad.npz"
+    path.write_bytes(b"PK\x03\x04 broken")
+    with pytest.raises(GaitModelFileError, match=str(path.name)):
+        GaitModel.load(path)
+    with pytest.raises(GaitModelFileError, match="no format_version"):
+        GaitModel.from_bytes(_bytes({"bases": np.zeros(3)}))
+
+
+def test_learning_errors():
+    names = trial("35_01")[1]
+    good = [np.asarray(trial(t)[0]) for t in ("35_01", "35_02")]
+    with pytest.raises(ValueError, match=r"sequence 1 \(short\):.*shorter than one cycle"):
+        learn_model([good[0], good[1][:40]], names, 60.0, ["long", "short"])
+    with pytest.raises(ValueError, match=r"sequence 0 \(style0\): expected shape \(N, 62\)"):
+        learn_model([good[0][:, :60], good[1]], names, 60.0)
+    with pytest.raises(ValueError, match="root DOF channels missing"):
+        learn_model([g[:, 3:] for g in good], names[3:], 60.0)
+    with pytest.raises(ValueError, match="alignment"):
+        learn_model(good, names, 60.0, alignment="median")
+    with pytest.raises(ValueError, match="style names"):
+        learn_model(good, names, 60.0, names=["a"])
+    with pytest.raises(ValueError, match="at least one"):
+        learn_model([], names, 60.0)
+
+
+def test_model_lookups():
+    model = small_model()
+    np.testing.assert_array_equal(model.style("35_02"), model.styles[3])
+    with pytest.raises(ValueError, match="unknown style 'nobody'"):
+        model.style("nobody")
+    np.testing.assert_array_equal(model.channel_index(["root.height", "lfemur.rx"]),
+                                  [56, 0])
+    with pytest.raises(ValueError, match=r"unknown channels \['tail.rx'\]"):
+        model.channel_index(["tail.rx"])
+    lo, hi = model.omega_range(120.0)
+    np.testing.assert_allclose([lo, hi], [2 * np.pi / 240, 2 * np.pi / 60])
+    np.testing.assert_allclose(model.process_noise(30.0)[0, 0], model.Q[0, 0] * 8)

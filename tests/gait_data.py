@@ -1,0 +1,42 @@
+"""Cached CMU data and small models for the gait tests (tests/core/test_gait_*.py)."""
+
+from functools import lru_cache
+
+import numpy as np
+
+from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
+from tests.data import asf_path, cmu_path
+
+SMALL_TRAIN = ("08_04", "08_07", "35_01", "35_02", "35_17")
+
+
+@lru_cache(maxsize=None)
+def trial(name, fps=60):
+    """(values (N, 62) read-only, dof names) of a CMU trial resampled from 120 Hz to ``fps``."""
+    asf = read_asf(asf_path(name))
+    values = read_amc(cmu_path(name + ".amc"), asf).values
+    if fps != 120:
+        values = resample(values, 120, fps, np.arange(3, values.shape[1]))
+    values.setflags(write=False)
+    return values, tuple(asf_to_skeleton(asf).dof_names())
+
+
+@lru_cache(maxsize=None)
+def small_model(n_styles=3, root_travel=True, n_phase=33):
+    """A model learned from walks of two subjects and one run (about 0.5 s to learn)."""
+    from core.gait import learn_model
+
+    data = [trial(t) for t in SMALL_TRAIN]
+    return learn_model([d[0] for d in data], data[0][1], 60.0, list(SMALL_TRAIN),
+                       n_styles=n_styles, root_travel=root_travel, n_phase=n_phase)
+
+
+@lru_cache(maxsize=None)
+def observations(name, n_styles=3):
+    """Observations of a trial for :func:`small_model` (60 Hz), read-only."""
+    from core.gait import observations_from_dofs
+
+    values, names = trial(name)
+    obs = observations_from_dofs(small_model(n_styles), values, names, 60.0)
+    obs.setflags(write=False)
+    return obs
