@@ -23,7 +23,7 @@ from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, Onlin
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
 from .fcurves import channelbag, ensure_action, keyframe_state
-from .gait_rigs import GaitError, gait_rig, keyed_conflicts, read_dofs, write_dofs
+from .gait_rigs import GaitError, gait_rig, keyed_conflicts, keyed_range, read_dofs, write_dofs
 
 SETTINGS = "track_and_stride_gait"   # Scene pointer property (addon/gait_props.py)
 MAX_STYLES = 16                      # learned styles the redo panel's weight vector can address
@@ -93,19 +93,18 @@ def active_model(scene):
 
 
 # ------------------------------------------------------------------------------ learning
-def frame_range(obj, scene, mode, start=0, end=0):
-    """Integer frames ``(first, last)`` to read from an armature: its action's keyed range
-    (``'ACTION'``), the scene's range (``'SCENE'``) or ``(start, end)`` (``'CUSTOM'``)."""
+def frame_range(grig, scene, mode, start=0, end=0):
+    """Integer frames ``(first, last)`` to read from an armature: the keyed range of the
+    channels the gait rig reads (``'ACTION'``; keys on other channels do not count), the
+    scene's range (``'SCENE'``) or ``(start, end)`` (``'CUSTOM'``)."""
+    obj = grig.obj
     if mode == "SCENE":
         first, last = scene.frame_start, scene.frame_end
     elif mode == "CUSTOM":
         first, last = start, end
     else:
-        anim = obj.animation_data
-        if anim is None or anim.action is None:
-            raise GaitError(f"{obj.name} has no action: key or import a few steps of a walk first")
-        lo, hi = anim.action.frame_range
-        first, last = int(np.ceil(lo - 1e-6)), int(np.floor(hi + 1e-6))
+        lo, hi = keyed_range(grig)
+        first, last = int(np.ceil(lo - 1e-4)), int(np.floor(hi + 1e-4))
     if last <= first:
         raise GaitError(f"The frame range {first}–{last} of {obj.name} is empty")
     return int(first), int(last)
@@ -149,7 +148,7 @@ def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, ran
     sequences, names, rates, styles = [], [], [], []
     for obj in objects:
         grig = gait_rig(obj)
-        first, last = frame_range(obj, scene, range_mode)
+        first, last = frame_range(grig, scene, range_mode)
         sequences.append(read_dofs(grig, np.arange(first, last + 1)))
         names.append(grig.dof_names)
         rates.append(scene_fps(scene))
@@ -270,7 +269,7 @@ def predict_gait(context, obj, options):
     item, model = active_model(scene)
     grig = gait_rig(obj)
     cols = _model_columns(model, grig)
-    first, last = frame_range(obj, scene, options.range_mode, options.frame_start,
+    first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
                               options.frame_end)
     n_obs = last - first + 1
     shortest = float(np.min(model.periods)) / model.fps

@@ -84,7 +84,7 @@ def start_preview(context, obj):
     missing = [n for n in model.dof_names if n not in lookup]
     if missing:
         raise GaitError(f"{obj.name} lacks joints the gait model knows: {', '.join(missing[:8])}")
-    first, _ = frame_range(obj, scene, "ACTION")
+    first, _ = frame_range(grig, scene, "ACTION")
     read_dofs(grig, [first])                       # fails early without an action
     stop_preview()
     settings = gait_settings(scene)

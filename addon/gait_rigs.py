@@ -230,6 +230,20 @@ def current_values(bag, targets, frame, obj):
     return values[0]
 
 
+def keyed_range(grig):
+    """(first, last) keyed frame over the F-curves the rig reads; :class:`GaitError` if none."""
+    bag = _action_bag(grig.obj)
+    lo, hi = np.inf, -np.inf
+    for path, index, _ in grig.targets():
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is not None and len(fcurve.keyframe_points):
+            co = keyframe_state(fcurve)["co"][:, 0]
+            lo, hi = min(lo, float(co.min())), max(hi, float(co.max()))
+    if not np.isfinite(lo):
+        raise GaitError(f"{grig.obj.name}'s action has no keys on the bones the gait model reads")
+    return lo, hi
+
+
 def keyed_conflicts(bag, targets, first, last):
     """Number of target F-curves holding keys at frames in ``[first, last]``."""
     count = 0
