@@ -20,6 +20,7 @@ import numpy as np
 from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, OnlineEM, adapt,
                          interpolate_styles, learn_model, mix_styles, observations_from_dofs,
                          predict_dofs)
+from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
 from .fcurves import channelbag, ensure_action, keyframe_state
@@ -186,6 +187,7 @@ class PredictOptions:
     weights: tuple = field(default_factory=tuple)
     stride: float = 1.0
     root_travel: bool = True
+    plant_feet: bool = True
     adaptation: str = "BATCH"
     target: str = "AFTER"
 
@@ -256,6 +258,19 @@ def _new_action_from_range(obj, bag, first, last):
     return new_bag
 
 
+def planted_factor(grig, model, state, w, n, last_dofs, cols, fps, options):
+    """Stride factor that keeps the stance foot planted (``core.gait.planted_stride``) for
+    the prediction as the model makes it; 1 when disabled or without root travel."""
+    feet = ("ltoes", "rtoes")
+    if not (options.plant_feet and options.root_travel and model.root_travel) \
+            or any(f not in grig.skeleton.names for f in feet):
+        return 1.0
+    raw = predict_dofs(model, state, w, n, last_dofs[cols], fps, omega_scale=options.cadence)
+    rows = np.tile(last_dofs, (n + 1, 1))
+    rows[1:, cols] = raw
+    return planted_stride(grig.skeleton, rows, feet)
+
+
 def predict_gait(context, obj, options):
     """Observe, adapt, predict and key the prediction on ``obj`` (module docstring).
 
@@ -289,9 +304,10 @@ def predict_gait(context, obj, options):
     n = int(round(options.horizon * fps))
     if n < 1:
         raise GaitError("The horizon is shorter than one frame")
+    k = planted_factor(grig, model, state, w, n, dofs[-1], cols, fps, options)
     try:
         pred = predict_dofs(model, state, w, n, model_dofs[-1], fps, omega_scale=options.cadence,
-                            stride=options.stride, travel=options.root_travel)
+                            stride=k * options.stride, travel=options.root_travel)
     except ValueError as exc:
         raise GaitError(str(exc)) from None
     full = np.tile(dofs[-1], (n, 1))
@@ -309,5 +325,6 @@ def predict_gait(context, obj, options):
     written = write_dofs(grig, bag, frames, full, last, dofs[-1])
     cadence_hz = fps / period * options.cadence
     return (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {item.name}: "
-            f"{cadence_hz:.2f} cycles/s, style {options.style_mode.lower()}; {written} keys "
+            f"{cadence_hz:.2f} cycles/s, style {options.style_mode.lower()}, stride ×{k:.2f}"
+            f"{' (planted)' if k != 1.0 else ''}; {written} keys "
             f"in {obj.animation_data.action.name}")

@@ -162,11 +162,15 @@ class TS_OT_predict_gait(bpy.types.Operator):
         "to sum to 1)", size=MAX_STYLES, default=(1.0,) + (0.0,) * (MAX_STYLES - 1),
         soft_min=0.0, soft_max=1.0)
     stride: FloatProperty(
-        name="Stride", description="Scale of the root's horizontal speed (1 = as learned; other "
+        name="Stride", description="Scale of the root's horizontal speed (1 = as predicted; other "
         "values make the feet slide — blend in a longer-striding style instead)",
         default=1.0, min=0.0, max=4.0)
     root_travel: BoolProperty(
         name="Root Travel", description="Move along the current heading; off: walk on the spot",
+        default=True)
+    plant_feet: BoolProperty(
+        name="Planted Stride", description="Scale the predicted root speed so that the stance "
+        "foot stays planted (least squares over the prediction; Stride multiplies on top)",
         default=True)
     adaptation: EnumProperty(
         name="Adaptation", description="How the model adapts to the observed frames",
@@ -194,7 +198,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
     def execute(self, context):
         options = PredictOptions(**{k: getattr(self, k) for k in (
             "range_mode", "frame_start", "frame_end", "horizon", "cadence", "style_mode",
-            "style_a", "style_b", "blend", "stride", "root_travel", "adaptation", "target")},
+            "style_a", "style_b", "blend", "stride", "root_travel", "plant_feet", "adaptation",
+            "target")},
             weights=tuple(self.weights))
         try:
             summary = predict_gait(context, context.active_object, options)
@@ -225,8 +230,13 @@ class TS_OT_predict_gait(bpy.types.Operator):
             col = layout.column(align=True)
             for i, name in enumerate(names[:MAX_STYLES]):
                 col.prop(self, "weights", index=i, text=name)
-        layout.prop(self, "stride")
         layout.prop(self, "root_travel")
+        row = layout.row()
+        row.active = self.root_travel
+        row.prop(self, "plant_feet")
+        row = layout.row()
+        row.active = self.root_travel
+        row.prop(self, "stride")
         layout.prop(self, "target")
 
 

@@ -3,12 +3,12 @@
 :class:`LookaheadPredictor` keeps an :class:`~.online.OnlineEM` in step with the frame the
 user is looking at and returns the DOF frame predicted ``ahead`` frames later:
 
-* the next frame (``frame == last + 1``, playback): one online-EM step on that frame;
+* a later frame at most ``replay`` frames on (playback, also when Blender drops frames to keep
+  up, or scrubbing forwards): one online-EM step per frame in between;
 * the same frame again: the cached prediction;
-* any other frame (a jump or scrubbing backwards): the filter restarts and replays the
-  ``replay`` frames up to the new one (fewer at the start of the observed range), so the
-  result depends only on the frame shown, not on how the user got there — after a jump it
-  equals a fresh :class:`OnlineEM` run over those frames.
+* any other frame (scrubbing backwards, a long jump): the filter restarts and replays the
+  ``replay`` frames up to the new one (fewer at the start of the observed range) — after such
+  a jump the result equals a fresh :class:`OnlineEM` run over those frames.
 
 Plain arrays in and out: a callable reads DOF rows of given frames (Blender evaluates the
 F-curves); the predicted row is in ``dof_names`` order.
@@ -83,8 +83,9 @@ class LookaheadPredictor:
         frame = int(frame)
         if frame == self._last_frame and self._prediction is not None:
             return self._prediction
-        if self._last_frame is not None and frame == self._last_frame + 1:
-            rows = np.asarray(read_dofs(np.array([frame])), dtype=float)[:, self._cols]
+        if self._last_frame is not None and 0 < frame - self._last_frame <= self.replay:
+            frames = np.arange(self._last_frame + 1, frame + 1)
+            rows = np.asarray(read_dofs(frames), dtype=float)[:, self._cols]
         else:
             self._online.reset()
             self._stream.reset()

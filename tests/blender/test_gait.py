@@ -11,6 +11,7 @@ from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
     dofs_to_channels_after
 from core.gait import (GaitModel, LookaheadPredictor, adapt, interpolate_styles,
                        observations_from_dofs, predict_dofs)
+from core.gait.foot_slide import planted_stride
 from core.kinematics import local_rotations_from_dofs
 from core.mocap import AmcMotion, asf_to_skeleton, format_bvh, read_amc, read_asf, resample, \
     write_amc
@@ -74,6 +75,15 @@ def keys_at(obj, layout, frames):
     return out
 
 
+def core_prediction(model, skeleton, observed, n, w=None, stride=1.0):
+    """The core's prediction from observed DOF rows: batch EM, planted stride, predict_dofs."""
+    res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
+    w = res.w if w is None else w
+    raw = predict_dofs(model, res.state, w, n, observed[-1], FPS)
+    k = planted_stride(skeleton, np.vstack([observed[-1:], raw]))
+    return predict_dofs(model, res.state, w, n, observed[-1], FPS, stride=k * stride)
+
+
 def angle_rms(a, b):
     d = np.angle(np.exp(1j * (a - b)))
     return float(np.sqrt(np.mean(d ** 2)))
@@ -131,8 +141,7 @@ def test_learn_from_imported_walks_then_predict_another(scene, tmp_path):
     skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
     layout = armature_layout(skeleton)
     observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
-    res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
-    expected_dofs = predict_dofs(model, res.state, res.w, 2 * FPS, observed[-1], FPS)
+    expected_dofs = core_prediction(model, skeleton, observed, 2 * FPS)
     last_channels = keys_at(obj, layout, [N_OBS])[0]
     expected = dofs_to_channels_after(skeleton, layout, expected_dofs, observed[-1], last_channels)
     written = keys_at(obj, layout, range(N_OBS + 1, N_OBS + 2 * FPS + 1))
@@ -249,9 +258,8 @@ def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
     layout = armature_layout(skeleton)
     observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
-    res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
     w = interpolate_styles(model, "08_04", "35_02", 0.25)
-    expected = predict_dofs(model, res.state, w, FPS, observed[-1], FPS, stride=1.3)
+    expected = core_prediction(model, skeleton, observed, FPS, w=w, stride=1.3)
     written = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(N_OBS + 1, N_OBS + FPS + 1)))
     np.testing.assert_allclose(written[:, :3], expected[:, :3], atol=1e-4)
     assert angle_rms(written[:, 3:], expected[:, 3:]) < 1e-5
@@ -275,8 +283,7 @@ def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
     learn_from_files()
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
     model = bridge("gait_bridge").active_model(scene)[1]
-    res = adapt(model, observations_from_dofs(model, seen, grig.skeleton.dof_names(), FPS), fps=FPS)
-    expected = predict_dofs(model, res.state, res.w, FPS, seen[-1], FPS)
+    expected = core_prediction(model, grig.skeleton, seen, FPS)
     back = rigs.read_dofs(grig, np.arange(N_OBS + 1, N_OBS + FPS + 1))
     _, local_back = local_rotations_from_dofs(grig.skeleton, back)
     _, local_exp = local_rotations_from_dofs(grig.skeleton, expected)

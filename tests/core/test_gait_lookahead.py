@@ -48,7 +48,11 @@ def test_jump_replays_the_window_like_a_fresh_filter():
     read, calls = reader(values, 0)
     look = LookaheadPredictor(model, names, 60.0, ahead=12, replay=40, first_frame=0)
     look.update(10, read)
-    out = look.update(100, read)                      # jump forward
+    skipped = look.update(13, read)                   # dropped frames: stepped through
+    assert look.replays == 1 and calls[-1].tolist() == [11, 12, 13]
+    np.testing.assert_allclose(skipped, reference(model, values, names, np.arange(0, 14), 12),
+                               atol=1e-12)
+    out = look.update(100, read)                      # long jump forward
     assert look.replays == 2 and calls[-1].tolist() == list(range(61, 101))
     np.testing.assert_allclose(out, reference(model, values, names, np.arange(61, 101), 12),
                                atol=1e-12)
