@@ -69,6 +69,19 @@ def _make_ghost(context, obj):
     return ghost
 
 
+def _remove_ghost(ghost):
+    data = ghost.data
+    bpy.data.objects.remove(ghost)
+    if data is not None and data.users == 0:
+        bpy.data.armatures.remove(data)
+
+
+def _remove_stale_ghosts(source_name):
+    """Ghosts of ``source_name`` left in a file saved while a preview ran."""
+    for ghost in [o for o in bpy.data.objects if o.get(PROP_GHOST) == source_name]:
+        _remove_ghost(ghost)
+
+
 def start_preview(context, obj):
     """Start previewing ``obj`` with the active model; returns the session.
 
@@ -87,6 +100,7 @@ def start_preview(context, obj):
     first, _ = frame_range(grig, scene, "ACTION")
     read_dofs(grig, [first])                       # fails early without an action
     stop_preview()
+    _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)
     fps = scene_fps(scene)
     predictor = LookaheadPredictor(model, model.dof_names, fps,
@@ -113,10 +127,7 @@ def stop_preview():
         return
     ghost = bpy.data.objects.get(s.ghost_name)
     if ghost is not None and ghost.get(PROP_GHOST) == s.source_name:
-        data = ghost.data
-        bpy.data.objects.remove(ghost)
-        if data is not None and data.users == 0:
-            bpy.data.armatures.remove(data)
+        _remove_ghost(ghost)
 
 
 def _pose_ghost(s, ghost, row):
