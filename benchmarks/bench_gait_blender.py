@@ -38,7 +38,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
 
-from core.armature import armature_layout, channels_to_dofs  # noqa: E402
 from core.gait import foot_slide  # noqa: E402
 from core.kinematics import forward_kinematics, local_rotations_from_dofs  # noqa: E402
 from core.mocap import AmcMotion, asf_to_skeleton, read_amc, read_asf, resample, \
@@ -86,6 +85,17 @@ def learn(bpy, names, n_styles):
     bpy.ops.track_and_stride.learn_gait(use_selected=False, n_styles=n_styles,
                                         files=[{"name": n + ".amc"} for n in names],
                                         directory=str(CMU))
+
+
+def bench_learn_time(bpy, repeat=5):
+    """Learn from the eight offline training files through the operator (median seconds)."""
+    times = []
+    for _ in range(repeat):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        t0 = time.perf_counter()
+        learn(bpy, OFFLINE_TRAIN, 2)
+        times.append(time.perf_counter() - t0)
+    return {"files": len(OFFLINE_TRAIN), "J": 2, "median_s": statistics.median(times)}
 
 
 def written_dofs(bpy, obj, skeleton, frames):
@@ -188,6 +198,7 @@ def main():
                            "cpu_count": os.cpu_count()},
                "foot_slide": bench_foot_slide(bpy, folder),
                "predict_gait_2s": bench_predict_time(bpy, folder),
+               "learn_gait": bench_learn_time(bpy),
                "live_preview": bench_preview(bpy)}
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -201,6 +212,8 @@ def main():
               f"{r['mocap_whole_trial_cm_s']:13.1f}")
     for key, r in pt.items():
         print(f"predict_gait 2 s at {key} ({r['frames']} frames): median {r['median_s'] * 1e3:.0f} ms")
+    print(f"learn_gait from {results['learn_gait']['files']} files: "
+          f"median {results['learn_gait']['median_s']:.2f} s")
     print(f"live preview J={lp['J']}: {lp['per_frame_ms_median']:.2f} ms/frame median, "
           f"p95 {lp['per_frame_ms_p95']:.2f}, max {lp['per_frame_ms_max']:.2f}; after a jump "
           f"{lp['jump_replay_1s_ms_median']:.1f} ms (budget {lp['budget_60fps_ms']:.1f} ms)")

@@ -336,3 +336,21 @@ def test_panel_and_every_property_explains_itself():
     for prop in settings.bl_rna.properties:
         if prop.identifier not in ("rna_type", "name"):
             assert prop.description, prop.identifier
+
+
+def test_disabling_the_addon_ends_the_preview(scene, tmp_path):
+    import addon_utils
+
+    learn_from_files()
+    import_observed(tmp_path)
+    counts = datablock_counts()
+    assert bpy.ops.track_and_stride.gait_preview_start() == {"FINISHED"}
+    assert datablock_counts()["objects"] == counts["objects"] + 1
+    addon_utils.disable(MODULE, default_set=True)
+    try:
+        assert datablock_counts() == counts               # ghost and its armature removed
+        assert not any(getattr(h, "__module__", "").startswith(MODULE)
+                       for h in bpy.app.handlers.frame_change_post + bpy.app.handlers.load_pre)
+    finally:
+        addon_utils.enable(MODULE, default_set=True)
+    assert bridge("gait_preview").session() is None
