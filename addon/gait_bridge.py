@@ -24,7 +24,8 @@ from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
 from .fcurves import channelbag, ensure_action, keyframe_state
-from .gait_rigs import GaitError, gait_rig, keyed_conflicts, keyed_range, read_dofs, write_dofs
+from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
+                        keyed_range, read_dofs)
 
 SETTINGS = "track_and_stride_gait"   # Scene pointer property (addon/gait_props.py)
 MAX_STYLES = 16                      # learned styles the redo panel's weight vector can address
@@ -271,6 +272,34 @@ def planted_factor(grig, model, state, w, n, last_dofs, cols, fps, options):
     return planted_stride(grig.skeleton, rows, feet)
 
 
+def _observe(grig, model, scene, options):
+    """(first, last, DOF rows of [first, last]) after the shortest-cycle check."""
+    fps = scene_fps(scene)
+    first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
+                              options.frame_end)
+    n_obs = last - first + 1
+    shortest = float(np.min(model.periods)) / model.fps
+    if n_obs / fps < shortest:
+        raise GaitError(f"Observed {n_obs} frames ({n_obs / fps:.2f} s) is shorter than one gait "
+                        f"cycle (the quickest learned walker needs {shortest:.2f} s): observe "
+                        f"at least one full cycle")
+    return first, last, read_dofs(grig, np.arange(first, last + 1))
+
+
+def _target_bag(obj, grig, options, first, last, frames):
+    """The channelbag to key into: the action's own (after a conflict check) or a new one."""
+    anim = obj.animation_data
+    bag = channelbag(anim.action, anim.action_slot)
+    if options.target != "AFTER":
+        return _new_action_from_range(obj, bag, first, last)
+    clash = keyed_conflicts(bag, grig.targets(), frames[0], frames[-1])
+    if clash:
+        raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
+                        f"F-curves of {anim.action.name}: choose Target › New Action, a shorter "
+                        f"horizon, or an earlier observed range")
+    return bag
+
+
 def predict_gait(context, obj, options):
     """Observe, adapt, predict and key the prediction on ``obj`` (module docstring).
 
@@ -284,22 +313,15 @@ def predict_gait(context, obj, options):
     item, model = active_model(scene)
     grig = gait_rig(obj)
     cols = _model_columns(model, grig)
-    first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
-                              options.frame_end)
-    n_obs = last - first + 1
-    shortest = float(np.min(model.periods)) / model.fps
-    if n_obs / fps < shortest:
-        raise GaitError(f"Observed {n_obs} frames ({n_obs / fps:.2f} s) is shorter than one gait "
-                        f"cycle (the quickest learned walker needs {shortest:.2f} s): observe "
-                        f"at least one full cycle")
-    dofs = read_dofs(grig, np.arange(first, last + 1))
+    first, last, dofs = _observe(grig, model, scene, options)
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
     state, w_adapted = _adapt(model, obs, fps, options.adaptation, model_dofs)
     period = 2.0 * np.pi / state[0]
-    if n_obs < period:
-        raise GaitError(f"Observed {n_obs} frames ({n_obs / fps:.2f} s) is shorter than one gait "
-                        f"cycle of this walker (about {period / fps:.2f} s): observe more frames")
+    if len(dofs) < period:
+        raise GaitError(f"Observed {len(dofs)} frames ({len(dofs) / fps:.2f} s) is shorter than "
+                        f"one gait cycle of this walker (about {period / fps:.2f} s): observe "
+                        f"more frames")
     w = resolve_style(model, options, w_adapted)
     n = int(round(options.horizon * fps))
     if n < 1:
@@ -313,18 +335,10 @@ def predict_gait(context, obj, options):
     full = np.tile(dofs[-1], (n, 1))
     full[:, cols] = pred
     frames = last + np.arange(1, n + 1)
-    bag = channelbag(obj.animation_data.action, obj.animation_data.action_slot)
-    if options.target == "AFTER":
-        clash = keyed_conflicts(bag, grig.targets(), frames[0], frames[-1])
-        if clash:
-            raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
-                            f"F-curves of {obj.animation_data.action.name}: choose Target › New "
-                            f"Action, a shorter horizon, or an earlier observed range")
-    else:
-        bag = _new_action_from_range(obj, bag, first, last)
-    written = write_dofs(grig, bag, frames, full, last, dofs[-1])
-    cadence_hz = fps / period * options.cadence
+    anim = obj.animation_data
+    values = channel_values(grig, channelbag(anim.action, anim.action_slot), full, last, dofs[-1])
+    written = key_values(grig, _target_bag(obj, grig, options, first, last, frames), frames, values)
     return (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {item.name}: "
-            f"{cadence_hz:.2f} cycles/s, style {options.style_mode.lower()}, stride ×{k:.2f}"
-            f"{' (planted)' if k != 1.0 else ''}; {written} keys "
-            f"in {obj.animation_data.action.name}")
+            f"{fps / period * options.cadence:.2f} cycles/s, style "
+            f"{options.style_mode.lower()}, stride ×{k:.2f}{' (planted)' if k != 1.0 else ''}; "
+            f"{written} keys in {obj.animation_data.action.name}")

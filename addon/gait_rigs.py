@@ -257,14 +257,14 @@ def keyed_conflicts(bag, targets, first, last):
     return count
 
 
-def write_dofs(grig, bag, frames, dofs, last_frame, last_dofs):
-    """Key DOF rows at ``frames`` into ``bag`` (bulk, existing keys untouched), continuing the
-    curves' values at ``last_frame``.
+def channel_values(grig, bag, dofs, last_frame, last_dofs):
+    """Values (N, len(targets)) that key DOF rows, continuing the curves of ``bag`` at
+    ``last_frame`` (whose DOF row is ``last_dofs``).
 
-    Returns
-    -------
-    int
-        Keys written.
+    Raises
+    ------
+    GaitError
+        If any value is not finite (nothing is written then).
     """
     targets = grig.targets()
     last_values = current_values(bag, targets, last_frame, grig.obj)
@@ -274,7 +274,13 @@ def write_dofs(grig, bag, frames, dofs, last_frame, last_dofs):
         values = _bvh_channels(grig, dofs, last_values)
     if not np.all(np.isfinite(values)):
         raise GaitError("the prediction produced non-finite values; nothing was written")
+    return values
+
+
+def key_values(grig, bag, frames, values):
+    """Key ``values`` (from :func:`channel_values`) at ``frames`` into ``bag`` in bulk, existing
+    keys untouched. Returns the number of keys written."""
     written = 0
-    for c, (path, index, group) in enumerate(targets):
+    for c, (path, index, group) in enumerate(grig.targets()):
         written += insert_keys_preserving(bag, path, index, group, frames, values[:, c])
     return written
