@@ -322,8 +322,46 @@ def test_live_preview_logic_without_the_handler(scene, tmp_path):
         bpy.ops.track_and_stride.gait_preview_stop()
 
 
-def test_panel_and_every_property_explains_itself():
-    assert bpy.types.VIEW3D_PT_track_and_stride_gait.bl_parent_id == "VIEW3D_PT_track_and_stride"
+class RecordingLayout:
+    """Stands in for UILayout (no UI headless): checks every drawn property and operator."""
+
+    def __init__(self, drawn):
+        self.drawn = drawn
+        self.active = True
+
+    def column(self, **kwargs):
+        return self
+
+    row = column
+
+    def label(self, **kwargs):
+        self.drawn.append(("label", kwargs.get("text")))
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        self.drawn.append(("prop", name))
+
+    def operator(self, idname, **kwargs):
+        module, op = idname.split(".")
+        rna = getattr(getattr(bpy.ops, module), op).get_rna_type()
+        self.drawn.append(("operator", idname))
+        return type("Props", (), {n.identifier: None for n in rna.properties})()
+
+    def template_list(self, list_id, name, data, prop, active_data, active_prop, **kwargs):
+        assert hasattr(bpy.types, list_id) and prop in data.bl_rna.properties
+        assert active_prop in active_data.bl_rna.properties
+        self.drawn.append(("list", prop))
+
+
+def test_panel_draws_and_every_property_explains_itself(scene):
+    panel = bpy.types.VIEW3D_PT_track_and_stride_gait
+    assert panel.bl_parent_id == "VIEW3D_PT_track_and_stride"
+    drawn = []
+    learn_from_files()
+    panel.draw(type("Panel", (), {"layout": RecordingLayout(drawn)})(), bpy.context)
+    ops = [d[1] for d in drawn if d[0] == "operator"]
+    assert "track_and_stride.predict_gait" in ops and "track_and_stride.gait_preview_start" in ops
+    assert ("label", scene.track_and_stride_gait.models[0].summary) in drawn
     for op in ("learn_gait", "predict_gait", "remove_gait_model", "gait_preview_start",
                "gait_preview_stop"):
         rna = getattr(bpy.ops.track_and_stride, op).get_rna_type()
@@ -354,3 +392,20 @@ def test_disabling_the_addon_ends_the_preview(scene, tmp_path):
     finally:
         addon_utils.enable(MODULE, default_set=True)
     assert bridge("gait_preview").session() is None
+
+
+def test_redo_panel_draws_the_options_by_style_mode(scene):
+    learn_from_files()
+    op = bpy.types.TRACK_AND_STRIDE_OT_predict_gait
+    rna = bpy.ops.track_and_stride.predict_gait.get_rna_type()
+    for mode, expected in (("ADAPTED", set()), ("BLEND", {"style_a", "style_b", "blend"}),
+                           ("WEIGHTS", {"weights"})):
+        drawn = []
+        fake = type("Op", (), {"layout": RecordingLayout(drawn), "bl_rna": rna,
+                               "range_mode": "CUSTOM", "style_mode": mode, "root_travel": True})()
+        op.draw(fake, bpy.context)
+        names = {d[1] for d in drawn if d[0] == "prop"}
+        assert {"horizon", "cadence", "style_mode", "stride", "root_travel", "plant_feet",
+                "frame_start", "target"} <= names
+        assert names & {"style_a", "style_b", "blend", "weights"} == expected
+    assert [d for d in drawn if d[1] == "weights"] == [("prop", "weights")] * len(TRAIN)
