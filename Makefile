@@ -18,7 +18,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender clean
 
 venv: $(STAMP)
 
@@ -42,13 +42,16 @@ test-core: $(STAMP)
 test-blender: extension
 	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
 
-bench: bench-import bench-gait
+bench: bench-import bench-gait bench-gait-blender
 
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
 
 bench-gait: $(STAMP)
 	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json
+
+bench-gait-blender: extension
+	$(PY) benchmarks/bench_gait_blender.py --extension $(ZIP) --output build/bench/gait_blender.json
 
 clean:
 	rm -rf build .pytest_cache

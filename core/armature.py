@@ -205,6 +205,37 @@ def dofs_to_channels(skeleton, layout, dofs):
     return out
 
 
+def dofs_to_channels_after(skeleton, layout, dofs, last_dofs, last_channels):
+    """F-curve values for DOF frames that continue existing F-curves.
+
+    Like :func:`dofs_to_channels`, with every rotation channel moved by whole turns (and
+    decomposed bones onto the Euler branch) so that the new values join ``last_channels``, the
+    channel values at the frame before, without a jump: the last observed frame is converted
+    together with the new ones and each column shifted by the multiple of 2π that puts it on
+    the observed value.
+
+    Parameters
+    ----------
+    dofs : array_like, shape (N, n_dofs)
+    last_dofs : array_like, shape (n_dofs,)
+        The DOF frame just before (from which ``last_channels`` came).
+    last_channels : array_like, shape (n_channels,)
+
+    Returns
+    -------
+    ndarray, shape (N, n_channels)
+    """
+    dofs = np.asarray(dofs, dtype=float)
+    last_channels = np.asarray(last_channels, dtype=float)
+    if last_channels.shape != (len(layout.channels),):
+        raise ValueError(f"Expected last_channels of shape ({len(layout.channels)},), "
+                         f"got {last_channels.shape}")
+    both = dofs_to_channels(skeleton, layout, np.vstack([np.reshape(last_dofs, (1, -1)), dofs]))
+    rotation = np.array([path != "location" for _, path, _ in layout.channels])
+    turns = np.round((last_channels - both[0]) / (2.0 * np.pi)) * rotation
+    return both[1:] + 2.0 * np.pi * turns
+
+
 def channels_to_dofs(skeleton, layout, channels):
     """DOF vectors from F-curve values (inverse of :func:`dofs_to_channels`).
 

@@ -3,7 +3,10 @@
 Installs the built extension zip into an isolated Blender user folder (under the output folder,
 never the user's own Blender), imports the CMU walk 08_01 through the File › Import operator,
 builds the envelope body, saves ``track_and_stride_demo.blend`` and renders
-``walk_mid_stride.png`` (Workbench) for a person to look at.
+``walk_mid_stride.png`` (Workbench) for a person to look at. The gait step learns a model from
+eight CMU walks (Gait › Learn), observes the first 1.67 s of the held-out walk 35_08 and writes
+the prediction up to 4 s into a new action of that armature (Gait › Predict), and plots observed,
+predicted and captured angles of the left leg in ``gait_prediction.png``.
 
 Usage: ``python sample_scenes/demo.py --extension build/track_and_stride-<v>.zip --output build/demo``
 """
@@ -50,6 +53,69 @@ def step_import_walk(bpy):
     body = bpy.data.objects[walker["track_and_stride_body"]]
     body.color = (0.85, 0.55, 0.35, 1.0)
     return walker, body
+
+
+GAIT_TRAIN = ("08_04", "08_07", "35_01", "35_02", "35_03", "35_04", "35_05", "35_06")
+GAIT_TEST, GAIT_ADAPT_S, GAIT_END_S = "35_08", 1.67, 4.0
+GAIT_PLOT = ("lfemur.rx", "lfemur.rz", "ltibia.rx", "lfoot.rx")
+
+
+def step_gait_prediction(bpy):
+    """Learn a gait model, import the held-out walk and predict its continuation after 1.67 s
+    into a new action (the captured one is kept). Returns (frames, predicted DOFs, names,
+    last observed frame, fps)."""
+    import importlib
+
+    import numpy as np
+
+    scene = bpy.context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    bpy.ops.track_and_stride.learn_gait(
+        name="CMU walks", use_selected=False, n_styles=2, directory=str(CMU),
+        files=[{"name": t + ".amc"} for t in GAIT_TRAIN])
+    bpy.ops.import_anim.acclaim(filepath=str(CMU / (GAIT_TEST + ".amc")), set_frame_range=False)
+    walker = bpy.context.active_object
+    last = int(round(GAIT_ADAPT_S * fps))
+    bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=1, frame_end=last,
+                                          horizon=GAIT_END_S - GAIT_ADAPT_S, target="NEW_ACTION")
+    rigs = importlib.import_module("bl_ext.user_default.track_and_stride.addon.gait_rigs")
+    grig = rigs.gait_rig(walker)
+    frames = np.arange(1, int(round(GAIT_END_S * fps)) + 1)
+    return frames, rigs.read_dofs(grig, frames), grig.dof_names, last, fps
+
+
+def plot_gait(path, frames, dofs, names, last, fps):
+    """Observed vs predicted vs captured angles of the left leg (matplotlib, demo only)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT))
+    from core.mocap import read_amc, read_asf, resample
+
+    asf = read_asf(CMU / (GAIT_TEST.split("_")[0] + ".asf"))
+    truth = read_amc(CMU / (GAIT_TEST + ".amc"), asf).values
+    truth = resample(truth, 120.0, fps, np.arange(3, truth.shape[1]))
+    t = (frames - 1) / fps
+    n_true = min(len(truth), len(frames))
+    fig, axes = plt.subplots(len(GAIT_PLOT), 1, figsize=(9, 2.2 * len(GAIT_PLOT)), sharex=True)
+    for ax, name in zip(axes, GAIT_PLOT):
+        c = names.index(name)
+        ax.plot(t[:n_true], np.degrees(truth[:n_true, c]), color="0.6", lw=3,
+                label="captured (35_08)")
+        ax.plot(t[:last], np.degrees(dofs[:last, c]), color="k", lw=1.5, label="observed")
+        ax.plot(t[last - 1:], np.degrees(dofs[last - 1:, c]), color="tab:orange", lw=1.5,
+                ls="--", label="predicted")
+        ax.axvline(t[last - 1], color="tab:blue", lw=0.8)
+        ax.set_ylabel(f"{name} (°)")
+    axes[0].legend(loc="upper right", fontsize=8, ncol=3)
+    axes[0].set_title("Gait › Predict on a held-out walk: adapt on 0–1.67 s, predict to 4 s")
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def frame_camera_on(bpy, walker, frame):
@@ -114,10 +180,13 @@ def main():
     frame_camera_on(bpy, walker, mid)
     png = output / "walk_mid_stride.png"
     render_png(bpy, png, args.resolution)
+    gait_png = output / "gait_prediction.png"
+    plot_gait(gait_png, *step_gait_prediction(bpy))
     blend = output / "track_and_stride_demo.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
     print(f"demo: wrote {blend.relative_to(ROOT) if blend.is_relative_to(ROOT) else blend}")
-    print(f"demo: wrote {png.relative_to(ROOT) if png.is_relative_to(ROOT) else png}")
+    for written in (png, gait_png):
+        print(f"demo: wrote {written.relative_to(ROOT) if written.is_relative_to(ROOT) else written}")
     print(f"demo: done in {time.perf_counter() - t0:.1f} s")
     return 0
 

@@ -8,7 +8,9 @@ Observations    :func:`observations_from_dofs`, :class:`ObservationStream`
 Adaptation      :func:`adapt` (batch EM), :class:`OnlineEM` (online EM, ``step(y)``)
 Prediction      :func:`predict`, :func:`predict_dofs`, :func:`mix_styles`,
                 :func:`interpolate_styles`
-Root travel     :func:`root_features`, :func:`integrate_root`, :class:`RootFrame`
+Root travel     :func:`root_features`, :func:`integrate_root`, :class:`RootFrame`,
+                :func:`foot_slide` (stance-foot sliding metric)
+Live preview    :class:`LookaheadPredictor` (online EM kept in step with the timeline)
 Building blocks alignment, factorisation, MAP refinement, GP, EKF, grid initialisation, L-BFGS
 """
 
@@ -19,9 +21,11 @@ from .ekf import FilterContext, ekf_filter, ekf_predict, ekf_update, make_contex
 from .em import AdaptResult, adapt, m_step
 from .factorization import choose_n_styles, factorize
 from .features import ObservationStream, observations_from_dofs
+from .foot_slide import foot_slide, stance_speeds
 from .gp import PhaseGP, build_phase_gp, fit_phase_gp
 from .initial_phase import GridResult, grid_search
 from .learning import learn_model
+from .lookahead import LookaheadPredictor
 from .map_refinement import MapResult, map_objective, refine_map
 from .model import FORMAT_VERSION, GaitModel, GaitModelFileError
 from .online import OnlineConfig, OnlineEM, OnlineState, online_forecast, online_init, \
@@ -39,6 +43,7 @@ __all__ = [
     "GaitModel",
     "GaitModelFileError",
     "GridResult",
+    "LookaheadPredictor",
     "MapResult",
     "ObservationStream",
     "OnlineConfig",
@@ -59,6 +64,7 @@ __all__ = [
     "estimate_period",
     "factorize",
     "fit_phase_gp",
+    "foot_slide",
     "grid_search",
     "integrate_root",
     "interpolate_styles",
@@ -78,4 +84,5 @@ __all__ = [
     "predict_dofs",
     "refine_map",
     "root_features",
+    "stance_speeds",
 ]

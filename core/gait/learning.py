@@ -28,9 +28,11 @@ DEFAULT_Q_OMEGA_REL = 0.001
 DEFAULT_Q_PHI = 0.005
 
 
-def _as_list(value, count, what):
-    if isinstance(value, (list, tuple)) and len(value) and not isinstance(value[0], str) \
-            and not np.isscalar(value[0]):
+def _as_list(value, count, what, scalar_items=False):
+    """One value per sequence: ``value`` itself when shared, else its items (a list of scalars
+    is per sequence when ``scalar_items``; a list of strings is always one shared value)."""
+    if isinstance(value, (list, tuple, np.ndarray)) and len(value) \
+            and not isinstance(value[0], str) and (scalar_items or not np.isscalar(value[0])):
         if len(value) != count:
             raise ValueError(f"expected one {what} per sequence ({count}), got {len(value)}")
         return list(value)
@@ -100,7 +102,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     if refinement not in ("map", "svd"):
         raise ValueError(f"refinement must be 'map' or 'svd', got {refinement!r}")
     name_lists = _as_list(channel_names, count, "channel-name list")
-    rates = _as_list(fps, count, "frame rate")
+    rates = _as_list(fps, count, "frame rate", scalar_items=True)
     names = [f"style{i}" for i in range(count)] if names is None else [str(n) for n in names]
     if len(names) != count:
         raise ValueError(f"expected {count} style names, got {len(names)}")

@@ -72,13 +72,20 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None):
     return out[:, index]
 
 
-def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0):
+def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, stride=1.0,
+                 travel=True):
     """Predicted DOF frames in the training layout (``model.dof_names``).
 
     Joint angles come from :func:`predict`, moved by whole turns onto the branch of the last
     observed angles (continuous F-curves). With root travel, the root DOFs integrate the
     predicted root features from the last observed root pose (:func:`.integrate_root`); without,
     the root stays at its last pose.
+
+    ``stride`` scales the horizontal root velocities (``root.v_forward``, ``root.v_left``)
+    before integration: the walker covers ``stride`` times the distance per cycle with the same
+    leg motion, so feet slide unless ``stride`` is 1. ``travel=False`` walks on the spot: the
+    horizontal velocities and the yaw rate are zeroed (position and heading held at the last
+    observed pose) while height and tilt still follow the prediction.
 
     Parameters
     ----------
@@ -89,11 +96,17 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0):
         The last observed DOF frame, metres and radians, in ``model.dof_names`` order.
     fps : float
         Frame rate of the predicted frames (the rate the state was estimated at).
+    stride : float
+        Non-negative scale of the horizontal root speed.
+    travel : bool
+        Whether the root moves (False: on the spot).
 
     Returns
     -------
     ndarray, shape (n_frames, n_dofs)
     """
+    if not (np.isfinite(stride) and stride >= 0):
+        raise ValueError(f"stride must be a non-negative number, got {stride}")
     last = np.asarray(last_dofs, dtype=float)
     names = model.dof_names
     if last.shape != (len(names),) or not np.all(np.isfinite(last)):
@@ -110,6 +123,10 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0):
     if model.root_travel and len(pred):
         root_cols = np.array([lookup[n] for n in ROOT_DOF_NAMES], dtype=int)
         feats = pred[:, model.channel_index(ROOT_FEATURE_NAMES)]
+        # ROOT_FEATURE_NAMES: height, v_forward, v_left, yaw_rate, tilt_x/y/z
+        feats[:, 1:3] *= float(stride) if travel else 0.0
+        if not travel:
+            feats[:, 3] = 0.0
         out[:, root_cols] = integrate_root(feats, fps, last[root_cols], model.root_frame)
     return out
 

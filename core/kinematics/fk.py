@@ -90,3 +90,59 @@ def rest_pose(skeleton):
 def bone_tails(skeleton, rotations, positions):
     """World positions (N, B, 3) of bone tails given FK output (N, B, 3, 3) and (N, B, 3)."""
     return positions + np.einsum("nbij,bj->nbi", rotations, skeleton.tails)
+
+
+def dofs_from_world_rotations(skeleton, rotations, root_positions=None):
+    """DOF vectors that reproduce given joint orientations (inverse of FK for rotations).
+
+    With ``F_i`` the joint frame -> world rotations, the local rotation is
+    ``M_i = rest_iᵀ F_parentᵀ F_i`` (root: ``rest_0ᵀ F_0``), decomposed in the joint's DOF order
+    followed by its missing axes (``Skeleton.dof_axes``); rotation about axes the joint has no
+    DOF for is dropped (an exact inverse of :func:`forward_kinematics` whenever the rotations
+    came from DOFs). Angles are continuous in time (no ±π flips); a middle angle at ±π/2
+    (gimbal lock) still gives a defined value (see :func:`~.rotations.matrix_to_euler`).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    rotations : array_like, shape (N, B, 3, 3)
+        Joint frame -> world, as returned by :func:`forward_kinematics`.
+    root_positions : array_like, shape (N, 3), metres, optional
+        World origin of the root joint; the root translation DOFs are
+        ``root_positions - offsets[0]`` (zeros when omitted).
+
+    Returns
+    -------
+    ndarray, shape (N, n_dofs)
+    """
+    from .rotations import make_euler_continuous, matrix_to_euler
+
+    F = np.asarray(rotations, dtype=float)
+    b = skeleton.n_joints
+    if F.ndim != 4 or F.shape[1:] != (b, 3, 3):
+        raise ValueError(f"Expected rotations of shape (N, {b}, 3, 3), got {F.shape}")
+    n = len(F)
+    out = np.zeros((n, skeleton.n_dofs))
+    col = 0
+    if skeleton.root_translation:
+        if root_positions is not None:
+            root_positions = np.asarray(root_positions, dtype=float)
+            if root_positions.shape != (n, 3):
+                raise ValueError(f"Expected root_positions of shape ({n}, 3), "
+                                 f"got {root_positions.shape}")
+            out[:, :3] = root_positions - skeleton.offsets[0]
+        col = 3
+    rest = skeleton.rest_rotations
+    letters = "XYZ"
+    for i, axes in enumerate(skeleton.dof_axes):
+        if not axes:
+            continue
+        p = skeleton.parents[i]
+        parent = np.swapaxes(F[:, p], -1, -2) if p >= 0 else np.eye(3)
+        local = rest[i].T @ parent @ F[:, i]
+        full = list(axes) + [a for a in (0, 1, 2) if a not in axes]
+        order = "".join(letters[a] for a in full)
+        euler = make_euler_continuous(matrix_to_euler(local, order), order)
+        out[:, col:col + len(axes)] = euler[:, list(axes)]
+        col += len(axes)
+    return out

@@ -146,3 +146,20 @@ def test_topological_order_rejects_cycles():
     assert topological_order([2, -1, 1]) == [1, 2, 0]
     with pytest.raises(ValueError, match="cycle"):
         topological_order([1, 0])
+
+
+def test_dofs_to_channels_after_joins_existing_curves_on_their_branch():
+    from core.armature import dofs_to_channels_after
+
+    asf = read_asf(cmu_path("35.asf"))
+    skeleton = asf_to_skeleton(asf)
+    layout = armature_layout(skeleton)
+    values = read_amc(cmu_path("35_17.amc"), asf).values[:40]
+    channels = dofs_to_channels(skeleton, layout, values)
+    # The observed curves live two turns up on every rotation channel.
+    rotation = np.array([p != "location" for _, p, _ in layout.channels])
+    observed = channels + 4 * np.pi * rotation
+    after = dofs_to_channels_after(skeleton, layout, values[20:], values[19], observed[19])
+    np.testing.assert_allclose(after, observed[20:], atol=1e-9)
+    with pytest.raises(ValueError, match="last_channels"):
+        dofs_to_channels_after(skeleton, layout, values[20:], values[19], observed[19, :5])

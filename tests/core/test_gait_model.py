@@ -38,6 +38,10 @@ def test_learning_from_120_hz_equals_learning_from_60_hz():
     b = learn_model(pre, names, 60.0, n_styles=2, refinement="svd", gp_beta=[1, 1, 1, 1e4])
     np.testing.assert_allclose(a.bases, b.bases, atol=1e-12)
     np.testing.assert_allclose(a.styles, b.styles, atol=1e-12)
+    # One rate per sequence (a list of floats), mixing 120 Hz and 60 Hz inputs.
+    mixed = learn_model([raw[0], pre[1], raw[2]], names, [120.0, 60.0, 120.0], n_styles=2,
+                        refinement="svd", gp_beta=[1, 1, 1, 1e4])
+    np.testing.assert_allclose(mixed.bases, b.bases, atol=1e-12)
 
 
 def test_channel_scale_and_energy_default():

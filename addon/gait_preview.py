@@ -1,0 +1,256 @@
+"""Live preview: a ghost armature that walks Δ seconds ahead of the observed one while the user
+scrubs or plays the timeline.
+
+A ``frame_change_post`` handler (registered only while a preview runs, and never in background
+mode) calls :func:`update_preview`, which keeps a :class:`core.gait.LookaheadPredictor` (online
+EM) in step with the current frame and poses the ghost with the DOF row predicted ``ahead``
+frames later. The ghost is a copy of the armature (its own armature data, drawn as sticks in
+front) without animation; stopping the preview (or unregistering the add-on, or loading another
+file) removes the handler, the ghost and its data.
+"""
+
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+
+from ..core.armature import dofs_to_channels
+from ..core.gait import LookaheadPredictor
+from .acclaim_bridge import scene_fps
+from .gait_bridge import active_model, frame_range, gait_settings
+from .gait_rigs import GaitError, _bvh_channels, gait_rig, read_dofs
+
+PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
+
+
+@dataclass(eq=False)
+class PreviewSession:
+    """The running preview (one at a time)."""
+
+    scene_name: str
+    source_name: str
+    ghost_name: str
+    grig: object
+    predictor: LookaheadPredictor
+    columns: np.ndarray
+    last_row: np.ndarray = None
+
+
+_SESSION = None
+
+
+def session():
+    """The running :class:`PreviewSession` or ``None``."""
+    return _SESSION
+
+
+def handler_registered():
+    """Whether the frame-change handler is installed."""
+    return _on_frame_change in bpy.app.handlers.frame_change_post
+
+
+def _make_ghost(context, obj):
+    data = obj.data.copy()
+    data.name = f"{obj.data.name} Ghost"
+    data.display_type = "STICK"
+    ghost = bpy.data.objects.new(f"{obj.name} Ghost", data)
+    context.scene.collection.objects.link(ghost)
+    ghost.matrix_world = obj.matrix_world
+    ghost.show_in_front = True
+    ghost.hide_select = True
+    ghost.color = (0.3, 0.7, 1.0, 0.6)
+    ghost[PROP_GHOST] = obj.name
+    context.view_layer.update()          # builds the ghost's pose
+    for pb in obj.pose.bones:
+        gb = ghost.pose.bones[pb.name]
+        gb.rotation_mode = pb.rotation_mode
+        gb.lock_rotation = pb.lock_rotation
+    return ghost
+
+
+def _remove_ghost(ghost):
+    data = ghost.data
+    bpy.data.objects.remove(ghost)
+    if data is not None and data.users == 0:
+        bpy.data.armatures.remove(data)
+
+
+def _remove_stale_ghosts(source_name):
+    """Ghosts of ``source_name`` left in a file saved while a preview ran."""
+    for ghost in [o for o in bpy.data.objects if o.get(PROP_GHOST) == source_name]:
+        _remove_ghost(ghost)
+
+
+def start_preview(context, obj):
+    """Start previewing ``obj`` with the active model; returns the session.
+
+    Raises
+    ------
+    GaitError
+        Before anything is created, when the armature or model cannot be used.
+    """
+    scene = context.scene
+    _, model = active_model(scene)
+    grig = gait_rig(obj)
+    lookup = {n: i for i, n in enumerate(grig.dof_names)}
+    missing = [n for n in model.dof_names if n not in lookup]
+    if missing:
+        raise GaitError(f"{obj.name} lacks joints the gait model knows: {', '.join(missing[:8])}")
+    first, _ = frame_range(grig, scene, "ACTION")
+    read_dofs(grig, [first])                       # fails early without an action
+    stop_preview()
+    _remove_stale_ghosts(obj.name)
+    settings = gait_settings(scene)
+    fps = scene_fps(scene)
+    predictor = LookaheadPredictor(model, model.dof_names, fps,
+                                   ahead=max(1, round(settings.preview_ahead * fps)),
+                                   replay=max(2, round(settings.preview_replay * fps)),
+                                   first_frame=first)
+    ghost = _make_ghost(context, obj)
+    global _SESSION
+    _SESSION = PreviewSession(scene.name, obj.name, ghost.name, grig, predictor,
+                              np.array([lookup[n] for n in model.dof_names], dtype=int))
+    if not bpy.app.background and not handler_registered():
+        bpy.app.handlers.frame_change_post.append(_on_frame_change)
+    update_preview(scene)
+    return _SESSION
+
+
+def stop_preview():
+    """Remove the handler, the ghost and its armature data (safe to call any time)."""
+    global _SESSION
+    while _on_frame_change in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.remove(_on_frame_change)
+    s, _SESSION = _SESSION, None
+    if s is None:
+        return
+    ghost = bpy.data.objects.get(s.ghost_name)
+    if ghost is not None and ghost.get(PROP_GHOST) == s.source_name:
+        _remove_ghost(ghost)
+
+
+def _pose_ghost(s, ghost, row):
+    grig = s.grig
+    targets = grig.targets()
+    if grig.kind == "ACCLAIM":
+        values = dofs_to_channels(grig.skeleton, grig.layout, row[None])[0]
+    else:
+        current = [ghost.path_resolve(p)[i] for p, i, _ in targets]
+        values = _bvh_channels(grig, row[None], np.array(current))[0]
+    for (path, index, _), value in zip(targets, values):
+        ghost.path_resolve(path)[index] = value
+
+
+def update_preview(scene):
+    """Assimilate the current frame and pose the ghost ``ahead`` frames later.
+
+    Returns
+    -------
+    ndarray, shape (n_dofs,) or None
+        The predicted DOF row (the armature's AMC layout), ``None`` when no preview runs here.
+    """
+    s = _SESSION
+    if s is None or scene.name != s.scene_name:
+        return None
+    source = bpy.data.objects.get(s.source_name)
+    ghost = bpy.data.objects.get(s.ghost_name)
+    try:
+        stale = source is None or ghost is None or s.grig.obj != source
+    except ReferenceError:              # the previewed object was deleted
+        stale = True
+    if stale:
+        stop_preview()
+        return None
+
+    def read(frames):
+        rows = read_dofs(s.grig, frames)
+        s.last_row = rows[-1]
+        return rows[:, s.columns]
+
+    predicted = s.predictor.update(scene.frame_current, read)
+    row = s.last_row.copy()
+    row[s.columns] = predicted
+    _pose_ghost(s, ghost, row)
+    return row
+
+
+@persistent
+def _on_frame_change(scene, *args):
+    try:
+        update_preview(scene)
+    except (GaitError, ValueError) as exc:     # e.g. the action was deleted meanwhile
+        print(f"Track & Stride: gait preview stopped: {exc}")
+        stop_preview()
+
+
+@persistent
+def _on_load_pre(*args):
+    stop_preview()
+
+
+class TS_OT_gait_preview_start(bpy.types.Operator):
+    """Show a ghost of the active armature walking ahead of it, predicted frame by frame by
+    online EM while you scrub or play"""
+
+    bl_idname = "track_and_stride.gait_preview_start"
+    bl_label = "Start Live Preview"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        if obj is None or obj.type != "ARMATURE" or obj.get(PROP_GHOST):
+            cls.poll_message_set("Select the walking armature")
+            return False
+        if len(gait_settings(context.scene).models) == 0:
+            cls.poll_message_set("Learn a gait model first")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            s = start_preview(context, context.active_object)
+        except GaitError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        extra = " (background mode: the ghost does not follow the timeline)" \
+            if bpy.app.background else ""
+        self.report({"INFO"}, f"Previewing {s.source_name} as {s.ghost_name}{extra}")
+        return {"FINISHED"}
+
+
+class TS_OT_gait_preview_stop(bpy.types.Operator):
+    """Stop the live preview and remove the ghost armature"""
+
+    bl_idname = "track_and_stride.gait_preview_stop"
+    bl_label = "Stop Live Preview"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        if _SESSION is None:
+            cls.poll_message_set("No live preview is running")
+            return False
+        return True
+
+    def execute(self, context):
+        stop_preview()
+        return {"FINISHED"}
+
+
+CLASSES = (TS_OT_gait_preview_start, TS_OT_gait_preview_stop)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.app.handlers.load_pre.append(_on_load_pre)
+
+
+def unregister():
+    stop_preview()
+    while _on_load_pre in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_on_load_pre)
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

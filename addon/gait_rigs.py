@@ -1,0 +1,286 @@
+"""Armatures as gait observations: read AMC-layout DOF rows from an armature's action and key
+predicted DOF rows back (the bridge between Blender armatures and ``core.gait``).
+
+Two kinds of armature are understood (``docs/gait_blender.md``):
+
+* **Acclaim imports** (File › Import › Acclaim): the armature stores its ASF; the F-curves map
+  exactly to AMC DOF rows (``core.armature.channels_to_dofs`` / ``dofs_to_channels``).
+* **CMU BVH conversions** (cgspeed bone names, imported with Blender's BVH importer): the bone
+  map ``core.mocap.CMU_BVH_NAMES`` and the CMU template ASF turn each bone's world rotation
+  relative to rest into ASF DOFs (``core.mocap.asf_dofs_from_world_deltas``) and back.
+
+Everything here reads or writes Blender data; the maths is in ``core``.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.armature import armature_layout, channels_to_dofs, dofs_to_channels_after
+from ..core.kinematics import forward_kinematics, rest_pose
+from ..core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_deltas,
+                          asf_to_skeleton, cmu_template_asf, fill_unmapped,
+                          world_deltas_from_asf_dofs)
+from .acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
+from .fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, keyframe_state,
+                      pose_bone_path)
+from .pose_bridge import RigError, read_pose, rig_from_armature
+
+# Metres per armature unit a BVH conversion may use: metres, CMU file units (1/0.45 inch),
+# inches, centimetres. The armature's leg lengths pick the nearest (see _bvh_scale).
+BVH_UNIT_CANDIDATES = (1.0, 0.0254 / 0.45, 0.0254, 0.01)
+# Bones whose lengths measure the BVH's unit against the template ASF.
+_SCALE_BONES = ("lfemur", "ltibia", "rfemur", "rtibia", "lhumerus", "rhumerus")
+
+
+class GaitError(Exception):
+    """A gait request that cannot be carried out (the message says why and what to do)."""
+
+
+@dataclass(eq=False)
+class GaitRig:
+    """An armature seen as a source of AMC-layout DOF rows.
+
+    Attributes
+    ----------
+    obj : bpy.types.Object
+    kind : str
+        ``'ACCLAIM'`` or ``'BVH'``.
+    skeleton : Skeleton
+        The ASF skeleton whose DOF layout the rows use.
+    dof_names : tuple of str
+    layout : ArmatureLayout or None
+        Acclaim: the F-curve layout.
+    rig : ArmatureRig or None
+        BVH: the armature as a core skeleton.
+    bone_of_joint : ndarray, shape (B_asf,), int
+        BVH: rig bone index of every ASF joint (-1: unmapped).
+    scale : float
+        BVH: metres per world unit of the armature.
+    """
+
+    obj: object
+    kind: str
+    skeleton: object
+    dof_names: tuple
+    layout: object = None
+    rig: object = None
+    bone_of_joint: np.ndarray = None
+    scale: float = 1.0
+
+    def targets(self):
+        """[(data path, index, group)] of every F-curve the rig reads and writes."""
+        if self.kind == "ACCLAIM":
+            return [(pose_bone_path(b, p), i, b) for b, p, i in self.layout.channels]
+        out = []
+        from ..core.pose_channels import channel_property
+        for k in sorted(set(self.bone_of_joint[self.bone_of_joint >= 0].tolist())):
+            name = self.rig.bone_names[k]
+            prop, count = channel_property(self.rig.rotation_modes[k])
+            out += [(pose_bone_path(name, prop), i, name) for i in range(count)]
+        root = self.rig.bone_names[0]
+        out += [(pose_bone_path(root, "location"), i, root) for i in range(3)]
+        return out
+
+
+def _action_bag(obj):
+    anim = obj.animation_data
+    if anim is None or anim.action is None:
+        raise GaitError(f"{obj.name} has no action: key or import a few steps of a walk first")
+    bag = channelbag(anim.action, anim.action_slot, ensure=False) if anim.action_slot else None
+    if bag is None or len(bag.fcurves) == 0:
+        raise GaitError(f"{obj.name}'s action {anim.action.name} has no F-curves for it")
+    return bag
+
+
+def gait_rig(obj):
+    """Recognise an armature as an Acclaim import or a CMU BVH conversion.
+
+    Raises
+    ------
+    GaitError
+        For other armatures, naming what is missing.
+    """
+    if obj is None or obj.type != "ARMATURE":
+        raise GaitError("Select an armature")
+    if obj.data.get(PROP_ASF):
+        try:
+            asf = armature_asf(obj)
+        except (AcclaimError, MocapParseError) as exc:
+            raise GaitError(str(exc)) from None
+        skeleton = asf_to_skeleton(asf)
+        layout = armature_layout(skeleton)
+        missing = [n for n in layout.names if n not in obj.pose.bones]
+        if missing:
+            raise GaitError(f"{obj.name} lacks bones of its stored skeleton: {', '.join(missing[:6])}")
+        return GaitRig(obj, "ACCLAIM", skeleton, tuple(skeleton.dof_names()), layout=layout)
+    bones = obj.data.bones
+    known = [n for n in CMU_BVH_NAMES.values() if n in bones]
+    if CMU_BVH_NAMES["root"] not in bones or len(known) < len(CMU_BVH_NAMES):
+        missing = [n for n in CMU_BVH_NAMES.values() if n not in bones]
+        raise GaitError(
+            f"{obj.name} is neither an Acclaim import nor a CMU BVH conversion: the gait model "
+            f"knows the CMU bones (Acclaim names like lfemur, or cgspeed BVH names like "
+            f"LeftUpLeg); missing here: {', '.join(missing[:8])}"
+            f"{' …' if len(missing) > 8 else ''}")
+    try:
+        rig = rig_from_armature(obj, root=CMU_BVH_NAMES["root"])
+    except RigError as exc:
+        raise GaitError(str(exc)) from None
+    skeleton = asf_to_skeleton(cmu_template_asf())
+    index = {n: k for k, n in enumerate(rig.bone_names)}
+    bone_of_joint = np.array([index.get(CMU_BVH_NAMES.get(n, ""), -1) for n in skeleton.names])
+    if np.any(bone_of_joint < 0):
+        lost = [CMU_BVH_NAMES[n] for n, k in zip(skeleton.names, bone_of_joint) if k < 0]
+        raise GaitError(f"{obj.name}: bones {', '.join(lost)} are not under {rig.bone_names[0]}")
+    grig = GaitRig(obj, "BVH", skeleton, tuple(skeleton.dof_names()), rig=rig,
+                   bone_of_joint=bone_of_joint)
+    grig.scale = _bvh_scale(grig)
+    return grig
+
+
+def _world_linear(rig):
+    """Rotation part and uniform scale of the armature object's transform."""
+    m = rig.armature2world[:3, :3]
+    u, s, vt = np.linalg.svd(m)
+    return u @ vt, float(np.cbrt(np.prod(s)))
+
+
+def _bvh_scale(grig):
+    """Metres per armature world unit: the candidate unit nearest (in log) to the ratio of the
+    template's leg and arm bone lengths to the armature's."""
+    asf = cmu_template_asf()
+    _, obj_scale = _world_linear(grig.rig)
+    ratios = []
+    for name in _SCALE_BONES:
+        bone = grig.obj.data.bones[CMU_BVH_NAMES[name]]
+        length = bone.length * obj_scale
+        if length > 0:
+            ratios.append(asf.bone(name).length / length)
+    ratio = float(np.median(ratios))
+    best = min(BVH_UNIT_CANDIDATES, key=lambda c: abs(np.log(c / ratio)))
+    return best if abs(np.log(best / ratio)) < np.log(1.5) else ratio
+
+
+def read_dofs(grig, frames):
+    """AMC-layout DOF rows (N, n_dofs) of the armature's action at ``frames``.
+
+    Raises
+    ------
+    GaitError
+        When the armature has no action (or no F-curves in it).
+    """
+    frames = np.asarray(frames, dtype=float)
+    bag = _action_bag(grig.obj)
+    if grig.kind == "ACCLAIM":
+        pb = grig.obj.pose.bones
+        targets = [(pose_bone_path(b, p), i) for b, p, i in grig.layout.channels]
+        defaults = [getattr(pb[b], p)[i] for b, p, i in grig.layout.channels]
+        values, _ = evaluate_fcurves(bag, targets, frames, defaults)
+        return channels_to_dofs(grig.skeleton, grig.layout, values)
+    rig = grig.rig
+    translation, local = read_pose(rig, frames)
+    rotations, positions = forward_kinematics(rig.skeleton, local, translation)
+    rest_rot, _ = rest_pose(rig.skeleton)
+    a_rot, _ = _world_linear(rig)
+    a = rig.armature2world
+    deltas_arm = rotations @ np.swapaxes(rest_rot, -1, -2)
+    deltas = a_rot @ deltas_arm[:, grig.bone_of_joint] @ a_rot.T
+    deltas = fill_unmapped(grig.skeleton.parents, deltas, grig.bone_of_joint >= 0)
+    root_world = positions[:, 0] @ a[:3, :3].T + a[:3, 3]
+    return asf_dofs_from_world_deltas(grig.skeleton, deltas, root_world * grig.scale)
+
+
+def _bvh_channels(grig, dofs, last_values):
+    """Pose-channel values (N, len(targets)) of DOF rows for a BVH rig, continuous with the
+    channel values ``last_values`` at the frame before."""
+    from ..core.pose_channels import channel_property, channels_from_rotations
+
+    rig = grig.rig
+    deltas, root_world = world_deltas_from_asf_dofs(grig.skeleton, dofs)
+    a_rot, _ = _world_linear(rig)
+    a = rig.armature2world
+    rest_rot, _ = rest_pose(rig.skeleton)
+    n, b = len(dofs), len(rig.bone_names)
+    world = np.broadcast_to(rest_rot, (n, b, 3, 3)).copy()
+    for j, k in enumerate(grig.bone_of_joint):
+        world[:, k] = a_rot.T @ deltas[:, j] @ a_rot @ rest_rot[k]
+    head = np.linalg.solve(a[:3, :3], (root_world / grig.scale - a[:3, 3]).T).T
+    out = []
+    col = 0
+    for k in sorted(set(grig.bone_of_joint.tolist())):
+        p = rig.skeleton.parents[k]
+        parent = np.swapaxes(world[:, p], -1, -2) if p >= 0 else np.eye(3)
+        local = rig.skeleton.rest_rotations[k].T @ parent @ world[:, k]
+        _, count = channel_property(rig.rotation_modes[k])
+        out.append(channels_from_rotations(local, rig.rotation_modes[k],
+                                           previous=last_values[col:col + count]))
+        col += count
+    translation = head - rig.skeleton.offsets[0]
+    out.append(translation @ rig.skeleton.rest_rotations[0])   # pose location, bone frame
+    return np.hstack(out)
+
+
+def current_values(bag, targets, frame, obj):
+    """Values (C,) of the target channels at ``frame`` (pose value where no F-curve)."""
+    defaults = []
+    for path, index, _ in targets:
+        defaults.append(obj.path_resolve(path)[index])
+    values, _ = evaluate_fcurves(bag, [(p, i) for p, i, _ in targets], [frame], defaults)
+    return values[0]
+
+
+def keyed_range(grig):
+    """(first, last) keyed frame over the F-curves the rig reads; :class:`GaitError` if none."""
+    bag = _action_bag(grig.obj)
+    lo, hi = np.inf, -np.inf
+    for path, index, _ in grig.targets():
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is not None and len(fcurve.keyframe_points):
+            co = keyframe_state(fcurve)["co"][:, 0]
+            lo, hi = min(lo, float(co.min())), max(hi, float(co.max()))
+    if not np.isfinite(lo):
+        raise GaitError(f"{grig.obj.name}'s action has no keys on the bones the gait model reads")
+    return lo, hi
+
+
+def keyed_conflicts(bag, targets, first, last):
+    """Number of target F-curves holding keys at frames in ``[first, last]``."""
+    count = 0
+    for path, index, _ in targets:
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None or len(fcurve.keyframe_points) == 0:
+            continue
+        co = keyframe_state(fcurve)["co"][:, 0]
+        if np.any((co >= first - 1e-4) & (co <= last + 1e-4)):
+            count += 1
+    return count
+
+
+def channel_values(grig, bag, dofs, last_frame, last_dofs):
+    """Values (N, len(targets)) that key DOF rows, continuing the curves of ``bag`` at
+    ``last_frame`` (whose DOF row is ``last_dofs``).
+
+    Raises
+    ------
+    GaitError
+        If any value is not finite (nothing is written then).
+    """
+    targets = grig.targets()
+    last_values = current_values(bag, targets, last_frame, grig.obj)
+    if grig.kind == "ACCLAIM":
+        values = dofs_to_channels_after(grig.skeleton, grig.layout, dofs, last_dofs, last_values)
+    else:
+        values = _bvh_channels(grig, dofs, last_values)
+    if not np.all(np.isfinite(values)):
+        raise GaitError("the prediction produced non-finite values; nothing was written")
+    return values
+
+
+def key_values(grig, bag, frames, values):
+    """Key ``values`` (from :func:`channel_values`) at ``frames`` into ``bag`` in bulk, existing
+    keys untouched. Returns the number of keys written."""
+    written = 0
+    for c, (path, index, group) in enumerate(grig.targets()):
+        written += insert_keys_preserving(bag, path, index, group, frames, values[:, c])
+    return written

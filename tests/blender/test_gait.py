@@ -1,0 +1,411 @@
+"""Gait panel through bpy.ops: learn from imported CMU walks, predict another walk, redo with a
+new cadence, save/reload, refusals that change nothing, BVH rigs, live-preview logic."""
+
+import importlib
+
+import numpy as np
+import pytest
+
+from blender_support import MODULE, bpy, datablock_counts
+from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
+    dofs_to_channels_after
+from core.gait import (GaitModel, LookaheadPredictor, adapt, interpolate_styles,
+                       observations_from_dofs, predict_dofs)
+from core.gait.foot_slide import planted_stride
+from core.kinematics import local_rotations_from_dofs
+from core.mocap import AmcMotion, asf_to_skeleton, format_bvh, read_amc, read_asf, resample, \
+    write_amc
+from tests.data import asf_path, cmu_path
+
+FPS = 60
+TRAIN = ("08_04", "35_01", "35_02")
+TEST = "35_07"
+N_OBS = 100          # observed frames (1.67 s at 60 fps, the paper's adaptation window)
+
+
+def bridge(name):
+    return importlib.import_module(f"{MODULE}.addon.{name}")
+
+
+def trial_dofs(trial, fps=FPS):
+    asf = read_asf(asf_path(trial))
+    values = read_amc(cmu_path(trial + ".amc"), asf).values
+    return resample(values, 120, fps, np.arange(3, values.shape[1])), asf
+
+
+def import_observed(tmp_path, trial=TEST, n=N_OBS):
+    """Import the first n frames (at 60 fps) of a trial as a walker with nothing keyed after."""
+    values, asf = trial_dofs(trial)
+    path = tmp_path / f"{trial}.amc"
+    write_amc(path, asf, AmcMotion(values=values[:n], frame_numbers=np.arange(1, n + 1),
+                                   bone_order=(), fps=FPS, path=str(path)))
+    (tmp_path / asf_path(trial).name).write_bytes(asf_path(trial).read_bytes())
+    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
+    return bpy.context.active_object
+
+
+def learn_from_files(*trials):
+    trials = trials or TRAIN
+    files = [{"name": t + ".amc"} for t in trials]
+    assert bpy.ops.track_and_stride.learn_gait(
+        use_selected=False, files=files, directory=str(cmu_path(""))) == {"FINISHED"}
+    return bpy.context.scene.track_and_stride_gait
+
+
+def fcurve_table(obj):
+    anim = obj.animation_data
+    bag = bridge("fcurves").channelbag(anim.action, anim.action_slot)
+    return bag, {(f.data_path, f.array_index): f for f in bag.fcurves}
+
+
+def snapshot(obj):
+    """Exact key state of every F-curve of the object's action."""
+    state = bridge("fcurves").keyframe_state
+    return {k: state(f) for k, f in fcurve_table(obj)[1].items()}
+
+
+def keys_at(obj, layout, frames):
+    """Key values (F, channels) of the layout's F-curves at the given frames."""
+    _, table = fcurve_table(obj)
+    out = np.empty((len(frames), len(layout.channels)))
+    for c, (bone, prop, index) in enumerate(layout.channels):
+        co = bridge("fcurves").keyframe_state(table[(f'pose.bones["{bone}"].{prop}', index)])["co"]
+        lookup = dict(zip(co[:, 0].tolist(), co[:, 1].tolist()))
+        out[:, c] = [lookup[float(f)] for f in frames]
+    return out
+
+
+def core_prediction(model, skeleton, observed, n, w=None, stride=1.0):
+    """The core's prediction from observed DOF rows: batch EM, planted stride, predict_dofs."""
+    res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
+    w = res.w if w is None else w
+    raw = predict_dofs(model, res.state, w, n, observed[-1], FPS)
+    k = planted_stride(skeleton, np.vstack([observed[-1:], raw]))
+    return predict_dofs(model, res.state, w, n, observed[-1], FPS, stride=k * stride)
+
+
+def angle_rms(a, b):
+    d = np.angle(np.exp(1j * (a - b)))
+    return float(np.sqrt(np.mean(d ** 2)))
+
+
+def period_frames(x):
+    """Mean-removed autocorrelation period (frames, parabolic peak) of a (N, C) array."""
+    x = x - x.mean(axis=0)
+    n = len(x)
+    ac = np.array([np.sum(x[:n - k] * x[k:]) / (n - k) for k in range(n // 2)])
+    lag = 20 + int(np.argmax(ac[20:]))
+    y0, y1, y2 = ac[lag - 1], ac[lag], ac[lag + 1]
+    return lag + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
+
+
+@pytest.fixture
+def scene():
+    s = bpy.context.scene
+    s.render.fps = FPS
+    return s
+
+
+def test_learn_from_imported_walks_then_predict_another(scene, tmp_path):
+    for trial in TRAIN:
+        assert bpy.ops.import_anim.acclaim(filepath=str(cmu_path(trial + ".amc"))) == {"FINISHED"}
+    for obj in bpy.data.objects:
+        obj.select_set(True)
+    assert bpy.ops.track_and_stride.learn_gait(name="Walks") == {"FINISHED"}
+    settings = scene.track_and_stride_gait
+    assert [m.name for m in settings.models] == ["Walks"] and "J=" in settings.models[0].summary
+    model = bridge("gait_bridge").decode_model(settings.models[0].data)
+    assert model.style_names == TRAIN
+
+    obj = import_observed(tmp_path)
+    before = snapshot(obj)
+    other = obj.pose.bones["lfemur"]                  # a channel the prediction must not touch
+    for frame, value in ((5, 1.1), (300, 0.9)):
+        other.scale[0] = value
+        other.keyframe_insert("scale", index=0, frame=frame)
+    other_state = bridge("fcurves").keyframe_state(fcurve_table(obj)[1][
+        ('pose.bones["lfemur"].scale', 0)])
+    assert bpy.ops.track_and_stride.predict_gait(horizon=2.0) == {"FINISHED"}
+
+    # Every key that existed is bit-identical; the other channel is untouched.
+    after = snapshot(obj)
+    for key, old in before.items():
+        new = after[key]
+        kept = new["co"][:, 0] <= N_OBS
+        for prop, array in old.items():
+            assert new[prop][kept].tobytes() == array.tobytes(), (key, prop)
+    for prop, array in other_state.items():
+        assert after[('pose.bones["lfemur"].scale', 0)][prop].tobytes() == array.tobytes()
+
+    # The written keys equal the core's prediction from the same observed keys.
+    skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
+    layout = armature_layout(skeleton)
+    observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    expected_dofs = core_prediction(model, skeleton, observed, 2 * FPS)
+    last_channels = keys_at(obj, layout, [N_OBS])[0]
+    expected = dofs_to_channels_after(skeleton, layout, expected_dofs, observed[-1], last_channels)
+    written = keys_at(obj, layout, range(N_OBS + 1, N_OBS + 2 * FPS + 1))
+    np.testing.assert_allclose(written, expected, atol=2e-5)
+
+    # ...and beat holding the last observed pose on the real continuation of the trial.
+    truth, _ = trial_dofs(TEST)
+    truth = truth[N_OBS:N_OBS + 2 * FPS, 6:]              # the trial ends 1.33 s later
+    predicted = channels_to_dofs(skeleton, layout, written)[:len(truth), 6:]
+    hold = np.broadcast_to(observed[-1, 6:], truth.shape)
+    assert angle_rms(predicted, truth) < 0.8 * angle_rms(hold, truth)
+
+
+def test_redo_with_cadence_shortens_the_predicted_cycle(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    name = obj.name
+    skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
+    layout = armature_layout(skeleton)
+    frames = range(N_OBS + 1, N_OBS + 4 * FPS + 1)
+    # The window manager pushes an undo step around an UNDO operator; headless we do it by hand.
+    bpy.ops.ed.undo_push(message="before predict")
+    assert bpy.ops.track_and_stride.predict_gait(horizon=4.0) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="Predict Gait")
+    base = period_frames(keys_at(bpy.data.objects[name], layout, frames)[:, 6:])
+    # Adjust Last Operation (F9) = undo, then execute again with the new properties.
+    bpy.ops.ed.undo()
+    obj = bpy.data.objects[name]
+    assert max(k["co"][:, 0].max() for k in snapshot(obj).values()) == N_OBS
+    assert bpy.ops.track_and_stride.predict_gait(horizon=4.0, cadence=1.2) == {"FINISHED"}
+    fast = period_frames(keys_at(obj, layout, frames)[:, 6:])
+    assert fast / base == pytest.approx(1 / 1.2, rel=0.02)
+    assert {"REGISTER", "UNDO"} <= bpy.types.TRACK_AND_STRIDE_OT_predict_gait.bl_options
+    rna = bpy.ops.track_and_stride.predict_gait.get_rna_type()
+    for prop in ("horizon", "cadence", "style_mode", "style_a", "weights", "stride",
+                 "root_travel"):
+        assert prop in rna.properties
+
+
+def test_save_reload_predict_again(scene, tmp_path):
+    settings = learn_from_files()
+    data = settings.models[0].data
+    import_observed(tmp_path)
+    path = tmp_path / "gait.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert len(bpy.context.scene.track_and_stride_gait.models) == 0
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    settings = bpy.context.scene.track_and_stride_gait
+    assert [m.name for m in settings.models] == ["Gait Model"] and settings.models[0].data == data
+    model = GaitModel.from_bytes(__import__("base64").b64decode(data))
+    assert model.style_names == TRAIN
+    obj = bpy.data.objects[TEST]
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
+    assert max(k["co"][:, 0].max() for k in snapshot(obj).values()) == N_OBS + FPS
+    assert bpy.ops.track_and_stride.remove_gait_model() == {"FINISHED"}
+    assert len(settings.models) == 0
+
+
+def test_refusals_explain_and_change_nothing(scene, tmp_path):
+    obj = import_observed(tmp_path)
+    with pytest.raises(RuntimeError, match="Learn a gait model first"):
+        bpy.ops.track_and_stride.predict_gait()
+    learn_from_files()
+    counts, keys = datablock_counts(), snapshot(obj)
+
+    def refused(match, **kwargs):
+        with pytest.raises(RuntimeError, match=match):
+            bpy.ops.track_and_stride.predict_gait(**kwargs)
+        assert datablock_counts() == counts
+        after = snapshot(obj)
+        assert after.keys() == keys.keys()
+        for key, state in keys.items():
+            for prop, array in state.items():
+                assert after[key][prop].tobytes() == array.tobytes()
+
+    refused("shorter than one gait cycle", range_mode="CUSTOM", frame_start=1, frame_end=25)
+    refused("already hold keys", range_mode="CUSTOM", frame_start=1, frame_end=90)
+    # An armature without action, and one whose bones the model does not know.
+    data = bpy.data.armatures.new("plain")
+    plain = bpy.data.objects.new("plain", data)
+    scene.collection.objects.link(plain)
+    bpy.context.view_layer.objects.active = plain
+    bpy.ops.object.mode_set(mode="EDIT")
+    data.edit_bones.new("Bone").tail = (0, 0, 1)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    counts = datablock_counts()
+    refused("neither an Acclaim import nor a CMU BVH")
+    (tmp_path / "other").mkdir()
+    empty = import_observed(tmp_path / "other", trial="35_01", n=60)
+    empty.animation_data.action = None
+    counts = datablock_counts()
+    refused("has no action")
+    with pytest.raises(RuntimeError, match="Nothing to learn from"):
+        bpy.ops.track_and_stride.learn_gait(use_selected=False)
+
+
+def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
+    settings = learn_from_files()
+    model = bridge("gait_bridge").decode_model(settings.models[0].data)
+    obj = import_observed(tmp_path)
+    original = obj.animation_data.action
+    before = snapshot(obj)
+    assert bpy.ops.track_and_stride.predict_gait(
+        horizon=1.0, style_mode="BLEND", style_a="08_04", style_b="35_02", blend=0.25,
+        stride=1.3, target="NEW_ACTION") == {"FINISHED"}
+    assert obj.animation_data.action != original and original.use_fake_user
+    bag = bridge("fcurves").channelbag(original, original.slots[0])
+    state = bridge("fcurves").keyframe_state
+    for fcurve in bag.fcurves:                         # the original action is untouched
+        for prop, array in before[(fcurve.data_path, fcurve.array_index)].items():
+            assert state(fcurve)[prop].tobytes() == array.tobytes()
+    skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
+    layout = armature_layout(skeleton)
+    observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    w = interpolate_styles(model, "08_04", "35_02", 0.25)
+    expected = core_prediction(model, skeleton, observed, FPS, w=w, stride=1.3)
+    written = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(N_OBS + 1, N_OBS + FPS + 1)))
+    np.testing.assert_allclose(written[:, :3], expected[:, :3], atol=1e-4)
+    assert angle_rms(written[:, 3:], expected[:, 3:]) < 1e-5
+
+
+def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
+    values, asf = trial_dofs(TEST)
+    path = tmp_path / f"{TEST}.bvh"
+    path.write_text(format_bvh(asf, values[:N_OBS], FPS))
+    assert bpy.ops.import_anim.bvh(filepath=str(path)) == {"FINISHED"}
+    obj = bpy.context.active_object
+    rigs = bridge("gait_rigs")
+    grig = rigs.gait_rig(obj)
+    assert grig.kind == "BVH" and grig.scale == pytest.approx(0.0254 / 0.45)
+    seen = rigs.read_dofs(grig, np.arange(1, N_OBS + 1))
+    skeleton = asf_to_skeleton(asf)
+    t_seen, local_seen = local_rotations_from_dofs(grig.skeleton, seen)
+    t_true, local_true = local_rotations_from_dofs(skeleton, values[:N_OBS])
+    assert np.abs(local_seen - local_true).max() < 1e-4       # float32 F-curves
+    assert np.abs(t_seen - t_true).max() < 1e-4               # metres
+    learn_from_files()
+    assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
+    model = bridge("gait_bridge").active_model(scene)[1]
+    expected = core_prediction(model, grig.skeleton, seen, FPS)
+    back = rigs.read_dofs(grig, np.arange(N_OBS + 1, N_OBS + FPS + 1))
+    _, local_back = local_rotations_from_dofs(grig.skeleton, back)
+    _, local_exp = local_rotations_from_dofs(grig.skeleton, expected)
+    assert np.abs(local_back - local_exp).max() < 1e-4
+    assert np.abs(back[:, :3] - expected[:, :3]).max() < 1e-4
+
+
+def test_live_preview_logic_without_the_handler(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    preview = bridge("gait_preview")
+    scene.track_and_stride_gait.preview_ahead = 0.25
+    counts = datablock_counts()
+    assert bpy.ops.track_and_stride.gait_preview_start() == {"FINISHED"}
+    assert bpy.app.background and not preview.handler_registered()
+    ghost = bpy.data.objects[preview.session().ghost_name]
+    assert ghost.animation_data is None and ghost.data != obj.data
+    model = bridge("gait_bridge").active_model(scene)[1]
+    skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
+    layout = armature_layout(skeleton)
+    dofs = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    reference = LookaheadPredictor(model, skeleton.dof_names(), FPS, ahead=15, replay=FPS,
+                                   first_frame=1)
+    for frame in list(range(1, 40)) + [80, 81]:        # play, then jump
+        scene.frame_set(frame)
+        row = preview.update_preview(scene)
+        expected = reference.update(frame, lambda f: dofs[np.asarray(f) - 1])
+        assert np.abs(row - expected).max() < 1e-4
+    channels = dofs_to_channels(skeleton, layout, row[None])[0]
+    posed = [getattr(ghost.pose.bones[b], p)[i] for b, p, i in layout.channels]
+    np.testing.assert_allclose(posed, channels, atol=1e-5)
+    assert bpy.ops.track_and_stride.gait_preview_stop() == {"FINISHED"}
+    assert preview.session() is None and not preview.handler_registered()
+    assert datablock_counts() == counts
+    with pytest.raises(RuntimeError, match="No live preview"):
+        bpy.ops.track_and_stride.gait_preview_stop()
+
+
+class RecordingLayout:
+    """Stands in for UILayout (no UI headless): checks every drawn property and operator."""
+
+    def __init__(self, drawn):
+        self.drawn = drawn
+        self.active = True
+
+    def column(self, **kwargs):
+        return self
+
+    row = column
+
+    def label(self, **kwargs):
+        self.drawn.append(("label", kwargs.get("text")))
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        self.drawn.append(("prop", name))
+
+    def operator(self, idname, **kwargs):
+        module, op = idname.split(".")
+        rna = getattr(getattr(bpy.ops, module), op).get_rna_type()
+        self.drawn.append(("operator", idname))
+        return type("Props", (), {n.identifier: None for n in rna.properties})()
+
+    def template_list(self, list_id, name, data, prop, active_data, active_prop, **kwargs):
+        assert hasattr(bpy.types, list_id) and prop in data.bl_rna.properties
+        assert active_prop in active_data.bl_rna.properties
+        self.drawn.append(("list", prop))
+
+
+def test_panel_draws_and_every_property_explains_itself(scene):
+    panel = bpy.types.VIEW3D_PT_track_and_stride_gait
+    assert panel.bl_parent_id == "VIEW3D_PT_track_and_stride"
+    drawn = []
+    learn_from_files()
+    panel.draw(type("Panel", (), {"layout": RecordingLayout(drawn)})(), bpy.context)
+    ops = [d[1] for d in drawn if d[0] == "operator"]
+    assert "track_and_stride.predict_gait" in ops and "track_and_stride.gait_preview_start" in ops
+    assert ("label", scene.track_and_stride_gait.models[0].summary) in drawn
+    for op in ("learn_gait", "predict_gait", "remove_gait_model", "gait_preview_start",
+               "gait_preview_stop"):
+        rna = getattr(bpy.ops.track_and_stride, op).get_rna_type()
+        assert rna.description, op
+        for prop in rna.properties:
+            if prop.identifier == "rna_type" or prop.is_hidden:
+                continue
+            assert prop.description, f"{op}.{prop.identifier}"
+    settings = bpy.context.scene.track_and_stride_gait
+    for prop in settings.bl_rna.properties:
+        if prop.identifier not in ("rna_type", "name"):
+            assert prop.description, prop.identifier
+
+
+def test_disabling_the_addon_ends_the_preview(scene, tmp_path):
+    import addon_utils
+
+    learn_from_files()
+    import_observed(tmp_path)
+    counts = datablock_counts()
+    assert bpy.ops.track_and_stride.gait_preview_start() == {"FINISHED"}
+    assert datablock_counts()["objects"] == counts["objects"] + 1
+    addon_utils.disable(MODULE, default_set=True)
+    try:
+        assert datablock_counts() == counts               # ghost and its armature removed
+        assert not any(getattr(h, "__module__", "").startswith(MODULE)
+                       for h in bpy.app.handlers.frame_change_post + bpy.app.handlers.load_pre)
+    finally:
+        addon_utils.enable(MODULE, default_set=True)
+    assert bridge("gait_preview").session() is None
+
+
+def test_redo_panel_draws_the_options_by_style_mode(scene):
+    learn_from_files()
+    op = bpy.types.TRACK_AND_STRIDE_OT_predict_gait
+    rna = bpy.ops.track_and_stride.predict_gait.get_rna_type()
+    for mode, expected in (("ADAPTED", set()), ("BLEND", {"style_a", "style_b", "blend"}),
+                           ("WEIGHTS", {"weights"})):
+        drawn = []
+        fake = type("Op", (), {"layout": RecordingLayout(drawn), "bl_rna": rna,
+                               "range_mode": "CUSTOM", "style_mode": mode, "root_travel": True})()
+        op.draw(fake, bpy.context)
+        names = {d[1] for d in drawn if d[0] == "prop"}
+        assert {"horizon", "cadence", "style_mode", "stride", "root_travel", "plant_feet",
+                "frame_start", "target"} <= names
+        assert names & {"style_a", "style_b", "blend", "weights"} == expected
+    assert [d for d in drawn if d[1] == "weights"] == [("prop", "weights")] * len(TRAIN)
