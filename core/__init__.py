@@ -6,6 +6,7 @@ once in ``docs/conventions.md``. Subpackages:
 ``kinematics``  rotations, articulated skeletons, batched forward kinematics
 ``mocap``       Acclaim ASF/AMC reading and writing, frame-rate resampling
 ``armature``    core skeleton <-> Blender-style armature (bone Y along head->tail) layout
+``tracking``    drift-corrected video tracking (Yamamoto)
 """
 
-__all__ = ["kinematics", "mocap", "armature"]
+__all__ = ["kinematics", "mocap", "armature", "tracking"]
