@@ -31,6 +31,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
 MOTIONS = {"walk": ("08_01", 30.0), "run": ("35_17", 60.0)}
 MIN_PART_LENGTH = 0.04
+# Landscape walk/run camera: degrees off the perpendicular to the walking direction.
+VIEW_ANGLE = 45.0
 TEXTURE_SIZE = 128
 
 
@@ -119,11 +121,11 @@ def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
         cam = dict(lens=35.0, sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
                    shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, target))
     else:
-        # Oblique side view (25 degrees off the perpendicular), slightly from above; the focal
+        # Oblique view (VIEW_ANGLE off the perpendicular), slightly from above; the focal
         # length frames the walked path (or the body's height, whichever needs more room).
         span = float(np.linalg.norm(path[-1] - path[0]))
         dist = 4.5
-        ang = np.radians(25.0)
+        ang = np.radians(VIEW_ANGLE)
         view = np.cos(ang) * side + np.sin(ang) * heading
         eye = centre + np.r_[dist * view, 0.35]
         visible = max((span * np.cos(ang) + 0.7) / 0.85, 2.2 * aspect)
@@ -201,7 +203,7 @@ def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9):
 
 def render_params(motion, width, height, frames, step=1, start=0):
     return dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
-                step=int(step), start=int(start), version=5)
+                step=int(step), start=int(start), version=6)
 
 
 def footage_dir(motion, width, height, frames, step=1, start=0, root=None):

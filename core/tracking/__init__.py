@@ -18,7 +18,8 @@ from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyram
                     sample_with_gradient, to_grayscale)
 from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_between, motion_layout,
                         point_jacobians)
-from .motion import FrameMotion, estimate_motion, rank_decomposition, solve_with_prediction
+from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_decompositions,
+                     solve_with_prediction)
 from .parallel import SequenceResult, track_keyframes
 from .presets import CMU_PARTS, TABLE1, table1_dof_mask
 from .problem import TrackingError, TrackingOptions, TrackingProblem
@@ -26,13 +27,13 @@ from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_er
                          track_accumulated, track_interval)
 
 __all__ = [
-    "BodyModel", "CMU_PARTS", "FrameMotion", "IntervalResult", "MotionLayout", "PinholeCamera",
+    "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "MotionLayout", "PinholeCamera",
     "Pose", "RayHits", "SequenceResult", "SilhouetteSamples", "TABLE1", "TrackingError",
     "TrackingOptions", "TrackingProblem", "apply_motion", "bilinear", "body_model_from_skeleton",
-    "camera_from_blender", "central_derivatives", "correct_root_positions", "estimate_motion",
+    "camera_from_blender", "central_derivatives", "correct_root_positions", "estimate_motions",
     "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
     "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
-    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition", "ray_cast",
+    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition", "rank_decompositions", "ray_cast",
     "sample_silhouette", "sample_with_gradient", "solve_with_prediction", "table1_dof_mask",
     "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
     "world2camera_from_blender",

@@ -158,45 +158,63 @@ def gaussian_pyramid(image, levels):
 
 def _sanitize(u, v, width, height):
     """Finite float64 coordinates clamped to just outside the image (non-finite -> -1)."""
-    u = np.clip(np.nan_to_num(np.asarray(u, dtype=float), nan=-1.0, posinf=width, neginf=-1.0),
-                -1.0, float(width))
-    v = np.clip(np.nan_to_num(np.asarray(v, dtype=float), nan=-1.0, posinf=height, neginf=-1.0),
-                -1.0, float(height))
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(v, dtype=float)
+    u = np.clip(np.where(np.isfinite(u), u, -1.0), -1.0, float(width))
+    v = np.clip(np.where(np.isfinite(v), v, -1.0), -1.0, float(height))
     return u, v
 
 
-def bilinear(image, u, v):
-    """Bilinear samples of a 2-D image at pixel coordinates, edges replicated.
+def _stack_offsets(e, frames, m):
+    """Flat index offset of each point's image in a (N, H, W) stack (0 for a single image)."""
+    if e.ndim == 2:
+        if frames is not None:
+            raise ValueError("frames given for a single (H, W) image")
+        return 0
+    if e.ndim != 3:
+        raise ValueError(f"Expected shape (H, W) or (N, H, W), got {e.shape}")
+    if frames is None:
+        raise ValueError("frames (M,) are needed to sample a (N, H, W) stack")
+    frames = np.asarray(frames, dtype=np.intp)
+    if frames.shape != (m,):
+        raise ValueError(f"Expected frames of shape ({m},), got {frames.shape}")
+    return frames * (e.shape[1] * e.shape[2])
+
+
+def bilinear(image, u, v, frames=None):
+    """Bilinear samples at pixel coordinates, edges replicated.
 
     Equals ``scipy.ndimage.map_coordinates(image, [v, u], order=1, mode='nearest')``.
     Non-finite coordinates sample the top-left pixel (callers mask such points).
 
     Parameters
     ----------
-    image : array_like, shape (H, W)
+    image : array_like, shape (H, W) or (N, H, W)
     u, v : array_like, shape (M,), pixels
+    frames : array_like, shape (M,), int, optional
+        Image of the stack each point samples (required for a stack).
 
     Returns
     -------
     ndarray, shape (M,), float64
     """
     e = _check_image(image)
-    if e.ndim != 2:
-        raise ValueError(f"Expected shape (H, W), got {e.shape}")
-    h, w = e.shape
+    h, w = e.shape[-2:]
     u, v = _sanitize(u, v, w, h)
+    base = _stack_offsets(e, frames, len(u))
     iu, iv = np.floor(u), np.floor(v)
     fu, fv = u - iu, v - iv
     iu, iv = iu.astype(np.intp), iv.astype(np.intp)
     c0, c1 = np.clip(iu, 0, w - 1), np.clip(iu + 1, 0, w - 1)
-    r0, r1 = np.clip(iv, 0, h - 1) * w, np.clip(iv + 1, 0, h - 1) * w
+    r0 = np.clip(iv, 0, h - 1) * w + base
+    r1 = np.clip(iv + 1, 0, h - 1) * w + base
     flat = e.ravel()
     top = flat[r0 + c0] * (1.0 - fu) + flat[r0 + c1] * fu
     bottom = flat[r1 + c0] * (1.0 - fu) + flat[r1 + c1] * fu
     return top * (1.0 - fv) + bottom * fv
 
 
-def sample_with_gradient(image, u, v):
+def sample_with_gradient(image, u, v, frames=None):
     """Bilinear samples of an image and of its central-difference derivatives, in one gather.
 
     Equals :func:`bilinear` of ``image`` and of both :func:`central_derivatives` images, without
@@ -204,8 +222,10 @@ def sample_with_gradient(image, u, v):
 
     Parameters
     ----------
-    image : array_like, shape (H, W)
+    image : array_like, shape (H, W) or (N, H, W)
     u, v : array_like, shape (M,), pixels
+    frames : array_like, shape (M,), int, optional
+        Image of the stack each point samples (required for a stack).
 
     Returns
     -------
@@ -213,10 +233,9 @@ def sample_with_gradient(image, u, v):
         Intensity and its derivatives along u and v (intensity per pixel).
     """
     e = _check_image(image)
-    if e.ndim != 2:
-        raise ValueError(f"Expected shape (H, W), got {e.shape}")
-    h, w = e.shape
+    h, w = e.shape[-2:]
     u, v = _sanitize(u, v, w, h)
+    base = _stack_offsets(e, frames, len(u))
     iu, iv = np.floor(u), np.floor(v)
     fu, fv = (u - iu)[:, None], (v - iv)[:, None]
     iu, iv = iu.astype(np.intp), iv.astype(np.intp)
@@ -233,6 +252,8 @@ def sample_with_gradient(image, u, v):
         (rp[:, :, None] + c[:, None, :]).reshape(-1, 4),    # lower neighbours
         (rm[:, :, None] + c[:, None, :]).reshape(-1, 4),    # upper neighbours
     ], axis=1)
+    if np.ndim(base):
+        idx += base[:, None]
     g = e.ravel()[idx].astype(float)                         # (M, 20)
     # Corner weights in (r0c0, r0c1, r1c0, r1c1) order.
     wts = np.concatenate([(1.0 - fv) * (1.0 - fu), (1.0 - fv) * fu, fv * (1.0 - fu), fv * fu], axis=1)

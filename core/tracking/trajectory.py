@@ -3,7 +3,7 @@
 1. Initial trajectory: every joint turns from key 0 to key n about the single axis of
    ``T_0^-1 T_n`` in equal steps (slerp); the root position moves linearly.
 2. The model is placed at the trajectory pose of each frame ``j`` and the motion ``j -> j+1`` is
-   estimated (:func:`~.motion.estimate_motion`), predicted by the trajectory's own inter-frame
+   estimated (:func:`~.motion.estimate_motions`), predicted by the trajectory's own inter-frame
    motion (eq. 10).
 3. The motions are accumulated from key 0 (this drifts), then corrected so that the trajectory
    ends on key n (§3.1 orientation per joint, §3.2 root position).
@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..kinematics import exp_so3, log_so3, matrix_to_euler
-from .body_model import joint_frames_in_camera, sample_silhouette
+from .body_model import joint_frames_in_camera, part_bounds, part_geometry, sample_silhouette
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
-from .motion import estimate_motion
+from .motion import estimate_motions
 from .problem import TrackingError, TrackingOptions
 
 _AXES = "XYZ"
@@ -55,6 +55,8 @@ class IntervalResult:
     ranks : ndarray, shape (n,), int
         Rank of ``A`` (eq. 5) on the finest level for each frame pair, from the tracking pass
         that produced the kept trajectory (the first pass if the interpolation was kept).
+        Without depth estimation the root translation contributes one null direction, so the
+        rank is at most (estimated DOFs - 1), as in the paper's Fig. 10.
     n_samples : ndarray, shape (n,), int
         Model points used per frame pair in that pass.
     errors : ndarray, shape (iterations + 1,)
@@ -83,8 +85,8 @@ class IntervalResult:
     diverged: bool
     reason: str
     finest_level: int
-    timings: dict = field(default_factory=dict, compare=False)
-    history: list = field(default_factory=list, compare=False)
+    timings: dict = field(default_factory=dict)
+    history: list = field(default_factory=list)
 
     @property
     def n_frames(self):
@@ -123,10 +125,9 @@ def choose_finest_level(problem, options, start, end, n_levels):
     rot, org = joint_frames_in_camera(problem.skeleton, problem.camera.world2camera,
                                       np.stack([start.root_translation, end.root_translation]),
                                       np.stack([start.local_rotations, end.local_rotations]))
-    from .body_model import part_bounds
+    bounds = part_bounds(problem.body, problem.camera, part_geometry(problem.body, rot, org))
     height = 0.0
-    for k in range(2):
-        b = part_bounds(problem.body, problem.camera, rot[k], org[k])
+    for b in bounds:
         b = b[np.all(np.isfinite(b), axis=1)]
         if len(b):
             height = max(height, min(b[:, 3].max(), problem.camera.height) - max(b[:, 2].min(), 0))
@@ -148,13 +149,7 @@ def _frames_in_camera(problem, roots, local):
     return joint_frames_in_camera(problem.skeleton, problem.camera.world2camera, roots, local)
 
 
-def _sample_all(problem, options, level, rot, org):
-    camera = problem.camera.at_level(level)
-    return [sample_silhouette(problem.body, camera, rot[j], org[j], options.candidate_budget)
-            for j in range(len(rot))]
-
-
-def photometric_error(problem, frames_level, level, rot, org, samples):
+def photometric_error(problem, frames_level, level, frames_cam, samples):
     """Eq. 4 per frame pair: model points seen at frame j, moved to j+1 by the trajectory.
 
     ``sum_{X,Y} (E(X', Y', j+1) - E(X, Y, j))^2`` over the silhouette of frame ``j``, sampled on
@@ -167,31 +162,30 @@ def photometric_error(problem, frames_level, level, rot, org, samples):
     frames_level : ndarray, shape (n + 1, H_l, W_l)
         Grayscale frames at pyramid level ``level``.
     level : int
-    rot, org : ndarray, shapes (n + 1, B, 3, 3) and (n + 1, B, 3)
+    frames_cam : tuple (rotations (n + 1, B, 3, 3), origins (n + 1, B, 3))
         Joint frames in the camera along the trajectory.
-    samples : list of SilhouetteSamples
-        Silhouette samples of frames 0 .. n-1 (at least) on that level's grid.
+    samples : SilhouetteSamples
+        Silhouette samples of the trajectory poses on that level's grid.
 
     Returns
     -------
     ndarray, shape (n,)
     """
+    rot, org = frames_cam
+    n = len(rot) - 1
     camera = problem.camera.at_level(level)
-    out = np.zeros(len(rot) - 1)
-    for j in range(len(rot) - 1):
-        s = samples[j]
-        if s.count == 0:
-            continue
-        k = s.joints
-        local = np.einsum("mji,mj->mi", rot[j, k], s.points - org[j, k])
-        moved = np.einsum("mij,mj->mi", rot[j + 1, k], local) + org[j + 1, k]
-        uv = camera.project(moved)
-        ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
-              & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1))
-        e1 = bilinear(frames_level[j + 1], uv[ok, 0], uv[ok, 1])
-        e0 = bilinear(frames_level[j], s.pixels[ok, 0], s.pixels[ok, 1])
-        out[j] = float(np.sum((e1 - e0) ** 2)) * s.stride ** 2
-    return out
+    sel = samples.frames < n
+    f, k = samples.frames[sel], samples.joints[sel]
+    local = np.einsum("mji,mj->mi", rot[f, k], samples.points[sel] - org[f, k])
+    moved = np.einsum("mij,mj->mi", rot[f + 1, k], local) + org[f + 1, k]
+    uv = camera.project(moved)
+    ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
+          & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1))
+    e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f[ok] + 1)
+    e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
+                  frames=f[ok])
+    weights = samples.strides[f[ok]] ** 2
+    return np.bincount(f[ok], weights=(e1 - e0) ** 2 * weights, minlength=n)
 
 
 def limit_violation(problem, local_rotations, start, end, margin):
@@ -222,22 +216,27 @@ def limit_violation(problem, local_rotations, start, end, margin):
             bad = np.nonzero((angles[:, a] < lo) | (angles[:, a] > hi))[0]
             if len(bad):
                 f = int(bad[0])
-                return (f"joint {sk.names[j]!r} axis {_AXES[a]} at {np.degrees(angles[f, a]):.1f} deg "
-                        f"outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at frame {f}")
+                return (f"joint {sk.names[j]!r} axis {_AXES[a]} at {np.degrees(angles[f, a]):.1f}"
+                        f" deg outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at "
+                        f"frame {f}")
     return None
 
 
-def correct_trajectory(problem, start, end, root_rotations_acc, motions_t, motions_r, options):
+def correct_trajectory(problem, start, end, translations, rotvecs, options, measured_on=None):
     """Accumulate per-frame motions from the start key and remove the drift (§3).
 
     Parameters
     ----------
     problem : TrackingProblem
     start, end : Pose
-    root_rotations_acc : unused placeholder for API symmetry (None)
-    motions_t : ndarray, shape (n, 3), metres, root frame
-    motions_r : ndarray, shape (n, B, 3), radians
+    translations : ndarray, shape (n, 3), metres, root frame
+    rotvecs : ndarray, shape (n, B, 3), radians
     options : TrackingOptions
+    measured_on : ndarray, shape (n, B, 3, 3), optional
+        Local rotations of the poses the motions were measured on. When given, root
+        translations are turned into world displacements with the root orientation they were
+        measured in (``options.root_displacement == 'measured'``) instead of eq. 24's
+        accumulated, uncorrected orientation.
 
     Returns
     -------
@@ -245,25 +244,26 @@ def correct_trajectory(problem, start, end, root_rotations_acc, motions_t, motio
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     sk = problem.skeleton
-    rots = exp_so3(motions_r)                                   # (n, B, 3, 3): R_j per joint
+    rots = exp_so3(rotvecs)                                     # (n, B, 3, 3): R_j per joint
     l0 = np.asarray(start.local_rotations, float)
     l1 = np.asarray(end.local_rotations, float)
     accumulated = accumulate_rotations(l0, rots)                # uncorrected T_0 R_1 .. R_j
-    # eq. 24 with the uncorrected root orientations.
+    # eq. 24, with the uncorrected root orientations; then §3.2's linear distribution.
+    frames = accumulated if measured_on is None else np.concatenate([measured_on, l1[None]])
     positions = accumulate_root_positions(start.root_translation,
-                                          root_world_rotation(sk, accumulated), motions_t)
+                                          root_world_rotation(sk, frames), translations)
     roots = correct_root_positions(positions, end.root_translation)
     # §3.1 per joint: R_1 X .. R_n X = T_0^-1 T_n (eq. 14), all joints at once.
     target = np.swapaxes(l0, -1, -2) @ l1
     corr = orientation_correction(np.swapaxes(rots, 0, 1), target, tol=options.drift_tol,
                                   max_iterations=options.drift_max_iterations)
     local = accumulate_rotations(l0, np.swapaxes(corr.motions, 0, 1))
-    local[-1] = l1
+    local[-1] = l1                       # exact key (the correction reaches it to ~1e-10)
     roots[-1] = end.root_translation
     return roots, local
 
 
-def _check_pose(problem, name, pose, b):
+def _check_pose(name, pose, b):
     t = np.asarray(pose.root_translation, dtype=float)
     r = np.asarray(pose.local_rotations, dtype=float)
     if t.shape != (3,) or r.shape != (b, 3, 3):
@@ -274,6 +274,35 @@ def _check_pose(problem, name, pose, b):
     if np.abs(r @ np.swapaxes(r, -1, -2) - np.eye(3)).max() > 1e-6:
         raise TrackingError(f"{name} pose: local_rotations are not rotation matrices")
     return Pose(t, r)
+
+
+def _prepare(problem, frames, start, end, options, pyramid):
+    sk = problem.skeleton
+    start = _check_pose("start", start, sk.n_joints)
+    end = _check_pose("end", end, sk.n_joints)
+    if pyramid is None:
+        frames = np.asarray(frames)
+        cam = problem.camera
+        if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
+            raise TrackingError(f"Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
+                                f"got {frames.shape}")
+        if len(frames) < 2:
+            raise TrackingError("an interval needs at least two frames")
+        if frames.dtype not in (np.float32, np.float64):
+            frames = frames.astype(np.float32)
+        pyramid = gaussian_pyramid(frames, pyramid_levels(problem, options))
+    finest = choose_finest_level(problem, options, start, end, len(pyramid))
+    return start, end, pyramid, finest
+
+
+class _Trajectory:
+    """A trajectory with its camera frames and silhouette samples (computed once, reused)."""
+
+    def __init__(self, problem, options, finest, roots, local):
+        self.roots, self.local = roots, local
+        self.cam = _frames_in_camera(problem, roots, local)
+        self.samples = sample_silhouette(problem.body, problem.camera.at_level(finest),
+                                         *self.cam, options.candidate_budget)
 
 
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
@@ -303,22 +332,10 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     """
     options = options or TrackingOptions()
     sk = problem.skeleton
-    start = _check_pose(problem, "start", start, sk.n_joints)
-    end = _check_pose(problem, "end", end, sk.n_joints)
     tic = time.perf_counter()
-    if pyramid is None:
-        frames = np.asarray(frames)
-        if frames.ndim != 3 or frames.shape[1:] != (problem.camera.height, problem.camera.width):
-            raise TrackingError(f"Expected frames of shape (n + 1, {problem.camera.height}, "
-                                f"{problem.camera.width}), got {frames.shape}")
-        if len(frames) < 2:
-            raise TrackingError("an interval needs at least two frames")
-        frames = frames if frames.dtype in (np.float32, np.float64) else frames.astype(np.float32)
-        pyramid = gaussian_pyramid(frames, pyramid_levels(problem, options))
+    start, end, pyramid, finest = _prepare(problem, frames, start, end, options, pyramid)
     n = len(pyramid[0]) - 1
-    finest = choose_finest_level(problem, options, start, end, len(pyramid))
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
-
     if initial is None:
         roots, local = interpolate_poses(sk, start, end, n)
     else:
@@ -326,40 +343,50 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         local = np.array(initial[1], dtype=float)
         if roots.shape != (n + 1, 3) or local.shape != (n + 1, sk.n_joints, 3, 3):
             raise TrackingError(f"initial trajectory: expected shapes ({n + 1}, 3) and "
-                                f"({n + 1}, {sk.n_joints}, 3, 3), got {roots.shape} and {local.shape}")
+                                f"({n + 1}, {sk.n_joints}, 3, 3), got {roots.shape} and "
+                                f"{local.shape}")
         roots[0], roots[-1] = start.root_translation, end.root_translation
         local[0], local[-1] = start.local_rotations, end.local_rotations
-    rot, org = _frames_in_camera(problem, roots, local)
-    samples = _sample_all(problem, options, finest, rot, org)
-    per_frame = photometric_error(problem, pyramid[finest], finest, rot, org, samples)
-    initial_counts = np.array([s.count for s in samples], dtype=float)
+    traj = _Trajectory(problem, options, finest, roots, local)
+    per_frame = photometric_error(problem, pyramid[finest], finest, traj.cam, traj.samples)
+    initial_counts = traj.samples.counts().astype(float)
     errors = [float(per_frame.sum())]
     history = [(roots, local)] if keep_history else []
-    best = dict(roots=roots, local=local, residuals=per_frame, ranks=None, n_samples=None,
-                iteration=0)
-    reason, diverged = "iteration limit", False
-    since_best = 0
-    first_pass = None
-    for iteration in range(1, options.max_iterations + 1):
+    best = dict(traj=traj, residuals=per_frame, ranks=None, n_samples=None, iteration=0)
+    reason, diverged, since_best, first_pass = "iteration limit", False, 0, None
+    if options.seed != "interpolation" and initial is None:
+        # A tracked start (see TrackingOptions.seed), scored as iteration 1.
         tic = time.perf_counter()
-        pred_t, pred_r = motion_between(sk, roots[:-1], local[:-1], roots[1:], local[1:])
-        mt = np.empty((n, 3))
-        mr = np.empty((n, sk.n_joints, 3))
-        ranks = np.zeros(n, dtype=int)
-        counts = np.zeros(n, dtype=int)
-        for j in range(n):
-            fm = estimate_motion(problem, options, [p[j] for p in pyramid],
-                                 [p[j + 1] for p in pyramid], finest, (roots[j], local[j]),
-                                 (rot[j], org[j]), samples[j], (pred_t[j], pred_r[j]),
-                                 next_frames=(rot[j + 1], org[j + 1]))
-            mt[j], mr[j], ranks[j], counts[j] = fm.translation, fm.rotvecs, fm.rank, fm.n_samples
+        roots, local = seed_trajectory(problem, options, pyramid, finest, start, end,
+                                       options.seed)
+        seed = _Trajectory(problem, options, finest, roots, local)
+        per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam, seed.samples)
+        errors.append(float(per_frame.sum()))
+        if keep_history:
+            history.append((roots, local))
+        timings["seed"] = time.perf_counter() - tic
+        if errors[-1] < errors[0]:
+            best = dict(traj=seed, residuals=per_frame, ranks=None, n_samples=None, iteration=1)
+        traj = seed
+    image_pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    for iteration in range(len(errors), len(errors) + options.max_iterations):
+        tic = time.perf_counter()
+        pred = motion_between(sk, traj.roots[:-1], traj.local[:-1], traj.roots[1:], traj.local[1:])
+        cam = traj.cam
+        fm = estimate_motions(problem, options, pyramid, finest, image_pairs,
+                              (traj.roots[:-1], traj.local[:-1]), (cam[0][:-1], cam[1][:-1]),
+                              traj.samples.poses(0, n), pred, next_cam=(cam[0][1:], cam[1][1:]),
+                              next_samples=traj.samples.poses(1, n + 1))
         if first_pass is None:
-            first_pass = (ranks, counts)
-        if not (np.all(np.isfinite(mt)) and np.all(np.isfinite(mr))):
-            bad = int(np.nonzero(~(np.isfinite(mt).all(1) & np.isfinite(mr).all((1, 2))))[0][0])
+            first_pass = (fm.ranks, fm.n_samples)
+        finite = np.isfinite(fm.translations).all(1) & np.isfinite(fm.rotvecs).all((1, 2))
+        if not np.all(finite):
+            bad = int(np.nonzero(~finite)[0][0])
             reason, diverged = f"non-finite motion estimate at frame {bad}, iteration {iteration}", True
             break
-        new_roots, new_local = correct_trajectory(problem, start, end, None, mt, mr, options)
+        new_roots, new_local = correct_trajectory(
+            problem, start, end, fm.translations, fm.rotvecs, options,
+            measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
         if not (np.all(np.isfinite(new_roots)) and np.all(np.isfinite(new_local))):
             reason, diverged = f"non-finite corrected trajectory at iteration {iteration}", True
             break
@@ -367,59 +394,143 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         if violation is not None:
             reason, diverged = f"{violation}, iteration {iteration}", True
             break
-        new_rot, new_org = _frames_in_camera(problem, new_roots, new_local)
-        new_samples = _sample_all(problem, options, finest, new_rot, new_org)
-        counts_now = np.array([s.count for s in new_samples], dtype=float)
-        lost = np.nonzero(counts_now < options.min_visible_fraction * initial_counts)[0]
+        new = _Trajectory(problem, options, finest, new_roots, new_local)
+        counts = new.samples.counts()
+        lost = np.nonzero(counts < options.min_visible_fraction * initial_counts)[0]
         if len(lost):
             f = int(lost[0])
-            reason, diverged = (f"model lost at frame {f}, iteration {iteration}: "
-                                f"{int(counts_now[f])} of {int(initial_counts[f])} silhouette "
-                                f"samples left"), True
+            reason, diverged = (f"model lost at frame {f}, iteration {iteration}: {counts[f]} of "
+                                f"{int(initial_counts[f])} silhouette samples left"), True
             break
-        per_frame = photometric_error(problem, pyramid[finest], finest, new_rot, new_org,
-                                      new_samples)
+        per_frame = photometric_error(problem, pyramid[finest], finest, new.cam, new.samples)
         error = float(per_frame.sum())
         errors.append(error)
         if keep_history:
             history.append((new_roots, new_local))
         timings["iterations"].append(time.perf_counter() - tic)
+        best_error = errors[best["iteration"]]
         if not np.isfinite(error):
             reason, diverged = f"non-finite eq. 4 error at iteration {iteration}", True
             break
-        best_error = errors[best["iteration"]]
         if error > options.divergence_factor * best_error:
             reason, diverged = (f"eq. 4 error grew to {error:.4g} (> {options.divergence_factor:g}"
                                 f" x best {best_error:.4g}) at iteration {iteration}"), True
             break
         if error < best_error:
-            best = dict(roots=new_roots, local=new_local, residuals=per_frame, ranks=ranks,
-                        n_samples=counts, iteration=iteration)
+            best = dict(traj=new, residuals=per_frame, ranks=fm.ranks, n_samples=fm.n_samples,
+                        iteration=iteration)
             since_best = 0
         else:
             since_best += 1
             if since_best >= options.patience:
                 reason = f"no improvement for {since_best} iterations"
                 break
-        roots, local, rot, org, samples = new_roots, new_local, new_rot, new_org, new_samples
+        traj = new
     if best["ranks"] is None:
         best["ranks"], best["n_samples"] = first_pass if first_pass else (
             np.zeros(n, dtype=int), np.zeros(n, dtype=int))
     if diverged:
         kept = "interpolation" if best["iteration"] == 0 else f"iteration {best['iteration']}"
         reason = f"diverged: {reason}; kept {kept}"
-    return IntervalResult(root_translations=best["roots"], local_rotations=best["local"],
-                          residuals=best["residuals"], ranks=best["ranks"],
-                          n_samples=best["n_samples"], errors=np.array(errors),
-                          kept_iteration=best["iteration"], diverged=diverged, reason=reason,
-                          finest_level=finest, timings=timings, history=history)
+    return IntervalResult(root_translations=best["traj"].roots,
+                          local_rotations=best["traj"].local, residuals=best["residuals"],
+                          ranks=best["ranks"], n_samples=best["n_samples"],
+                          errors=np.array(errors), kept_iteration=best["iteration"],
+                          diverged=diverged, reason=reason, finest_level=finest, timings=timings,
+                          history=history)
 
 
-def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
+def seed_trajectory(problem, options, pyramid, finest, start, end, kind):
+    """A tracked initial trajectory (``TrackingOptions.seed``).
+
+    ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
+    pose, so it starts aligned), then the §3 drift correction onto the end key.
+    ``'bidirectional'``: forward from the start key and backward from the end key, each
+    accumulated from its own key, blended frame by frame with weights ``1 - j/n`` and ``j/n``
+    (rotations by slerp): each frame leans on the nearer key, where the accumulated drift is
+    smaller. Both directions run in the same vectorised calls.
+    """
+    sk = problem.skeleton
+    n = len(pyramid[0]) - 1
+    if kind not in ("forward", "bidirectional"):
+        raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got {kind!r}")
+    chains = [_forward_chain(sk, start, end, n)]
+    if kind == "bidirectional":
+        chains.append(_backward_chain(sk, start, end, n))
+    out = _track_sequential(problem, options, pyramid, finest, chains)
+    roots_f, local_f = out[0]
+    if kind == "forward":
+        t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
+        return correct_trajectory(problem, start, end, t, r, options)
+    roots_b, local_b = out[1][0][::-1], out[1][1][::-1]
+    w = np.arange(n + 1) / n
+    roots = (1.0 - w)[:, None] * roots_f + w[:, None] * roots_b
+    local = local_f @ exp_so3(w[:, None, None] * log_so3(np.swapaxes(local_f, -1, -2) @ local_b))
+    roots[0], local[0] = start.root_translation, start.local_rotations
+    roots[-1], local[-1] = end.root_translation, end.local_rotations
+    return roots, local
+
+
+def _forward_chain(sk, start, end, n):
+    """Start pose, predicted motions (world root displacement, rotvecs) and image pairs."""
+    roots_i, local_i = interpolate_poses(sk, start, end, n)
+    t, r = motion_between(sk, roots_i[:-1], local_i[:-1], roots_i[1:], local_i[1:])
+    world = np.einsum("nij,nj->ni", root_world_rotation(sk, local_i[:-1]), t)
+    pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    return start, world, r, pairs
+
+
+def _backward_chain(sk, start, end, n):
+    """As :func:`_forward_chain`, from the end key back to the start key."""
+    roots_i, local_i = interpolate_poses(sk, start, end, n)
+    roots_i, local_i = roots_i[::-1], local_i[::-1]
+    t, r = motion_between(sk, roots_i[:-1], local_i[:-1], roots_i[1:], local_i[1:])
+    world = np.einsum("nij,nj->ni", root_world_rotation(sk, local_i[:-1]), t)
+    pairs = np.stack([np.arange(n, 0, -1), np.arange(n - 1, -1, -1)], axis=1)
+    return end, world, r, pairs
+
+
+def _track_sequential(problem, options, pyramid, finest, chains):
+    """Frame-to-frame tracking of several independent chains, one step of all chains per call.
+
+    Each chain is ``(start pose, predicted world root displacements (n, 3), predicted rotvecs
+    (n, B, 3), image pairs (n, 2))``; the model follows its own accumulated pose. Returns a
+    list of (roots (n + 1, 3), local (n + 1, B, 3, 3)).
+    """
+    sk = problem.skeleton
+    c = len(chains)
+    n = len(chains[0][1])
+    b = sk.n_joints
+    roots = np.empty((c, n + 1, 3))
+    local = np.empty((c, n + 1, b, 3, 3))
+    for i, (pose, _, _, _) in enumerate(chains):
+        roots[i, 0], local[i, 0] = pose.root_translation, pose.local_rotations
+    world = np.stack([ch[1] for ch in chains])
+    rotvecs = np.stack([ch[2] for ch in chains])
+    pairs = np.stack([ch[3] for ch in chains])
+    camera = problem.camera.at_level(finest)
+    for j in range(n):
+        t0, l0 = roots[:, j], local[:, j]
+        # The predicted root displacement, re-expressed in the root frame of the pose the model
+        # actually is at.
+        pt = np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world[:, j])
+        cam = _frames_in_camera(problem, t0, l0)
+        nxt = _frames_in_camera(problem, *apply_motion(sk, t0, l0, pt, rotvecs[:, j]))
+        both = sample_silhouette(problem.body, camera, np.concatenate([cam[0], nxt[0]]),
+                                 np.concatenate([cam[1], nxt[1]]), options.candidate_budget)
+        fm = estimate_motions(problem, options, pyramid, finest, pairs[:, j], (t0, l0), cam,
+                              both.poses(0, c), (pt, rotvecs[:, j]), next_cam=nxt,
+                              next_samples=both.poses(c, 2 * c))
+        roots[:, j + 1], local[:, j + 1] = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
+    return [(roots[i], local[i]) for i in range(c)]
+
+
+def track_accumulated(problem, frames, start, end, options=None, pyramid=None, finest=None):
     """Frame-to-frame tracking from the start key without drift correction (a baseline).
 
     The model is placed at its own accumulated pose each frame; the motion is predicted by the
-    interpolated trajectory. The end key is not used except to build that prediction.
+    interpolated trajectory, as in the first pass of :func:`track_interval`. The end key is
+    used only for that prediction.
 
     Returns
     -------
@@ -427,24 +538,8 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     options = options or TrackingOptions()
-    sk = problem.skeleton
-    start = _check_pose(problem, "start", start, sk.n_joints)
-    end = _check_pose(problem, "end", end, sk.n_joints)
-    if pyramid is None:
-        pyramid = gaussian_pyramid(np.asarray(frames), pyramid_levels(problem, options))
+    start, end, pyramid, auto_finest = _prepare(problem, frames, start, end, options, pyramid)
+    finest = auto_finest if finest is None else finest
     n = len(pyramid[0]) - 1
-    finest = choose_finest_level(problem, options, start, end, len(pyramid))
-    roots_i, local_i = interpolate_poses(sk, start, end, n)
-    pred_t, pred_r = motion_between(sk, roots_i[:-1], local_i[:-1], roots_i[1:], local_i[1:])
-    roots = np.empty_like(roots_i)
-    local = np.empty_like(local_i)
-    roots[0], local[0] = start.root_translation, start.local_rotations
-    camera = problem.camera.at_level(finest)
-    for j in range(n):
-        rot, org = _frames_in_camera(problem, roots[j:j + 1], local[j:j + 1])
-        samples = sample_silhouette(problem.body, camera, rot[0], org[0], options.candidate_budget)
-        fm = estimate_motion(problem, options, [p[j] for p in pyramid], [p[j + 1] for p in pyramid],
-                             finest, (roots[j], local[j]), (rot[0], org[0]), samples,
-                             (pred_t[j], pred_r[j]))
-        roots[j + 1], local[j + 1] = apply_motion(sk, roots[j], local[j], fm.translation, fm.rotvecs)
-    return roots, local
+    return _track_sequential(problem, options, pyramid, finest,
+                             [_forward_chain(problem.skeleton, start, end, n)])[0]

@@ -118,7 +118,23 @@ def test_grayscale_matches_pillow_luma():
 def test_bad_shapes_raise():
     with pytest.raises(ValueError, match="Expected shape"):
         im.to_grayscale(np.zeros((4, 4)))
-    with pytest.raises(ValueError, match="Expected shape"):
+    with pytest.raises(ValueError, match="frames"):
         im.bilinear(np.zeros((2, 4, 4)), [0.0], [0.0])
+    with pytest.raises(ValueError, match="Expected shape"):
+        im.bilinear(np.zeros((2, 2, 4, 4)), [0.0], [0.0])
     with pytest.raises(ValueError, match="levels"):
         im.gaussian_pyramid(np.zeros((4, 4)), 0)
+
+
+def test_stack_sampling_equals_per_image_sampling():
+    stack = RNG.random((4, 13, 17)).astype(np.float32)
+    u = RNG.uniform(-1.0, 18.0, 300)
+    v = RNG.uniform(-1.0, 14.0, 300)
+    frames = RNG.integers(0, 4, 300)
+    value = im.bilinear(stack, u, v, frames)
+    full = im.sample_with_gradient(stack, u, v, frames)
+    for f in range(4):
+        sel = frames == f
+        np.testing.assert_array_equal(value[sel], im.bilinear(stack[f], u[sel], v[sel]))
+        for a, b in zip(full, im.sample_with_gradient(stack[f], u[sel], v[sel])):
+            np.testing.assert_array_equal(a[sel], b)
