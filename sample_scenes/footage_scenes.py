@@ -157,23 +157,28 @@ def box_scene(frames=41):
 
 
 def calib_scene():
-    """Eight small boxes at known world points; a portrait camera with shift (contract test)."""
-    pts = np.array([[-0.6, 0.0, 0.3], [0.5, 0.2, 0.4], [0.0, -0.3, 1.0], [0.3, 0.5, 1.6],
-                     [-0.4, 0.4, 1.9], [0.6, -0.2, 1.2], [-0.2, 0.1, 0.7], [0.1, 0.6, 2.2]])
+    """Eight textured boxes at known world points, a portrait-capable camera with shift, no
+    background (contract test: the renderer's silhouettes against the tracker's projection)."""
+    pts = np.array([[-0.4, 0.0, 0.35], [0.35, 0.2, 0.45], [0.0, -0.3, 1.0], [0.25, 0.5, 1.6],
+                    [-0.3, 0.4, 1.95], [0.4, -0.2, 1.25], [-0.2, 0.1, 0.7], [0.1, 0.6, 2.2]])
     n = len(pts)
     sk = Skeleton(names=tuple(f"m{i}" for i in range(n)), parents=[-1] + [0] * (n - 1),
                   offsets=np.concatenate([pts[:1], pts[1:] - pts[0]]),
                   rest_rotations=np.broadcast_to(np.eye(3), (n, 3, 3)),
                   tails=np.tile([0.0, 0.0, 0.05], (n, 1)), dof_axes=((),) * n, limits=None,
                   root_translation=True)
+    rot = exp_so3(np.random.default_rng(5).normal(0, 0.6, (n, 3)))
+    rot[0] = np.eye(3)                  # children offsets are then world offsets
+    sk = Skeleton(names=sk.names, parents=sk.parents, offsets=sk.offsets, rest_rotations=rot,
+                  tails=sk.tails, dof_axes=sk.dof_axes, limits=None, root_translation=True)
     body = BodyModel(n_joints=n, joints=np.zeros(0, dtype=int), starts=np.zeros((0, 3)),
                      ends=np.zeros((0, 3)), radii=np.zeros((0, 2)), box_joints=np.arange(n),
-                     box_centres=np.zeros((n, 3)), box_half_sizes=np.full((n, 3), 0.03),
+                     box_centres=np.zeros((n, 3)), box_half_sizes=np.full((n, 3), 0.08),
                      names=sk.names)
     root = np.zeros((1, 3))
     local = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
-    cam = dict(lens=40.0, sensor_width=32.0, sensor_height=20.0, sensor_fit="AUTO", shift_x=0.07,
-               shift_y=-0.05, matrix_world=look_at([0.4, -4.0, 1.6], [0.0, 0.2, 1.1]))
+    cam = dict(lens=40.0, sensor_width=32.0, sensor_height=20.0, sensor_fit="AUTO", shift_x=-0.03,
+               shift_y=-0.05, matrix_world=look_at([-0.1, -4.5, 1.4], [0.0, 0.2, 1.2]))
     return sk, body, root, local, cam, 30.0
 
 
@@ -203,7 +208,7 @@ def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9):
 
 def render_params(motion, width, height, frames, step=1, start=0):
     return dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
-                step=int(step), start=int(start), version=6)
+                step=int(step), start=int(start), version=10)
 
 
 def footage_dir(motion, width, height, frames, step=1, start=0, root=None):

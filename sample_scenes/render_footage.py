@@ -199,26 +199,25 @@ def main(argv=None):
         obj = _mesh_object(name, verts, faces, uvs, _material(name, part_texture(2000 + q)))
         parts.append((obj, int(body.box_joints[q])))
 
-    # Background: a wall behind the action and a floor, both textured (static).
-    m = np.asarray(cam["matrix_world"])
-    eye, forward = m[:3, 3], -m[:3, 2]
-    flat = forward.copy()
-    flat[2] = 0.0
-    flat /= np.linalg.norm(flat)
     rot, pos = forward_kinematics(sk, local, root)
-    focus = pos.reshape(-1, 3).mean(axis=0)
-    wall_dist = float(np.dot(focus - eye, flat)) + 3.0
-    wall_centre = eye + flat * wall_dist
-    side = np.cross(flat, [0.0, 0.0, 1.0])
-    _plane(np.r_[wall_centre[:2] - 12.0 * side[:2], -0.01], 24.0 * side, np.array([0, 0, 8.0]),
-           "wall", 7, 6)
-    _plane(np.array([eye[0] - 15.0, eye[1] - 15.0, 0.0]), np.array([30.0, 0, 0]),
-           np.array([0, 30.0, 0]), "floor", 8, 10)
-    if args.motion in ("box", "calib"):
-        for obj in bpy.data.objects:
-            if obj.name == "floor":
-                bpy.data.objects.remove(obj)
-                break
+    if args.motion == "calib":
+        # No background: a pure blue world, which no part texture can produce.
+        scene.world.color = (0.0, 0.0, 1.0)
+    else:
+        # Background: a wall behind the action (and a floor under a walk), textured, static.
+        m = np.asarray(cam["matrix_world"])
+        eye, forward = m[:3, 3], -m[:3, 2]
+        flat = forward.copy()
+        flat[2] = 0.0
+        flat /= np.linalg.norm(flat)
+        focus = pos.reshape(-1, 3).mean(axis=0)
+        wall_centre = eye + flat * (float(np.dot(focus - eye, flat)) + 3.0)
+        side = np.cross(flat, [0.0, 0.0, 1.0])
+        _plane(np.r_[wall_centre[:2] - 12.0 * side[:2], -0.01], 24.0 * side,
+               np.array([0, 0, 8.0]), "wall", 7, 6)
+        if args.motion != "box":
+            _plane(np.array([eye[0] - 15.0, eye[1] - 15.0, 0.0]), np.array([30.0, 0, 0]),
+                   np.array([0, 30.0, 0]), "floor", 8, 10)
 
     for f in range(len(root)):
         for obj, j in parts:

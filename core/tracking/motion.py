@@ -262,7 +262,7 @@ def translation_columns(layout, root_rotations, estimate_depth):
 
 
 def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses, frames_cam,
-                     samples, predictions, next_cam=None, next_samples=None):
+                     samples, predictions, next_cam=None, next_samples=None, top_level=None):
     """Motions of n frame pairs, the model at the given poses in the first image of each pair.
 
     Parameters
@@ -289,6 +289,8 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
         Joint frames at the next trajectory poses: points hidden there are not used.
     next_samples : SilhouetteSamples, optional
         Silhouette grids of the next trajectory poses (with ``next_cam``).
+    top_level : int, optional
+        Coarsest level used (default ``finest_level + options.levels - 1``, clipped).
 
     Returns
     -------
@@ -352,6 +354,8 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
     y_s = y * scales
     x_s = y_s.copy()
     top = min(len(pyramid) - 1, finest_level + options.levels - 1)
+    if top_level is not None:
+        top = min(top, max(int(top_level), finest_level))
     ranks = np.zeros(n, dtype=int)
     rms = np.full(n, np.nan)
     for level in range(top, finest_level - 1, -1):
@@ -366,9 +370,12 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
         uv = camera.project(pts).reshape(-1, 2)
         value, e_u, e_v = sample_with_gradient(pyramid[level], uv[:, 0], uv[:, 1], frames=img_a)
         value = value.reshape(n, s_l)
+        # Non-finite pixels (e.g. masked out by the caller) give no equation.
+        ok_l = ok_l & np.isfinite(value) & np.isfinite(e_u + e_v).reshape(n, s_l)
+        value = np.where(ok_l, value, 0.0)
         # Invalid slots get zero gradients: all-zero rows of A.
-        g = _gradient_rows(camera, pts, e_u.reshape(n, s_l), e_v.reshape(n, s_l)) \
-            * ok_l[..., None]
+        g = np.where(ok_l[..., None], _gradient_rows(camera, pts, e_u.reshape(n, s_l),
+                                                     e_v.reshape(n, s_l)), 0.0)
         a = _jacobian(layout, rot, org, pts, g, cols, anc[:, :s_l])
         a *= column_factor
         system = rank_decompositions(a, options.tau)
@@ -382,7 +389,8 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
             sampled = bilinear(pyramid[level], uv_b[..., 0].ravel(), uv_b[..., 1].ravel(),
                                frames=img_b).reshape(n, s_l)
             inside = ((moved[..., 2] > 0) & (uv_b[..., 0] >= 0) & (uv_b[..., 0] <= camera.width - 1)
-                      & (uv_b[..., 1] >= 0) & (uv_b[..., 1] <= camera.height - 1) & ok_l)
+                      & (uv_b[..., 1] >= 0) & (uv_b[..., 1] <= camera.height - 1) & ok_l
+                      & np.isfinite(sampled))
             # b = -E_t: template intensity minus the intensity where the point moved to.
             residual = np.where(inside, value - sampled, 0.0)
             count = np.maximum(inside.sum(axis=1), 1)

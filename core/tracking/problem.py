@@ -109,6 +109,8 @@ class TrackingOptions:
         the same at any resolution.
     body_pixels : float
         See ``finest_level``.
+    min_body_pixels : float
+        Coarser pyramid levels than the one where the body is this tall are not used.
     warp_iterations : int
         Re-linearisations (warp, re-solve) per pyramid level.
     step_tol : float
@@ -156,6 +158,7 @@ class TrackingOptions:
     levels: int = 3
     finest_level: int = None
     body_pixels: float = 300.0
+    min_body_pixels: float = 50.0
     warp_iterations: int = 3
     step_tol: float = 1e-4
     robust_clip: float = 3.0

@@ -67,8 +67,8 @@ class IntervalResult:
     reason : str
         Why the loop stopped (``'iteration limit'``, ``'no improvement ...'``, or the
         divergence: what grew / went non-finite / left its limits, and where).
-    finest_level : int
-        Pyramid level tracked.
+    finest_level, top_level : int
+        Finest and coarsest pyramid levels tracked.
     timings : dict
         Seconds: ``'pyramid'`` (once), ``'iterations'`` (list, one per iteration).
     history : list of (roots (n + 1, 3), local (n + 1, B, 3, 3))
@@ -85,6 +85,7 @@ class IntervalResult:
     diverged: bool
     reason: str
     finest_level: int
+    top_level: int
     timings: dict = field(default_factory=dict)
     history: list = field(default_factory=list)
 
@@ -118,10 +119,19 @@ def interpolate_poses(skeleton, start, end, n):
     return t0[None] + s[:, None] * (t1 - t0)[None], local
 
 
-def choose_finest_level(problem, options, start, end, n_levels):
-    """Finest pyramid level (see ``TrackingOptions.finest_level``)."""
-    if options.finest_level is not None:
-        return int(min(options.finest_level, n_levels - 1))
+def choose_levels(problem, options, start, end, n_levels):
+    """Finest and coarsest pyramid levels tracked, from the body's projected height.
+
+    The finest level is ``options.finest_level`` or, when that is None, the coarsest level on
+    which the body (keyed poses) is still ``options.body_pixels`` tall: the cost of a frame is
+    then the same at any resolution. The coarsest is ``options.levels - 1`` above it, but never
+    so coarse that the body is under ``options.min_body_pixels`` (a few-pixel-wide limb cannot be
+    tracked, and its wrong estimate would start the finer levels off badly).
+
+    Returns
+    -------
+    finest, top : int
+    """
     rot, org = joint_frames_in_camera(problem.skeleton, problem.camera.world2camera,
                                       np.stack([start.root_translation, end.root_translation]),
                                       np.stack([start.local_rotations, end.local_rotations]))
@@ -131,10 +141,16 @@ def choose_finest_level(problem, options, start, end, n_levels):
         b = b[np.all(np.isfinite(b), axis=1)]
         if len(b):
             height = max(height, min(b[:, 3].max(), problem.camera.height) - max(b[:, 2].min(), 0))
-    level = 0
-    while level + 1 < n_levels and height / 2 ** (level + 1) >= options.body_pixels:
-        level += 1
-    return level
+    if options.finest_level is not None:
+        finest = int(min(options.finest_level, n_levels - 1))
+    else:
+        finest = 0
+        while finest + 1 < n_levels and height / 2 ** (finest + 1) >= options.body_pixels:
+            finest += 1
+    top = min(n_levels - 1, finest + options.levels - 1)
+    while top > finest and height / 2 ** top < options.min_body_pixels:
+        top -= 1
+    return finest, top
 
 
 def pyramid_levels(problem, options):
@@ -153,8 +169,12 @@ def photometric_error(problem, frames_level, level, frames_cam, samples):
     """Eq. 4 per frame pair: model points seen at frame j, moved to j+1 by the trajectory.
 
     ``sum_{X,Y} (E(X', Y', j+1) - E(X, Y, j))^2`` over the silhouette of frame ``j``, sampled on
-    its grid (each sample weighs ``stride**2`` pixels). Points moving outside image ``j+1`` are
-    left out.
+    its grid (each sample weighs ``stride**2`` pixels). Two refinements of the paper's sum, both
+    about points whose intensity the model cannot predict: samples on silhouette and occlusion
+    edges (not ``interior``) and points hidden at frame j+1 (another part in front, looked up in
+    frame j+1's silhouette grid) or moved outside image j+1 are left out. Each frame's sum is
+    rescaled to the whole silhouette (divided by the fraction of samples kept), so that a
+    trajectory cannot lower its score by hiding parts.
 
     Parameters
     ----------
@@ -165,7 +185,7 @@ def photometric_error(problem, frames_level, level, frames_cam, samples):
     frames_cam : tuple (rotations (n + 1, B, 3, 3), origins (n + 1, B, 3))
         Joint frames in the camera along the trajectory.
     samples : SilhouetteSamples
-        Silhouette samples of the trajectory poses on that level's grid.
+        Silhouette samples of the n + 1 trajectory poses on that level's grid.
 
     Returns
     -------
@@ -175,17 +195,24 @@ def photometric_error(problem, frames_level, level, frames_cam, samples):
     n = len(rot) - 1
     camera = problem.camera.at_level(level)
     sel = samples.frames < n
+    total = np.bincount(samples.frames[sel], minlength=n).astype(float)
+    sel &= samples.interior
     f, k = samples.frames[sel], samples.joints[sel]
     local = np.einsum("mji,mj->mi", rot[f, k], samples.points[sel] - org[f, k])
     moved = np.einsum("mij,mj->mi", rot[f + 1, k], local) + org[f + 1, k]
-    uv = camera.project(moved)
+    uv = camera.project(np.where(moved[:, 2:3] > 0, moved, 1.0))
+    parts, depth = samples.lookup(f + 1, uv)
     ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
-          & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1))
+          & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1)
+          & (parts == samples.parts[sel]) & (np.abs(depth - moved[:, 2]) < 0.02))
     e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f[ok] + 1)
     e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
                   frames=f[ok])
-    weights = samples.strides[f[ok]] ** 2
-    return np.bincount(f[ok], weights=(e1 - e0) ** 2 * weights, minlength=n)
+    finite = np.isfinite(e1) & np.isfinite(e0)           # masked (non-finite) pixels: left out
+    fk = f[ok][finite]
+    kept = np.bincount(fk, minlength=n).astype(float)
+    sums = np.bincount(fk, weights=(e1 - e0)[finite] ** 2, minlength=n)
+    return np.where(kept > 0, sums * total / np.maximum(kept, 1.0), 0.0) * samples.strides[:n] ** 2
 
 
 def limit_violation(problem, local_rotations, start, end, margin):
@@ -291,8 +318,7 @@ def _prepare(problem, frames, start, end, options, pyramid):
         if frames.dtype not in (np.float32, np.float64):
             frames = frames.astype(np.float32)
         pyramid = gaussian_pyramid(frames, pyramid_levels(problem, options))
-    finest = choose_finest_level(problem, options, start, end, len(pyramid))
-    return start, end, pyramid, finest
+    return start, end, pyramid, choose_levels(problem, options, start, end, len(pyramid))
 
 
 class _Trajectory:
@@ -333,7 +359,8 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     options = options or TrackingOptions()
     sk = problem.skeleton
     tic = time.perf_counter()
-    start, end, pyramid, finest = _prepare(problem, frames, start, end, options, pyramid)
+    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    finest, top = levels
     n = len(pyramid[0]) - 1
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
     if initial is None:
@@ -357,7 +384,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     if options.seed != "interpolation" and initial is None:
         # A tracked start (see TrackingOptions.seed), scored as iteration 1.
         tic = time.perf_counter()
-        roots, local = seed_trajectory(problem, options, pyramid, finest, start, end,
+        roots, local = seed_trajectory(problem, options, pyramid, levels, start, end,
                                        options.seed)
         seed = _Trajectory(problem, options, finest, roots, local)
         per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam, seed.samples)
@@ -376,7 +403,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         fm = estimate_motions(problem, options, pyramid, finest, image_pairs,
                               (traj.roots[:-1], traj.local[:-1]), (cam[0][:-1], cam[1][:-1]),
                               traj.samples.poses(0, n), pred, next_cam=(cam[0][1:], cam[1][1:]),
-                              next_samples=traj.samples.poses(1, n + 1))
+                              next_samples=traj.samples.poses(1, n + 1), top_level=top)
         if first_pass is None:
             first_pass = (fm.ranks, fm.n_samples)
         finite = np.isfinite(fm.translations).all(1) & np.isfinite(fm.rotvecs).all((1, 2))
@@ -436,11 +463,11 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
                           local_rotations=best["traj"].local, residuals=best["residuals"],
                           ranks=best["ranks"], n_samples=best["n_samples"],
                           errors=np.array(errors), kept_iteration=best["iteration"],
-                          diverged=diverged, reason=reason, finest_level=finest, timings=timings,
+                          diverged=diverged, reason=reason, finest_level=finest, top_level=top, timings=timings,
                           history=history)
 
 
-def seed_trajectory(problem, options, pyramid, finest, start, end, kind):
+def seed_trajectory(problem, options, pyramid, levels, start, end, kind):
     """A tracked initial trajectory (``TrackingOptions.seed``).
 
     ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
@@ -457,7 +484,7 @@ def seed_trajectory(problem, options, pyramid, finest, start, end, kind):
     chains = [_forward_chain(sk, start, end, n)]
     if kind == "bidirectional":
         chains.append(_backward_chain(sk, start, end, n))
-    out = _track_sequential(problem, options, pyramid, finest, chains)
+    out = _track_sequential(problem, options, pyramid, levels, chains)
     roots_f, local_f = out[0]
     if kind == "forward":
         t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
@@ -490,7 +517,7 @@ def _backward_chain(sk, start, end, n):
     return end, world, r, pairs
 
 
-def _track_sequential(problem, options, pyramid, finest, chains):
+def _track_sequential(problem, options, pyramid, levels, chains):
     """Frame-to-frame tracking of several independent chains, one step of all chains per call.
 
     Each chain is ``(start pose, predicted world root displacements (n, 3), predicted rotvecs
@@ -508,6 +535,7 @@ def _track_sequential(problem, options, pyramid, finest, chains):
     world = np.stack([ch[1] for ch in chains])
     rotvecs = np.stack([ch[2] for ch in chains])
     pairs = np.stack([ch[3] for ch in chains])
+    finest, top = levels
     camera = problem.camera.at_level(finest)
     for j in range(n):
         t0, l0 = roots[:, j], local[:, j]
@@ -520,12 +548,12 @@ def _track_sequential(problem, options, pyramid, finest, chains):
                                  np.concatenate([cam[1], nxt[1]]), options.candidate_budget)
         fm = estimate_motions(problem, options, pyramid, finest, pairs[:, j], (t0, l0), cam,
                               both.poses(0, c), (pt, rotvecs[:, j]), next_cam=nxt,
-                              next_samples=both.poses(c, 2 * c))
+                              next_samples=both.poses(c, 2 * c), top_level=top)
         roots[:, j + 1], local[:, j + 1] = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
     return [(roots[i], local[i]) for i in range(c)]
 
 
-def track_accumulated(problem, frames, start, end, options=None, pyramid=None, finest=None):
+def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
     """Frame-to-frame tracking from the start key without drift correction (a baseline).
 
     The model is placed at its own accumulated pose each frame; the motion is predicted by the
@@ -538,8 +566,7 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None, f
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     options = options or TrackingOptions()
-    start, end, pyramid, auto_finest = _prepare(problem, frames, start, end, options, pyramid)
-    finest = auto_finest if finest is None else finest
+    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
     n = len(pyramid[0]) - 1
-    return _track_sequential(problem, options, pyramid, finest,
+    return _track_sequential(problem, options, pyramid, levels,
                              [_forward_chain(problem.skeleton, start, end, n)])[0]
