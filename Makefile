@@ -18,7 +18,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-tracking clean
 
 venv: $(STAMP)
 
@@ -42,10 +42,14 @@ test-core: $(STAMP)
 test-blender: extension
 	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
 
-bench: bench-import
+bench: bench-import bench-tracking
 
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
+
+# Renders its footage once (cached under build/footage), then accuracy, speed, throughput.
+bench-tracking: $(STAMP)
+	$(PY) benchmarks/bench_tracking.py --output build/bench/tracking.json
 
 clean:
 	rm -rf build .pytest_cache

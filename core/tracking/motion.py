@@ -46,9 +46,6 @@ from .body_model import joint_frames_in_camera
 from .image import bilinear, sample_with_gradient
 from .jacobians import apply_motion
 
-_DEBUG = None
-
-
 @dataclass(frozen=True, eq=False)
 class RankedSystems:
     """Rank-revealing decompositions of ``n`` systems ``A_f`` (eqs. 6-7).
@@ -395,8 +392,6 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
             residual = np.where(inside, value - sampled, 0.0)
             count = np.maximum(inside.sum(axis=1), 1)
             rms = np.where(measured, np.sqrt((residual ** 2).sum(axis=1) / count), np.nan)
-            if _DEBUG is not None:
-                _DEBUG.append((level, rms.copy(), ranks.copy()))
             # Robust: clip residuals at robust_clip standard deviations per frame, the scale
             # estimated from the mean absolute residual (sqrt(pi/2) E|r| = sigma for Gaussian
             # noise; cheaper than a median and as robust to the few gross outliers).
