@@ -631,44 +631,66 @@ def projected_area(model, camera, geometry):
     return area.sum(axis=-1) + box.sum(axis=-1)
 
 
-def _capsule_prefilter(model, camera, geo, pixels, poses, parts):
-    """Cheap 2-D test of (pixel, part) pairs before the exact ray test (conservative).
+def _capsule_rows(model, camera, geo, poses, parts, v):
+    """Column range (u_lo, u_hi) where row ``v`` may meet each part (conservative, pixels).
 
     A tapered cylinder lies inside the hull of its two end spheres, whose images lie inside
     discs of radius ``f r / (z - r)`` (stretched by up to ``1 + tan^2`` of the off-axis angle)
-    around the projected end points; a pixel farther than the larger radius from the projected
-    axis segment cannot see the part. Boxes and parts near the camera plane always pass.
+    around the projected end points: inside the 2-D capsule of the projected axis with the
+    larger radius. A capsule is convex, so it cuts a row to one interval: the union of the row
+    with the two end discs and with the band along the segment. Boxes and parts near the camera
+    plane get ``(-inf, inf)``.
     """
-    n_cyl = model.n_cylinders
-    if n_cyl == 0:
-        return np.ones(len(pixels), dtype=bool)
-    # Per (pose, cylinder): projected end points and a radius bound.
-    a = geo.starts
-    b = a + geo.axes * geo.lengths[:, None]
-    za, zb = a[..., 2] - geo.r0, b[..., 2] - geo.r1
+    k = len(poses)
+    u_lo, u_hi = np.full(k, -np.inf), np.full(k, np.inf)
+    cyl = np.nonzero(parts < model.n_cylinders)[0]
+    if not len(cyl):
+        return u_lo, u_hi
+    f, p, v = poses[cyl], parts[cyl], v[cyl]
+    a = geo.starts[f, p]
+    b = a + geo.axes[f, p] * geo.lengths[p][:, None]
+    r0, r1 = geo.r0[p], geo.r1[p]
+    za, zb = a[:, 2] - r0, b[:, 2] - r1
     near = (za <= _NEAR) | (zb <= _NEAR)
     za, zb = np.where(near, 1.0, za), np.where(near, 1.0, zb)
-    za_c, zb_c = np.maximum(a[..., 2], _NEAR), np.maximum(b[..., 2], _NEAR)
-    scale = np.array([camera.fx, camera.fy])
-    centre = np.array([camera.cx, camera.cy])
-    ua = a[..., :2] / za_c[..., None] * scale + centre
-    ub = b[..., :2] / zb_c[..., None] * scale + centre
-    stretch_a = 1.0 + (a[..., 0] ** 2 + a[..., 1] ** 2) / za_c ** 2
-    stretch_b = 1.0 + (b[..., 0] ** 2 + b[..., 1] ** 2) / zb_c ** 2
-    radius = max(camera.fx, camera.fy) * np.maximum(stretch_a * geo.r0 / za,
-                                                    stretch_b * geo.r1 / zb) + 1.0
-    radius = np.where(near, np.inf, radius)
-    keep = np.ones(len(pixels), dtype=bool)
-    cyl = np.nonzero(parts < n_cyl)[0]
-    p, f = parts[cyl], poses[cyl]
-    pa = ua[f, p]
-    seg = ub[f, p] - pa
-    rel = pixels[cyl] - pa
-    s = np.clip(np.einsum("ki,ki->k", rel, seg)
-                / np.maximum(np.einsum("ki,ki->k", seg, seg), 1e-12), 0.0, 1.0)
-    dist2 = np.einsum("ki,ki->k", rel - s[:, None] * seg, rel - s[:, None] * seg)
-    keep[cyl] = dist2 <= radius[f, p] ** 2
-    return keep
+    za_c, zb_c = np.maximum(a[:, 2], _NEAR), np.maximum(b[:, 2], _NEAR)
+    ua = camera.fx * a[:, 0] / za_c + camera.cx
+    va = camera.fy * a[:, 1] / za_c + camera.cy
+    ub = camera.fx * b[:, 0] / zb_c + camera.cx
+    vb = camera.fy * b[:, 1] / zb_c + camera.cy
+    stretch_a = 1.0 + (a[:, 0] ** 2 + a[:, 1] ** 2) / za_c ** 2
+    stretch_b = 1.0 + (b[:, 0] ** 2 + b[:, 1] ** 2) / zb_c ** 2
+    radius = max(camera.fx, camera.fy) * np.maximum(stretch_a * r0 / za, stretch_b * r1 / zb) + 1.0
+    lo, hi = np.full(len(cyl), np.inf), np.full(len(cyl), -np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # End discs.
+        for uc, vc in ((ua, va), (ub, vb)):
+            h2 = radius ** 2 - (v - vc) ** 2
+            half = np.sqrt(np.maximum(h2, 0.0))
+            lo = np.where(h2 >= 0, np.minimum(lo, uc - half), lo)
+            hi = np.where(h2 >= 0, np.maximum(hi, uc + half), hi)
+        # Band: 0 <= (q - a) . d <= L and |(q - a) . n| <= R, q = (u, v); linear in u.
+        du, dv = ub - ua, vb - va
+        length = np.hypot(du, dv)
+        dx, dy = du / np.maximum(length, 1e-12), dv / np.maximum(length, 1e-12)
+        along0 = (v - va) * dy                      # along = (u - ua) dx + along0
+        across0 = (v - va) * dx                     # across = -(u - ua) dy + across0
+        band_lo, band_hi = np.full(len(cyl), -np.inf), np.full(len(cyl), np.inf)
+        for coef, const, low, high in ((dx, along0, 0.0, length), (-dy, across0, -radius, radius)):
+            t1 = (low - const) / coef
+            t2 = (high - const) / coef
+            nz = np.abs(coef) > 1e-12
+            inside = (const >= low) & (const <= high)
+            band_lo = np.where(nz, np.maximum(band_lo, np.minimum(t1, t2)),
+                               np.where(inside, band_lo, np.inf))
+            band_hi = np.where(nz, np.minimum(band_hi, np.maximum(t1, t2)),
+                               np.where(inside, band_hi, -np.inf))
+        ok = band_lo <= band_hi
+        lo = np.where(ok, np.minimum(lo, ua + band_lo), lo)
+        hi = np.where(ok, np.maximum(hi, ua + band_hi), hi)
+    u_lo[cyl] = np.where(near, -np.inf, lo)
+    u_hi[cyl] = np.where(near, np.inf, hi)
+    return u_lo, u_hi
 
 
 def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0, edge_margin=1.5):
@@ -728,20 +750,27 @@ def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0,
     c1 = np.clip(np.floor((bounds[..., 1] - lo_u[:, None]) / s + 1e-9) + 1, 0, cols[:, None])
     r0 = np.clip(np.ceil((bounds[..., 2] - lo_v[:, None]) / s - 1e-9), 0, rows[:, None])
     r1 = np.clip(np.floor((bounds[..., 3] - lo_v[:, None]) / s + 1e-9) + 1, 0, rows[:, None])
-    w = np.maximum(c1 - c0, 0).astype(int)
-    h = np.maximum(r1 - r0, 0).astype(int)
-    block = (w * h).ravel()
-    b_pose, b_part = np.divmod(np.arange(block.size), bounds.shape[1])
-    pair_block = np.repeat(np.arange(block.size), block)
-    kk = np.arange(pair_block.size) - np.repeat(np.cumsum(block) - block, block)
-    bw = np.maximum(w.ravel()[pair_block], 1)
-    pr = r0.ravel()[pair_block].astype(int) + kk // bw
-    pc = c0.ravel()[pair_block].astype(int) + kk % bw
-    pose = b_pose[pair_block]
-    ray_idx = start[pose] + pr * cols[pose] + pc
-    part_idx = b_part[pair_block]
-    keep = _capsule_prefilter(model, camera, geo, pixels[ray_idx], pose, part_idx)
-    ray_idx, part_idx = ray_idx[keep], part_idx[keep]
+    # One grid row of one part's rectangle at a time: the 2-D capsule bound of the part cuts
+    # each row to a column interval, so only plausible (node, part) pairs are generated.
+    h = np.maximum(r1 - r0, 0).astype(int).ravel()
+    b_pose, b_part = np.divmod(np.arange(h.size), bounds.shape[1])
+    row_block = np.repeat(np.arange(h.size), h)
+    row = r0.ravel()[row_block].astype(int) + np.arange(row_block.size) \
+        - np.repeat(np.cumsum(h) - h, h)
+    pose, part = b_pose[row_block], b_part[row_block]
+    lo = c0.ravel()[row_block]
+    hi = c1.ravel()[row_block]
+    cut_lo, cut_hi = _capsule_rows(model, camera, geo, pose, part,
+                                   lo_v[pose] + strides[pose] * row)
+    lo = np.maximum(lo, np.ceil((cut_lo - lo_u[pose]) / strides[pose] - 1e-9))
+    hi = np.minimum(hi, np.floor((cut_hi - lo_u[pose]) / strides[pose] + 1e-9) + 1)
+    width = np.maximum(hi - lo, 0).astype(int)
+    pair_row = np.repeat(np.arange(row.size), width)
+    col = lo[pair_row].astype(int) + np.arange(pair_row.size) - np.repeat(np.cumsum(width) - width,
+                                                                         width)
+    pp = pose[pair_row]
+    ray_idx = start[pp] + row[pair_row] * cols[pp] + col
+    part_idx = part[pair_row]
     hits = _hits(model, geo, camera.rays(pixels), node_pose, ray_idx, part_idx, normals=False)
     interior = np.zeros(total, dtype=bool)
     for f in range(n):

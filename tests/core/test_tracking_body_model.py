@@ -134,6 +134,11 @@ def test_occlusion_front_part_wins():
 def test_grid_sampling_equals_plain_ray_cast(scene):
     sk, body, cam, rot, org = scene
     s = sample_silhouette(body, cam, rot[None], org[None], budget=800)
+    # Every grid node, hit or not: the per-row capsule cut never drops a hit.
+    rows, cols = s.grid_shape[0]
+    rr, cc = np.mgrid[0:rows, 0:cols]
+    nodes = s.grid_origin[0] + s.strides[0] * np.stack([cc.ravel(), rr.ravel()], axis=1)
+    np.testing.assert_array_equal(ray_cast(body, cam, rot, org, nodes).parts, s.node_parts)
     hits = ray_cast(body, cam, rot, org, s.pixels)
     assert np.all(hits.hit)
     np.testing.assert_array_equal(hits.parts, s.parts)
