@@ -136,8 +136,8 @@ class TrackingOptions:
         Start of the loop. ``'interpolation'`` is the paper's; the others first track frame to
         frame from the key(s) (the model starts aligned with the body) and start the loop from
         that (see ``trajectory.seed_trajectory``); the interpolation is still scored and kept
-        if it is better. On the rendered walk the bidirectional seed halves the error left by
-        the paper's start when keys are 20+ frames apart (benchmark); it costs about two
+        if it is better. On the rendered walk the bidirectional seed cuts the error left by the
+        paper's start by a third when keys are 20+ frames apart (benchmark); it costs about two
         iterations.
     root_displacement : {'measured', 'accumulated'}
         Orientation that turns the root's estimated translation (root frame) into a world

@@ -472,30 +472,37 @@ def seed_trajectory(problem, options, pyramid, levels, start, end, kind):
 
     ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
     pose, so it starts aligned), then the §3 drift correction onto the end key.
-    ``'bidirectional'``: forward from the start key and backward from the end key, each
-    accumulated from its own key, blended frame by frame with weights ``1 - j/n`` and ``j/n``
-    (rotations by slerp): each frame leans on the nearer key, where the accumulated drift is
-    smaller. Both directions run in the same vectorised calls.
+    ``'bidirectional'``: the same from both keys towards the middle frame ``m``: forward from the
+    start key over frames ``0..m``, backward from the end key over ``m..n`` (both directions in
+    the same vectorised calls, so it costs half the frames of ``'forward'``). The two estimates
+    of frame ``m`` are averaged (slerp 1/2), and each half is drift-corrected (§3) onto its two
+    ends: every frame leans on its nearer key, where the accumulated drift is smaller.
     """
     sk = problem.skeleton
     n = len(pyramid[0]) - 1
     if kind not in ("forward", "bidirectional"):
         raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got {kind!r}")
-    chains = [_forward_chain(sk, start, end, n)]
-    if kind == "bidirectional":
-        chains.append(_backward_chain(sk, start, end, n))
-    out = _track_sequential(problem, options, pyramid, levels, chains)
-    roots_f, local_f = out[0]
-    if kind == "forward":
+    forward = _forward_chain(sk, start, end, n)
+    if kind == "forward" or n < 2:
+        roots_f, local_f = _track_sequential(problem, options, pyramid, levels, [forward])[0]
         t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
         return correct_trajectory(problem, start, end, t, r, options)
-    roots_b, local_b = out[1][0][::-1], out[1][1][::-1]
-    w = np.arange(n + 1) / n
-    roots = (1.0 - w)[:, None] * roots_f + w[:, None] * roots_b
-    local = local_f @ exp_so3(w[:, None, None] * log_so3(np.swapaxes(local_f, -1, -2) @ local_b))
-    roots[0], local[0] = start.root_translation, start.local_rotations
-    roots[-1], local[-1] = end.root_translation, end.local_rotations
-    return roots, local
+    m = (n + 1) // 2
+    backward = _backward_chain(sk, start, end, n)
+    chains = [tuple(x[:m] if i else x for i, x in enumerate(forward)),
+              tuple(x[:n - m] if i else x for i, x in enumerate(backward))]
+    (roots_f, local_f), (roots_b, local_b) = _track_sequential(problem, options, pyramid, levels,
+                                                               chains)
+    roots_b, local_b = roots_b[::-1], local_b[::-1]             # frames m .. n
+    middle = Pose(0.5 * (roots_f[-1] + roots_b[0]),
+                  local_f[-1] @ exp_so3(0.5 * log_so3(np.swapaxes(local_f[-1], -1, -2)
+                                                      @ local_b[0])))
+    halves = []
+    for (r, l), a, b in (((roots_f, local_f), start, middle), ((roots_b, local_b), middle, end)):
+        t, w = motion_between(sk, r[:-1], l[:-1], r[1:], l[1:])
+        halves.append(correct_trajectory(problem, a, b, t, w, options))
+    return (np.concatenate([halves[0][0], halves[1][0][1:]]),
+            np.concatenate([halves[0][1], halves[1][1][1:]]))
 
 
 def _forward_chain(sk, start, end, n):
@@ -520,37 +527,40 @@ def _backward_chain(sk, start, end, n):
 def _track_sequential(problem, options, pyramid, levels, chains):
     """Frame-to-frame tracking of several independent chains, one step of all chains per call.
 
-    Each chain is ``(start pose, predicted world root displacements (n, 3), predicted rotvecs
-    (n, B, 3), image pairs (n, 2))``; the model follows its own accumulated pose. Returns a
-    list of (roots (n + 1, 3), local (n + 1, B, 3, 3)).
+    Each chain is ``(start pose, predicted world root displacements (k, 3), predicted rotvecs
+    (k, B, 3), image pairs (k, 2))``; chains may have different lengths k. The model follows its
+    own accumulated pose. Returns a list of (roots (k + 1, 3), local (k + 1, B, 3, 3)).
     """
     sk = problem.skeleton
-    c = len(chains)
-    n = len(chains[0][1])
-    b = sk.n_joints
-    roots = np.empty((c, n + 1, 3))
-    local = np.empty((c, n + 1, b, 3, 3))
-    for i, (pose, _, _, _) in enumerate(chains):
-        roots[i, 0], local[i, 0] = pose.root_translation, pose.local_rotations
-    world = np.stack([ch[1] for ch in chains])
-    rotvecs = np.stack([ch[2] for ch in chains])
-    pairs = np.stack([ch[3] for ch in chains])
     finest, top = levels
     camera = problem.camera.at_level(finest)
-    for j in range(n):
-        t0, l0 = roots[:, j], local[:, j]
+    lengths = [len(ch[1]) for ch in chains]
+    roots = [np.empty((k + 1, 3)) for k in lengths]
+    local = [np.empty((k + 1, sk.n_joints, 3, 3)) for k in lengths]
+    for i, (pose, _, _, _) in enumerate(chains):
+        roots[i][0], local[i][0] = pose.root_translation, pose.local_rotations
+    for j in range(max(lengths)):
+        active = [i for i, k in enumerate(lengths) if j < k]
+        c = len(active)
+        t0 = np.stack([roots[i][j] for i in active])
+        l0 = np.stack([local[i][j] for i in active])
+        world = np.stack([chains[i][1][j] for i in active])
+        rotvecs = np.stack([chains[i][2][j] for i in active])
+        pairs = np.stack([chains[i][3][j] for i in active])
         # The predicted root displacement, re-expressed in the root frame of the pose the model
         # actually is at.
-        pt = np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world[:, j])
-        cam = _frames_in_camera(problem, t0, l0)
-        nxt = _frames_in_camera(problem, *apply_motion(sk, t0, l0, pt, rotvecs[:, j]))
-        both = sample_silhouette(problem.body, camera, np.concatenate([cam[0], nxt[0]]),
-                                 np.concatenate([cam[1], nxt[1]]), options.candidate_budget)
-        fm = estimate_motions(problem, options, pyramid, finest, pairs[:, j], (t0, l0), cam,
-                              both.poses(0, c), (pt, rotvecs[:, j]), next_cam=nxt,
-                              next_samples=both.poses(c, 2 * c), top_level=top)
-        roots[:, j + 1], local[:, j + 1] = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
-    return [(roots[i], local[i]) for i in range(c)]
+        pt = np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world)
+        t1, l1 = apply_motion(sk, t0, l0, pt, rotvecs)
+        rot, org = _frames_in_camera(problem, np.concatenate([t0, t1]), np.concatenate([l0, l1]))
+        both = sample_silhouette(problem.body, camera, rot, org, options.candidate_budget)
+        fm = estimate_motions(problem, options, pyramid, finest, pairs, (t0, l0),
+                              (rot[:c], org[:c]), both.poses(0, c), (pt, rotvecs),
+                              next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),
+                              top_level=top)
+        t_new, l_new = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
+        for k, i in enumerate(active):
+            roots[i][j + 1], local[i][j + 1] = t_new[k], l_new[k]
+    return list(zip(roots, local))
 
 
 def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
