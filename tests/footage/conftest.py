@@ -25,8 +25,8 @@ def walk_clip():
 
 @pytest.fixture(scope="session")
 def box_clip():
-    """The textured rigid box (paper §5.1), its 6-DOF motion over 21 frames, 320x180."""
-    return _clip("box", 320, 180, 21)
+    """The textured rigid box (paper §5.1), its 6-DOF motion over 40 frames, 480x270."""
+    return _clip("box", 480, 270, 41)
 
 
 @pytest.fixture(scope="session")

@@ -48,7 +48,7 @@ def _image_motion_error(fp, j, estimate):
     return float(np.sqrt(np.mean(np.sum((true - est) ** 2, axis=1))))
 
 
-@pytest.mark.parametrize("clip,j", [("box_clip", 5), ("box_clip", 12), ("walk_clip", 4),
+@pytest.mark.parametrize("clip,j", [("box_clip", 10), ("box_clip", 25), ("walk_clip", 4),
                                     ("walk_clip", 10)])
 def test_known_small_motion_between_rendered_frames_is_recovered(request, clip, j):
     """Model on the true pose of frame j; the motion to j+1 is estimated from the two frames.
@@ -103,13 +103,16 @@ def test_eq4_of_kept_walk_trajectory_is_below_the_initial_one(walk_clip):
 
 
 def test_box_middle_frames_beat_interpolation(box_clip):
-    """Paper §5.1: a rigid box tracked between keys at both ends of its 6-DOF motion."""
+    """Paper §5.1: a rigid box tracked between keys at both ends of its 40-frame 6-DOF motion.
+
+    A rigid body's depth is measured by its scale change: ``estimate_depth=True``.
+    """
     fp = box_clip
     problem = TrackingProblem(fp.skeleton, fp.body, fp.camera)
     n = len(fp.frames) - 1
     start = Pose(fp.root_translation[0], fp.local_rotations[0])
     end = Pose(fp.root_translation[n], fp.local_rotations[n])
-    res = track_interval(problem, fp.frames, start, end, TrackingOptions())
+    res = track_interval(problem, fp.frames, start, end, TrackingOptions(estimate_depth=True))
     ti, li = interpolate_poses(fp.skeleton, start, end, n)
     mid = np.arange(n // 4, 3 * n // 4 + 1)
 
@@ -119,5 +122,5 @@ def test_box_middle_frames_beat_interpolation(box_clip):
         return np.linalg.norm(t[mid] - fp.root_translation[mid], axis=1).mean(), rot.mean()
     pos, ang = errors(res.root_translations, res.local_rotations)
     pos_i, ang_i = errors(ti, li)
-    assert ang < 0.5 * ang_i
-    assert pos < pos_i
+    assert ang < 0.2 * ang_i
+    assert pos < 0.2 * pos_i
