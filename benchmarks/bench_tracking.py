@@ -8,6 +8,7 @@ renders the footage it needs once (``sample_scenes/render_footage.py``, cached u
   10, 20 and 30 frames: (a) keyframe interpolation only, (b) accumulated frame-to-frame tracking
   without drift correction, (c) the full method; MPJPE (cm) over the 17 Human3.6M-style joints
   and the mean joint-angle error (deg) over the joints carrying body parts, interior frames;
+  the same for the CMU 35_17 run (60 fps, 61 frames);
 * the rigid box (paper §5.1): keys at 0 and 40, pose error at the middle frames 10..30;
 * speed: median ms per frame-iteration at 360x240, 640x360 and 1280x720;
 * throughput: output frames per second of the full method (all iterations, pyramids, process
@@ -222,6 +223,10 @@ def table(result):
             f" ({r['full_angle_deg']:5.2f}) | {r['full_over_interp']:11.2f} | "
             f"{r['full_over_accum']:10.2f} | {r.get('paper_mpjpe_cm', float('nan')):11.2f} | "
             f"{r.get('table1_mpjpe_cm', float('nan')):7.2f}")
+    lines += ["", "Run (CMU 35_17, 60 fps, 640x360), MPJPE cm: interp / accum only / full (full/interp)"]
+    for k, r in result["run"].items():
+        lines.append(f"{k.split('_')[-1]:>10} | {r['interp_mpjpe_cm']:5.2f} / {r['accum_mpjpe_cm']:5.2f}"
+                     f" / {r['full_mpjpe_cm']:5.2f} ({r['full_over_interp']:.2f})")
     b = result["box"]
     lines += ["", f"Box (paper 5.1), keys 0 and 40, frames {b['frames'][0]}..{b['frames'][1]}: "
               "position cm / rotation deg",
@@ -266,6 +271,8 @@ def main(argv=None):
         for k, r in result["walk"].items():
             print(k, {x: (round(y, 3) if isinstance(y, float) else y) for x, y in r.items()})
         return
+    run = load_footage(ensure_footage("run", 640, 360, 61, python=py))
+    result["run"] = bench_walk(run, options, args.processes, steps, variants=False)
     result["box"] = bench_box(load_footage(ensure_footage("box", 640, 360, 41, python=py)), options)
     speed = {}
     for w, h in ((360, 240), (640, 360), (1280, 720)):
