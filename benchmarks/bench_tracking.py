@@ -33,8 +33,6 @@ sys.path.insert(0, str(ROOT))
 from core.kinematics import forward_kinematics, log_so3  # noqa: E402
 from core.tracking import (Pose, TrackingOptions, TrackingProblem, interpolate_poses,  # noqa: E402
                            track_accumulated, track_interval, track_keyframes)
-from core.tracking.image import gaussian_pyramid  # noqa: E402
-from core.tracking.trajectory import pyramid_levels  # noqa: E402
 from sample_scenes.footage_scenes import ensure_footage, load_footage  # noqa: E402
 
 #: Human3.6M-style 17 joints on a CMU skeleton (joint origins = bone heads).

@@ -31,7 +31,7 @@ import bpy  # noqa: E402
 from mathutils import Matrix  # noqa: E402
 
 from core.kinematics import forward_kinematics  # noqa: E402
-from sample_scenes.footage_scenes import (fractal_noise, part_texture, render_params,  # noqa: E402
+from sample_scenes.footage_scenes import (part_texture, render_params,  # noqa: E402
                                           scene_arrays)
 
 SEGMENTS = 48

@@ -116,7 +116,8 @@ class TrackingOptions:
     step_tol : float
         Stop a level's iterations when the largest update is below this (radians / metres).
     robust_clip : float
-        Photometric residuals are clipped at this many robust standard deviations (MAD).
+        Photometric residuals are clipped at this many standard deviations (estimated per frame
+        from the mean absolute residual).
     max_iterations : int
         Trajectory iterations (track, accumulate, correct, score).
     patience : int
@@ -146,7 +147,8 @@ class TrackingOptions:
         into the position).
     estimate_depth : bool
         Also estimate the root's motion along the optical axis (see
-        ``motion.translation_basis``); off by default, as in the paper.
+        ``motion.translation_columns``); off by default, as in the paper (§5.3). Set it for a
+        rigid object (one part, e.g. the §5.1 box), whose scale change measures its depth.
     min_part_samples : int
         A joint whose subtree shows fewer points than this is not measured in that frame: its
         columns of ``A`` are dropped and it takes the prediction (hidden or tiny parts).

@@ -54,13 +54,15 @@ class IntervalResult:
         Eq. 4 term of each frame pair ``j -> j+1`` of the kept trajectory.
     ranks : ndarray, shape (n,), int
         Rank of ``A`` (eq. 5) on the finest level for each frame pair, from the tracking pass
-        that produced the kept trajectory (the first pass if the interpolation was kept).
+        that produced the kept trajectory (the loop's first pass if the interpolation or the
+        tracked seed was kept).
         Without depth estimation the root translation contributes one null direction, so the
         rank is at most (estimated DOFs - 1), as in the paper's Fig. 10.
     n_samples : ndarray, shape (n,), int
         Model points used per frame pair in that pass.
     errors : ndarray, shape (iterations + 1,)
-        Eq. 4 total per iteration; index 0 is the initial (interpolated) trajectory.
+        Eq. 4 total per scored trajectory: index 0 the interpolation, then the tracked seed
+        (``TrackingOptions.seed``, unless rejected) and one per loop iteration.
     kept_iteration : int
         Index into ``errors`` of the kept trajectory (0 = the interpolation).
     diverged : bool
@@ -381,20 +383,31 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     history = [(roots, local)] if keep_history else []
     best = dict(traj=traj, residuals=per_frame, ranks=None, n_samples=None, iteration=0)
     reason, diverged, since_best, first_pass = "iteration limit", False, 0, None
+    seed_index = None
     if options.seed != "interpolation" and initial is None:
-        # A tracked start (see TrackingOptions.seed), scored as iteration 1.
+        # A tracked start (see TrackingOptions.seed), scored as iteration 1 and checked like the
+        # loop's trajectories; a failed seed is dropped (the loop starts from the interpolation).
         tic = time.perf_counter()
         roots, local = seed_trajectory(problem, options, pyramid, levels, start, end,
                                        options.seed)
-        seed = _Trajectory(problem, options, finest, roots, local)
-        per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam, seed.samples)
-        errors.append(float(per_frame.sum()))
-        if keep_history:
-            history.append((roots, local))
+        problem_found = _trajectory_problem(problem, options, start, end, roots, local)
+        if problem_found is None:
+            seed = _Trajectory(problem, options, finest, roots, local)
+            problem_found = _lost(seed, options, initial_counts)
         timings["seed"] = time.perf_counter() - tic
-        if errors[-1] < errors[0]:
-            best = dict(traj=seed, residuals=per_frame, ranks=None, n_samples=None, iteration=1)
-        traj = seed
+        if problem_found is None:
+            per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam,
+                                          seed.samples)
+            errors.append(float(per_frame.sum()))
+            seed_index = 1
+            if keep_history:
+                history.append((roots, local))
+            if errors[-1] < errors[0]:
+                best = dict(traj=seed, residuals=per_frame, ranks=None, n_samples=None,
+                            iteration=1)
+            traj = seed
+        else:
+            timings["seed_rejected"] = problem_found
     image_pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
     for iteration in range(len(errors), len(errors) + options.max_iterations):
         tic = time.perf_counter()
@@ -414,20 +427,13 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         new_roots, new_local = correct_trajectory(
             problem, start, end, fm.translations, fm.rotvecs, options,
             measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
-        if not (np.all(np.isfinite(new_roots)) and np.all(np.isfinite(new_local))):
-            reason, diverged = f"non-finite corrected trajectory at iteration {iteration}", True
-            break
-        violation = limit_violation(problem, new_local, start, end, options.limit_margin)
-        if violation is not None:
-            reason, diverged = f"{violation}, iteration {iteration}", True
-            break
-        new = _Trajectory(problem, options, finest, new_roots, new_local)
-        counts = new.samples.counts()
-        lost = np.nonzero(counts < options.min_visible_fraction * initial_counts)[0]
-        if len(lost):
-            f = int(lost[0])
-            reason, diverged = (f"model lost at frame {f}, iteration {iteration}: {counts[f]} of "
-                                f"{int(initial_counts[f])} silhouette samples left"), True
+        found = _trajectory_problem(problem, options, start, end, new_roots, new_local)
+        new = None
+        if found is None:
+            new = _Trajectory(problem, options, finest, new_roots, new_local)
+            found = _lost(new, options, initial_counts)
+        if found is not None:
+            reason, diverged = f"{found}, iteration {iteration}", True
             break
         per_frame = photometric_error(problem, pyramid[finest], finest, new.cam, new.samples)
         error = float(per_frame.sum())
@@ -457,14 +463,33 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         best["ranks"], best["n_samples"] = first_pass if first_pass else (
             np.zeros(n, dtype=int), np.zeros(n, dtype=int))
     if diverged:
-        kept = "interpolation" if best["iteration"] == 0 else f"iteration {best['iteration']}"
+        kept = {0: "interpolation", seed_index: "tracked seed"}.get(
+            best["iteration"], f"iteration {best['iteration']}")
         reason = f"diverged: {reason}; kept {kept}"
     return IntervalResult(root_translations=best["traj"].roots,
                           local_rotations=best["traj"].local, residuals=best["residuals"],
                           ranks=best["ranks"], n_samples=best["n_samples"],
                           errors=np.array(errors), kept_iteration=best["iteration"],
-                          diverged=diverged, reason=reason, finest_level=finest, top_level=top, timings=timings,
-                          history=history)
+                          diverged=diverged, reason=reason, finest_level=finest,
+                          top_level=top, timings=timings, history=history)
+
+
+def _trajectory_problem(problem, options, start, end, roots, local):
+    """Why a trajectory must not be used (non-finite, a joint beyond its limits), or None."""
+    if not (np.all(np.isfinite(roots)) and np.all(np.isfinite(local))):
+        return "non-finite corrected trajectory"
+    return limit_violation(problem, local, start, end, options.limit_margin)
+
+
+def _lost(traj, options, initial_counts):
+    """A frame where the model lost most of the silhouette it had on the interpolation, or None."""
+    counts = traj.samples.counts()
+    lost = np.nonzero(counts < options.min_visible_fraction * initial_counts)[0]
+    if not len(lost):
+        return None
+    f = int(lost[0])
+    return (f"model lost at frame {f}: {counts[f]} of {int(initial_counts[f])} silhouette "
+            f"samples left")
 
 
 def seed_trajectory(problem, options, pyramid, levels, start, end, kind):

@@ -181,3 +181,19 @@ def test_bad_inputs_raise(seq):
         track_interval(problem, frames, Pose(roots[0], 2 * local[0]), end)
     with pytest.raises(ValueError, match="seed"):
         TrackingOptions(seed="magic")
+
+
+def test_a_failed_seed_is_dropped(seq, monkeypatch):
+    import core.tracking.trajectory as trajectory
+    sk, body, cam, roots, local, frames = seq
+    problem = TrackingProblem(sk, body, cam)
+
+    def nan_seed(*args, **kwargs):
+        return np.full_like(roots, np.nan), local.copy()
+    monkeypatch.setattr(trajectory, "seed_trajectory", nan_seed)
+    start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
+    res = track_interval(problem, frames, start, end, TrackingOptions(max_iterations=2),
+                         keep_history=True)
+    assert "non-finite" in res.timings["seed_rejected"]
+    assert len(res.errors) == 3                      # interpolation + two loop iterations
+    assert np.all(np.isfinite(res.root_translations))
