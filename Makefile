@@ -18,7 +18,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking clean
 
 venv: $(STAMP)
 
@@ -42,7 +42,7 @@ test-core: $(STAMP)
 test-blender: extension
 	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
 
-bench: bench-import bench-gait bench-gait-blender
+bench: bench-import bench-gait bench-gait-blender bench-tracking
 
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
@@ -52,6 +52,10 @@ bench-gait: $(STAMP)
 
 bench-gait-blender: extension
 	$(PY) benchmarks/bench_gait_blender.py --extension $(ZIP) --output build/bench/gait_blender.json
+
+# Renders its footage once (cached under build/footage), then accuracy, speed, throughput.
+bench-tracking: $(STAMP)
+	$(PY) benchmarks/bench_tracking.py --output build/bench/tracking.json
 
 clean:
 	rm -rf build .pytest_cache

@@ -7,6 +7,7 @@ once in ``docs/conventions.md``. Subpackages:
 ``mocap``       Acclaim ASF/AMC reading and writing, frame-rate resampling
 ``armature``    core skeleton <-> Blender-style armature (bone Y along head->tail) layout
 ``gait``        stylistic gait model: learning, adaptation (EKF/EM), prediction (docs/gait.md)
+``tracking``    drift-corrected video tracking (Yamamoto; docs/tracking.md)
 """
 
-__all__ = ["kinematics", "mocap", "armature", "gait"]
+__all__ = ["kinematics", "mocap", "armature", "gait", "tracking"]

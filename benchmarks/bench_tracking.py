@@ -1,0 +1,296 @@
+"""Benchmark of the drift-corrected tracker on rendered footage with known poses.
+
+``make bench-tracking`` (= ``python benchmarks/bench_tracking.py --output build/bench/tracking.json``)
+renders the footage it needs once (``sample_scenes/render_footage.py``, cached under
+``build/footage``), then measures:
+
+* accuracy on the rendered CMU 08_01 walk (640x360, 30 fps, 61 frames) with keyframes every
+  10, 20 and 30 frames: (a) keyframe interpolation only, (b) accumulated frame-to-frame tracking
+  without drift correction, (c) the full method; MPJPE (cm) over the 17 Human3.6M-style joints
+  and the mean joint-angle error (deg) over the joints carrying body parts, interior frames;
+  the same for the CMU 35_17 run (60 fps, 61 frames);
+* the rigid box (paper §5.1): keys at 0 and 40, pose error at the middle frames 10..30;
+* speed: median ms per frame-iteration at 360x240, 640x360 and 1280x720;
+* throughput: output frames per second of the full method (all iterations, pyramids, process
+  pool) on a 1080x1920 portrait clip of the walk with keys every 20 frames.
+
+Prints a table and writes the JSON (shape in issue 4).
+"""
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from core.kinematics import forward_kinematics, log_so3  # noqa: E402
+from core.tracking import (Pose, TrackingOptions, TrackingProblem, interpolate_poses,  # noqa: E402
+                           track_accumulated, track_interval, track_keyframes)
+from sample_scenes.footage_scenes import ensure_footage, load_footage  # noqa: E402
+
+#: Human3.6M-style 17 joints on a CMU skeleton (joint origins = bone heads).
+H36M_JOINTS = ("root", "lfemur", "ltibia", "lfoot", "rfemur", "rtibia", "rfoot", "lowerback",
+               "thorax", "lowerneck", "head", "lhumerus", "lradius", "lwrist", "rhumerus",
+               "rradius", "rwrist")
+GOALS = {"full_cm_at_20": 2.0, "ratio_interp": 0.3, "ratio_accum": 0.5, "ms_360x240": 5.0,
+         "ms_1280x720": 25.0, "fps_1080x1920": 40.0}
+
+
+def walk_metrics(fp, roots, local, frames, keys):
+    """MPJPE (cm, 17 joints) and joint-angle error (deg) over the interior frames."""
+    sk = fp.skeleton
+    joints = [sk.index(n) for n in H36M_JOINTS]
+    interior = np.setdiff1d(frames, keys)
+    sel = np.searchsorted(frames, interior)
+    _, p = forward_kinematics(sk, local[sel], roots[sel])
+    _, q = forward_kinematics(sk, fp.local_rotations[interior], fp.root_translation[interior])
+    mpjpe = 100 * np.linalg.norm(p[:, joints] - q[:, joints], axis=-1).mean()
+    shaped = np.unique(fp.body.joints)
+    rel = np.swapaxes(local[sel][:, shaped], -1, -2) @ fp.local_rotations[interior][:, shaped]
+    angle = np.degrees(np.linalg.norm(log_so3(rel), axis=-1)).mean()
+    return float(mpjpe), float(angle)
+
+
+def problem_for(fp, dof="skeleton"):
+    if dof == "table1":
+        from core.tracking import table1_dof_mask
+        return TrackingProblem(fp.skeleton, fp.body, fp.camera, *table1_dof_mask(fp.skeleton))
+    return TrackingProblem(fp.skeleton, fp.body, fp.camera)
+
+
+def bench_walk(fp, options, processes, key_steps=(10, 20, 30), dof="skeleton", variants=True):
+    """Accuracy per keyframe spacing: (a) interpolation, (b) accumulation only, (c) full method.
+
+    Extra keys: ``paper_*`` = the full loop started from the interpolation (the paper's start,
+    ``seed='interpolation'``), ``table1_*`` = the full method with the Table 1 DOFs.
+    """
+    problem = problem_for(fp, dof)
+    n = len(fp.frames) - 1
+    out = {}
+    for step in key_steps:
+        keys = np.arange(0, n + 1, step)
+        frames = np.arange(keys[0], keys[-1] + 1)
+        roots_i, local_i, roots_a, local_a = [], [], [], []
+        for a, b in zip(keys[:-1], keys[1:]):
+            start = Pose(fp.root_translation[a], fp.local_rotations[a])
+            end = Pose(fp.root_translation[b], fp.local_rotations[b])
+            t, r = interpolate_poses(fp.skeleton, start, end, b - a)
+            roots_i.append(t[:-1]), local_i.append(r[:-1])
+            t, r = track_accumulated(problem, fp.frames[a:b + 1], start, end, options)
+            roots_a.append(t[:-1]), local_a.append(r[:-1])
+        last = keys[-1]
+        for lst, arr in ((roots_i, fp.root_translation), (local_i, fp.local_rotations),
+                         (roots_a, fp.root_translation), (local_a, fp.local_rotations)):
+            lst.append(arr[last:last + 1])
+        tic = time.perf_counter()
+        seq = track_keyframes(problem, fp.frames, keys, fp.root_translation[keys],
+                              fp.local_rotations[keys], options, processes=processes)
+        wall = time.perf_counter() - tic
+        runs = [("interp", (np.concatenate(roots_i), np.concatenate(local_i))),
+                ("accum", (np.concatenate(roots_a), np.concatenate(local_a))),
+                ("full", (seq.root_translations, seq.local_rotations))]
+        if variants:
+            paper = track_keyframes(problem, fp.frames, keys, fp.root_translation[keys],
+                                    fp.local_rotations[keys], options.replace(seed="interpolation"),
+                                    processes=processes)
+            t1 = track_keyframes(problem_for(fp, "table1"), fp.frames, keys,
+                                 fp.root_translation[keys], fp.local_rotations[keys], options,
+                                 processes=processes)
+            runs += [("paper", (paper.root_translations, paper.local_rotations)),
+                     ("table1", (t1.root_translations, t1.local_rotations))]
+        res = {}
+        for name, (t, r) in runs:
+            res[f"{name}_mpjpe_cm"], res[f"{name}_angle_deg"] = walk_metrics(fp, t, r, frames, keys)
+        res["full_over_interp"] = res["full_mpjpe_cm"] / res["interp_mpjpe_cm"]
+        res["full_over_accum"] = res["full_mpjpe_cm"] / res["accum_mpjpe_cm"]
+        res["kept_iterations"] = [int(r.kept_iteration) for r in seq.intervals]
+        res["diverged"] = [r.reason for r in seq.intervals if r.diverged]
+        res["mean_rank"] = float(np.mean(np.concatenate([r.ranks for r in seq.intervals])))
+        res["n_params"] = int(problem.layout.n_params)
+        res["wall_s"] = wall
+        out[f"keys_every_{step}"] = res
+    return out
+
+
+def bench_box(fp, options):
+    """The rigid box (paper §5.1): keys at both ends, pose error at the middle frames.
+
+    A rigid body's depth is well measured by its scale change, so the box is tracked with
+    ``estimate_depth=True``; ``default_*`` keys give the default options (depth left to the
+    interpolation) for comparison.
+    """
+    problem = problem_for(fp)
+    n = len(fp.frames) - 1
+    start = Pose(fp.root_translation[0], fp.local_rotations[0])
+    end = Pose(fp.root_translation[n], fp.local_rotations[n])
+    mid = np.arange(n // 4, 3 * n // 4 + 1)
+    gt_t, gt_r = fp.root_translation[mid], fp.local_rotations[mid, 0]
+    res = {"frames": [int(mid[0]), int(mid[-1])]}
+    depth = options.replace(estimate_depth=True)
+    full = track_interval(problem, fp.frames, start, end, depth)
+    default = track_interval(problem, fp.frames, start, end, options)
+    for name, (t, r) in (("interp", interpolate_poses(fp.skeleton, start, end, n)),
+                         ("accum", track_accumulated(problem, fp.frames, start, end, depth)),
+                         ("full", (full.root_translations, full.local_rotations)),
+                         ("default", (default.root_translations, default.local_rotations))):
+        # Box centre = root origin; orientation = root local rotation.
+        res[f"{name}_position_cm"] = float(100 * np.linalg.norm(t[mid] - gt_t, axis=1).mean())
+        rel = np.swapaxes(r[mid, 0], -1, -2) @ gt_r
+        res[f"{name}_rotation_deg"] = float(np.degrees(np.linalg.norm(log_so3(rel), axis=-1)).mean())
+    res["errors"] = [float(e) for e in full.errors]
+    res["kept_iteration"] = int(full.kept_iteration)
+    res["reason"] = full.reason
+    return res
+
+
+def bench_speed(fp, options, repeats=3, iterations=4):
+    """Median ms per frame-iteration (all levels and warps of one frame, its eq. 4 scoring and
+    its share of accumulation + correction), fixed iteration count, serial."""
+    problem = problem_for(fp)
+    n = len(fp.frames) - 1
+    start = Pose(fp.root_translation[0], fp.local_rotations[0])
+    end = Pose(fp.root_translation[n], fp.local_rotations[n])
+    opts = options.replace(max_iterations=iterations, patience=iterations + 1,
+                           divergence_factor=1e9, min_visible_fraction=0.0,
+                           limit_margin=1e9)
+    per, pyr, seed = [], [], []
+    for _ in range(repeats):
+        r = track_interval(problem, fp.frames, start, end, opts)
+        per.append(1000 * np.median(r.timings["iterations"]) / n)
+        pyr.append(1000 * r.timings["pyramid"] / (n + 1))
+        seed.append(1000 * r.timings.get("seed", 0.0) / n)
+    return {"ms_per_frame_iter": float(np.median(per)),
+            "pyramid_ms_per_frame": float(np.median(pyr)),
+            "seed_ms_per_frame": float(np.median(seed)), "finest_level": int(r.finest_level),
+            "top_level": int(r.top_level), "frames": int(n + 1)}
+
+
+def bench_throughput(folder, options, processes, step=20):
+    """Output frames per second of the full method on a clip (keys every ``step`` frames).
+
+    Counted: the in-between frames (keys are given, not produced), over the wall time of
+    ``track_keyframes`` from grayscale frames in memory (pyramids, seed, all iterations, the
+    process pool start-up). PNG decoding is measured separately.
+    """
+    from PIL import Image
+
+    from core.tracking.image import to_grayscale
+    tic = time.perf_counter()
+    files = sorted(Path(folder).glob("frame_*.png"))
+    to_grayscale(np.stack([np.asarray(Image.open(f).convert("RGB")) for f in files]))
+    decode = time.perf_counter() - tic
+    fp = load_footage(folder)
+    problem = problem_for(fp)
+    n = len(fp.frames) - 1
+    keys = np.arange(0, n + 1, step)
+    in_between = int(keys[-1] - keys[0] + 1 - len(keys))
+    walls = {}
+    for procs in sorted({1, processes}):
+        tic = time.perf_counter()
+        seq = track_keyframes(problem, fp.frames, keys, fp.root_translation[keys],
+                              fp.local_rotations[keys], options, processes=procs)
+        walls[procs] = time.perf_counter() - tic
+    mpjpe, angle = walk_metrics(fp, seq.root_translations, seq.local_rotations,
+                                np.arange(keys[0], keys[-1] + 1), keys)
+    best = min(walls, key=walls.get)
+    return {"output_fps": in_between / walls[best], "serial_fps": in_between / walls[1],
+            "pool_fps": in_between / walls[processes], "in_between_frames": in_between,
+            "wall_s": walls[best], "processes": best,
+            "decode_fps": len(files) / decode, "finest_level": int(seq.intervals[0].finest_level),
+            "top_level": int(seq.intervals[0].top_level), "full_mpjpe_cm": mpjpe,
+            "full_angle_deg": angle, "iterations": [len(r.errors) - 1 for r in seq.intervals]}
+
+
+def table(result):
+    lines = ["", "Drift-corrected tracking benchmark (rendered CMU 08_01 walk, 640x360, 30 fps)",
+             "MPJPE cm over 17 joints (mean joint-angle error deg over the body's joints), "
+             "interior frames",
+             f"{'keys every':>10} | {'interp':>13} | {'accum only':>13} | {'full':>13} | "
+             f"{'full/interp':>11} | {'full/accum':>10} | {'paper start':>11} | {'Table 1':>7}"]
+    for k, r in result["walk"].items():
+        lines.append(
+            f"{k.split('_')[-1]:>10} | {r['interp_mpjpe_cm']:5.2f} ({r['interp_angle_deg']:5.2f})"
+            f" | {r['accum_mpjpe_cm']:5.2f} ({r['accum_angle_deg']:5.2f}) | {r['full_mpjpe_cm']:5.2f}"
+            f" ({r['full_angle_deg']:5.2f}) | {r['full_over_interp']:11.2f} | "
+            f"{r['full_over_accum']:10.2f} | {r.get('paper_mpjpe_cm', float('nan')):11.2f} | "
+            f"{r.get('table1_mpjpe_cm', float('nan')):7.2f}")
+    lines += ["", "Run (CMU 35_17, 60 fps, 640x360), MPJPE cm: interp / accum only / full (full/interp)"]
+    for k, r in result["run"].items():
+        lines.append(f"{k.split('_')[-1]:>10} | {r['interp_mpjpe_cm']:5.2f} / {r['accum_mpjpe_cm']:5.2f}"
+                     f" / {r['full_mpjpe_cm']:5.2f} ({r['full_over_interp']:.2f})")
+    b = result["box"]
+    lines += ["", f"Box (paper 5.1), keys 0 and 40, frames {b['frames'][0]}..{b['frames'][1]}: "
+              "position cm / rotation deg",
+              f"  interp {b['interp_position_cm']:.2f} / {b['interp_rotation_deg']:.2f}"
+              f"   accum {b['accum_position_cm']:.2f} / {b['accum_rotation_deg']:.2f}"
+              f"   full {b['full_position_cm']:.2f} / {b['full_rotation_deg']:.2f}"
+              f"   (default options, depth not estimated: {b['default_position_cm']:.2f} / "
+              f"{b['default_rotation_deg']:.2f})"]
+    s = result["speed"]
+    lines += ["", "Speed (serial, median ms per frame-iteration; the pyramid is built once per "
+              "frame)"]
+    for res in ("360x240", "640x360", "1280x720"):
+        d = s[f"detail_{res}"]
+        lines.append(f"  {res:>9}: {s['ms_per_frame_iter_' + res]:6.2f} ms  (levels "
+                     f"{d['finest_level']}..{d['top_level']}, pyramid "
+                     f"{d['pyramid_ms_per_frame']:.2f} ms/frame, seed {d['seed_ms_per_frame']:.1f}"
+                     f" ms/frame)")
+    t = s["detail_1080x1920"]
+    lines.append(f"  1080x1920 portrait, keys every 20: {s['output_fps_1080x1920']:.1f} output "
+                 f"frames/s (serial {t['serial_fps']:.1f}, 2-process pool {t['pool_fps']:.1f}), "
+                 f"levels {t['finest_level']}..{t['top_level']}, MPJPE {t['full_mpjpe_cm']:.2f} "
+                 f"cm; PNG decode alone {t['decode_fps']:.1f} frames/s")
+    lines += ["", "Goals: " + ", ".join(f"{k} {v}" for k, v in GOALS.items())]
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--output", default=str(ROOT / "build" / "bench" / "tracking.json"))
+    ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--quick", action="store_true", help="accuracy on the walk only")
+    ap.add_argument("--options", default="", help="TrackingOptions overrides, e.g. 'tau=0.03'")
+    ap.add_argument("--dof", default="skeleton", choices=["skeleton", "table1"])
+    ap.add_argument("--keys", default="10,20,30", help="keyframe spacings of the walk")
+    args = ap.parse_args(argv)
+    options = TrackingOptions(**eval(f"dict({args.options})"))
+    py = sys.executable
+    walk = load_footage(ensure_footage("walk", 640, 360, 61, python=py))
+    steps = tuple(int(k) for k in args.keys.split(","))
+    result = {"walk": bench_walk(walk, options, args.processes, steps, dof=args.dof)}
+    if args.quick:
+        for k, r in result["walk"].items():
+            print(k, {x: (round(y, 3) if isinstance(y, float) else y) for x, y in r.items()})
+        return
+    run = load_footage(ensure_footage("run", 640, 360, 61, python=py))
+    result["run"] = bench_walk(run, options, args.processes, steps, variants=False)
+    result["box"] = bench_box(load_footage(ensure_footage("box", 640, 360, 41, python=py)), options)
+    speed = {}
+    for w, h in ((360, 240), (640, 360), (1280, 720)):
+        d = bench_speed(load_footage(ensure_footage("walk", w, h, 21, python=py)), options)
+        speed[f"ms_per_frame_iter_{w}x{h}"] = d["ms_per_frame_iter"]
+        speed[f"detail_{w}x{h}"] = d
+    t = bench_throughput(ensure_footage("walk", 1080, 1920, 61, python=py), options, args.processes)
+    speed["output_fps_1080x1920"] = t["output_fps"]
+    speed["detail_1080x1920"] = t
+    result["speed"] = speed
+    result["goals"] = GOALS
+    result["options"] = {k: getattr(options, k) for k in options.__dataclass_fields__}
+    result["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(),
+                         "numpy": np.__version__}
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print(table(result))
+    print(f"\nwrote {out}")
+
+
+if __name__ == "__main__":
+    main()

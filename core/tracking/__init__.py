@@ -1,0 +1,40 @@
+"""Drift-corrected video tracking (Yamamoto): NumPy only.
+
+Between two keyed poses of an articulated body, estimate every in-between frame from the video
+and remove the drift that accumulates (``docs/tracking.md``, ``DESIGN.md`` §1).
+
+Modules: ``camera`` (pinhole + Blender contract), ``body_model`` (tapered cylinders / boxes, ray
+casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), ``jacobians``
+(eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10, coarse-to-fine), ``drift`` (eqs. 11-24),
+``trajectory`` (the §2.2 loop), ``parallel`` (several intervals), ``presets`` (Table 1),
+``problem`` (inputs and options).
+"""
+
+from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
+                         joint_frames_in_camera, ray_cast, sample_silhouette)
+from .camera import PinholeCamera, camera_from_blender, world2camera_from_blender
+from .drift import (correct_root_positions, orientation_correction)
+from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyramid, pyr_down,
+                    sample_with_gradient, to_grayscale)
+from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_between, motion_layout,
+                        point_jacobians)
+from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_decompositions,
+                     solve_with_prediction)
+from .parallel import SequenceResult, track_keyframes
+from .presets import CMU_PARTS, TABLE1, table1_dof_mask
+from .problem import TrackingError, TrackingOptions, TrackingProblem
+from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_error,
+                         track_accumulated, track_interval)
+
+__all__ = [
+    "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "MotionLayout", "PinholeCamera",
+    "Pose", "RayHits", "SequenceResult", "SilhouetteSamples", "TABLE1", "TrackingError",
+    "TrackingOptions", "TrackingProblem", "apply_motion", "bilinear", "body_model_from_skeleton",
+    "camera_from_blender", "central_derivatives", "correct_root_positions", "estimate_motions",
+    "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
+    "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
+    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition", "rank_decompositions", "ray_cast",
+    "sample_silhouette", "sample_with_gradient", "solve_with_prediction", "table1_dof_mask",
+    "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
+    "world2camera_from_blender",
+]

@@ -1,0 +1,219 @@
+"""Pinhole camera of the tracker and the Blender-camera contract.
+
+Camera frame (``docs/conventions.md``): x right, y down, z forward along the optical axis,
+metres. Pixel coordinates ``(u, v)``: origin at the **centre** of the top-left pixel, u to the
+right (columns), v down (rows); pixel ``(u, v)`` is array element ``image[v, u]``.
+
+Projection (Yamamoto eq. A.4 with a principal point and separate focal lengths)::
+
+    u = fx * x / z + cx,        v = fy * y / z + cy
+
+The paper's centred image coordinates are ``X = u - cx = fx x / z`` and ``Y = v - cy``.
+
+Blender contract (:func:`camera_from_blender`)
+----------------------------------------------
+A Blender camera looks down its local -Z with +Y up. With ``camera2world_blender`` its
+``matrix_world`` (4x4, scale 1)::
+
+    world2camera = diag(1, -1, -1, 1) @ inverse(camera2world_blender)
+
+Intrinsics from the camera data and the render settings (perspective cameras, pixel aspect 1,
+any resolution percentage already applied to ``width`` and ``height``). Blender fits the sensor
+to one image side: ``sensor_fit='HORIZONTAL'`` uses ``sensor_width`` across the width,
+``'VERTICAL'`` uses ``sensor_height`` across the height, ``'AUTO'`` uses ``sensor_width``
+across the **larger** side. With ``side`` that fitted side in pixels and ``sensor`` the
+sensor size used (mm)::
+
+    fx = fy = lens * side / sensor
+    cx = (width - 1) / 2 - shift_x * side
+    cy = (height - 1) / 2 + shift_y * side
+
+(Blender's shift is in units of the fitted side; +shift_y moves the view up, i.e. the image
+content down in the picture, hence the sign flip with v pointing down.) These formulas are
+checked against rendered footage in ``tests/footage/test_tracking_camera_contract.py``.
+
+Image pyramids: level ``L`` halves the resolution ``L`` times with 2x2-aligned pixels (level-L
+pixel ``i`` covers level-0 pixels ``2^L i .. 2^L (i+1) - 1``), so a point at ``u0`` on level 0 is
+at ``(u0 + 0.5) / 2^L - 0.5`` on level ``L`` (:meth:`PinholeCamera.at_level`).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Blender camera axes (x right, y up, z backwards) -> tracker camera axes (x right, y down,
+# z forward): a half turn about x.
+BLENDER_TO_CV = np.diag([1.0, -1.0, -1.0])
+
+
+@dataclass(frozen=True, eq=False)
+class PinholeCamera:
+    """Pinhole camera: intrinsics in pixels and the world -> camera pose.
+
+    Attributes
+    ----------
+    fx, fy : float
+        Focal lengths in pixels.
+    cx, cy : float
+        Principal point in pixels (origin at the centre of the top-left pixel).
+    width, height : int
+        Image size in pixels.
+    world2camera : ndarray, shape (4, 4)
+        Homogeneous transform from the (Z-up) world to the camera frame (x right, y down,
+        z forward), metres.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    world2camera: np.ndarray = None
+
+    def __post_init__(self):
+        for name in ("fx", "fy"):
+            value = float(getattr(self, name))
+            if not np.isfinite(value) or value <= 0:
+                raise ValueError(f"{name} must be a positive focal length in pixels, got {value}")
+            object.__setattr__(self, name, value)
+        for name in ("cx", "cy"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        for name in ("width", "height"):
+            value = int(getattr(self, name))
+            if value <= 0:
+                raise ValueError(f"{name} must be positive, got {value}")
+            object.__setattr__(self, name, value)
+        pose = np.eye(4) if self.world2camera is None else np.array(self.world2camera, dtype=float)
+        if pose.shape != (4, 4):
+            raise ValueError(f"Expected world2camera of shape (4, 4), got {pose.shape}")
+        rot = pose[:3, :3]
+        if (np.abs(rot @ rot.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rot) <= 0
+                or np.abs(pose[3] - [0, 0, 0, 1]).max() > 1e-12):
+            raise ValueError("world2camera must be a rigid transform (rotation + translation)")
+        pose.setflags(write=False)
+        object.__setattr__(self, "world2camera", pose)
+
+    @property
+    def rotation(self):
+        """(3, 3) world -> camera rotation."""
+        return self.world2camera[:3, :3]
+
+    @property
+    def translation(self):
+        """(3,) world -> camera translation, metres."""
+        return self.world2camera[:3, 3]
+
+    def world_to_camera(self, points):
+        """Camera coordinates (..., 3) of world points (..., 3), metres."""
+        points = np.asarray(points, dtype=float)
+        return points @ self.rotation.T + self.translation
+
+    def project(self, points):
+        """Pixel coordinates of camera-frame points (Yamamoto eq. A.4).
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 3), metres, camera frame, z > 0
+
+        Returns
+        -------
+        ndarray, shape (..., 2), pixels (u, v)
+        """
+        p = np.asarray(points, dtype=float)
+        if p.shape[-1:] != (3,):
+            raise ValueError(f"Expected shape (..., 3), got {p.shape}")
+        inv_z = 1.0 / p[..., 2]
+        return np.stack([self.fx * p[..., 0] * inv_z + self.cx,
+                         self.fy * p[..., 1] * inv_z + self.cy], axis=-1)
+
+    def rays(self, pixels):
+        """Ray directions (camera frame, scaled to z = 1) through pixels.
+
+        Parameters
+        ----------
+        pixels : array_like, shape (..., 2), pixels (u, v)
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+        """
+        q = np.asarray(pixels, dtype=float)
+        if q.shape[-1:] != (2,):
+            raise ValueError(f"Expected shape (..., 2), got {q.shape}")
+        out = np.ones(q.shape[:-1] + (3,))
+        out[..., 0] = (q[..., 0] - self.cx) / self.fx
+        out[..., 1] = (q[..., 1] - self.cy) / self.fy
+        return out
+
+    def at_level(self, level):
+        """The same camera for pyramid level ``level`` (resolution halved ``level`` times)."""
+        if level == 0:
+            return self
+        s = 0.5 ** int(level)
+        return PinholeCamera(fx=self.fx * s, fy=self.fy * s,
+                             cx=(self.cx + 0.5) * s - 0.5, cy=(self.cy + 0.5) * s - 0.5,
+                             width=max(1, self.width >> level), height=max(1, self.height >> level),
+                             world2camera=self.world2camera)
+
+    def with_pose(self, world2camera):
+        """Same intrinsics, another pose."""
+        return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height,
+                             world2camera)
+
+
+def world2camera_from_blender(camera2world_blender):
+    """Tracker ``world2camera`` (4, 4) from a Blender camera's ``matrix_world`` (4, 4).
+
+    ``world2camera = diag(1, -1, -1, 1) @ inverse(matrix_world)``; any scale in
+    ``matrix_world`` is removed first (Blender ignores camera object scale when rendering).
+    """
+    m = np.asarray(camera2world_blender, dtype=float)
+    if m.shape != (4, 4):
+        raise ValueError(f"Expected shape (4, 4), got {m.shape}")
+    rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+    out = np.eye(4)
+    out[:3, :3] = BLENDER_TO_CV @ rot.T
+    out[:3, 3] = -BLENDER_TO_CV @ rot.T @ m[:3, 3]
+    return out
+
+
+def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, shift_y,
+                        width, height, camera2world_blender):
+    """Tracker camera of a Blender perspective camera (see the module docstring).
+
+    Parameters
+    ----------
+    lens : float
+        ``camera.data.lens``, mm.
+    sensor_width, sensor_height : float
+        ``camera.data.sensor_width`` / ``sensor_height``, mm.
+    sensor_fit : {'AUTO', 'HORIZONTAL', 'VERTICAL'}
+    shift_x, shift_y : float
+        ``camera.data.shift_x`` / ``shift_y`` (fractions of the fitted image side).
+    width, height : int
+        Rendered image size in pixels (``resolution_x/y * resolution_percentage / 100``).
+    camera2world_blender : array_like, shape (4, 4)
+        ``camera_object.matrix_world``.
+
+    Returns
+    -------
+    PinholeCamera
+    """
+    width, height = int(width), int(height)
+    if sensor_fit == "AUTO":
+        horizontal = width >= height
+        sensor = sensor_width
+    elif sensor_fit == "HORIZONTAL":
+        horizontal, sensor = True, sensor_width
+    elif sensor_fit == "VERTICAL":
+        horizontal, sensor = False, sensor_height
+    else:
+        raise ValueError(f"sensor_fit must be 'AUTO', 'HORIZONTAL' or 'VERTICAL', got {sensor_fit!r}")
+    if not (lens > 0 and sensor > 0):
+        raise ValueError(f"lens and sensor size must be positive, got {lens} and {sensor}")
+    side = width if horizontal else height
+    f = lens * side / sensor
+    return PinholeCamera(fx=f, fy=f, cx=(width - 1) / 2.0 - shift_x * side,
+                         cy=(height - 1) / 2.0 + shift_y * side, width=width, height=height,
+                         world2camera=world2camera_from_blender(camera2world_blender))

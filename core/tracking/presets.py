@@ -1,0 +1,103 @@
+"""The paper's DOF assignment (Yamamoto Table 1) as a DOF mask for a skeleton.
+
+Table 1 restricts the estimated motion of a 16-part body to 23 DOFs: small or weakly textured
+parts (hands, feet, neck) get none, and twists that the image hardly shows are left out. The
+paper names parts, not axes; the axes chosen here (documented per role) are:
+
+============== ===== ============================================================ ===========
+part           DOF   axes of the joint frame                                       CMU joint
+============== ===== ============================================================ ===========
+Waist          6     translation + all three rotations                             root
+Chest          3     all three rotations                                           lowerback
+Head           2     nod (first axis across the bone) and turn (about the bone)    head
+thigh (L/R)    2     swing: the two axes across the bone (no twist)                l/rfemur
+shin (L/R)     1     hinge: the first DOF axis across the bone                     l/rtibia
+upper arm (L/R) 2    swing                                                         l/rhumerus
+forearm (L/R)  1     hinge                                                         l/rradius
+============== ===== ============================================================ ===========
+
+Total 23. "Across the bone" uses the bone direction ``skeleton.tails[j]`` in the joint frame
+(CMU limbs and Blender bones lie along their joint's Y axis, so swing = X and Z, hinge = X,
+turn = Y). Every other joint (upper back, thorax, neck, clavicles, hips, hands, feet, toes ...)
+gets no DOF: it moves rigidly with its parent, and its keyed rotation is interpolated. A mask
+never adds an axis the skeleton does not have (``dof_axes``).
+"""
+
+import numpy as np
+
+#: Yamamoto Table 1: part name -> DOF count.
+TABLE1 = {
+    "Waist": 6, "Chest": 3, "Head": 2,
+    "Left thigh": 2, "Right thigh": 2, "Left shin": 1, "Right shin": 1,
+    "Left upper arm": 2, "Right upper arm": 2, "Left forearm": 1, "Right forearm": 1,
+}
+
+#: How each Table 1 part's DOFs are chosen (see the module docstring).
+ROLES = {
+    "Waist": "all", "Chest": "all", "Head": "nod_turn",
+    "Left thigh": "swing", "Right thigh": "swing", "Left shin": "hinge", "Right shin": "hinge",
+    "Left upper arm": "swing", "Right upper arm": "swing",
+    "Left forearm": "hinge", "Right forearm": "hinge",
+}
+
+#: Table 1 parts on a CMU (Acclaim) skeleton.
+CMU_PARTS = {
+    "Waist": "root", "Chest": "lowerback", "Head": "head",
+    "Left thigh": "lfemur", "Right thigh": "rfemur", "Left shin": "ltibia", "Right shin": "rtibia",
+    "Left upper arm": "lhumerus", "Right upper arm": "rhumerus",
+    "Left forearm": "lradius", "Right forearm": "rradius",
+}
+
+
+def _axes_for_role(skeleton, j, role):
+    tail = np.asarray(skeleton.tails[j], dtype=float)
+    along = int(np.argmax(np.abs(tail))) if np.linalg.norm(tail) > 0 else 1
+    across = [a for a in range(3) if a != along]
+    own = list(skeleton.dof_axes[j])
+    if role == "all":
+        return [0, 1, 2]
+    if role == "swing":
+        return across
+    hinge = next((a for a in own if a != along), across[0])
+    if role == "hinge":
+        return [hinge]
+    if role == "nod_turn":
+        return [hinge, along]
+    raise ValueError(f"unknown role {role!r}")
+
+
+def table1_dof_mask(skeleton, parts=None):
+    """DOF mask (B, 3) and translation mask (3,) of Yamamoto Table 1 for a skeleton.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    parts : dict, optional
+        Table 1 part name -> joint name; default :data:`CMU_PARTS`. Parts missing from the
+        dict (or mapped to ``None``) are skipped (e.g. a rig without a separate chest).
+
+    Returns
+    -------
+    dof_mask : ndarray, shape (B, 3), bool
+    translation_mask : ndarray, shape (3,), bool
+        The Waist's translation (all axes when the Waist is the root).
+    """
+    parts = CMU_PARTS if parts is None else parts
+    unknown = set(parts) - set(TABLE1)
+    if unknown:
+        raise ValueError(f"not Table 1 parts: {sorted(unknown)}; known: {list(TABLE1)}")
+    mask = np.zeros((skeleton.n_joints, 3), dtype=bool)
+    translation = np.zeros(3, dtype=bool)
+    for part, joint in parts.items():
+        if joint is None:
+            continue
+        j = skeleton.index(joint)
+        axes = _axes_for_role(skeleton, j, ROLES[part])
+        mask[j, axes] = True
+        if part == "Waist" and j == 0 and skeleton.root_translation:
+            translation[:] = True
+    # Never add an axis the skeleton does not have.
+    has = np.zeros_like(mask)
+    for j, own in enumerate(skeleton.dof_axes):
+        has[j, list(own)] = True
+    return mask & has, translation

@@ -1,0 +1,196 @@
+"""What is tracked (:class:`TrackingProblem`) and how (:class:`TrackingOptions`)."""
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .body_model import BodyModel
+from .camera import PinholeCamera
+from ..kinematics import rest_pose
+from .jacobians import ancestor_matrix, motion_layout
+
+
+class TrackingError(ValueError):
+    """Invalid tracking input (shapes, poses, frames); the operator reports it."""
+
+
+@dataclass(frozen=True, eq=False)
+class TrackingProblem:
+    """Skeleton, body shapes, camera and the estimated degrees of freedom.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        Joint frames = the parts' frames (Blender: bone frames).
+    body : BodyModel
+        Shapes attached to the joints.
+    camera : PinholeCamera
+        Intrinsics and world -> camera pose (one camera for all frames).
+    dof_mask : array_like, shape (B, 3), bool, optional
+        Rotation axes estimated per joint (Blender: not ``lock_rotation``); default the
+        skeleton's ``dof_axes``. Joints whose subtree has no body part are never estimated.
+    translation_mask : array_like, shape (3,), bool, optional
+        Root translation axes (root frame) estimated; default all.
+
+    Attributes
+    ----------
+    layout : MotionLayout
+        The estimated parameters ``x`` (eq. 3).
+    ancestors : ndarray, shape (B, B), bool
+    scales : ndarray, shape (n_params,)
+        Unit of each parameter in metres of surface motion: 1 for the root translation, the
+        reach of the joint's subtree (largest distance from the joint to its parts, rest pose)
+        for a rotation. ``A`` is rank-tested and solved in these units (see ``motion.py``).
+    """
+
+    skeleton: object
+    body: BodyModel
+    camera: PinholeCamera
+    dof_mask: np.ndarray = None
+    translation_mask: np.ndarray = None
+    layout: object = field(init=False)
+    ancestors: np.ndarray = field(init=False)
+    scales: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        if self.body.n_joints != self.skeleton.n_joints:
+            raise TrackingError(f"body model has {self.body.n_joints} joints, skeleton "
+                                f"{self.skeleton.n_joints}")
+        if not isinstance(self.camera, PinholeCamera):
+            raise TrackingError("camera must be a PinholeCamera")
+        layout = motion_layout(self.skeleton, self.dof_mask, self.translation_mask, self.body)
+        object.__setattr__(self, "layout", layout)
+        object.__setattr__(self, "dof_mask", layout.dof_mask)
+        object.__setattr__(self, "translation_mask",
+                           np.isin(np.arange(3), layout.translation_axes))
+        object.__setattr__(self, "ancestors", ancestor_matrix(self.skeleton))
+        object.__setattr__(self, "scales", parameter_scales(self.skeleton, self.body, layout,
+                                                            self.ancestors))
+
+
+def parameter_scales(skeleton, body, layout, ancestors):
+    """Metres of surface motion per unit of each parameter (rest pose; see TrackingProblem)."""
+    rot, org = rest_pose(skeleton)
+    j = body.joints
+    ends = np.concatenate([org[j] + np.einsum("pij,pj->pi", rot[j], body.starts),
+                           org[j] + np.einsum("pij,pj->pi", rot[j], body.ends)])
+    radius = np.concatenate([body.radii[:, 0], body.radii[:, 1]])
+    owner = np.concatenate([j, j])
+    bj = body.box_joints
+    ends = np.concatenate([ends, org[bj] + np.einsum("qij,qj->qi", rot[bj], body.box_centres)])
+    radius = np.concatenate([radius, np.linalg.norm(body.box_half_sizes, axis=1)])
+    owner = np.concatenate([owner, bj])
+    scales = np.ones(layout.n_params)
+    n_t = len(layout.translation_axes)
+    for c, joint in enumerate(layout.rotation_joints):
+        sub = ancestors[owner, joint]
+        reach = np.linalg.norm(ends[sub] - org[joint], axis=1) + radius[sub]
+        scales[n_t + c] = max(float(reach.max()), 1e-3) if np.any(sub) else 1.0
+    return scales
+
+
+@dataclass(frozen=True)
+class TrackingOptions:
+    """Numerical settings of the tracker (defaults tuned on the rendered walk, see docs).
+
+    Attributes
+    ----------
+    tau : float
+        Rank threshold of eqs. 6-7: singular values with ``sigma_i / sigma_1 < tau`` count as 0.
+    sample_budget : int
+        Model points per frame used in ``A x = b`` (the highest-gradient interior points).
+    candidate_budget : int
+        Points of the silhouette sampling grid per frame (candidates; eq. 4 is scored on them).
+    levels : int
+        Pyramid levels used coarse-to-fine, ending at the finest working level.
+    finest_level : int or None
+        Finest pyramid level tracked; ``None`` picks the coarsest level on which the body's
+        projected height (keyed poses) still exceeds ``body_pixels``: the frame cost then stays
+        the same at any resolution.
+    body_pixels : float
+        See ``finest_level``.
+    min_body_pixels : float
+        Coarser pyramid levels than the one where the body is this tall are not used.
+    warp_iterations : int
+        Re-linearisations (warp, re-solve) per pyramid level.
+    step_tol : float
+        Stop a level's iterations when the largest update is below this (radians / metres).
+    robust_clip : float
+        Photometric residuals are clipped at this many standard deviations (estimated per frame
+        from the mean absolute residual).
+    max_iterations : int
+        Trajectory iterations (track, accumulate, correct, score).
+    patience : int
+        Stop after this many iterations without a new minimum of eq. 4.
+    divergence_factor : float
+        An eq. 4 error above this multiple of the best so far counts as divergence.
+    min_visible_fraction : float
+        A frame whose silhouette samples drop below this fraction of the initial trajectory's
+        counts as divergence (model lost / left the image).
+    limit_margin : float, radians
+        Joint limits, widened to include both keyed poses, are enforced with this margin.
+    drift_tol, drift_max_iterations
+        Newton stopping rule of the orientation correction (eq. 14).
+    min_samples : int
+        Fewer usable points than this in a frame: no measurement, the prediction is kept.
+    seed : {'interpolation', 'forward', 'bidirectional'}
+        Start of the loop. ``'interpolation'`` is the paper's; the others first track frame to
+        frame from the key(s) (the model starts aligned with the body) and start the loop from
+        that (see ``trajectory.seed_trajectory``); the interpolation is still scored and kept
+        if it is better. On the rendered walk the bidirectional seed cuts the error left by the
+        paper's start by a third when keys are 20+ frames apart (benchmark); it costs about two
+        iterations.
+    root_displacement : {'measured', 'accumulated'}
+        Orientation that turns the root's estimated translation (root frame) into a world
+        displacement before accumulation: the trajectory pose it was measured on, or eq. 24's
+        accumulated uncorrected orientation (the paper; drift in that orientation then leaks
+        into the position).
+    estimate_depth : bool
+        Also estimate the root's motion along the optical axis (see
+        ``motion.translation_columns``); off by default, as in the paper (§5.3). Set it for a
+        rigid object (one part, e.g. the §5.1 box), whose scale change measures its depth.
+    min_part_samples : int
+        A joint whose subtree shows fewer points than this is not measured in that frame: its
+        columns of ``A`` are dropped and it takes the prediction (hidden or tiny parts).
+    """
+
+    tau: float = 0.02
+    sample_budget: int = 1200
+    candidate_budget: int = 4000
+    levels: int = 3
+    finest_level: int = None
+    body_pixels: float = 300.0
+    min_body_pixels: float = 50.0
+    warp_iterations: int = 3
+    step_tol: float = 1e-4
+    robust_clip: float = 3.0
+    max_iterations: int = 4
+    patience: int = 2
+    divergence_factor: float = 4.0
+    min_visible_fraction: float = 0.25
+    limit_margin: float = float(np.radians(30.0))
+    drift_tol: float = 1e-10
+    drift_max_iterations: int = 20
+    min_samples: int = 20
+    min_part_samples: int = 15
+    seed: str = "bidirectional"
+    root_displacement: str = "measured"
+    estimate_depth: bool = False
+
+    def __post_init__(self):
+        if self.seed not in ("interpolation", "forward", "bidirectional"):
+            raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got "
+                             f"{self.seed!r}")
+        if self.root_displacement not in ("measured", "accumulated"):
+            raise ValueError(f"root_displacement must be 'measured' or 'accumulated', got "
+                             f"{self.root_displacement!r}")
+        if not 0.0 < self.tau < 1.0:
+            raise ValueError(f"tau must be in (0, 1), got {self.tau}")
+        for name in ("sample_budget", "candidate_budget", "levels", "warp_iterations",
+                     "max_iterations", "patience", "min_samples"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+
+    def replace(self, **changes):
+        """A copy with some fields changed."""
+        return replace(self, **changes)

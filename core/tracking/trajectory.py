@@ -1,0 +1,607 @@
+"""The drift-corrected trajectory loop between two keyed poses (Yamamoto §2.2, §3).
+
+1. Initial trajectory: every joint turns from key 0 to key n about the single axis of
+   ``T_0^-1 T_n`` in equal steps (slerp); the root position moves linearly.
+2. The model is placed at the trajectory pose of each frame ``j`` and the motion ``j -> j+1`` is
+   estimated (:func:`~.motion.estimate_motions`), predicted by the trajectory's own inter-frame
+   motion (eq. 10).
+3. The motions are accumulated from key 0 (this drifts), then corrected so that the trajectory
+   ends on key n (§3.1 orientation per joint, §3.2 root position).
+4. The corrected trajectory is scored with the photometric error of eq. 4.
+5. Repeat from 2 with the corrected trajectory. The error is not monotone (paper Fig. 11): the
+   trajectory with the smallest error is kept (the initial one included). The loop stops at
+   ``max_iterations``, after ``patience`` iterations without a new minimum, or on divergence
+   (non-finite numbers, eq. 4 growing beyond ``divergence_factor`` x the best, the model losing
+   most of its visible samples, a joint leaving its limits); the kept trajectory is then the best
+   one before the divergence -- the interpolation if no iteration improved on it.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..kinematics import exp_so3, log_so3, matrix_to_euler
+from .body_model import joint_frames_in_camera, part_bounds, part_geometry, sample_silhouette
+from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
+                    orientation_correction)
+from .image import bilinear, gaussian_pyramid
+from .jacobians import apply_motion, motion_between, root_world_rotation
+from .motion import estimate_motions
+from .problem import TrackingError, TrackingOptions
+
+_AXES = "XYZ"
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """A keyed pose: root translation (3,) metres (world) and local rotations (B, 3, 3)."""
+
+    root_translation: np.ndarray
+    local_rotations: np.ndarray
+
+
+@dataclass(eq=False)
+class IntervalResult:
+    """Output of :func:`track_interval` for frames ``0 .. n`` of one interval.
+
+    Attributes
+    ----------
+    root_translations : ndarray, shape (n + 1, 3), metres (world)
+    local_rotations : ndarray, shape (n + 1, B, 3, 3)
+        The kept trajectory; frames 0 and n are the keys.
+    residuals : ndarray, shape (n,)
+        Eq. 4 term of each frame pair ``j -> j+1`` of the kept trajectory.
+    ranks : ndarray, shape (n,), int
+        Rank of ``A`` (eq. 5) on the finest level for each frame pair, from the tracking pass
+        that produced the kept trajectory (the loop's first pass if the interpolation or the
+        tracked seed was kept).
+        Without depth estimation the root translation contributes one null direction, so the
+        rank is at most (estimated DOFs - 1), as in the paper's Fig. 10.
+    n_samples : ndarray, shape (n,), int
+        Model points used per frame pair in that pass.
+    errors : ndarray, shape (iterations + 1,)
+        Eq. 4 total per scored trajectory: index 0 the interpolation, then the tracked seed
+        (``TrackingOptions.seed``, unless rejected) and one per loop iteration.
+    kept_iteration : int
+        Index into ``errors`` of the kept trajectory (0 = the interpolation).
+    diverged : bool
+    reason : str
+        Why the loop stopped (``'iteration limit'``, ``'no improvement ...'``, or the
+        divergence: what grew / went non-finite / left its limits, and where).
+    finest_level, top_level : int
+        Finest and coarsest pyramid levels tracked.
+    timings : dict
+        Seconds: ``'pyramid'`` (once), ``'iterations'`` (list, one per iteration).
+    history : list of (roots (n + 1, 3), local (n + 1, B, 3, 3))
+        Every scored trajectory (index as ``errors``) when ``keep_history`` was set, else empty.
+    """
+
+    root_translations: np.ndarray
+    local_rotations: np.ndarray
+    residuals: np.ndarray
+    ranks: np.ndarray
+    n_samples: np.ndarray
+    errors: np.ndarray
+    kept_iteration: int
+    diverged: bool
+    reason: str
+    finest_level: int
+    top_level: int
+    timings: dict = field(default_factory=dict)
+    history: list = field(default_factory=list)
+
+    @property
+    def n_frames(self):
+        return len(self.root_translations)
+
+
+def interpolate_poses(skeleton, start, end, n):
+    """Initial trajectory (§2.2): slerp of every joint, linear root position.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    start, end : Pose
+    n : int
+        Frames after the start key (the result has n + 1 poses).
+
+    Returns
+    -------
+    root_translations : ndarray, shape (n + 1, 3)
+    local_rotations : ndarray, shape (n + 1, B, 3, 3)
+    """
+    s = np.arange(n + 1) / n
+    t0, t1 = np.asarray(start.root_translation, float), np.asarray(end.root_translation, float)
+    l0, l1 = np.asarray(start.local_rotations, float), np.asarray(end.local_rotations, float)
+    # One axis per joint: T_0^-1 T_n = exp([w]x); frame j turns by (j/n) w.
+    w = log_so3(np.swapaxes(l0, -1, -2) @ l1)
+    local = l0[None] @ exp_so3(s[:, None, None] * w[None])
+    local[-1] = l1
+    return t0[None] + s[:, None] * (t1 - t0)[None], local
+
+
+def choose_levels(problem, options, start, end, n_levels):
+    """Finest and coarsest pyramid levels tracked, from the body's projected height.
+
+    The finest level is ``options.finest_level`` or, when that is None, the coarsest level on
+    which the body (keyed poses) is still ``options.body_pixels`` tall: the cost of a frame is
+    then the same at any resolution. The coarsest is ``options.levels - 1`` above it, but never
+    so coarse that the body is under ``options.min_body_pixels`` (a few-pixel-wide limb cannot be
+    tracked, and its wrong estimate would start the finer levels off badly).
+
+    Returns
+    -------
+    finest, top : int
+    """
+    rot, org = joint_frames_in_camera(problem.skeleton, problem.camera.world2camera,
+                                      np.stack([start.root_translation, end.root_translation]),
+                                      np.stack([start.local_rotations, end.local_rotations]))
+    bounds = part_bounds(problem.body, problem.camera, part_geometry(problem.body, rot, org))
+    height = 0.0
+    for b in bounds:
+        b = b[np.all(np.isfinite(b), axis=1)]
+        if len(b):
+            height = max(height, min(b[:, 3].max(), problem.camera.height) - max(b[:, 2].min(), 0))
+    if options.finest_level is not None:
+        finest = int(min(options.finest_level, n_levels - 1))
+    else:
+        finest = 0
+        while finest + 1 < n_levels and height / 2 ** (finest + 1) >= options.body_pixels:
+            finest += 1
+    top = min(n_levels - 1, finest + options.levels - 1)
+    while top > finest and height / 2 ** top < options.min_body_pixels:
+        top -= 1
+    return finest, top
+
+
+def pyramid_levels(problem, options):
+    """Number of pyramid levels to build: enough for the coarsest level the options can use."""
+    size = min(problem.camera.width, problem.camera.height)
+    top = int(np.floor(np.log2(max(size, 1) / 16.0)))       # keep levels >= 16 pixels
+    wanted = (options.finest_level if options.finest_level is not None else 4) + options.levels
+    return max(1, min(top + 1, wanted))
+
+
+def _frames_in_camera(problem, roots, local):
+    return joint_frames_in_camera(problem.skeleton, problem.camera.world2camera, roots, local)
+
+
+def photometric_error(problem, frames_level, level, frames_cam, samples):
+    """Eq. 4 per frame pair: model points seen at frame j, moved to j+1 by the trajectory.
+
+    ``sum_{X,Y} (E(X', Y', j+1) - E(X, Y, j))^2`` over the silhouette of frame ``j``, sampled on
+    its grid (each sample weighs ``stride**2`` pixels). Two refinements of the paper's sum, both
+    about points whose intensity the model cannot predict: samples on silhouette and occlusion
+    edges (not ``interior``) and points hidden at frame j+1 (another part in front, looked up in
+    frame j+1's silhouette grid) or moved outside image j+1 are left out. Each frame's sum is
+    rescaled to the whole silhouette (divided by the fraction of samples kept), so that a
+    trajectory cannot lower its score by hiding parts.
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    frames_level : ndarray, shape (n + 1, H_l, W_l)
+        Grayscale frames at pyramid level ``level``.
+    level : int
+    frames_cam : tuple (rotations (n + 1, B, 3, 3), origins (n + 1, B, 3))
+        Joint frames in the camera along the trajectory.
+    samples : SilhouetteSamples
+        Silhouette samples of the n + 1 trajectory poses on that level's grid.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    rot, org = frames_cam
+    n = len(rot) - 1
+    camera = problem.camera.at_level(level)
+    sel = samples.frames < n
+    total = np.bincount(samples.frames[sel], minlength=n).astype(float)
+    sel &= samples.interior
+    f, k = samples.frames[sel], samples.joints[sel]
+    local = np.einsum("mji,mj->mi", rot[f, k], samples.points[sel] - org[f, k])
+    moved = np.einsum("mij,mj->mi", rot[f + 1, k], local) + org[f + 1, k]
+    uv = camera.project(np.where(moved[:, 2:3] > 0, moved, 1.0))
+    parts, depth = samples.lookup(f + 1, uv)
+    ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
+          & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1)
+          & (parts == samples.parts[sel]) & (np.abs(depth - moved[:, 2]) < 0.02))
+    e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f[ok] + 1)
+    e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
+                  frames=f[ok])
+    finite = np.isfinite(e1) & np.isfinite(e0)           # masked (non-finite) pixels: left out
+    fk = f[ok][finite]
+    kept = np.bincount(fk, minlength=n).astype(float)
+    sums = np.bincount(fk, weights=(e1 - e0)[finite] ** 2, minlength=n)
+    return np.where(kept > 0, sums * total / np.maximum(kept, 1.0), 0.0) * samples.strides[:n] ** 2
+
+
+def limit_violation(problem, local_rotations, start, end, margin):
+    """First estimated joint axis outside its limits, or None.
+
+    A joint's rotation is decomposed in its DOF order (``dof_axes``, then the other axes); only
+    estimated axes with finite limits are checked. The allowed range is the skeleton's limits
+    widened to include both keyed values, plus ``margin`` (radians).
+
+    Returns
+    -------
+    str or None
+        A readable description of the violation.
+    """
+    sk = problem.skeleton
+    mask = problem.dof_mask
+    for j in range(sk.n_joints):
+        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
+        if not axes:
+            continue
+        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
+        mode = "".join(_AXES[a] for a in order)
+        angles = matrix_to_euler(local_rotations[:, j], mode)
+        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
+        for a in axes:
+            lo = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
+            hi = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
+            bad = np.nonzero((angles[:, a] < lo) | (angles[:, a] > hi))[0]
+            if len(bad):
+                f = int(bad[0])
+                return (f"joint {sk.names[j]!r} axis {_AXES[a]} at {np.degrees(angles[f, a]):.1f}"
+                        f" deg outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at "
+                        f"frame {f}")
+    return None
+
+
+def correct_trajectory(problem, start, end, translations, rotvecs, options, measured_on=None):
+    """Accumulate per-frame motions from the start key and remove the drift (§3).
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    start, end : Pose
+    translations : ndarray, shape (n, 3), metres, root frame
+    rotvecs : ndarray, shape (n, B, 3), radians
+    options : TrackingOptions
+    measured_on : ndarray, shape (n, B, 3, 3), optional
+        Local rotations of the poses the motions were measured on. When given, root
+        translations are turned into world displacements with the root orientation they were
+        measured in (``options.root_displacement == 'measured'``) instead of eq. 24's
+        accumulated, uncorrected orientation.
+
+    Returns
+    -------
+    roots : ndarray, shape (n + 1, 3)
+    local : ndarray, shape (n + 1, B, 3, 3)
+    """
+    sk = problem.skeleton
+    rots = exp_so3(rotvecs)                                     # (n, B, 3, 3): R_j per joint
+    l0 = np.asarray(start.local_rotations, float)
+    l1 = np.asarray(end.local_rotations, float)
+    accumulated = accumulate_rotations(l0, rots)                # uncorrected T_0 R_1 .. R_j
+    # eq. 24, with the uncorrected root orientations; then §3.2's linear distribution.
+    frames = accumulated if measured_on is None else np.concatenate([measured_on, l1[None]])
+    positions = accumulate_root_positions(start.root_translation,
+                                          root_world_rotation(sk, frames), translations)
+    roots = correct_root_positions(positions, end.root_translation)
+    # §3.1 per joint: R_1 X .. R_n X = T_0^-1 T_n (eq. 14), all joints at once.
+    target = np.swapaxes(l0, -1, -2) @ l1
+    corr = orientation_correction(np.swapaxes(rots, 0, 1), target, tol=options.drift_tol,
+                                  max_iterations=options.drift_max_iterations)
+    local = accumulate_rotations(l0, np.swapaxes(corr.motions, 0, 1))
+    local[-1] = l1                       # exact key (the correction reaches it to ~1e-10)
+    roots[-1] = end.root_translation
+    return roots, local
+
+
+def _check_pose(name, pose, b):
+    t = np.asarray(pose.root_translation, dtype=float)
+    r = np.asarray(pose.local_rotations, dtype=float)
+    if t.shape != (3,) or r.shape != (b, 3, 3):
+        raise TrackingError(f"{name} pose: expected root_translation (3,) and local_rotations "
+                            f"({b}, 3, 3), got {t.shape} and {r.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(r))):
+        raise TrackingError(f"{name} pose is not finite")
+    if np.abs(r @ np.swapaxes(r, -1, -2) - np.eye(3)).max() > 1e-6:
+        raise TrackingError(f"{name} pose: local_rotations are not rotation matrices")
+    return Pose(t, r)
+
+
+def _prepare(problem, frames, start, end, options, pyramid):
+    sk = problem.skeleton
+    start = _check_pose("start", start, sk.n_joints)
+    end = _check_pose("end", end, sk.n_joints)
+    if pyramid is None:
+        frames = np.asarray(frames)
+        cam = problem.camera
+        if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
+            raise TrackingError(f"Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
+                                f"got {frames.shape}")
+        if len(frames) < 2:
+            raise TrackingError("an interval needs at least two frames")
+        if frames.dtype not in (np.float32, np.float64):
+            frames = frames.astype(np.float32)
+        pyramid = gaussian_pyramid(frames, pyramid_levels(problem, options))
+    return start, end, pyramid, choose_levels(problem, options, start, end, len(pyramid))
+
+
+class _Trajectory:
+    """A trajectory with its camera frames and silhouette samples (computed once, reused)."""
+
+    def __init__(self, problem, options, finest, roots, local):
+        self.roots, self.local = roots, local
+        self.cam = _frames_in_camera(problem, roots, local)
+        self.samples = sample_silhouette(problem.body, problem.camera.at_level(finest),
+                                         *self.cam, options.candidate_budget)
+
+
+def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
+                   initial=None):
+    """Track one interval between two keyed poses (the whole of §2.2-§3).
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    frames : array_like, shape (n + 1, H, W)
+        Grayscale frames (float, any consistent intensity scale, e.g. [0, 1]) from the start key
+        to the end key, ``H, W`` = the camera's image size.
+    start, end : Pose
+        Keyed poses of frames 0 and n.
+    options : TrackingOptions, optional
+    pyramid : list of ndarray, optional
+        Precomputed ``gaussian_pyramid(frames, L)`` (levels of shape (n + 1, H_l, W_l)).
+    keep_history : bool
+        Keep every scored trajectory in ``IntervalResult.history`` (analysis, plots).
+    initial : tuple (roots (n + 1, 3), local (n + 1, B, 3, 3)), optional
+        Initial trajectory instead of the interpolation (e.g. existing animation); its end
+        frames are replaced by the keys.
+
+    Returns
+    -------
+    IntervalResult
+    """
+    options = options or TrackingOptions()
+    sk = problem.skeleton
+    tic = time.perf_counter()
+    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    finest, top = levels
+    n = len(pyramid[0]) - 1
+    timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
+    if initial is None:
+        roots, local = interpolate_poses(sk, start, end, n)
+    else:
+        roots = np.array(initial[0], dtype=float)
+        local = np.array(initial[1], dtype=float)
+        if roots.shape != (n + 1, 3) or local.shape != (n + 1, sk.n_joints, 3, 3):
+            raise TrackingError(f"initial trajectory: expected shapes ({n + 1}, 3) and "
+                                f"({n + 1}, {sk.n_joints}, 3, 3), got {roots.shape} and "
+                                f"{local.shape}")
+        roots[0], roots[-1] = start.root_translation, end.root_translation
+        local[0], local[-1] = start.local_rotations, end.local_rotations
+    traj = _Trajectory(problem, options, finest, roots, local)
+    per_frame = photometric_error(problem, pyramid[finest], finest, traj.cam, traj.samples)
+    initial_counts = traj.samples.counts().astype(float)
+    errors = [float(per_frame.sum())]
+    history = [(roots, local)] if keep_history else []
+    best = dict(traj=traj, residuals=per_frame, ranks=None, n_samples=None, iteration=0)
+    reason, diverged, since_best, first_pass = "iteration limit", False, 0, None
+    seed_index = None
+    if options.seed != "interpolation" and initial is None:
+        # A tracked start (see TrackingOptions.seed), scored as iteration 1 and checked like the
+        # loop's trajectories; a failed seed is dropped (the loop starts from the interpolation).
+        tic = time.perf_counter()
+        roots, local = seed_trajectory(problem, options, pyramid, levels, start, end,
+                                       options.seed)
+        problem_found = _trajectory_problem(problem, options, start, end, roots, local)
+        if problem_found is None:
+            seed = _Trajectory(problem, options, finest, roots, local)
+            problem_found = _lost(seed, options, initial_counts)
+        timings["seed"] = time.perf_counter() - tic
+        if problem_found is None:
+            per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam,
+                                          seed.samples)
+            errors.append(float(per_frame.sum()))
+            seed_index = 1
+            if keep_history:
+                history.append((roots, local))
+            if errors[-1] < errors[0]:
+                best = dict(traj=seed, residuals=per_frame, ranks=None, n_samples=None,
+                            iteration=1)
+            traj = seed
+        else:
+            timings["seed_rejected"] = problem_found
+    image_pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    for iteration in range(len(errors), len(errors) + options.max_iterations):
+        tic = time.perf_counter()
+        pred = motion_between(sk, traj.roots[:-1], traj.local[:-1], traj.roots[1:], traj.local[1:])
+        cam = traj.cam
+        fm = estimate_motions(problem, options, pyramid, finest, image_pairs,
+                              (traj.roots[:-1], traj.local[:-1]), (cam[0][:-1], cam[1][:-1]),
+                              traj.samples.poses(0, n), pred, next_cam=(cam[0][1:], cam[1][1:]),
+                              next_samples=traj.samples.poses(1, n + 1), top_level=top)
+        if first_pass is None:
+            first_pass = (fm.ranks, fm.n_samples)
+        finite = np.isfinite(fm.translations).all(1) & np.isfinite(fm.rotvecs).all((1, 2))
+        if not np.all(finite):
+            bad = int(np.nonzero(~finite)[0][0])
+            reason, diverged = f"non-finite motion estimate at frame {bad}, iteration {iteration}", True
+            break
+        new_roots, new_local = correct_trajectory(
+            problem, start, end, fm.translations, fm.rotvecs, options,
+            measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
+        found = _trajectory_problem(problem, options, start, end, new_roots, new_local)
+        new = None
+        if found is None:
+            new = _Trajectory(problem, options, finest, new_roots, new_local)
+            found = _lost(new, options, initial_counts)
+        if found is not None:
+            reason, diverged = f"{found}, iteration {iteration}", True
+            break
+        per_frame = photometric_error(problem, pyramid[finest], finest, new.cam, new.samples)
+        error = float(per_frame.sum())
+        errors.append(error)
+        if keep_history:
+            history.append((new_roots, new_local))
+        timings["iterations"].append(time.perf_counter() - tic)
+        best_error = errors[best["iteration"]]
+        if not np.isfinite(error):
+            reason, diverged = f"non-finite eq. 4 error at iteration {iteration}", True
+            break
+        if error > options.divergence_factor * best_error:
+            reason, diverged = (f"eq. 4 error grew to {error:.4g} (> {options.divergence_factor:g}"
+                                f" x best {best_error:.4g}) at iteration {iteration}"), True
+            break
+        if error < best_error:
+            best = dict(traj=new, residuals=per_frame, ranks=fm.ranks, n_samples=fm.n_samples,
+                        iteration=iteration)
+            since_best = 0
+        else:
+            since_best += 1
+            if since_best >= options.patience:
+                reason = f"no improvement for {since_best} iterations"
+                break
+        traj = new
+    if best["ranks"] is None:
+        best["ranks"], best["n_samples"] = first_pass if first_pass else (
+            np.zeros(n, dtype=int), np.zeros(n, dtype=int))
+    if diverged:
+        kept = {0: "interpolation", seed_index: "tracked seed"}.get(
+            best["iteration"], f"iteration {best['iteration']}")
+        reason = f"diverged: {reason}; kept {kept}"
+    return IntervalResult(root_translations=best["traj"].roots,
+                          local_rotations=best["traj"].local, residuals=best["residuals"],
+                          ranks=best["ranks"], n_samples=best["n_samples"],
+                          errors=np.array(errors), kept_iteration=best["iteration"],
+                          diverged=diverged, reason=reason, finest_level=finest,
+                          top_level=top, timings=timings, history=history)
+
+
+def _trajectory_problem(problem, options, start, end, roots, local):
+    """Why a trajectory must not be used (non-finite, a joint beyond its limits), or None."""
+    if not (np.all(np.isfinite(roots)) and np.all(np.isfinite(local))):
+        return "non-finite corrected trajectory"
+    return limit_violation(problem, local, start, end, options.limit_margin)
+
+
+def _lost(traj, options, initial_counts):
+    """A frame where the model lost most of the silhouette it had on the interpolation, or None."""
+    counts = traj.samples.counts()
+    lost = np.nonzero(counts < options.min_visible_fraction * initial_counts)[0]
+    if not len(lost):
+        return None
+    f = int(lost[0])
+    return (f"model lost at frame {f}: {counts[f]} of {int(initial_counts[f])} silhouette "
+            f"samples left")
+
+
+def seed_trajectory(problem, options, pyramid, levels, start, end, kind):
+    """A tracked initial trajectory (``TrackingOptions.seed``).
+
+    ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
+    pose, so it starts aligned), then the §3 drift correction onto the end key.
+    ``'bidirectional'``: the same from both keys towards the middle frame ``m``: forward from the
+    start key over frames ``0..m``, backward from the end key over ``m..n`` (both directions in
+    the same vectorised calls, so it costs half the frames of ``'forward'``). The two estimates
+    of frame ``m`` are averaged (slerp 1/2), and each half is drift-corrected (§3) onto its two
+    ends: every frame leans on its nearer key, where the accumulated drift is smaller.
+    """
+    sk = problem.skeleton
+    n = len(pyramid[0]) - 1
+    if kind not in ("forward", "bidirectional"):
+        raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got {kind!r}")
+    forward = _forward_chain(sk, start, end, n)
+    if kind == "forward" or n < 2:
+        roots_f, local_f = _track_sequential(problem, options, pyramid, levels, [forward])[0]
+        t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
+        return correct_trajectory(problem, start, end, t, r, options)
+    m = (n + 1) // 2
+    backward = _backward_chain(sk, start, end, n)
+    chains = [tuple(x[:m] if i else x for i, x in enumerate(forward)),
+              tuple(x[:n - m] if i else x for i, x in enumerate(backward))]
+    (roots_f, local_f), (roots_b, local_b) = _track_sequential(problem, options, pyramid, levels,
+                                                               chains)
+    roots_b, local_b = roots_b[::-1], local_b[::-1]             # frames m .. n
+    middle = Pose(0.5 * (roots_f[-1] + roots_b[0]),
+                  local_f[-1] @ exp_so3(0.5 * log_so3(np.swapaxes(local_f[-1], -1, -2)
+                                                      @ local_b[0])))
+    halves = []
+    for (r, l), a, b in (((roots_f, local_f), start, middle), ((roots_b, local_b), middle, end)):
+        t, w = motion_between(sk, r[:-1], l[:-1], r[1:], l[1:])
+        halves.append(correct_trajectory(problem, a, b, t, w, options))
+    return (np.concatenate([halves[0][0], halves[1][0][1:]]),
+            np.concatenate([halves[0][1], halves[1][1][1:]]))
+
+
+def _forward_chain(sk, start, end, n):
+    """Start pose, predicted motions (world root displacement, rotvecs) and image pairs."""
+    roots_i, local_i = interpolate_poses(sk, start, end, n)
+    t, r = motion_between(sk, roots_i[:-1], local_i[:-1], roots_i[1:], local_i[1:])
+    world = np.einsum("nij,nj->ni", root_world_rotation(sk, local_i[:-1]), t)
+    pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    return start, world, r, pairs
+
+
+def _backward_chain(sk, start, end, n):
+    """As :func:`_forward_chain`, from the end key back to the start key."""
+    roots_i, local_i = interpolate_poses(sk, start, end, n)
+    roots_i, local_i = roots_i[::-1], local_i[::-1]
+    t, r = motion_between(sk, roots_i[:-1], local_i[:-1], roots_i[1:], local_i[1:])
+    world = np.einsum("nij,nj->ni", root_world_rotation(sk, local_i[:-1]), t)
+    pairs = np.stack([np.arange(n, 0, -1), np.arange(n - 1, -1, -1)], axis=1)
+    return end, world, r, pairs
+
+
+def _track_sequential(problem, options, pyramid, levels, chains):
+    """Frame-to-frame tracking of several independent chains, one step of all chains per call.
+
+    Each chain is ``(start pose, predicted world root displacements (k, 3), predicted rotvecs
+    (k, B, 3), image pairs (k, 2))``; chains may have different lengths k. The model follows its
+    own accumulated pose. Returns a list of (roots (k + 1, 3), local (k + 1, B, 3, 3)).
+    """
+    sk = problem.skeleton
+    finest, top = levels
+    camera = problem.camera.at_level(finest)
+    lengths = [len(ch[1]) for ch in chains]
+    roots = [np.empty((k + 1, 3)) for k in lengths]
+    local = [np.empty((k + 1, sk.n_joints, 3, 3)) for k in lengths]
+    for i, (pose, _, _, _) in enumerate(chains):
+        roots[i][0], local[i][0] = pose.root_translation, pose.local_rotations
+    for j in range(max(lengths)):
+        active = [i for i, k in enumerate(lengths) if j < k]
+        c = len(active)
+        t0 = np.stack([roots[i][j] for i in active])
+        l0 = np.stack([local[i][j] for i in active])
+        world = np.stack([chains[i][1][j] for i in active])
+        rotvecs = np.stack([chains[i][2][j] for i in active])
+        pairs = np.stack([chains[i][3][j] for i in active])
+        # The predicted root displacement, re-expressed in the root frame of the pose the model
+        # actually is at.
+        pt = np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world)
+        t1, l1 = apply_motion(sk, t0, l0, pt, rotvecs)
+        rot, org = _frames_in_camera(problem, np.concatenate([t0, t1]), np.concatenate([l0, l1]))
+        both = sample_silhouette(problem.body, camera, rot, org, options.candidate_budget)
+        fm = estimate_motions(problem, options, pyramid, finest, pairs, (t0, l0),
+                              (rot[:c], org[:c]), both.poses(0, c), (pt, rotvecs),
+                              next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),
+                              top_level=top)
+        t_new, l_new = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
+        for k, i in enumerate(active):
+            roots[i][j + 1], local[i][j + 1] = t_new[k], l_new[k]
+    return list(zip(roots, local))
+
+
+def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
+    """Frame-to-frame tracking from the start key without drift correction (a baseline).
+
+    The model is placed at its own accumulated pose each frame; the motion is predicted by the
+    interpolated trajectory, as in the first pass of :func:`track_interval`. The end key is
+    used only for that prediction.
+
+    Returns
+    -------
+    roots : ndarray, shape (n + 1, 3)
+    local : ndarray, shape (n + 1, B, 3, 3)
+    """
+    options = options or TrackingOptions()
+    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    n = len(pyramid[0]) - 1
+    return _track_sequential(problem, options, pyramid, levels,
+                             [_forward_chain(problem.skeleton, start, end, n)])[0]

@@ -1,0 +1,278 @@
+"""Ground-truth scenes for the tracking footage: motion, body, textures and camera (no bpy).
+
+``render_footage.py`` (run with bpy) renders a scene built here; tests and benchmarks read the
+result back with :func:`load_footage`. Everything is deterministic (seeded NumPy).
+
+Scenes
+------
+``box``   a textured 0.4 x 0.3 x 0.2 m rigid box, smooth 6-DOF motion (paper §5.1), 40 frames.
+``walk``  CMU 08_01 (walk), resampled from 120 Hz to 30 fps.
+``run``   CMU 35_17 (run), resampled from 120 Hz to 60 fps (30 fps is too coarse for a run).
+``calib`` small textured boxes at known points (camera-contract test).
+
+The body is one tapered cylinder per CMU bone (radii from
+:func:`core.armature.plausible_envelope_radii`, bones shorter than 4 cm skipped: fingers,
+thumbs, hands), i.e. exactly the tracker's :class:`~core.tracking.BodyModel`.
+"""
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from core.armature import plausible_envelope_radii
+from core.kinematics import Skeleton, exp_so3, local_rotations_from_dofs
+from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
+from core.tracking.body_model import BodyModel, body_model_from_skeleton
+from core.tracking.camera import camera_from_blender
+
+ROOT = Path(__file__).resolve().parent.parent
+CMU = ROOT / "sample_scenes" / "data" / "cmu"
+MOTIONS = {"walk": ("08_01", 30.0), "run": ("35_17", 60.0)}
+MIN_PART_LENGTH = 0.04
+# Landscape walk/run camera: degrees off the perpendicular to the walking direction.
+VIEW_ANGLE = 45.0
+TEXTURE_SIZE = 128
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)):
+    """Blender camera ``matrix_world`` (4, 4) at ``eye`` looking at ``target`` (-Z forward, +Y up)."""
+    eye, target, up = (np.asarray(a, dtype=float) for a in (eye, target, up))
+    back = eye - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    right /= np.linalg.norm(right)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, np.cross(back, right), back, eye
+    return m
+
+
+def fractal_noise(rng, size, octaves=(4, 8, 16, 32), gains=(1.0, 0.8, 0.6, 0.45)):
+    """Smooth periodic noise (size, size) in [0, 1]: sum of bilinearly upsampled random grids."""
+    out = np.zeros((size, size))
+    for cells, gain in zip(octaves, gains):
+        grid = rng.random((cells, cells))
+        x = np.arange(size) * cells / size
+        i0 = np.floor(x).astype(int)
+        f = x - i0
+        f = f * f * (3 - 2 * f)                      # smoothstep: continuous slope
+        i1 = (i0 + 1) % cells
+        rows = grid[i0] * (1 - f)[:, None] + grid[i1] * f[:, None]
+        out += gain * (rows[:, i0] * (1 - f) + rows[:, i1] * f)
+    out -= out.min()
+    return out / out.max()
+
+
+def part_texture(seed, size=TEXTURE_SIZE):
+    """RGBA float texture (size, size, 4): coloured fractal noise with strong luminance contrast."""
+    rng = np.random.default_rng(seed)
+    lum = fractal_noise(rng, size)
+    hue = rng.random(3)
+    colour = 0.35 + 0.65 * hue / hue.max()
+    rgb = (0.08 + 0.9 * lum)[..., None] * colour
+    return np.concatenate([np.clip(rgb, 0, 1), np.ones((size, size, 1))], axis=-1)
+
+
+def _skeleton_arrays(sk):
+    dof = -np.ones((sk.n_joints, 3), dtype=int)
+    for j, axes in enumerate(sk.dof_axes):
+        dof[j, :len(axes)] = axes
+    return dict(names=np.array(sk.names), parents=sk.parents, offsets=sk.offsets,
+                rest_rotations=sk.rest_rotations, tails=sk.tails, dof_axes=dof,
+                limits=sk.limits, root_translation=np.array(sk.root_translation))
+
+
+def skeleton_from_arrays(d):
+    """Rebuild the :class:`Skeleton` stored by :func:`_skeleton_arrays`."""
+    dof = tuple(tuple(int(a) for a in row if a >= 0) for row in d["dof_axes"])
+    return Skeleton(names=tuple(str(n) for n in d["names"]), parents=d["parents"],
+                    offsets=d["offsets"], rest_rotations=d["rest_rotations"], tails=d["tails"],
+                    dof_axes=dof, limits=d["limits"], root_translation=bool(d["root_translation"]))
+
+
+def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
+    """Skeleton, body and poses of a CMU trial (see the module docstring)."""
+    trial, fps = MOTIONS[motion]
+    asf = read_asf(CMU / f"{trial.split('_')[0]}.asf")
+    sk = asf_to_skeleton(asf)
+    values = read_amc(CMU / f"{trial}.amc", asf).values
+    joint, axis, trans = sk.dof_table()
+    values = resample(values, 120.0, fps, angle_columns=np.nonzero(~trans)[0])
+    idx = start + step * np.arange(frames)
+    if idx[-1] >= len(values):
+        raise ValueError(f"{motion}: {frames} frames with step {step} need {idx[-1] + 1} samples, "
+                         f"the trial has {len(values)}")
+    root_translation, local = local_rotations_from_dofs(sk, values[idx])
+    lengths = np.linalg.norm(sk.tails, axis=1)
+    radii = plausible_envelope_radii(sk.names, lengths)
+    body = body_model_from_skeleton(sk, radii, min_length=MIN_PART_LENGTH)
+    # Path of the root (ground projection) -> camera.
+    path = root_translation[:, :2]
+    centre = np.r_[path.mean(axis=0), 0.95]
+    heading = path[-1] - path[0]
+    heading /= np.linalg.norm(heading)
+    side = np.array([-heading[1], heading[0]])
+    if aspect < 1.0:
+        # In front of the walker, a little to the side: the body approaches the camera.
+        end = np.r_[path[-1], 0.95]
+        eye = end + np.r_[2.6 * heading + 0.9 * side, 0.35]
+        target = np.r_[path.mean(axis=0) + 0.3 * heading, 0.85]
+        cam = dict(lens=35.0, sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
+                   shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, target))
+    else:
+        # Oblique view (VIEW_ANGLE off the perpendicular), slightly from above; the focal
+        # length frames the walked path (or the body's height, whichever needs more room).
+        span = float(np.linalg.norm(path[-1] - path[0]))
+        dist = 4.5
+        ang = np.radians(VIEW_ANGLE)
+        view = np.cos(ang) * side + np.sin(ang) * heading
+        eye = centre + np.r_[dist * view, 0.35]
+        visible = max((span * np.cos(ang) + 0.7) / 0.85, 2.2 * aspect)
+        cam = dict(lens=36.0 * dist / visible, sensor_width=36.0, sensor_height=24.0,
+                   sensor_fit="AUTO", shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, centre))
+    return sk, body, root_translation, local, cam, fps / step
+
+
+def box_scene(frames=41):
+    """A rigid box with smooth, non-linear 6-DOF motion (paper §5.1)."""
+    sk = Skeleton(names=("box",), parents=[-1], offsets=np.zeros((1, 3)),
+                  rest_rotations=np.eye(3)[None], tails=np.array([[0.0, 0.0, 0.1]]),
+                  dof_axes=((0, 1, 2),), limits=None, root_translation=True)
+    body = BodyModel(n_joints=1, joints=np.zeros(0, dtype=int), starts=np.zeros((0, 3)),
+                     ends=np.zeros((0, 3)), radii=np.zeros((0, 2)), box_joints=[0],
+                     box_centres=np.zeros((1, 3)), box_half_sizes=[[0.2, 0.15, 0.1]],
+                     names=("box",))
+    s = np.linspace(0.0, 1.0, frames)
+    # Curved path and a rotation whose axis and speed change along the way.
+    root = np.stack([-0.35 + 0.7 * s, 0.25 * np.sin(np.pi * s), 1.0 + 0.15 * np.sin(2 * np.pi * s)],
+                    axis=1)
+    rotvec = np.stack([0.5 * np.sin(np.pi * s), 0.6 * s - 0.3 + 0.2 * np.sin(2 * np.pi * s),
+                       0.4 * (1 - np.cos(np.pi * s))], axis=1)
+    local = exp_so3(rotvec)[:, None]
+    eye = np.array([0.2, -2.6, 1.35])
+    cam = dict(lens=35.0, sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO", shift_x=0.0,
+               shift_y=0.0, matrix_world=look_at(eye, [0.0, 0.0, 1.0]))
+    return sk, body, root, local, cam, 30.0
+
+
+def calib_scene():
+    """Eight textured boxes at known world points, a portrait-capable camera with shift, no
+    background (contract test: the renderer's silhouettes against the tracker's projection)."""
+    pts = np.array([[-0.4, 0.0, 0.35], [0.35, 0.2, 0.45], [0.0, -0.3, 1.0], [0.25, 0.5, 1.6],
+                    [-0.3, 0.4, 1.95], [0.4, -0.2, 1.25], [-0.2, 0.1, 0.7], [0.1, 0.6, 2.2]])
+    n = len(pts)
+    sk = Skeleton(names=tuple(f"m{i}" for i in range(n)), parents=[-1] + [0] * (n - 1),
+                  offsets=np.concatenate([pts[:1], pts[1:] - pts[0]]),
+                  rest_rotations=np.broadcast_to(np.eye(3), (n, 3, 3)),
+                  tails=np.tile([0.0, 0.0, 0.05], (n, 1)), dof_axes=((),) * n, limits=None,
+                  root_translation=True)
+    rot = exp_so3(np.random.default_rng(5).normal(0, 0.6, (n, 3)))
+    rot[0] = np.eye(3)                  # children offsets are then world offsets
+    sk = Skeleton(names=sk.names, parents=sk.parents, offsets=sk.offsets, rest_rotations=rot,
+                  tails=sk.tails, dof_axes=sk.dof_axes, limits=None, root_translation=True)
+    body = BodyModel(n_joints=n, joints=np.zeros(0, dtype=int), starts=np.zeros((0, 3)),
+                     ends=np.zeros((0, 3)), radii=np.zeros((0, 2)), box_joints=np.arange(n),
+                     box_centres=np.zeros((n, 3)), box_half_sizes=np.full((n, 3), 0.08),
+                     names=sk.names)
+    root = np.zeros((1, 3))
+    local = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
+    cam = dict(lens=40.0, sensor_width=32.0, sensor_height=20.0, sensor_fit="AUTO", shift_x=-0.03,
+               shift_y=-0.05, matrix_world=look_at([-0.1, -4.5, 1.4], [0.0, 0.2, 1.2]))
+    return sk, body, root, local, cam, 30.0
+
+
+def build_scene(motion, frames, step=1, start=0, aspect=16 / 9):
+    """(skeleton, body, root_translation (N, 3), local (N, B, 3, 3), camera dict, fps)."""
+    if motion == "box":
+        if step != 1 or start != 0:
+            raise ValueError("the box motion has no step/start")
+        return box_scene(frames)
+    if motion == "calib":
+        return calib_scene()
+    return cmu_scene(motion, frames, step, start, aspect)
+
+
+def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9):
+    """Everything ``ground_truth.npz`` stores except the camera intrinsics (set by the renderer)."""
+    sk, body, root, local, cam, fps = build_scene(motion, frames, step, start, aspect)
+    out = {f"skeleton_{k}": v for k, v in _skeleton_arrays(sk).items()}
+    out.update(body_joints=body.joints, body_starts=body.starts, body_ends=body.ends,
+               body_radii=body.radii, body_box_joints=body.box_joints,
+               body_box_centres=body.box_centres, body_box_half_sizes=body.box_half_sizes,
+               body_names=np.array(body.names), root_translation=root, local_rotations=local,
+               fps=np.array(fps), motion=np.array(motion))
+    out.update({f"camera_{k}": np.array(v) for k, v in cam.items()})
+    return out, sk, body, cam
+
+
+def render_params(motion, width, height, frames, step=1, start=0):
+    return dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
+                step=int(step), start=int(start), version=10)
+
+
+def footage_dir(motion, width, height, frames, step=1, start=0, root=None):
+    """Default output folder under ``build/footage``."""
+    root = Path(root) if root is not None else ROOT / "build" / "footage"
+    return root / f"{motion}_{width}x{height}_n{frames}_s{step}_o{start}"
+
+
+def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, python=None):
+    """Render the footage in a subprocess (bpy) unless an up-to-date copy is cached.
+
+    Returns the output folder.
+    """
+    import subprocess
+    import sys
+
+    out = footage_dir(motion, width, height, frames, step, start, root)
+    params = render_params(motion, width, height, frames, step, start)
+    stamp = out / "params.json"
+    if stamp.exists() and json.loads(stamp.read_text()) == params and (out / "ground_truth.npz").exists():
+        return out
+    cmd = [python or sys.executable, str(ROOT / "sample_scenes" / "render_footage.py"),
+           "--motion", motion, "--width", str(width), "--height", str(height),
+           "--frames", str(frames), "--step", str(step), "--start", str(start),
+           "--output", str(out)]
+    result = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    if result.returncode != 0:
+        raise RuntimeError(f"rendering failed ({' '.join(cmd)}):\n{result.stdout[-3000:]}\n"
+                           f"{result.stderr[-3000:]}")
+    return out
+
+
+def load_footage(folder, color=False):
+    """Read rendered footage: grayscale frames and the ground truth as plain objects.
+
+    Returns
+    -------
+    SimpleNamespace
+        ``frames`` (N, H, W) float32 grayscale (Rec. 709) in [0, 1] (``rgb`` (N, H, W, 3) uint8
+        too when ``color``), ``skeleton``, ``body``, ``camera`` (PinholeCamera),
+        ``root_translation`` (N, 3), ``local_rotations`` (N, B, 3, 3), ``fps``, ``motion``.
+    """
+    from PIL import Image
+
+    from core.tracking.image import to_grayscale
+
+    folder = Path(folder)
+    d = dict(np.load(folder / "ground_truth.npz"))
+    files = sorted(folder.glob("frame_*.png"))
+    rgb = np.stack([np.asarray(Image.open(f).convert("RGB")) for f in files])
+    sk = skeleton_from_arrays({k[len("skeleton_"):]: v for k, v in d.items()
+                               if k.startswith("skeleton_")})
+    body = BodyModel(n_joints=sk.n_joints, joints=d["body_joints"], starts=d["body_starts"],
+                     ends=d["body_ends"], radii=d["body_radii"], box_joints=d["body_box_joints"],
+                     box_centres=d["body_box_centres"], box_half_sizes=d["body_box_half_sizes"],
+                     names=tuple(str(n) for n in d["body_names"]))
+    camera = camera_from_blender(float(d["camera_lens"]), float(d["camera_sensor_width"]),
+                                 float(d["camera_sensor_height"]), str(d["camera_sensor_fit"]),
+                                 float(d["camera_shift_x"]), float(d["camera_shift_y"]),
+                                 int(d["width"]), int(d["height"]), d["camera_matrix_world"])
+    out = SimpleNamespace(frames=to_grayscale(rgb), skeleton=sk, body=body, camera=camera,
+                          root_translation=d["root_translation"],
+                          local_rotations=d["local_rotations"], fps=float(d["fps"]),
+                          motion=str(d["motion"]), folder=folder)
+    if color:
+        out.rgb = rgb
+    return out

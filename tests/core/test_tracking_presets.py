@@ -1,0 +1,44 @@
+"""Yamamoto Table 1 as a DOF mask on the CMU skeleton."""
+
+import numpy as np
+import pytest
+
+from core.mocap import asf_to_skeleton, read_asf
+from core.tracking.presets import CMU_PARTS, TABLE1, table1_dof_mask
+from tests.data import cmu_path
+
+
+@pytest.fixture(scope="module")
+def cmu():
+    return asf_to_skeleton(read_asf(cmu_path("08.asf")))
+
+
+def test_table1_totals_23_dofs(cmu):
+    mask, translation = table1_dof_mask(cmu)
+    assert sum(TABLE1.values()) == 23
+    assert mask.sum() + translation.sum() == 23
+    for part, joint in CMU_PARTS.items():
+        j = cmu.index(joint)
+        expected = TABLE1[part] - (3 if part == "Waist" else 0)
+        assert mask[j].sum() == expected, part
+    # Everything else (spine above the chest, neck, clavicles, hands, feet...) is frozen.
+    others = [j for j in range(cmu.n_joints) if cmu.names[j] not in CMU_PARTS.values()]
+    assert not mask[others].any()
+
+
+def test_table1_axes_by_role(cmu):
+    mask, _ = table1_dof_mask(cmu)
+    x, y, z = 0, 1, 2                      # CMU limbs lie along their joint's Y axis
+    assert list(np.nonzero(mask[cmu.index("lfemur")])[0]) == [x, z]      # swing, no twist
+    assert list(np.nonzero(mask[cmu.index("rtibia")])[0]) == [x]         # hinge
+    assert list(np.nonzero(mask[cmu.index("lhumerus")])[0]) == [x, z]
+    assert list(np.nonzero(mask[cmu.index("head")])[0]) == [x, y]        # nod and turn
+
+
+def test_custom_mapping_and_errors(cmu):
+    mask, translation = table1_dof_mask(cmu, {"Waist": "root", "Head": None})
+    assert mask.sum() == 3 and translation.all()
+    with pytest.raises(ValueError, match="not Table 1 parts"):
+        table1_dof_mask(cmu, {"Tail": "root"})
+    with pytest.raises(KeyError, match="Unknown joint"):
+        table1_dof_mask(cmu, {"Chest": "spine"})
