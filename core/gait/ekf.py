@@ -321,7 +321,7 @@ class FilterResult:
     innovation_sq: np.ndarray
 
 
-def ekf_filter(ctx, ys, w, x0, P0):
+def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     """Run the EKF over a window (the E-step of eq. 23's EM).
 
     Parameters
@@ -333,6 +333,10 @@ def ekf_filter(ctx, ys, w, x0, P0):
     x0 : array_like, shape (2,)
         Prior mean of frame 0's state (no time update before frame 0).
     P0 : array_like, shape (2, 2)
+    extra_weights : array_like, shape (P, Dc), optional
+        GP weights added to ``Σ_j w_j α_j`` (a walker's residual table,
+        :func:`.residual.residual_weights`): the observation mean becomes
+        ``μ(φ) w + k(φ)ᵀ extra_weights``.
 
     Returns
     -------
@@ -340,6 +344,8 @@ def ekf_filter(ctx, ys, w, x0, P0):
     """
     ys = np.asarray(ys, dtype=float)
     comb = ctx.combine(w)
+    if extra_weights is not None:
+        comb = comb + extra_weights
     n = len(ys)
     states = np.empty((n, 2))
     covs = np.empty((n, 2, 2))

@@ -1,0 +1,224 @@
+"""Validation splits of the gait benchmark: the benchmark's experiments on the *training* trials
+only, used to choose defaults (docs/gait.md, "How defaults were chosen").
+
+    python benchmarks/validate_gait.py [--output build/bench/gait_validation.json]
+
+Never loads a test trial of ``bench_gait`` (asserted). Splits:
+
+* **offline** -- leave one out over the eight offline training trials (35_05 is one of them; it
+  is a test trial of the *online* split, so no online setting is chosen on it): learn J = 2 from the
+  other seven, adapt on 0-1.67 s of the held-out trial, predict to 4 s (or its end); RMS over
+  the 56 angles as in the benchmark, for the method (with and without the residual correction)
+  and the four baselines.
+* **online** -- three folds of the online training trials (plus 35_06, an offline training
+  trial), each a walk, a run and a walk of another walker or trial; every fold is played in
+  both orders (6 streams, 18 segments: 6 cold starts, 6 walk -> run, 6 run -> walk) against a
+  J = 4 model of the fold's remaining training trials; per segment the benchmark's ``rms_deg``
+  and ``adapt_s`` (same formulas, imported from ``bench_gait``).
+
+The script prints the candidates compared for each default and writes the JSON. Candidate
+settings are passed as keyword arguments, so a new mechanism is compared against the default on
+exactly these splits.
+"""
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_gait import ADAPT_S, FPS, HORIZON_S, N_ANGLES, OFFLINE_J, OFFLINE_TEST, \
+    OFFLINE_TRAIN, ONLINE_J, ONLINE_TEST, ONLINE_TRAIN, PREDICT_END_S, SKIP_S, _settle_time, \
+    angle_rms_deg, last_cycle_baseline, load, train  # noqa: E402
+from core.gait import OnlineEM, adapt, observations_from_dofs, predict  # noqa: E402
+from core.gait.online import OnlineConfig  # noqa: E402
+
+# (model trials, streamed trials): a walk, a run, a walk of another trial; played in both orders.
+ONLINE_FOLDS = [
+    (["08_04", "35_01", "35_02", "35_04", "35_17", "35_21"], ["35_03", "35_20", "08_07"]),
+    (["08_07", "35_02", "35_03", "35_04", "35_20", "35_21"], ["35_01", "35_17", "08_04"]),
+    (["08_04", "08_07", "35_01", "35_02", "35_03", "35_17", "35_20"], ["35_04", "35_21", "35_06"]),
+]
+VALIDATION_TRIALS = sorted(set(OFFLINE_TRAIN + ONLINE_TRAIN + ["35_06"]))
+# The offline split trains on 35_05, the online split tests on it: offline settings may use it,
+# online settings never do.
+assert not set(OFFLINE_TEST) & set(VALIDATION_TRIALS), "validation must not touch test trials"
+assert not set(ONLINE_TEST + OFFLINE_TEST) & {t for m, s in ONLINE_FOLDS for t in m + s}
+
+
+def load_data():
+    """{trial: (DOFs at 60 Hz, DOF names)} of the validation trials only."""
+    return {name: load(name) for name in VALIDATION_TRIALS}
+
+
+# ------------------------------------------------------------------------------------ offline
+def offline_folds(data, **learn_kw):
+    """[(held-out name, model, observations, end frame)] of the leave-one-out split."""
+    folds = []
+    for held in OFFLINE_TRAIN:
+        model = train([n for n in OFFLINE_TRAIN if n != held], data, OFFLINE_J, **learn_kw)
+        obs = observations_from_dofs(model, *data[held], FPS)
+        end = min(len(obs), int(round(PREDICT_END_S * FPS)) + 1)
+        folds.append((held, model, obs, end))
+    return folds
+
+
+def offline_errors(folds, predictor):
+    """{trial: RMS deg, 'mean': …} of ``predictor(model, window, horizon) -> (horizon, D)``."""
+    n_obs = int(round(ADAPT_S * FPS))
+    out = {}
+    for held, model, obs, end in folds:
+        truth = obs[n_obs:end, :N_ANGLES]
+        pred = predictor(model, obs[:n_obs], len(truth))
+        out[held] = angle_rms_deg(pred[:, :N_ANGLES], truth)
+    out["mean"] = float(np.mean([out[h] for h, *_ in folds]))
+    return out
+
+
+def method_predictor(**adapt_kw):
+    """The method: batch EM, then the §3.3 prediction (with the walker's residual table when
+    ``adapt`` returns one)."""
+    def run(model, window, horizon):
+        res = adapt(model, window, **adapt_kw)
+        return predict(model, res.state, res.w, horizon, residual=res.residual)
+    return run
+
+
+def baseline_predictors():
+    """The benchmark's four baselines (same definitions as ``bench_gait``)."""
+    def hold(model, window, horizon):
+        return np.tile(window[-1], (horizon, 1))
+
+    def mean_style(model, window, horizon):
+        res = adapt(model, window, style=model.styles.mean(axis=0), residual=False)
+        return predict(model, res.state, res.w, horizon)
+
+    def nearest_style(model, window, horizon):
+        fits = [adapt(model, window, style=w, residual=False) for w in model.styles]
+        best = max(fits, key=lambda r: r.loglik)
+        return predict(model, best.state, best.w, horizon)
+
+    def last_cycle(model, window, horizon):
+        return last_cycle_baseline(window[:, :N_ANGLES], horizon)
+
+    return {"hold": hold, "mean_style": mean_style, "nearest_style": nearest_style,
+            "last_cycle": last_cycle}
+
+
+# ------------------------------------------------------------------------------------- online
+def online_streams(data, **learn_kw):
+    """[(model, [segment observations], [names])] for every fold in both orders."""
+    streams = []
+    for model_trials, stream_trials in ONLINE_FOLDS:
+        model = train(model_trials, data, ONLINE_J, **learn_kw)
+        for order in (stream_trials, stream_trials[::-1]):
+            streams.append((model, [observations_from_dofs(model, *data[n], FPS)
+                                    for n in order], list(order)))
+    return streams
+
+
+def online_segments(streams, make_online=None):
+    """Benchmark figures per segment: ``make_online(model) -> object with step / predict``
+    (default ``OnlineEM(model)``). Returns a list of dicts (stream index, position, trial,
+    rms_deg, adapt_s, rms_deg_first_0_5s) and the step times (µs)."""
+    make_online = make_online or (lambda model: OnlineEM(model))
+    horizon = int(round(HORIZON_S * FPS))
+    rows, step_us = [], []
+    for k, (model, segments, names) in enumerate(streams):
+        stream = np.vstack(segments)
+        starts = np.cumsum([0] + [len(s) for s in segments])
+        segment_of = np.repeat(np.arange(len(segments)), [len(s) for s in segments])
+        online = make_online(model)
+        errors = np.full(len(stream), np.nan)
+        for t, y in enumerate(stream):
+            t0 = time.perf_counter()
+            online.step(y)
+            forecast = online.predict(horizon)
+            step_us.append((time.perf_counter() - t0) * 1e6)
+            if t + horizon < starts[segment_of[t] + 1]:
+                errors[t] = angle_rms_deg(forecast[:, :N_ANGLES],
+                                          stream[t + 1:t + 1 + horizon, :N_ANGLES])
+        for i, name in enumerate(names):
+            err = errors[starts[i]:starts[i + 1]]
+            times = np.arange(len(err)) / FPS
+            valid = ~np.isnan(err)
+            steady = valid & (times >= SKIP_S)
+            rms = float(np.sqrt(np.mean(err[steady] ** 2)))
+            rows.append({"stream": k, "position": i, "trial": name, "rms_deg": rms,
+                         "adapt_s": _settle_time(err, valid, 1.2 * rms),
+                         "rms_deg_first_0_5s": float(np.sqrt(np.mean(
+                             err[valid & (times < 0.5)] ** 2)))})
+    return rows, np.array(step_us)
+
+
+def summarise(rows):
+    """Means over segments, and the adapt_s goal count, per position (cold start, 2nd, 3rd)."""
+    adapt_s = np.array([r["adapt_s"] for r in rows])
+    out = {"mean_rms_deg": float(np.mean([r["rms_deg"] for r in rows])),
+           "mean_adapt_s": float(adapt_s.mean()), "max_adapt_s": float(adapt_s.max()),
+           "n_adapt_le_0_3": int(np.sum(adapt_s <= 0.3)), "n_segments": len(rows),
+           "mean_rms_deg_first_0_5s": float(np.mean([r["rms_deg_first_0_5s"] for r in rows]))}
+    for pos in sorted({r["position"] for r in rows}):
+        sel = [r for r in rows if r["position"] == pos]
+        out[f"position_{pos}"] = {
+            "mean_adapt_s": float(np.mean([r["adapt_s"] for r in sel])),
+            "mean_rms_deg": float(np.mean([r["rms_deg"] for r in sel])),
+            "mean_rms_deg_first_0_5s": float(np.mean([r["rms_deg_first_0_5s"] for r in sel]))}
+    return out
+
+
+def format_online(label, summary):
+    pos = "  ".join(f"p{p[-1]} {summary[p]['mean_adapt_s']:.3f}/{summary[p]['mean_rms_deg']:.2f}"
+                    for p in sorted(k for k in summary if k.startswith("position_")))
+    return (f"{label:34s} adapt mean {summary['mean_adapt_s']:.3f} max "
+            f"{summary['max_adapt_s']:.3f} <=0.3: {summary['n_adapt_le_0_3']}/"
+            f"{summary['n_segments']}  rms {summary['mean_rms_deg']:.2f}  first0.5 "
+            f"{summary['mean_rms_deg_first_0_5s']:.2f}  [{pos}]")
+
+
+# --------------------------------------------------------------------------------------- main
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output", default="build/bench/gait_validation.json")
+    args = parser.parse_args(argv)
+    data = load_data()
+    report = {"offline": {}, "online": {}}
+
+    folds = offline_folds(data)
+    off = report["offline"]
+    for name, fn in baseline_predictors().items():
+        off[name] = offline_errors(folds, fn)
+    off["method_model_only"] = offline_errors(folds, method_predictor(residual=False))
+    off["method"] = offline_errors(folds, method_predictor())
+    best = min(baseline_predictors(), key=lambda k: off[k]["mean"])
+    off["ratio_to_best_baseline"] = off["method"]["mean"] / off[best]["mean"]
+    off["best_baseline"] = best
+    print(f"Offline validation (leave one out, J={OFFLINE_J}), RMS deg")
+    print(f"{'':20s}" + "".join(f"{n:>7s}" for n in OFFLINE_TRAIN) + "   mean")
+    for key in ["method", "method_model_only"] + list(baseline_predictors()):
+        row = off[key]
+        print(f"{key:20s}" + "".join(f"{row[n]:7.2f}" for n in OFFLINE_TRAIN)
+              + f"{row['mean']:7.2f}")
+    print(f"method / best baseline ({best}): {off['ratio_to_best_baseline']:.2f}")
+
+    streams = online_streams(data)
+    rows, step_us = online_segments(streams)
+    report["online"]["default"] = {"summary": summarise(rows), "segments": rows,
+                                   "step_us_median": float(np.median(step_us))}
+    print(f"\nOnline validation ({len(streams)} streams, J={ONLINE_J}, "
+          f"lambda={OnlineConfig().forgetting})")
+    print(format_online("default", report["online"]["default"]["summary"]))
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=1, allow_nan=False))
+    print(f"\nwrote {out}")
+
+
+if __name__ == "__main__":
+    main()
