@@ -22,7 +22,9 @@ exactly these splits.
 """
 
 import argparse
+import contextlib
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -36,6 +38,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_gait import ADAPT_S, FPS, HORIZON_S, N_ANGLES, OFFLINE_J, OFFLINE_TEST, \
     OFFLINE_TRAIN, ONLINE_J, ONLINE_TEST, ONLINE_TRAIN, PREDICT_END_S, SKIP_S, _settle_time, \
     angle_rms_deg, last_cycle_baseline, load, train  # noqa: E402
+import core.gait.em as em_module  # noqa: E402
 from core.gait import OnlineEM, adapt, observations_from_dofs, predict  # noqa: E402
 from core.gait.online import OnlineConfig  # noqa: E402
 
@@ -157,6 +160,134 @@ def online_segments(streams, make_online=None):
     return rows, np.array(step_us)
 
 
+def _segment_figures(errors, start, stop):
+    """Benchmark formulas on the forecast errors of frames [start, stop) of a stream."""
+    err = errors[start:stop]
+    times = np.arange(len(err)) / FPS
+    valid = ~np.isnan(err)
+    steady = valid & (times >= SKIP_S)
+    rms = float(np.sqrt(np.mean(err[steady] ** 2)))
+    early = valid & (times >= SKIP_S) & (times < 0.6)
+    return {"rms_deg": rms, "adapt_s": _settle_time(err, valid, 1.2 * rms),
+            "rms_deg_first_0_5s": float(np.sqrt(np.mean(err[valid & (times < 0.5)] ** 2))),
+            "excess_0_2_0_6": float(np.sqrt(np.mean(err[early] ** 2)) / rms)}
+
+
+def stream_errors(model, pieces, make_online=None):
+    """Play the pieces (each (N_i, D)) back to back; 0.5 s-ahead forecast error per frame (NaN
+    where the window leaves the piece) and the piece starts."""
+    make_online = make_online or (lambda m: OnlineEM(m))
+    horizon = int(round(HORIZON_S * FPS))
+    stream = np.vstack(pieces)
+    starts = np.cumsum([0] + [len(p) for p in pieces])
+    piece_of = np.repeat(np.arange(len(pieces)), [len(p) for p in pieces])
+    online = make_online(model)
+    errors = np.full(len(stream), np.nan)
+    for t, y in enumerate(stream):
+        online.step(y)
+        if t + horizon < starts[piece_of[t] + 1]:
+            errors[t] = angle_rms_deg(online.predict(horizon)[:, :N_ANGLES],
+                                      stream[t + 1:t + 1 + horizon, :N_ANGLES])
+    return errors, starts
+
+
+TRANSIENT_WINDOWS = ((12, 18), (18, 30), (30, 60))   # frames after the start or switch
+
+
+def hindsight_errors(model, obs):
+    """0.5 s-ahead errors of a hindsight reference: the style by batch EM on the whole piece
+    (plain model), the phase filtered causally; forecasts from every frame (NaN at the end)."""
+    horizon = int(round(HORIZON_S * FPS))
+    res = adapt(model, obs, residual=False)
+    err = np.full(len(obs), np.nan)
+    for t in range(len(obs) - horizon):
+        err[t] = angle_rms_deg(predict(model, res.states[t], res.w, horizon)[:, :N_ANGLES],
+                               obs[t + 1:t + 1 + horizon, :N_ANGLES])
+    return err
+
+
+def _transients(err, reference):
+    """Mean of online / hindsight error over each of TRANSIENT_WINDOWS."""
+    return [float(np.nanmean(err[a:b] / reference[a:b])) for a, b in TRANSIENT_WINDOWS]
+
+
+def online_events(data, make_online=None, learn_kw=None, hindsight=None):
+    """Many short adaptation events on the online folds (same walkers as :func:`online_streams`):
+
+    * cold starts: every streamed trial of a fold, started at offsets 0, 6, 12, … frames (as long
+      as 1.25 s remain);
+    * switches: every ordered pair (A, B) of a fold's streamed trials, A played for 45, 60, 75 or
+      90 frames (different phases at the switch), then B from its start.
+
+    Each row also holds ``transient``: the online error over hindsight error
+    (:func:`hindsight_errors` on the piece after the start or switch) averaged over the frame
+    windows ``TRANSIENT_WINDOWS`` (1 = as good as knowing the walker's style in advance).
+    ``hindsight`` is a dict caching those references between calls.
+
+    Returns a list of dicts (kind, trials, offset, the benchmark figures of the segment after
+    the start or switch, transient)."""
+    hindsight = {} if hindsight is None else hindsight
+    rows = []
+    for fold, (model_trials, stream_trials) in enumerate(ONLINE_FOLDS):
+        model = train(model_trials, data, ONLINE_J, **(learn_kw or {}))
+        obs = {n: observations_from_dofs(model, *data[n], FPS) for n in stream_trials}
+
+        def reference(name, offset):
+            key = (fold, name, offset)
+            if key not in hindsight:
+                hindsight[key] = hindsight_errors(model, obs[name][offset:])
+            return hindsight[key]
+
+        for name in stream_trials:
+            for offset in range(0, len(obs[name]) - int(1.25 * FPS) + 1, 6):
+                errors, starts = stream_errors(model, [obs[name][offset:]], make_online)
+                rows.append({"kind": "cold", "trials": name, "offset": offset,
+                             **_segment_figures(errors, 0, starts[1]),
+                             "transient": _transients(errors, reference(name, offset))})
+        for a in stream_trials:
+            for b in stream_trials:
+                if a == b:
+                    continue
+                for length in (45, 60, 75, 90):
+                    errors, starts = stream_errors(model, [obs[a][:length], obs[b]], make_online)
+                    rows.append({"kind": "switch", "trials": f"{a}->{b}", "offset": length,
+                                 **_segment_figures(errors, starts[1], starts[2]),
+                                 "transient": _transients(errors[starts[1]:],
+                                                          reference(b, 0))})
+    return rows
+
+
+def summarise_events(rows):
+    """Per kind: mean and 90th percentile of adapt_s, share <= 0.3 s, mean rms and excess."""
+    out = {}
+    for kind in ("cold", "switch"):
+        sel = [r for r in rows if r["kind"] == kind]
+        a = np.array([r["adapt_s"] for r in sel])
+        out[kind] = {"n": len(sel), "mean_adapt_s": float(a.mean()),
+                     "p90_adapt_s": float(np.percentile(a, 90)),
+                     "share_adapt_le_0_3": float(np.mean(a <= 0.3)),
+                     "mean_rms_deg": float(np.mean([r["rms_deg"] for r in sel])),
+                     "mean_rms_deg_first_0_5s": float(np.mean([r["rms_deg_first_0_5s"]
+                                                               for r in sel])),
+                     "mean_excess_0_2_0_6": float(np.mean([r["excess_0_2_0_6"] for r in sel]))}
+        ratios = np.array([r["transient"] for r in sel])
+        out[kind]["transient_mean"] = ratios.mean(axis=0).tolist()
+        out[kind]["transient_p90"] = np.percentile(ratios, 90, axis=0).tolist()
+    return out
+
+
+def format_events(label, summary):
+    lines = []
+    for k, v in summary.items():
+        windows = " ".join(f"{a / FPS:.1f}-{b / FPS:.1f}s {m:.2f}/{p:.2f}" for (a, b), m, p in
+                           zip(TRANSIENT_WINDOWS, v["transient_mean"], v["transient_p90"]))
+        lines.append(f"{label if not lines else '':34s} {k:6s} n={v['n']:3d} adapt mean "
+                     f"{v['mean_adapt_s']:.3f} (<=0.3: {100 * v['share_adapt_le_0_3']:.0f}%) "
+                     f"rms {v['mean_rms_deg']:.2f} first0.5 {v['mean_rms_deg_first_0_5s']:.2f}"
+                     f" | online/hindsight mean/p90 {windows}")
+    return "\n".join(lines)
+
+
 def summarise(rows):
     """Means over segments, and the adapt_s goal count, per position (cold start, 2nd, 3rd)."""
     adapt_s = np.array([r["adapt_s"] for r in rows])
@@ -183,10 +314,37 @@ def format_online(label, summary):
 
 
 # --------------------------------------------------------------------------------------- main
+# Online configurations compared: the previous defaults, each new mechanism alone, the new
+# defaults, and the relative trigger's neighbours.
+ONLINE_CANDIDATES = {
+    "previous (absolute trigger, score at once)": dict(relock_ratio=math.inf, relock_min_frames=0),
+    "wait for 2 frames only": dict(relock_ratio=math.inf),
+    "default (ratio 1.5, wait for 2)": {},
+    "ratio 1.25": dict(relock_ratio=1.25),
+    "ratio 2": dict(relock_ratio=2.0),
+    "ratio 3": dict(relock_ratio=3.0),
+    "ratio 1.5, score at once": dict(relock_min_frames=0),
+}
+
+
+@contextlib.contextmanager
+def residual_passes(n):
+    """Temporarily set ``core.gait.em.RESIDUAL_REFINE`` (the number of corrected E-steps)."""
+    old = em_module.RESIDUAL_REFINE
+    em_module.RESIDUAL_REFINE = n
+    try:
+        yield
+    finally:
+        em_module.RESIDUAL_REFINE = old
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="build/bench/gait_validation.json")
+    parser.add_argument("--quick", action="store_true",
+                        help="defaults only (no sweeps)")
     args = parser.parse_args(argv)
+    t_start = time.perf_counter()
     data = load_data()
     report = {"offline": {}, "online": {}}
 
@@ -206,18 +364,42 @@ def main(argv=None):
         print(f"{key:20s}" + "".join(f"{row[n]:7.2f}" for n in OFFLINE_TRAIN)
               + f"{row['mean']:7.2f}")
     print(f"method / best baseline ({best}): {off['ratio_to_best_baseline']:.2f}")
+    if not args.quick:
+        sweep = {}
+        print("residual sweep (mean RMS deg): kappa x corrected E-step passes")
+        for passes in (0, 1, 2, 3, 4):
+            with residual_passes(passes):
+                for kappa in (0.3, 1.0, 3.0, 10.0):
+                    sweep[f"passes={passes} kappa={kappa}"] = offline_errors(
+                        folds, method_predictor(residual_ratio=kappa))["mean"]
+            print(f"  passes {passes}: " + "  ".join(
+                f"kappa {k:g} {sweep[f'passes={passes} kappa={k}']:.2f}"
+                for k in (0.3, 1.0, 3.0, 10.0)))
+        off["residual_sweep_mean"] = sweep
 
     streams = online_streams(data)
-    rows, step_us = online_segments(streams)
-    report["online"]["default"] = {"summary": summarise(rows), "segments": rows,
+    hindsight = {}
+    candidates = ONLINE_CANDIDATES if not args.quick else {"default": {}}
+    print(f"\nOnline validation (J={ONLINE_J}, lambda={OnlineConfig().forgetting}): "
+          f"{len(streams)} streams (benchmark formulas per segment), and cold starts / "
+          f"switches")
+    for label, kw in candidates.items():
+        def make(model, kw=kw):
+            return OnlineEM(model, config=OnlineConfig(**kw))
+        rows, step_us = online_segments(streams, make)
+        events = online_events(data, make, hindsight=hindsight)
+        report["online"][label] = {"config": {k: (None if v == math.inf else v)
+                                              for k, v in kw.items()},
+                                   "streams": summarise(rows), "segments": rows,
+                                   "events": summarise_events(events),
                                    "step_us_median": float(np.median(step_us))}
-    print(f"\nOnline validation ({len(streams)} streams, J={ONLINE_J}, "
-          f"lambda={OnlineConfig().forgetting})")
-    print(format_online("default", report["online"]["default"]["summary"]))
+        print(format_online(label, report["online"][label]["streams"]))
+        print(format_events("", report["online"][label]["events"]))
+    report["validation_s"] = time.perf_counter() - t_start
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1, allow_nan=False))
-    print(f"\nwrote {out}")
+    print(f"\nwrote {out} in {report['validation_s']:.0f} s")
 
 
 if __name__ == "__main__":
