@@ -241,19 +241,23 @@ def online_events(data, make_online=None, learn_kw=None, hindsight=None):
         for name in stream_trials:
             for offset in range(0, len(obs[name]) - int(1.25 * FPS) + 1, 6):
                 errors, starts = stream_errors(model, [obs[name][offset:]], make_online)
+                ref = reference(name, offset)
                 rows.append({"kind": "cold", "trials": name, "offset": offset,
                              **_segment_figures(errors, 0, starts[1]),
-                             "transient": _transients(errors, reference(name, offset))})
+                             "transient": _transients(errors, ref),
+                             "hindsight_adapt_s": _segment_figures(ref, 0, len(ref))["adapt_s"]})
         for a in stream_trials:
             for b in stream_trials:
                 if a == b:
                     continue
                 for length in (45, 60, 75, 90):
                     errors, starts = stream_errors(model, [obs[a][:length], obs[b]], make_online)
+                    ref = reference(b, 0)
                     rows.append({"kind": "switch", "trials": f"{a}->{b}", "offset": length,
                                  **_segment_figures(errors, starts[1], starts[2]),
-                                 "transient": _transients(errors[starts[1]:],
-                                                          reference(b, 0))})
+                                 "transient": _transients(errors[starts[1]:], ref),
+                                 "hindsight_adapt_s": _segment_figures(ref, 0,
+                                                                       len(ref))["adapt_s"]})
     return rows
 
 
@@ -270,6 +274,9 @@ def summarise_events(rows):
                      "mean_rms_deg_first_0_5s": float(np.mean([r["rms_deg_first_0_5s"]
                                                                for r in sel])),
                      "mean_excess_0_2_0_6": float(np.mean([r["excess_0_2_0_6"] for r in sel]))}
+        hind = np.array([r["hindsight_adapt_s"] for r in sel])
+        out[kind]["hindsight_mean_adapt_s"] = float(hind.mean())
+        out[kind]["hindsight_share_adapt_le_0_3"] = float(np.mean(hind <= 0.3))
         ratios = np.array([r["transient"] for r in sel])
         out[kind]["transient_mean"] = ratios.mean(axis=0).tolist()
         out[kind]["transient_p90"] = np.percentile(ratios, 90, axis=0).tolist()
@@ -284,6 +291,8 @@ def format_events(label, summary):
         lines.append(f"{label if not lines else '':34s} {k:6s} n={v['n']:3d} adapt mean "
                      f"{v['mean_adapt_s']:.3f} (<=0.3: {100 * v['share_adapt_le_0_3']:.0f}%) "
                      f"rms {v['mean_rms_deg']:.2f} first0.5 {v['mean_rms_deg_first_0_5s']:.2f}"
+                     f" | hindsight adapt {v['hindsight_mean_adapt_s']:.3f} (<=0.3: "
+                     f"{100 * v['hindsight_share_adapt_le_0_3']:.0f}%)"
                      f" | online/hindsight mean/p90 {windows}")
     return "\n".join(lines)
 

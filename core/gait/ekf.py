@@ -78,19 +78,24 @@ class FilterContext:
         set_ = object.__setattr__
         cos_p, sin_p = np.cos(self.phases), np.sin(self.phases)
         set_(self, "inputs", np.stack([cos_p, sin_p], axis=1))             # X̃ (P, 2)
-        # Homogeneous inputs [cos φ_i, sin φ_i, 1] (3, P): one small matrix product gives every
-        # kernel ingredient at a query phase (the hot path of the online filter).
-        set_(self, "_homog", np.stack([cos_p, sin_p, np.ones_like(cos_p)]))
         b1, b2, b3 = (float(v) for v in self.beta[:3])
-        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle.
-        set_(self, "_b", (b1, b2, b3, math.log(b1) - b2))
+        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle, so every
+        # kernel ingredient at a query phase is one small product [cos φ, sin φ, 1] @ weights
+        # (the hot path of the online filter: no per-call matrix construction).
         p = len(self.phases)
-        weights = np.zeros((3, 2 * p))
-        weights[:2, :p] = b2 * self.inputs.T
-        weights[2, :p] = math.log(b1) - b2
-        weights[:2, p:] = b3 * self.inputs.T
-        set_(self, "_rows_weights", weights)                                # (3, 2P)
+        zero, one = np.zeros(p), np.ones(p)
+        pair = np.array([  # coefficient of cos φ | sin φ | 1 in each row, (3, 5, P)
+            [b2 * cos_p, zero, b2 * sin_p, b3 * cos_p, b3 * sin_p],
+            [b2 * sin_p, zero, -b2 * cos_p, b3 * sin_p, -b3 * cos_p],
+            [np.full(p, math.log(b1) - b2), one, zero, zero, zero]])
+        # rows: exponent β2 x̃ᵀx̃_i + log β1 - β2 | 1 | β2 sin(φ_i - φ) | β3 x̃ᵀx̃_i | β3 sin(φ_i - φ)
+        set_(self, "_pair_weights", np.ascontiguousarray(pair.reshape(3, 5 * p)))
+        # exponent | β3 x̃ᵀx̃_i only (kernel values), (3, 2P)
+        set_(self, "_rows_weights", np.ascontiguousarray(pair[:, [0, 3]].reshape(3, 2 * p)))
         set_(self, "w_prior_term", self.w_prec @ self.w_mean)              # Λ w̄
+        set_(self, "w_prior_aug", np.concatenate((self.w_prec, self.w_prior_term[:, None]),
+                                                 axis=1))                   # [Λ | Λ w̄]
+        set_(self, "q_floats", (float(self.Q[0, 0]), float(self.Q[0, 1]), float(self.Q[1, 1])))
         set_(self, "_cache", {})
 
     def steps(self, n):
@@ -105,9 +110,10 @@ class FilterContext:
     def online_frames(self, config):
         """``config.frames(fps)`` cached per configuration."""
         key = ("frames", config)
-        if key not in self._cache:
-            self._cache[key] = config.frames(self.fps)
-        return self._cache[key]
+        try:
+            return self._cache[key]
+        except KeyError:
+            return self._cache.setdefault(key, config.frames(self.fps))
 
     @property
     def n_bases(self):
@@ -134,21 +140,13 @@ class FilterContext:
 
     def kernel_pair(self, phi):
         """``[k; ∂k/∂φ]`` as one (2, P) array (see :meth:`kernel_row`)."""
-        c, s = math.cos(phi), math.sin(phi)
-        b1, b2, b3, log0 = self._b
-        rows = np.array([[b2 * c, b2 * s, log0],      # β2 x̃ᵀx̃_i + log β1 - β2
-                         [0.0, 0.0, 1.0],             # 1
-                         [-b2 * s, b2 * c, 0.0],      # β2 sin(φ_i - φ)
-                         [b3 * c, b3 * s, 0.0],       # β3 x̃ᵀx̃_i
-                         [-b3 * s, b3 * c, 0.0]]) @ self._homog
+        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._pair_weights).reshape(5, -1)
         # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin]
         return np.exp(rows[0]) * rows[1:3] + rows[3:5]
 
     def kernel_value(self, phi):
         """``k(x̃(φ))`` only, (P,)."""
-        c, s = math.cos(phi), math.sin(phi)
-        b1, b2, b3, log0 = self._b
-        rows = np.array([[b2 * c, b2 * s, log0], [b3 * c, b3 * s, 0.0]]) @ self._homog
+        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._rows_weights).reshape(2, -1)
         return np.exp(rows[0]) + rows[1]
 
     def kernel_rows(self, phis):
@@ -250,13 +248,13 @@ def ekf_predict(x, P, Q):
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     """Scalar core of :func:`ekf_update`; returns floats and the squared innovation."""
     both = ctx.kernel_pair(phi_pred) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g])
-    both[0] -= y
-    both[0] *= -1.0                                # innovation e = y - μ(x⁻) w (eq. 21)
-    if not math.isfinite(both[0].sum()):
+    np.subtract(y, both[0], out=both[0])           # innovation e = y - μ(x⁻) w (eq. 21)
+    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    if not math.isfinite(ee):                      # missing channels (NaN): drop them
         both = both[:, np.isfinite(both[0])]
+        (ee, ge), (_, gg) = (both @ both.T).tolist()
     n = both.shape[1]
     r = ctx.r
-    (ee, ge), (_, gg) = (both @ both.T).tolist()
     # Information form of eqs. 20-22: P⁺ = (P⁻⁻¹ + diag(0, gᵀg/r))⁻¹, x⁺ = x⁻ + P⁺ [0, gᵀe/r].
     det = a * c - b * b
     ia, ib, ic = c / det, -b / det, a / det + gg / r

@@ -210,10 +210,10 @@ def online_step(ctx, config, state, y):
     acquire, relock = ctx.online_frames(config)
     size = max(acquire, relock)
     recent = state.recent[1 - size:] + (y,)            # size >= 2
-    new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
-                         cooldown=max(state.cooldown - 1, 0))
     if not state.locked:
-        new = new._replace(recent_nu=state.recent_nu[1 - size:] + (0.0,))
+        new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
+                             cooldown=max(state.cooldown - 1, 0),
+                             recent_nu=state.recent_nu[1 - size:] + (0.0,))
         frames = _recent(new, min(new.window, len(recent)))[0]
         new = _from_grid(ctx, grid_search(ctx, frames), new)
         # Refine the grid state (coarse in ω and φ) by the EKF over the window's frames.
@@ -223,10 +223,10 @@ def online_step(ctx, config, state, y):
                             locked=new.window >= acquire)
 
     # E-step: eqs. 17-18 (A = [[1, 0], [1, 1]]), then 19-22 in information form.
-    q = ctx.Q
-    omega, phi = float(state.x[0]), float(state.x[1])
-    a, b, c = float(state.P[0, 0]), float(state.P[0, 1]), float(state.P[1, 1])
-    a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2.0 * b + c + q[1, 1]
+    q00, q01, q11 = ctx.q_floats
+    omega, phi = state.x.tolist()
+    (a, b), (_, c) = state.P.tolist()
+    a, b, c = a + q00, a + b + q01, a + 2.0 * b + c + q11
     omega, phi, pa, pb, pc, _, ee, n_obs = _update(ctx, omega, phi + omega, a, b, c, y,
                                                    state.comb)
     r = ctx.r
@@ -235,21 +235,24 @@ def online_step(ctx, config, state, y):
     baseline = state.baseline + config.baseline_rate * (nu - state.baseline)
 
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
-    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(len(state.w), -1)   # (J, Dc)
+    n_bases = len(state.w)
+    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(n_bases, -1)      # (J, Dc)
     if n_obs < len(y):
         ok = np.isfinite(y)
         mu, y = mu[:, ok], y[ok]
     eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
-    # (1 - η) ⟪f⟫ + η f  written as  ⟪f⟫ + η (f - ⟪f⟫)
-    s_mm = state.s_mm + eta * (mu @ mu.T - state.s_mm)                        # eq. 25
-    s_my = state.s_my + eta * (mu @ y - state.s_my)                           # eq. 26
-    er = eta * r
-    w = np.linalg.solve(s_mm + er * ctx.w_prec, s_my + er * ctx.w_prior_term)  # eq. 24
-    new = new._replace(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
-                       s_mm=s_mm, s_my=s_my, eta=eta,
-                       recent_nu=state.recent_nu[1 - size:] + (nu,),
-                       comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), level=level,
-                       baseline=baseline)
+    # [⟪μᵀμ⟫ | ⟪μᵀy⟫] as one (J, J+1) array: (1 - η) ⟪f⟫ + η f = ⟪f⟫ + η (f - ⟪f⟫)
+    stats = np.concatenate((state.s_mm, state.s_my[:, None]), axis=1)
+    stats += eta * (mu @ np.concatenate((mu, y[None])).T - stats)             # eqs. 25-26
+    lhs = stats + (eta * r) * ctx.w_prior_aug          # + η r [Λ | Λ w̄]: the prior ridge
+    w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])                    # eq. 24
+    new = OnlineState(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
+                      s_mm=stats[:, :n_bases], s_my=stats[:, n_bases], eta=eta,
+                      comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), recent=recent,
+                      recent_nu=state.recent_nu[1 - size:] + (nu,), frames=state.frames + 1,
+                      window=state.window + 1, locked=True, level=level,
+                      cooldown=max(state.cooldown - 1, 0), relocks=state.relocks,
+                      baseline=baseline)
     trigger = config.trigger(state.baseline)
     if level > trigger and new.cooldown == 0:
         new = _try_relock(ctx, config, new, relock, trigger)
@@ -280,7 +283,7 @@ def online_forecast(ctx, state, n_frames, omega_scale=1.0):
     Same as :func:`core.gait.predict` for the context's channels (rate channels scaled by
     ``omega_scale``), computed from the cached ``Σ_j w_j α_j``.
     """
-    omega, phi = float(state.x[0]), float(state.x[1])
+    omega, phi = state.x.tolist()
     phis = ctx.steps(n_frames) * (omega * omega_scale) + phi
     out = (ctx.kernel_rows(phis) @ state.comb) * ctx.scale
     if omega_scale != 1.0:

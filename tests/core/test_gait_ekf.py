@@ -65,6 +65,20 @@ def test_jacobian_matches_finite_differences(ctx):
         np.testing.assert_array_equal(h[:, 0], 0.0)              # μ does not depend on ω
 
 
+def test_fast_kernel_rows_equal_the_gp_kernel(ctx):
+    """The filters' precomputed-weight kernels (one small product per phase) equal eq. 11 and its
+    φ-derivative as the GP evaluates them."""
+    gp = small_model().gp
+    phis = np.array([0.0, 0.3, 2.9, 5.5, 7.1, -1.2])
+    k, dk = gp._k(phis)[:2]
+    for i, phi in enumerate(phis):
+        pair = ctx.kernel_pair(phi)
+        np.testing.assert_allclose(pair[0], k[i], rtol=1e-12, atol=1e-18)
+        np.testing.assert_allclose(pair[1], dk[i], rtol=1e-10, atol=1e-14 * np.abs(dk).max())
+        np.testing.assert_allclose(ctx.kernel_value(phi), k[i], rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(ctx.kernel_rows(phis), k, rtol=1e-12, atol=1e-18)
+
+
 def test_filter_equals_sequential_steps(ctx):
     w = small_model().styles[3]
     ys = observations("35_02")[:25] / ctx.scale
