@@ -10,6 +10,8 @@ Never loads a test trial of ``bench_gait`` (asserted). Splits:
   other seven, adapt on 0-1.67 s of the held-out trial, predict to 4 s (or its end); RMS over
   the 56 angles as in the benchmark, for the method (with and without the residual correction)
   and the four baselines.
+* **glitches** -- a capture glitch like CMU 08_01's ``rthumb.rz`` injected into validation data
+  (observed windows offline, streams online); the extra error against the clean truth.
 * **online** -- three folds of the online training trials (plus 35_06, an offline training
   trial), each a walk, a run and a walk of another walker or trial; every fold is played in
   both orders (6 streams, 18 segments: 6 cold starts, 6 walk -> run, 6 run -> walk) against a
@@ -91,6 +93,27 @@ def method_predictor(**adapt_kw):
         res = adapt(model, window, **adapt_kw)
         return predict(model, res.state, res.w, horizon, residual=res.residual)
     return run
+
+
+def offline_glitch_damage(folds, predictor, n_per_fold=3, seed=1):
+    """Outlier robustness of batch adaptation: the glitch of :func:`glitch_damage` injected into
+    the observed window (random channel and start); extra prediction error against the *clean*
+    truth (degrees; mean and max over the injections)."""
+    rng = np.random.default_rng(seed)
+    n_obs = int(round(ADAPT_S * FPS))
+    damage = []
+    for held, model, obs, end in folds:
+        truth = obs[n_obs:end, :N_ANGLES]
+        base = angle_rms_deg(predictor(model, obs[:n_obs], len(truth))[:, :N_ANGLES], truth)
+        for _ in range(n_per_fold):
+            window = obs[:n_obs].copy()
+            channel = int(rng.integers(0, N_ANGLES))
+            t0 = int(rng.integers(0, n_obs - 12))
+            window[t0 + np.array([0, 1, 2, 7, 8, 11]), channel] += 0.95 * np.pi
+            pred = predictor(model, window, len(truth))[:, :N_ANGLES]
+            damage.append(angle_rms_deg(pred, truth) - base)
+    return {"mean_extra_deg": float(np.mean(damage)), "max_extra_deg": float(np.max(damage)),
+            "n": len(damage)}
 
 
 def baseline_predictors():
@@ -297,6 +320,41 @@ def format_events(label, summary):
     return "\n".join(lines)
 
 
+def glitch_damage(streams, make_online=None, n_per_stream=4, seed=0):
+    """Outlier robustness: inject a capture glitch like CMU 08_01's rthumb.rz (one angle channel
+    0.95 π off on frames t0 + {0, 1, 2, 7, 8, 11}) at random channels and times into each stream
+    and measure the extra 0.5 s-ahead error against the *clean* truth over the 1.5 s around it
+    (degrees; mean and max over the injections)."""
+    make_online = make_online or (lambda m: OnlineEM(m))
+    horizon = int(round(HORIZON_S * FPS))
+    rng = np.random.default_rng(seed)
+
+    def errors(model, given, clean):
+        online = make_online(model)
+        err = np.full(len(given), np.nan)
+        for t, y in enumerate(given):
+            online.step(y)
+            if t + horizon < len(given):
+                err[t] = angle_rms_deg(online.predict(horizon)[:, :N_ANGLES],
+                                       clean[t + 1:t + 1 + horizon, :N_ANGLES])
+        return err
+
+    damage = []
+    for model, segments, _ in streams:
+        clean = np.vstack(segments)
+        base = errors(model, clean, clean)
+        for _ in range(n_per_stream):
+            channel = int(rng.integers(0, N_ANGLES))
+            t0 = int(rng.integers(40, len(clean) - 60))
+            glitched = clean.copy()
+            glitched[t0 + np.array([0, 1, 2, 7, 8, 11]), channel] += 0.95 * np.pi
+            window = slice(t0 - horizon, min(len(clean), t0 + 60))
+            damage.append(float(np.nanmean(errors(model, glitched, clean)[window])
+                                - np.nanmean(base[window])))
+    return {"mean_extra_deg": float(np.mean(damage)), "max_extra_deg": float(np.max(damage)),
+            "n": len(damage)}
+
+
 def summarise(rows):
     """Means over segments, and the adapt_s goal count, per position (cold start, 2nd, 3rd)."""
     adapt_s = np.array([r["adapt_s"] for r in rows])
@@ -385,6 +443,16 @@ def main(argv=None):
                 f"kappa {k:g} {sweep[f'passes={passes} kappa={k}']:.2f}"
                 for k in (0.3, 1.0, 3.0, 10.0)))
         off["residual_sweep_mean"] = sweep
+        glitch = {"outlier test (default)": offline_glitch_damage(folds, method_predictor()),
+                  "outlier test off": offline_glitch_damage(
+                      folds, method_predictor(outlier_ratio=math.inf)),
+                  "plain model, outlier test off": offline_glitch_damage(
+                      folds, method_predictor(residual=False, outlier_ratio=math.inf))}
+        off["glitch_damage"] = glitch
+        print("glitch injected into the observed window (extra error against the clean truth):")
+        for label, g in glitch.items():
+            print(f"  {label:30s} {g['mean_extra_deg']:.2f} deg mean, {g['max_extra_deg']:.2f} "
+                  f"max ({g['n']} injections)")
 
     streams = online_streams(data)
     hindsight = {}
@@ -404,6 +472,20 @@ def main(argv=None):
                                    "step_us_median": float(np.median(step_us))}
         print(format_online(label, report["online"][label]["streams"]))
         print(format_events("", report["online"][label]["events"]))
+    if not args.quick:
+        print("\nglitches injected into the streams (extra 0.5 s-ahead error against the clean "
+              "truth around the glitch):")
+        report["online"]["glitch_damage"] = {}
+        for label, make in (
+                ("outlier test (default)", None),
+                ("outlier test off", lambda m: OnlineEM(m, outlier_ratio=math.inf)),
+                ("previous trigger, outlier test off", lambda m: OnlineEM(
+                    m, outlier_ratio=math.inf, config=OnlineConfig(**ONLINE_CANDIDATES[
+                        "previous (absolute trigger, score at once)"])))):
+            damage = glitch_damage(streams, make)
+            report["online"]["glitch_damage"][label] = damage
+            print(f"  {label:36s} {damage['mean_extra_deg']:.2f} deg mean, "
+                  f"{damage['max_extra_deg']:.2f} max ({damage['n']} injections)")
     report["validation_s"] = time.perf_counter() - t_start
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)

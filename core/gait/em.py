@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ekf import DEFAULT_STYLE_PRIOR_SCALE, ekf_filter, make_context
+from .ekf import DEFAULT_OUTLIER_RATIO, DEFAULT_STYLE_PRIOR_SCALE, ekf_filter, make_context
 from .initial_phase import grid_search
 from .residual import DEFAULT_RESIDUAL_RATIO, residual_table, residual_weights
 
@@ -121,7 +121,8 @@ def m_step(ctx, a_sum, b_sum):
 
 def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
           init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
-          residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO):
+          residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO,
+          outlier_ratio=DEFAULT_OUTLIER_RATIO):
     """Batch EM: estimate phase state and style of a new walker from an observed window.
 
     Parameters
@@ -149,12 +150,15 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
         False: the plain model (``result.residual`` is None).
     residual_ratio : float
         κ of :mod:`.residual` (noise-to-signal ratio of the residual GP).
+    outlier_ratio : float
+        ρ of the E-step's outlier-channel test (:mod:`.ekf`; ``inf``: off). Entries left out as
+        outliers are also left out of the M-step and the residual table.
 
     Returns
     -------
     AdaptResult
     """
-    ctx = make_context(model, fps, channels, style_prior_scale)
+    ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio)
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
     grid = grid_search(ctx, ys[:k])
@@ -174,7 +178,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     n_iter = 0
     if not fixed:
         for n_iter in range(1, max_iter + 1):
-            w = m_step(ctx, *sufficient_statistics(ctx, res.states[:, 1], ys))
+            w = m_step(ctx, *sufficient_statistics(ctx, res.states[:, 1], res.masked(ys)))
             res = ekf_filter(ctx, ys, w, x0, p0)
             history.append(res.loglik)
             if res.loglik > best[0]:
@@ -200,7 +204,8 @@ def _refine_with_residual(ctx, ys, w, res, x0, p0, ratio):
     full = np.zeros((len(model.gp.phases), model.n_channels))
     for k in range(RESIDUAL_REFINE + 1):
         phis = res.states[:, 1]
-        part = residual_table(model, phis, ys - ctx.kernel_rows(phis) @ ctx.combine(w), ratio)
+        part = residual_table(model, phis,
+                              res.masked(ys) - ctx.kernel_rows(phis) @ ctx.combine(w), ratio)
         full[:, ctx.channels] = part
         if k == RESIDUAL_REFINE:
             break

@@ -47,7 +47,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .ekf import DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_filter, make_context
+from .ekf import DEFAULT_OUTLIER_RATIO, DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_filter, \
+    make_context
 from .em import INIT_OMEGA_REL_SD, INIT_PHI_SD
 from .initial_phase import grid_search
 
@@ -227,8 +228,8 @@ def online_step(ctx, config, state, y):
     omega, phi = state.x.tolist()
     (a, b), (_, c) = state.P.tolist()
     a, b, c = a + q00, a + b + q01, a + 2.0 * b + c + q11
-    omega, phi, pa, pb, pc, _, ee, n_obs = _update(ctx, omega, phi + omega, a, b, c, y,
-                                                   state.comb)
+    omega, phi, pa, pb, pc, _, ee, n_obs, outlier = _update(ctx, omega, phi + omega, a, b, c,
+                                                            y, state.comb)
     r = ctx.r
     nu = ee / (max(n_obs, 1) * r)
     level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
@@ -237,8 +238,10 @@ def online_step(ctx, config, state, y):
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
     n_bases = len(state.w)
     mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(n_bases, -1)      # (J, Dc)
-    if n_obs < len(y):
+    if n_obs < len(y):                   # missing channels and the outlier channel
         ok = np.isfinite(y)
+        if outlier >= 0:
+            ok[outlier] = False
         mu, y = mu[:, ok], y[ok]
     eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
     # [⟪μᵀμ⟫ | ⟪μᵀy⟫] as one (J, J+1) array: (1 - η) ⟪f⟫ + η f = ⟪f⟫ + η (f - ⟪f⟫)
@@ -305,6 +308,8 @@ class OnlineEM:
         Observed model channels (default: all).
     config : OnlineConfig, optional
     style_prior_scale : float
+    outlier_ratio : float
+        ρ of the E-step's outlier-channel test (:mod:`.ekf`; ``inf``: off).
 
     Attributes
     ----------
@@ -312,9 +317,10 @@ class OnlineEM:
     """
 
     def __init__(self, model, fps=None, channels=None, config=None,
-                 style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+                 style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
+                 outlier_ratio=DEFAULT_OUTLIER_RATIO):
         self.model = model
-        self.context = make_context(model, fps, channels, style_prior_scale)
+        self.context = make_context(model, fps, channels, style_prior_scale, outlier_ratio)
         self.config = config or OnlineConfig()
         self.state = online_init(self.context, self.config)
 

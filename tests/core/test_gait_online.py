@@ -197,3 +197,22 @@ def test_a_single_outlier_frame_does_not_start_re_acquisition():
         eager.step(y)
     state = eager.step(bad[0])
     assert state.cooldown > 0 or state.relocks == 1
+
+
+def test_a_glitch_channel_is_skipped_by_the_e_and_m_steps():
+    """While tracking, a frame with one channel half a turn off updates the filter exactly like
+    the frame with that channel missing, and does not start re-acquisition."""
+    model = small_model()
+    obs = observations("35_06")
+    online = OnlineEM(model)
+    for y in obs[:90]:
+        online.step(y)
+    ctx, config, state = online.context, online.config, online.state
+    glitch, missing = obs[90].copy(), obs[90].copy()
+    glitch[40] += 0.95 * np.pi
+    missing[40] = np.nan
+    a = online_step(ctx, config, state, glitch / ctx.scale)
+    b = online_step(ctx, config, state, missing / ctx.scale)
+    for name in ("x", "P", "w", "s_mm", "s_my", "eta", "level", "baseline"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12)
+    assert a.cooldown == 0 and a.relocks == 0
