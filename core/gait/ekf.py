@@ -104,7 +104,8 @@ class FilterContext:
             [b2 * cos_p, zero, b2 * sin_p, b3 * cos_p, b3 * sin_p],
             [b2 * sin_p, zero, -b2 * cos_p, b3 * sin_p, -b3 * cos_p],
             [np.full(p, math.log(b1) - b2), one, zero, zero, zero]])
-        # rows: exponent β2 x̃ᵀx̃_i + log β1 - β2 | 1 | β2 sin(φ_i - φ) | β3 x̃ᵀx̃_i | β3 sin(φ_i - φ)
+        # rows: exponent β2 x̃ᵀx̃_i + log β1 - β2 | 1 | β2 sin(φ_i - φ) | β3 x̃ᵀx̃_i |
+        #       β3 sin(φ_i - φ)
         set_(self, "_pair_weights", np.ascontiguousarray(pair.reshape(3, 5 * p)))
         # exponent | β3 x̃ᵀx̃_i only (kernel values), (3, 2P)
         set_(self, "_rows_weights", np.ascontiguousarray(pair[:, [0, 3]].reshape(3, 2 * p)))

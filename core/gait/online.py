@@ -30,12 +30,14 @@ follows a change of walker or of gait (walk → run).
   exceeds the trigger, the frames at the end of the buffer whose own ν exceeds it (the frames
   since the change; at most ``relock_frames``) are scored on the grid, once there are at least
   ``relock_min_frames`` = 2 of them (scoring after a single frame adds a frame of the old motion
-  to the window, fails, and then waits out the cooldown); if the best
-  candidate's residual is below ``relock_gain`` times the tracked residual on the same frames,
-  the filter restarts from it in acquisition (so the new window grows frame by frame from the
-  change point); otherwise it waits a third of ``relock_frames`` before trying again. This is how
-  the back-to-back playback of different walkers (or walk → run) recovers within a fraction of
-  a second, where the EKF would drift or lock half a cycle off.
+  to the window, fails, and then waits out the cooldown); if the best candidate's residual is
+  below ``relock_gain`` times the tracked residual on the same frames, the filter restarts from
+  it in acquisition (so the new window grows frame by frame from the change point); otherwise it
+  waits a third of ``relock_frames`` before trying again. This is how the back-to-back playback
+  of different walkers (or walk → run) recovers within a fraction of a second, where the EKF
+  would drift or lock half a cycle off. ν, the E-step and the M-step
+  leave out a channel the E-step flags as an outlier (:mod:`.ekf`), so a glitch in one channel
+  does not start a re-acquisition.
 
 Pure functions ``online_init(ctx, config) -> state`` and ``online_step(ctx, config, state, y) ->
 state`` do the work; :class:`OnlineEM` is a thin stateful shell over them.
