@@ -15,6 +15,14 @@ the rank-one ``H P Hᵀ``. The tests compare against the literal D × D form.
 **Safety.** After every update ω is clipped to the model's plausible range (the period search
 range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped.
 
+**Outlier channel.** A capture glitch in one channel (CMU 08_01's ``rthumb.rz`` passes through
+frames half a turn away) would otherwise pull the phase and the style and, through ``eᵀe``, make
+the online filter re-acquire. When the innovation is large (``eᵀe > outlier_gate · n r``) and one
+channel carries more than ``outlier_ratio`` times the rest of it (``e_k² > ρ Σ_{d≠k} e_d²``),
+that channel is left out of this frame's update like a missing value, and the M-steps skip it.
+A real change of motion spreads over many channels and never meets the test (on the validation
+streams the largest channel carries at most 4 times the rest; ρ = 8).
+
 Symbol table (:class:`FilterContext`, Dc = observed channels)
 
 ============ ============= ========================================================
@@ -32,6 +40,8 @@ omega_train  (S,)          training ω (cadence prior of the initial grid)
 w_mean       (J,)          style prior mean (M-step ridge)
 w_prec       (J, J)        style prior precision
 rate_mask    (Dc,) bool    channels that are time derivatives (scaled by retiming)
+outlier_ratio float        ρ of the outlier-channel test (inf: off)
+outlier_gate float         the test runs only when eᵀe / (n r) exceeds this
 ============ ============= ========================================================
 """
 
@@ -47,6 +57,10 @@ TWO_PI = 2.0 * math.pi
 # The M-step prior is the training styles' spread widened by this factor (a new walker may lie
 # outside the training set's hull).
 DEFAULT_STYLE_PRIOR_SCALE = 4.0
+# Outlier channel (module docstring): one channel holding more than ρ times the rest of a large
+# innovation is left out of that frame.
+DEFAULT_OUTLIER_RATIO = 8.0
+OUTLIER_GATE = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,24 +87,32 @@ class FilterContext:
     w_mean: np.ndarray = field(default=None, repr=False)
     w_prec: np.ndarray = field(default=None, repr=False)
     rate_mask: np.ndarray = field(default=None, repr=False)
+    outlier_ratio: float = DEFAULT_OUTLIER_RATIO
+    outlier_gate: float = OUTLIER_GATE
 
     def __post_init__(self):
         set_ = object.__setattr__
         cos_p, sin_p = np.cos(self.phases), np.sin(self.phases)
         set_(self, "inputs", np.stack([cos_p, sin_p], axis=1))             # X̃ (P, 2)
-        # Homogeneous inputs [cos φ_i, sin φ_i, 1] (3, P): one small matrix product gives every
-        # kernel ingredient at a query phase (the hot path of the online filter).
-        set_(self, "_homog", np.stack([cos_p, sin_p, np.ones_like(cos_p)]))
         b1, b2, b3 = (float(v) for v in self.beta[:3])
-        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle.
-        set_(self, "_b", (b1, b2, b3, math.log(b1) - b2))
+        # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle, so every
+        # kernel ingredient at a query phase is one small product [cos φ, sin φ, 1] @ weights
+        # (the hot path of the online filter: no per-call matrix construction).
         p = len(self.phases)
-        weights = np.zeros((3, 2 * p))
-        weights[:2, :p] = b2 * self.inputs.T
-        weights[2, :p] = math.log(b1) - b2
-        weights[:2, p:] = b3 * self.inputs.T
-        set_(self, "_rows_weights", weights)                                # (3, 2P)
+        zero, one = np.zeros(p), np.ones(p)
+        pair = np.array([  # coefficient of cos φ | sin φ | 1 in each row, (3, 5, P)
+            [b2 * cos_p, zero, b2 * sin_p, b3 * cos_p, b3 * sin_p],
+            [b2 * sin_p, zero, -b2 * cos_p, b3 * sin_p, -b3 * cos_p],
+            [np.full(p, math.log(b1) - b2), one, zero, zero, zero]])
+        # rows: exponent β2 x̃ᵀx̃_i + log β1 - β2 | 1 | β2 sin(φ_i - φ) | β3 x̃ᵀx̃_i |
+        #       β3 sin(φ_i - φ)
+        set_(self, "_pair_weights", np.ascontiguousarray(pair.reshape(3, 5 * p)))
+        # exponent | β3 x̃ᵀx̃_i only (kernel values), (3, 2P)
+        set_(self, "_rows_weights", np.ascontiguousarray(pair[:, [0, 3]].reshape(3, 2 * p)))
         set_(self, "w_prior_term", self.w_prec @ self.w_mean)              # Λ w̄
+        set_(self, "w_prior_aug", np.concatenate((self.w_prec, self.w_prior_term[:, None]),
+                                                 axis=1))                   # [Λ | Λ w̄]
+        set_(self, "q_floats", (float(self.Q[0, 0]), float(self.Q[0, 1]), float(self.Q[1, 1])))
         set_(self, "_cache", {})
 
     def steps(self, n):
@@ -105,9 +127,10 @@ class FilterContext:
     def online_frames(self, config):
         """``config.frames(fps)`` cached per configuration."""
         key = ("frames", config)
-        if key not in self._cache:
-            self._cache[key] = config.frames(self.fps)
-        return self._cache[key]
+        try:
+            return self._cache[key]
+        except KeyError:
+            return self._cache.setdefault(key, config.frames(self.fps))
 
     @property
     def n_bases(self):
@@ -134,21 +157,13 @@ class FilterContext:
 
     def kernel_pair(self, phi):
         """``[k; ∂k/∂φ]`` as one (2, P) array (see :meth:`kernel_row`)."""
-        c, s = math.cos(phi), math.sin(phi)
-        b1, b2, b3, log0 = self._b
-        rows = np.array([[b2 * c, b2 * s, log0],      # β2 x̃ᵀx̃_i + log β1 - β2
-                         [0.0, 0.0, 1.0],             # 1
-                         [-b2 * s, b2 * c, 0.0],      # β2 sin(φ_i - φ)
-                         [b3 * c, b3 * s, 0.0],       # β3 x̃ᵀx̃_i
-                         [-b3 * s, b3 * c, 0.0]]) @ self._homog
+        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._pair_weights).reshape(5, -1)
         # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin]
         return np.exp(rows[0]) * rows[1:3] + rows[3:5]
 
     def kernel_value(self, phi):
         """``k(x̃(φ))`` only, (P,)."""
-        c, s = math.cos(phi), math.sin(phi)
-        b1, b2, b3, log0 = self._b
-        rows = np.array([[b2 * c, b2 * s, log0], [b3 * c, b3 * s, 0.0]]) @ self._homog
+        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._rows_weights).reshape(2, -1)
         return np.exp(rows[0]) + rows[1]
 
     def kernel_rows(self, phis):
@@ -168,7 +183,8 @@ class FilterContext:
         return (k @ self.alpha_flat).reshape(len(k), self.n_bases, -1)
 
 
-def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
+                 outlier_ratio=DEFAULT_OUTLIER_RATIO):
     """Precompute the filter quantities for ``model`` at frame rate ``fps``.
 
     Parameters
@@ -181,6 +197,8 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
         Observed model channels (default: all). Unknown names raise ``ValueError``.
     style_prior_scale : float
         Widening of the training-style covariance used as the M-step prior.
+    outlier_ratio : float
+        ρ of the outlier-channel test (module docstring); ``inf`` turns it off.
 
     Returns
     -------
@@ -191,6 +209,8 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
         raise ValueError(f"fps must be positive, got {fps}")
     if not style_prior_scale > 0:
         raise ValueError(f"style_prior_scale must be positive, got {style_prior_scale}")
+    if not outlier_ratio > 0:
+        raise ValueError(f"outlier_ratio must be positive, got {outlier_ratio}")
     index = np.arange(model.n_channels) if channels is None else model.channel_index(channels)
     if len(index) == 0:
         raise ValueError("at least one channel must be observed")
@@ -209,7 +229,7 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
                          omega_mean=float(np.exp(np.mean(np.log(omega_train)))),
                          omega_train=omega_train,
                          w_mean=model.style_mean.copy(), w_prec=0.5 * (w_prec + w_prec.T),
-                         rate_mask=model.rate_mask[index])
+                         rate_mask=model.rate_mask[index], outlier_ratio=float(outlier_ratio))
 
 
 def observation_mean(ctx, phi, w):
@@ -248,15 +268,27 @@ def ekf_predict(x, P, Q):
 
 
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
-    """Scalar core of :func:`ekf_update`; returns floats and the squared innovation."""
+    """Scalar core of :func:`ekf_update`: floats, the squared innovation ``eᵀe``, the number of
+    channels used and the index of a channel left out as an outlier (-1: none)."""
     both = ctx.kernel_pair(phi_pred) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g])
-    both[0] -= y
-    both[0] *= -1.0                                # innovation e = y - μ(x⁻) w (eq. 21)
-    if not math.isfinite(both[0].sum()):
-        both = both[:, np.isfinite(both[0])]
+    np.subtract(y, both[0], out=both[0])           # innovation e = y - μ(x⁻) w (eq. 21)
+    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    cols = None
+    if not math.isfinite(ee):                      # missing channels (NaN): drop them
+        cols = np.flatnonzero(np.isfinite(both[0]))
+        both = both[:, cols]
+        (ee, ge), (_, gg) = (both @ both.T).tolist()
     n = both.shape[1]
     r = ctx.r
-    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    outlier = -1
+    if ee > ctx.outlier_gate * n * r and n > 1:   # large innovation: one channel behind it?
+        e2 = both[0] * both[0]
+        k = int(e2.argmax())
+        if e2[k] > ctx.outlier_ratio * (ee - e2[k]):
+            outlier = k if cols is None else int(cols[k])
+            both = np.delete(both, k, axis=1)
+            (ee, ge), (_, gg) = (both @ both.T).tolist()
+            n -= 1
     # Information form of eqs. 20-22: P⁺ = (P⁻⁻¹ + diag(0, gᵀg/r))⁻¹, x⁺ = x⁻ + P⁺ [0, gᵀe/r].
     det = a * c - b * b
     ia, ib, ic = c / det, -b / det, a / det + gg / r
@@ -269,7 +301,7 @@ def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     one = 1.0 + c * gg / r
     loglik = -0.5 * (n * math.log(TWO_PI * r) + math.log(one) + ee / r
                      - c * ge * ge / (r * r * one))
-    return omega, phi, pa, pb, pc, loglik, ee, n
+    return omega, phi, pa, pb, pc, loglik, ee, n, outlier
 
 
 def ekf_update(ctx, x_pred, P_pred, y, w):
@@ -291,7 +323,8 @@ def ekf_update(ctx, x_pred, P_pred, y, w):
         ω clipped to the plausible range, φ wrapped to [0, 2π).
     P : ndarray, shape (2, 2)
     loglik : float
-        ``log N(y; μ(x⁻) w, H P⁻ Hᵀ + R)`` over the observed channels.
+        ``log N(y; μ(x⁻) w, H P⁻ Hᵀ + R)`` over the observed channels (an outlier channel,
+        module docstring, is left out like a missing one).
     """
     out = _update(ctx, float(x_pred[0]), float(x_pred[1]), float(P_pred[0, 0]),
                   float(P_pred[0, 1]), float(P_pred[1, 1]), np.asarray(y, dtype=float),
@@ -313,15 +346,27 @@ class FilterResult:
         Sum of the innovation log-likelihoods.
     innovation_sq : ndarray, shape (N,)
         Mean squared innovation per observed channel (scaled units²).
+    outliers : ndarray of int, shape (N,)
+        Per frame, the channel left out as an outlier (-1: none; see :func:`ekf_update`).
     """
 
     states: np.ndarray
     covariances: np.ndarray
     loglik: float
     innovation_sq: np.ndarray
+    outliers: np.ndarray = None
+
+    def masked(self, ys):
+        """``ys`` (N, Dc) with the outlier entries set to NaN (missing) for the M-step."""
+        hit = np.flatnonzero(self.outliers >= 0)
+        if not len(hit):
+            return ys
+        ys = np.array(ys, dtype=float)
+        ys[hit, self.outliers[hit]] = np.nan
+        return ys
 
 
-def ekf_filter(ctx, ys, w, x0, P0):
+def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     """Run the EKF over a window (the E-step of eq. 23's EM).
 
     Parameters
@@ -333,6 +378,10 @@ def ekf_filter(ctx, ys, w, x0, P0):
     x0 : array_like, shape (2,)
         Prior mean of frame 0's state (no time update before frame 0).
     P0 : array_like, shape (2, 2)
+    extra_weights : array_like, shape (P, Dc), optional
+        GP weights added to ``Σ_j w_j α_j`` (a walker's residual table,
+        :func:`.residual.residual_weights`): the observation mean becomes
+        ``μ(φ) w + k(φ)ᵀ extra_weights``.
 
     Returns
     -------
@@ -340,10 +389,13 @@ def ekf_filter(ctx, ys, w, x0, P0):
     """
     ys = np.asarray(ys, dtype=float)
     comb = ctx.combine(w)
+    if extra_weights is not None:
+        comb = comb + extra_weights
     n = len(ys)
     states = np.empty((n, 2))
     covs = np.empty((n, 2, 2))
     sq = np.empty(n)
+    outliers = np.full(n, -1)
     q = ctx.Q
     omega, phi = float(x0[0]), float(x0[1])
     a, b, c = float(P0[0, 0]), float(P0[0, 1]), float(P0[1, 1])
@@ -352,9 +404,11 @@ def ekf_filter(ctx, ys, w, x0, P0):
         if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
             phi = phi + omega
             a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2 * b + c + q[1, 1]
-        omega, phi, a, b, c, loglik, ee, count = _update(ctx, omega, phi, a, b, c, ys[t], comb)
+        omega, phi, a, b, c, loglik, ee, count, outliers[t] = _update(ctx, omega, phi, a, b, c,
+                                                                      ys[t], comb)
         total += loglik
         states[t] = omega, phi
         covs[t] = [[a, b], [b, c]]
         sq[t] = ee / max(count, 1)
-    return FilterResult(states=states, covariances=covs, loglik=total, innovation_sq=sq)
+    return FilterResult(states=states, covariances=covs, loglik=total, innovation_sq=sq,
+                        outliers=outliers)

@@ -9,14 +9,23 @@ innovation log-likelihood stops improving; the iterate with the best likelihood 
 EKF-based EM is not guaranteed monotone).
 
 Start: the (ω₀, φ₀) grid of :mod:`.initial_phase` on the first ``init_window`` seconds.
+
+Residual correction (``residual=True``, default): after EM, the walker's residual table
+(:mod:`.residual`) is estimated from the filtered phases, and the E-step is repeated
+``RESIDUAL_REFINE`` times with the corrected observation mean ``μ(φ) ŵ + k(φ)ᵀ K⁻¹ T`` (the
+phases of a walker the bases describe imperfectly are estimated against the walker's own
+template), re-estimating the table after each pass. The style stays the EM's (re-estimating it
+with the table changed nothing on validation). :func:`.predict` adds the table when passed
+``residual=result.residual``.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .ekf import DEFAULT_STYLE_PRIOR_SCALE, ekf_filter, make_context
+from .ekf import DEFAULT_OUTLIER_RATIO, DEFAULT_STYLE_PRIOR_SCALE, ekf_filter, make_context
 from .initial_phase import grid_search
+from .residual import DEFAULT_RESIDUAL_RATIO, residual_table, residual_weights
 
 __all__ = ["AdaptResult", "adapt", "m_step", "scaled_observations", "sufficient_statistics"]
 
@@ -24,6 +33,8 @@ DEFAULT_INIT_WINDOW = 0.5  # seconds scored by the initial (ω, φ) grid
 # Initial state spread after the grid: ±6 % in ω (about one grid step), 0.15 rad in φ.
 INIT_OMEGA_REL_SD = 0.06
 INIT_PHI_SD = 0.15
+# E-step passes with the residual-corrected template (chosen on the offline validation split).
+RESIDUAL_REFINE = 2
 
 
 @dataclass(frozen=True)
@@ -41,13 +52,17 @@ class AdaptResult:
         Filtered states of every frame.
     covariances : ndarray, shape (N, 2, 2)
     loglik : float
-        Innovation log-likelihood of the returned iterate.
+        Innovation log-likelihood of the returned EM iterate (before the residual refinement).
     loglik_history : ndarray, shape (n_iter + 1,)
     n_iter : int
     converged : bool
     fps : float
     channels : tuple of str
         Observed channels.
+    residual : ndarray, shape (P, D), or None
+        The walker's residual table at the model's GP phases (scaled units, all model channels,
+        zero for unobserved ones; :mod:`.residual`), or None when not estimated. Pass it to
+        :func:`.predict` / :func:`.predict_dofs`.
     """
 
     state: np.ndarray
@@ -61,6 +76,7 @@ class AdaptResult:
     converged: bool
     fps: float
     channels: tuple
+    residual: np.ndarray = None
 
 
 def scaled_observations(ctx, observations):
@@ -104,7 +120,9 @@ def m_step(ctx, a_sum, b_sum):
 
 
 def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
-          init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+          init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
+          residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO,
+          outlier_ratio=DEFAULT_OUTLIER_RATIO):
     """Batch EM: estimate phase state and style of a new walker from an observed window.
 
     Parameters
@@ -127,12 +145,20 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
         Seconds at the start of the window scored by the initial (ω, φ) grid.
     style_prior_scale : float
         Widening of the training-style covariance in the M-step prior.
+    residual : bool
+        Estimate the walker's residual table and refine the phases with it (module docstring).
+        False: the plain model (``result.residual`` is None).
+    residual_ratio : float
+        κ of :mod:`.residual` (noise-to-signal ratio of the residual GP).
+    outlier_ratio : float
+        ρ of the E-step's outlier-channel test (:mod:`.ekf`; ``inf``: off). Entries left out as
+        outliers are also left out of the M-step and the residual table.
 
     Returns
     -------
     AdaptResult
     """
-    ctx = make_context(model, fps, channels, style_prior_scale)
+    ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio)
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
     grid = grid_search(ctx, ys[:k])
@@ -152,7 +178,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     n_iter = 0
     if not fixed:
         for n_iter in range(1, max_iter + 1):
-            w = m_step(ctx, *sufficient_statistics(ctx, res.states[:, 1], ys))
+            w = m_step(ctx, *sufficient_statistics(ctx, res.states[:, 1], res.masked(ys)))
             res = ekf_filter(ctx, ys, w, x0, p0)
             history.append(res.loglik)
             if res.loglik > best[0]:
@@ -161,8 +187,28 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
                 converged = True
                 break
     loglik, w, res = best
+    table = None
+    if residual:
+        table, res = _refine_with_residual(ctx, ys, w, res, x0, p0, residual_ratio)
     return AdaptResult(state=res.states[-1].copy(), covariance=res.covariances[-1].copy(),
                        w=np.array(w, dtype=float), states=res.states,
                        covariances=res.covariances, loglik=float(loglik),
                        loglik_history=np.array(history), n_iter=n_iter, converged=converged,
-                       fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels))
+                       fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels),
+                       residual=table)
+
+
+def _refine_with_residual(ctx, ys, w, res, x0, p0, ratio):
+    """Residual table (P, D) and the filter result of the last corrected E-step."""
+    model = ctx.model
+    full = np.zeros((len(model.gp.phases), model.n_channels))
+    for k in range(RESIDUAL_REFINE + 1):
+        phis = res.states[:, 1]
+        part = residual_table(model, phis,
+                              res.masked(ys) - ctx.kernel_rows(phis) @ ctx.combine(w), ratio)
+        full[:, ctx.channels] = part
+        if k == RESIDUAL_REFINE:
+            break
+        res = ekf_filter(ctx, ys, w, x0, p0, extra_weights=residual_weights(model, full,
+                                                                            ctx.channels))
+    return full, res

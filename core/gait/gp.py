@@ -97,6 +97,11 @@ class PhaseGP:
         dk = -(b2 * rbf + b3) * sin_d
         return k, dk, cos_d, sin_d, rbf
 
+    def kernel(self, phi):
+        """``k(x̃(φ))`` against the training phases, (n, P) (noise term excluded): the predictive
+        mean of any targets ``T`` (P, D) is ``kernel(φ) @ K⁻¹ T``."""
+        return self._k(phi)[0]
+
     def mean(self, phi):
         """Predictive means ``μ^j(x̃)`` of every basis.
 

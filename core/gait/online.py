@@ -21,14 +21,23 @@ follows a change of walker or of gait (walk → run).
   sufficient statistics as the discounted averages with η = 1/n). Then it locks and runs EKF +
   online M-step. The filter starts in acquisition.
 * *Re-acquisition*: the normalised squared innovation ``ν_t = eᵀe / (n r)`` (about 1 or less
-  while tracking) is averaged with weight ``relock_rate`` on the newest frame. When the average
-  exceeds ``relock_threshold``, the frames at the end of the buffer whose own ν exceeds the
-  threshold (at least 2, at most ``relock_frames``: the frames since the change) are scored on
-  the grid; if the best candidate's residual is below ``relock_gain`` times the tracked
-  residual on the same frames, the filter restarts from it in acquisition (so the new window
-  grows frame by frame from the change point); otherwise it waits a third of ``relock_frames``
-  before trying again. This is how the back-to-back playback of different walkers (or walk → run)
-  recovers within a fraction of a second, where the EKF would drift or lock half a cycle off.
+  while tracking) is averaged with weight ``relock_rate`` on the newest frame (the *level*), and
+  much more slowly (``baseline_rate``) into the walker's own *baseline* since the last
+  (re-)acquisition. The trigger is ``min(relock_threshold, max(relock_floor, relock_ratio ×
+  baseline))``: an absolute level (3: the model no longer describes the motion) or a relative
+  one (1.5 × the baseline: a walker tracked at ν ≈ 0.1 whose phase jumps — two walks spliced —
+  rises to ν ≈ 2-3 and stays there for a second, under the absolute level). When the level
+  exceeds the trigger, the frames at the end of the buffer whose own ν exceeds it (the frames
+  since the change; at most ``relock_frames``) are scored on the grid, once there are at least
+  ``relock_min_frames`` = 2 of them (scoring after a single frame adds a frame of the old motion
+  to the window, fails, and then waits out the cooldown); if the best candidate's residual is
+  below ``relock_gain`` times the tracked residual on the same frames, the filter restarts from
+  it in acquisition (so the new window grows frame by frame from the change point); otherwise it
+  waits a third of ``relock_frames`` before trying again. This is how the back-to-back playback
+  of different walkers (or walk → run) recovers within a fraction of a second, where the EKF
+  would drift or lock half a cycle off. ν, the E-step and the M-step
+  leave out a channel the E-step flags as an outlier (:mod:`.ekf`), so a glitch in one channel
+  does not start a re-acquisition.
 
 Pure functions ``online_init(ctx, config) -> state`` and ``online_step(ctx, config, state, y) ->
 state`` do the work; :class:`OnlineEM` is a thin stateful shell over them.
@@ -40,7 +49,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .ekf import DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_filter, make_context
+from .ekf import DEFAULT_OUTLIER_RATIO, DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_filter, \
+    make_context
 from .em import INIT_OMEGA_REL_SD, INIT_PHI_SD
 from .initial_phase import grid_search
 
@@ -67,6 +77,16 @@ class OnlineConfig:
         Weight of the newest frame in that average.
     relock_gain : float
         A re-acquisition candidate must have a residual below this fraction of the tracked one.
+    relock_ratio : float
+        Relative trigger: re-acquisition is also tried when the averaged ν exceeds this multiple
+        of the walker's own baseline level (``inf`` = absolute threshold only).
+    relock_floor : float
+        The relative trigger level is at least this (ν of a well-tracked walker fluctuates).
+    baseline_rate : float
+        Weight of the newest frame in the baseline level (a slow average of ν while locked).
+    relock_min_frames : int
+        Re-acquisition scores the grid only once this many trailing frames exceed the trigger
+        (0: whenever the averaged level does, scoring at least two frames).
     """
 
     forgetting: float = 0.97
@@ -75,13 +95,27 @@ class OnlineConfig:
     relock_threshold: float = 3.0
     relock_rate: float = 0.3
     relock_gain: float = 0.5
+    relock_ratio: float = 1.5
+    relock_floor: float = 0.5
+    baseline_rate: float = 0.05
+    relock_min_frames: int = 2
 
     def __post_init__(self):
         if not 0 < self.forgetting <= 1:
             raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting}")
-        for name in ("acquire_s", "relock_s", "relock_threshold", "relock_rate", "relock_gain"):
+        for name in ("acquire_s", "relock_s", "relock_threshold", "relock_rate", "relock_gain",
+                     "relock_ratio", "relock_floor", "baseline_rate"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive")
+        if not self.baseline_rate <= 1:
+            raise ValueError(f"baseline_rate must be in (0, 1], got {self.baseline_rate}")
+        if int(self.relock_min_frames) != self.relock_min_frames or self.relock_min_frames < 0:
+            raise ValueError(f"relock_min_frames must be a non-negative integer, got "
+                             f"{self.relock_min_frames}")
+
+    def trigger(self, baseline):
+        """Re-acquisition trigger level of the averaged ν for a walker at ``baseline``."""
+        return min(self.relock_threshold, max(self.relock_floor, self.relock_ratio * baseline))
 
     def frames(self, fps):
         """(acquire_frames, relock_frames) at ``fps`` (at least 2 each)."""
@@ -122,6 +156,8 @@ class OnlineState(NamedTuple):
         Frames to wait before the next re-acquisition attempt.
     relocks : int
         Number of re-acquisitions so far.
+    baseline : float
+        Slow average of ν since the last (re-)acquisition (the walker's own level; starts at 1).
     """
 
     x: np.ndarray
@@ -139,6 +175,7 @@ class OnlineState(NamedTuple):
     level: float
     cooldown: int
     relocks: int
+    baseline: float = 1.0
 
 
 def online_init(ctx, config):
@@ -163,7 +200,7 @@ def _from_grid(ctx, grid, state):
     return state._replace(x=np.array([grid.omega, grid.phi_last]),
                           P=np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2]),
                           w=grid.w, s_mm=grid.a_sum / n, s_my=grid.b_sum / n, eta=1.0 / n,
-                          comb=ctx.combine(grid.w), level=1.0)
+                          comb=ctx.combine(grid.w), level=1.0, baseline=1.0)
 
 
 def online_step(ctx, config, state, y):
@@ -176,10 +213,10 @@ def online_step(ctx, config, state, y):
     acquire, relock = ctx.online_frames(config)
     size = max(acquire, relock)
     recent = state.recent[1 - size:] + (y,)            # size >= 2
-    new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
-                         cooldown=max(state.cooldown - 1, 0))
     if not state.locked:
-        new = new._replace(recent_nu=state.recent_nu[1 - size:] + (0.0,))
+        new = state._replace(recent=recent, frames=state.frames + 1, window=state.window + 1,
+                             cooldown=max(state.cooldown - 1, 0),
+                             recent_nu=state.recent_nu[1 - size:] + (0.0,))
         frames = _recent(new, min(new.window, len(recent)))[0]
         new = _from_grid(ctx, grid_search(ctx, frames), new)
         # Refine the grid state (coarse in ω and φ) by the EKF over the window's frames.
@@ -189,41 +226,51 @@ def online_step(ctx, config, state, y):
                             locked=new.window >= acquire)
 
     # E-step: eqs. 17-18 (A = [[1, 0], [1, 1]]), then 19-22 in information form.
-    q = ctx.Q
-    omega, phi = float(state.x[0]), float(state.x[1])
-    a, b, c = float(state.P[0, 0]), float(state.P[0, 1]), float(state.P[1, 1])
-    a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2.0 * b + c + q[1, 1]
-    omega, phi, pa, pb, pc, _, ee, n_obs = _update(ctx, omega, phi + omega, a, b, c, y,
-                                                   state.comb)
+    q00, q01, q11 = ctx.q_floats
+    omega, phi = state.x.tolist()
+    (a, b), (_, c) = state.P.tolist()
+    a, b, c = a + q00, a + b + q01, a + 2.0 * b + c + q11
+    omega, phi, pa, pb, pc, _, ee, n_obs, outlier = _update(ctx, omega, phi + omega, a, b, c,
+                                                            y, state.comb)
     r = ctx.r
     nu = ee / (max(n_obs, 1) * r)
     level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
+    baseline = state.baseline + config.baseline_rate * (nu - state.baseline)
 
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
-    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(len(state.w), -1)   # (J, Dc)
-    if n_obs < len(y):
+    n_bases = len(state.w)
+    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(n_bases, -1)      # (J, Dc)
+    if n_obs < len(y):                   # missing channels and the outlier channel
         ok = np.isfinite(y)
+        if outlier >= 0:
+            ok[outlier] = False
         mu, y = mu[:, ok], y[ok]
     eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
-    # (1 - η) ⟪f⟫ + η f  written as  ⟪f⟫ + η (f - ⟪f⟫)
-    s_mm = state.s_mm + eta * (mu @ mu.T - state.s_mm)                        # eq. 25
-    s_my = state.s_my + eta * (mu @ y - state.s_my)                           # eq. 26
-    er = eta * r
-    w = np.linalg.solve(s_mm + er * ctx.w_prec, s_my + er * ctx.w_prior_term)  # eq. 24
-    new = new._replace(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
-                       s_mm=s_mm, s_my=s_my, eta=eta,
-                       recent_nu=state.recent_nu[1 - size:] + (nu,),
-                       comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), level=level)
-    if level > config.relock_threshold and new.cooldown == 0:
-        new = _try_relock(ctx, config, new, relock)
+    # [⟪μᵀμ⟫ | ⟪μᵀy⟫] as one (J, J+1) array: (1 - η) ⟪f⟫ + η f = ⟪f⟫ + η (f - ⟪f⟫)
+    stats = np.concatenate((state.s_mm, state.s_my[:, None]), axis=1)
+    stats += eta * (mu @ np.concatenate((mu, y[None])).T - stats)             # eqs. 25-26
+    lhs = stats + (eta * r) * ctx.w_prior_aug          # + η r [Λ | Λ w̄]: the prior ridge
+    w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])                    # eq. 24
+    new = OnlineState(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
+                      s_mm=stats[:, :n_bases], s_my=stats[:, n_bases], eta=eta,
+                      comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), recent=recent,
+                      recent_nu=state.recent_nu[1 - size:] + (nu,), frames=state.frames + 1,
+                      window=state.window + 1, locked=True, level=level,
+                      cooldown=max(state.cooldown - 1, 0), relocks=state.relocks,
+                      baseline=baseline)
+    trigger = config.trigger(state.baseline)
+    if level > trigger and new.cooldown == 0:
+        new = _try_relock(ctx, config, new, relock, trigger)
     return new
 
 
-def _try_relock(ctx, config, state, relock):
+def _try_relock(ctx, config, state, relock, trigger):
     """Re-acquisition attempt on the frames since the apparent change (module docstring)."""
     recent, recent_nu = _recent(state, min(relock, len(state.recent)))
-    high = recent_nu > config.relock_threshold
+    high = recent_nu > trigger
     n = int(np.argmin(high[::-1])) if not high.all() else len(high)   # length of the high tail
+    if n < config.relock_min_frames:
+        return state     # too few frames since the change: wait (no cooldown)
     n = min(max(n, 2), len(recent))
     frames = recent[-n:]
     if np.isfinite(frames).all(axis=0).any():
@@ -241,7 +288,7 @@ def online_forecast(ctx, state, n_frames, omega_scale=1.0):
     Same as :func:`core.gait.predict` for the context's channels (rate channels scaled by
     ``omega_scale``), computed from the cached ``Σ_j w_j α_j``.
     """
-    omega, phi = float(state.x[0]), float(state.x[1])
+    omega, phi = state.x.tolist()
     phis = ctx.steps(n_frames) * (omega * omega_scale) + phi
     out = (ctx.kernel_rows(phis) @ state.comb) * ctx.scale
     if omega_scale != 1.0:
@@ -263,6 +310,8 @@ class OnlineEM:
         Observed model channels (default: all).
     config : OnlineConfig, optional
     style_prior_scale : float
+    outlier_ratio : float
+        ρ of the E-step's outlier-channel test (:mod:`.ekf`; ``inf``: off).
 
     Attributes
     ----------
@@ -270,9 +319,10 @@ class OnlineEM:
     """
 
     def __init__(self, model, fps=None, channels=None, config=None,
-                 style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE):
+                 style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
+                 outlier_ratio=DEFAULT_OUTLIER_RATIO):
         self.model = model
-        self.context = make_context(model, fps, channels, style_prior_scale)
+        self.context = make_context(model, fps, channels, style_prior_scale, outlier_ratio)
         self.config = config or OnlineConfig()
         self.state = online_init(self.context, self.config)
 

@@ -8,10 +8,14 @@ From a state ``x̂_t = [ω, φ]`` and a style ``w``: ``x_{t+k|t} = A^k x̂_t``, 
   and yaw rate) scale by the same factor: the walker covers the same distance per cycle.
 * **Restyling** replaces ``w``: a learned style (:meth:`GaitModel.style`), an affine mix of
   learned styles (:func:`mix_styles`) or an interpolation (:func:`interpolate_styles`).
+* **Residual** (optional): a walker's residual table (:mod:`.residual`, ``adapt(...).residual``)
+  adds the walker's own details, ``ŷ = μ(x̃) w + k(x̃)ᵀ K⁻¹ T``; it is phase-indexed, so it
+  follows retiming, and it is independent of ``w`` (restyling keeps the walker's details).
 """
 
 import numpy as np
 
+from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
 __all__ = ["interpolate_styles", "mix_styles", "predict", "predict_dofs", "predicted_phases"]
@@ -41,7 +45,7 @@ def predicted_phases(state, n_frames, omega_scale=1.0):
     return phi + omega * float(omega_scale) * np.arange(1, int(n_frames) + 1)
 
 
-def predict(model, state, w, n_frames, omega_scale=1.0, channels=None):
+def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=None):
     """Predicted observations of the next ``n_frames`` frames.
 
     Parameters
@@ -57,6 +61,8 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None):
         Retiming factor (> 0): cadence multiplier.
     channels : sequence of str, optional
         Model channels to return (default: all).
+    residual : array_like, shape (P, D), optional
+        A walker's residual table (``adapt(...).residual``) added to the mean.
 
     Returns
     -------
@@ -67,13 +73,15 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None):
     phis = predicted_phases(state, n_frames, omega_scale)
     index = np.arange(model.n_channels) if channels is None else model.channel_index(channels)
     scaled = model.gp.observation_mean(phis, w) if len(phis) else np.zeros((0, model.n_channels))
+    if residual is not None and len(phis):
+        scaled = scaled + model.gp.kernel(phis) @ residual_weights(model, residual)
     out = model.to_physical(scaled)
     out[:, model.rate_mask] *= float(omega_scale)
     return out[:, index]
 
 
 def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, stride=1.0,
-                 travel=True):
+                 travel=True, residual=None):
     """Predicted DOF frames in the training layout (``model.dof_names``).
 
     Joint angles come from :func:`predict`, moved by whole turns onto the branch of the last
@@ -90,7 +98,7 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
     Parameters
     ----------
     model : GaitModel
-    state, w, n_frames, omega_scale
+    state, w, n_frames, omega_scale, residual
         As in :func:`predict`.
     last_dofs : array_like, shape (n_dofs,)
         The last observed DOF frame, metres and radians, in ``model.dof_names`` order.
@@ -112,7 +120,7 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
     if last.shape != (len(names),) or not np.all(np.isfinite(last)):
         raise ValueError(f"last_dofs must be {len(names)} finite values in the model's DOF "
                          f"layout, got shape {last.shape}")
-    pred = predict(model, state, w, n_frames, omega_scale)
+    pred = predict(model, state, w, n_frames, omega_scale, residual=residual)
     out = np.tile(last, (len(pred), 1))
     lookup = {n: i for i, n in enumerate(names)}
     angle_cols = np.array([lookup[n] for n in model.angle_names], dtype=int)

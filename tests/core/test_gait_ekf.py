@@ -65,6 +65,20 @@ def test_jacobian_matches_finite_differences(ctx):
         np.testing.assert_array_equal(h[:, 0], 0.0)              # μ does not depend on ω
 
 
+def test_fast_kernel_rows_equal_the_gp_kernel(ctx):
+    """The filters' precomputed-weight kernels (one small product per phase) equal eq. 11 and its
+    φ-derivative as the GP evaluates them."""
+    gp = small_model().gp
+    phis = np.array([0.0, 0.3, 2.9, 5.5, 7.1, -1.2])
+    k, dk = gp._k(phis)[:2]
+    for i, phi in enumerate(phis):
+        pair = ctx.kernel_pair(phi)
+        np.testing.assert_allclose(pair[0], k[i], rtol=1e-12, atol=1e-18)
+        np.testing.assert_allclose(pair[1], dk[i], rtol=1e-10, atol=1e-14 * np.abs(dk).max())
+        np.testing.assert_allclose(ctx.kernel_value(phi), k[i], rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(ctx.kernel_rows(phis), k, rtol=1e-12, atol=1e-18)
+
+
 def test_filter_equals_sequential_steps(ctx):
     w = small_model().styles[3]
     ys = observations("35_02")[:25] / ctx.scale
@@ -95,6 +109,45 @@ def test_missing_channels_equal_a_channel_subset():
     b = ekf_update(sub, x_pred, p_pred, y[:56], model.styles[2])
     for u, v in zip(a, b):
         np.testing.assert_allclose(u, v, rtol=1e-12)
+
+
+def test_an_outlier_channel_is_left_out_like_a_missing_one(ctx):
+    """A glitch in one channel (half a turn, like CMU 08_01's rthumb.rz) dominates a large
+    innovation: the update equals the one with that channel missing. A large innovation spread
+    over all channels (a real change of motion) is used as it is."""
+    model = small_model()
+    w = model.styles[2]
+    x_pred, p_pred = np.array([0.09, 2.0]), np.diag([1e-5, 0.05])
+    y = ctx.kernel_pair(2.0)[0] @ ctx.combine(w) + 0.02      # close to the model
+    glitch, missing = y.copy(), y.copy()
+    glitch[40] += 0.95 * np.pi
+    missing[40] = np.nan
+    for u, v in zip(ekf_update(ctx, x_pred, p_pred, glitch, w),
+                    ekf_update(ctx, x_pred, p_pred, missing, w)):
+        np.testing.assert_allclose(u, v, rtol=1e-12)
+    off = make_context(model, outlier_ratio=np.inf)                  # test disabled
+    assert not np.allclose(ekf_update(off, x_pred, p_pred, glitch, w)[0],
+                           ekf_update(off, x_pred, p_pred, missing, w)[0], rtol=1e-6)
+    spread = y + 0.3                                                # every channel far off
+    for u, v in zip(ekf_update(ctx, x_pred, p_pred, spread, w),
+                    ekf_update(off, x_pred, p_pred, spread, w)):
+        np.testing.assert_array_equal(u, v)
+    # Together with a missing channel; the filter reports frame and channel.
+    both = glitch.copy()
+    both[3] = np.nan
+    ref = missing.copy()
+    ref[3] = np.nan
+    for u, v in zip(ekf_update(ctx, x_pred, p_pred, both, w),
+                    ekf_update(ctx, x_pred, p_pred, ref, w)):
+        np.testing.assert_allclose(u, v, rtol=1e-12)
+    ys = np.vstack([y, both, y])
+    res = ekf_filter(ctx, ys, w, x_pred, p_pred)
+    np.testing.assert_array_equal(res.outliers, [-1, 40, -1])
+    masked = res.masked(ys)
+    assert np.isnan(masked[1, 40]) and np.isnan(masked[1, 3])
+    np.testing.assert_array_equal(np.isnan(masked).sum(), 2)
+    with pytest.raises(ValueError, match="outlier_ratio"):
+        make_context(model, outlier_ratio=0.0)
 
 
 def test_outputs_stay_defined_for_wild_observations(ctx):

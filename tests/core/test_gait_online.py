@@ -126,3 +126,93 @@ def test_missing_values_and_errors():
         online.predict(10, omega_scale=0.0)
     online.reset()
     assert online.state.frames == 0 and not online.state.locked
+
+
+def test_trigger_level_and_baseline_average():
+    config = OnlineConfig()
+    assert config.trigger(10.0) == config.relock_threshold                # absolute cap
+    assert config.trigger(0.01) == config.relock_floor                    # floor
+    assert config.trigger(1.0) == pytest.approx(config.relock_ratio)      # relative
+    assert OnlineConfig(relock_ratio=np.inf).trigger(0.01) == config.relock_threshold
+    with pytest.raises(ValueError, match="baseline_rate"):
+        OnlineConfig(baseline_rate=1.5)
+    with pytest.raises(ValueError, match="relock_min_frames"):
+        OnlineConfig(relock_min_frames=1.5)
+    # The baseline is the slow average of ν over the locked frames, starting at 1.
+    model = small_model()
+    ctx, config, states = _run(model, observations("35_06")[:80])
+    lock = next(i for i, s in enumerate(states) if s.locked)
+    assert states[lock].baseline == 1.0
+    base = 1.0
+    for s in states[lock + 1:]:
+        base += config.baseline_rate * (s.recent_nu[-1] - base)
+        assert s.baseline == pytest.approx(base, rel=1e-12)
+
+
+def test_relative_trigger_catches_a_phase_jump_the_absolute_level_misses():
+    """Two pieces of one walk spliced with a jump of 30 frames (about half a cycle): the innovation
+    rises far above the walker's baseline but stays under the absolute level."""
+    model = small_model()
+    obs = observations("35_06")
+    spliced = np.vstack([obs[:90], obs[120:]])
+    for config, caught in ((OnlineConfig(), True), (OnlineConfig(relock_ratio=np.inf), False)):
+        online = OnlineEM(model, config=config)
+        for y in spliced[:90]:
+            online.step(y)
+        assert online.state.relocks == 0
+        for y in spliced[90:100]:
+            online.step(y)
+        assert (online.state.relocks > 0) == caught
+    # After re-acquisition the phase follows the second piece: the forecast matches it.
+    online = OnlineEM(model)
+    for y in spliced[:130]:
+        online.step(y)
+    plain = OnlineEM(model, config=OnlineConfig(relock_ratio=np.inf))
+    for y in spliced[:130]:
+        plain.step(y)
+    truth = spliced[130:160, :56]
+    err = np.sqrt(np.mean((online.predict(30)[:, :56] - truth) ** 2))
+    err_plain = np.sqrt(np.mean((plain.predict(30)[:, :56] - truth) ** 2))
+    assert err < 0.5 * err_plain
+
+
+def test_a_single_outlier_frame_does_not_start_re_acquisition():
+    """One frame above the trigger waits for a second (no grid attempt, no cooldown); two
+    consecutive ones are scored."""
+    model = small_model()
+    obs = observations("35_06")
+    online = OnlineEM(model)
+    for y in obs[:90]:
+        online.step(y)
+    bad = obs[90:92].copy()
+    bad[:, :56] += 0.5
+    state = online.step(bad[0])
+    assert state.level > OnlineConfig().trigger(state.baseline)
+    assert state.cooldown == 0 and state.relocks == 0
+    state = online.step(bad[1])
+    assert state.cooldown > 0 or state.relocks == 1
+    # Scoring from the first frame (relock_min_frames=0) tries at once and then cools down.
+    eager = OnlineEM(model, config=OnlineConfig(relock_min_frames=0))
+    for y in obs[:90]:
+        eager.step(y)
+    state = eager.step(bad[0])
+    assert state.cooldown > 0 or state.relocks == 1
+
+
+def test_a_glitch_channel_is_skipped_by_the_e_and_m_steps():
+    """While tracking, a frame with one channel half a turn off updates the filter exactly like
+    the frame with that channel missing, and does not start re-acquisition."""
+    model = small_model()
+    obs = observations("35_06")
+    online = OnlineEM(model)
+    for y in obs[:90]:
+        online.step(y)
+    ctx, config, state = online.context, online.config, online.state
+    glitch, missing = obs[90].copy(), obs[90].copy()
+    glitch[40] += 0.95 * np.pi
+    missing[40] = np.nan
+    a = online_step(ctx, config, state, glitch / ctx.scale)
+    b = online_step(ctx, config, state, missing / ctx.scale)
+    for name in ("x", "P", "w", "s_mm", "s_my", "eta", "level", "baseline"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12)
+    assert a.cooldown == 0 and a.relocks == 0
