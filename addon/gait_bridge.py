@@ -189,6 +189,7 @@ class PredictOptions:
     stride: float = 1.0
     root_travel: bool = True
     plant_feet: bool = True
+    walker_detail: bool = True
     adaptation: str = "BATCH"
     target: str = "AFTER"
 
@@ -222,15 +223,16 @@ def resolve_style(model, options, adapted):
 
 
 def _adapt(model, obs, fps, mode, dofs):
-    """(state [ω, φ] at the last frame, style) from the observed window."""
+    """(state [ω, φ] at the last frame, style, walker residual table or None) from the observed
+    window; only batch EM estimates the residual table (``core.gait.residual``)."""
     if mode == "ONLINE":
         stream = ObservationStream(model, model.dof_names, fps)
         online = OnlineEM(model, fps=fps)
         for row in dofs:
             online.step(stream.push(row))
-        return np.array([online.omega, online.phase]), online.w
+        return np.array([online.omega, online.phase]), online.w, None
     res = adapt(model, obs, fps=fps)
-    return res.state, res.w
+    return res.state, res.w, res.residual
 
 
 def _new_action_from_range(obj, bag, first, last):
@@ -259,14 +261,15 @@ def _new_action_from_range(obj, bag, first, last):
     return new_bag
 
 
-def planted_factor(grig, model, state, w, n, last_dofs, cols, fps, options):
+def planted_factor(grig, model, state, w, n, last_dofs, cols, fps, options, residual=None):
     """Stride factor that keeps the stance foot planted (``core.gait.planted_stride``) for
     the prediction as the model makes it; 1 when disabled or without root travel."""
     feet = ("ltoes", "rtoes")
     if not (options.plant_feet and options.root_travel and model.root_travel) \
             or any(f not in grig.skeleton.names for f in feet):
         return 1.0
-    raw = predict_dofs(model, state, w, n, last_dofs[cols], fps, omega_scale=options.cadence)
+    raw = predict_dofs(model, state, w, n, last_dofs[cols], fps, omega_scale=options.cadence,
+                       residual=residual)
     rows = np.tile(last_dofs, (n + 1, 1))
     rows[1:, cols] = raw
     return planted_stride(grig.skeleton, rows, feet)
@@ -316,20 +319,25 @@ def predict_gait(context, obj, options):
     first, last, dofs = _observe(grig, model, scene, options)
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
-    state, w_adapted = _adapt(model, obs, fps, options.adaptation, model_dofs)
+    state, w_adapted, residual = _adapt(model, obs, fps, options.adaptation, model_dofs)
     period = 2.0 * np.pi / state[0]
     if len(dofs) < period:
         raise GaitError(f"Observed {len(dofs)} frames ({len(dofs) / fps:.2f} s) is shorter than "
                         f"one gait cycle of this walker (about {period / fps:.2f} s): observe "
                         f"more frames")
     w = resolve_style(model, options, w_adapted)
+    # The walker's own details belong to the adapted style only: restyled gaits use the
+    # learned templates as they are.
+    if not (options.walker_detail and options.style_mode == "ADAPTED"):
+        residual = None
     n = int(round(options.horizon * fps))
     if n < 1:
         raise GaitError("The horizon is shorter than one frame")
-    k = planted_factor(grig, model, state, w, n, dofs[-1], cols, fps, options)
+    k = planted_factor(grig, model, state, w, n, dofs[-1], cols, fps, options, residual)
     try:
         pred = predict_dofs(model, state, w, n, model_dofs[-1], fps, omega_scale=options.cadence,
-                            stride=k * options.stride, travel=options.root_travel)
+                            stride=k * options.stride, travel=options.root_travel,
+                            residual=residual)
     except ValueError as exc:
         raise GaitError(str(exc)) from None
     full = np.tile(dofs[-1], (n, 1))

@@ -172,6 +172,10 @@ class TS_OT_predict_gait(bpy.types.Operator):
         name="Planted Stride", description="Scale the predicted root speed so that the stance "
         "foot stays planted (least squares over the prediction; Stride multiplies on top)",
         default=True)
+    walker_detail: BoolProperty(
+        name="Walker Detail", description="Add the observed walker's own details (a smooth "
+        "per-phase correction learned from the observed cycles) to the adapted style; batch EM "
+        "only, ignored when restyling", default=True)
     adaptation: EnumProperty(
         name="Adaptation", description="How the model adapts to the observed frames",
         items=(("BATCH", "Batch EM", "EKF + EM over the whole window (best estimate)"),
@@ -198,8 +202,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
     def execute(self, context):
         options = PredictOptions(**{k: getattr(self, k) for k in (
             "range_mode", "frame_start", "frame_end", "horizon", "cadence", "style_mode",
-            "style_a", "style_b", "blend", "stride", "root_travel", "plant_feet", "adaptation",
-            "target")},
+            "style_a", "style_b", "blend", "stride", "root_travel", "plant_feet", "walker_detail",
+            "adaptation", "target")},
             weights=tuple(self.weights))
         try:
             summary = predict_gait(context, context.active_object, options)
@@ -221,6 +225,10 @@ class TS_OT_predict_gait(bpy.types.Operator):
         layout.prop(self, "horizon")
         layout.prop(self, "cadence")
         layout.prop(self, "style_mode")
+        if self.style_mode == "ADAPTED":
+            row = layout.row()
+            row.active = self.adaptation == "BATCH"
+            row.prop(self, "walker_detail")
         if self.style_mode == "BLEND":
             layout.prop(self, "style_a")
             layout.prop(self, "style_b")

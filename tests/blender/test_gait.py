@@ -75,13 +75,16 @@ def keys_at(obj, layout, frames):
     return out
 
 
-def core_prediction(model, skeleton, observed, n, w=None, stride=1.0):
-    """The core's prediction from observed DOF rows: batch EM, planted stride, predict_dofs."""
+def core_prediction(model, skeleton, observed, n, w=None, stride=1.0, detail=True):
+    """The core's prediction from observed DOF rows: batch EM, planted stride, predict_dofs
+    (with the walker's residual table for the adapted style, as the operator does by default)."""
     res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
+    residual = res.residual if (w is None and detail) else None
     w = res.w if w is None else w
-    raw = predict_dofs(model, res.state, w, n, observed[-1], FPS)
+    raw = predict_dofs(model, res.state, w, n, observed[-1], FPS, residual=residual)
     k = planted_stride(skeleton, np.vstack([observed[-1:], raw]))
-    return predict_dofs(model, res.state, w, n, observed[-1], FPS, stride=k * stride)
+    return predict_dofs(model, res.state, w, n, observed[-1], FPS, stride=k * stride,
+                        residual=residual)
 
 
 def angle_rms(a, b):
@@ -153,6 +156,22 @@ def test_learn_from_imported_walks_then_predict_another(scene, tmp_path):
     predicted = channels_to_dofs(skeleton, layout, written)[:len(truth), 6:]
     hold = np.broadcast_to(observed[-1, 6:], truth.shape)
     assert angle_rms(predicted, truth) < 0.8 * angle_rms(hold, truth)
+
+
+def test_walker_detail_off_gives_the_plain_style_model(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    assert bpy.ops.track_and_stride.predict_gait(horizon=1.0, walker_detail=False) == {"FINISHED"}
+    model = bridge("gait_bridge").decode_model(scene.track_and_stride_gait.models[0].data)
+    skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
+    layout = armature_layout(skeleton)
+    observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    last_channels = keys_at(obj, layout, [N_OBS])[0]
+    written = keys_at(obj, layout, range(N_OBS + 1, N_OBS + FPS + 1))
+    for detail, close in ((False, True), (True, False)):
+        dofs = core_prediction(model, skeleton, observed, FPS, detail=detail)
+        expected = dofs_to_channels_after(skeleton, layout, dofs, observed[-1], last_channels)
+        assert np.allclose(written, expected, atol=2e-5) == close
 
 
 def test_redo_with_cadence_shortens_the_predicted_cycle(scene, tmp_path):
@@ -398,14 +417,15 @@ def test_redo_panel_draws_the_options_by_style_mode(scene):
     learn_from_files()
     op = bpy.types.TRACK_AND_STRIDE_OT_predict_gait
     rna = bpy.ops.track_and_stride.predict_gait.get_rna_type()
-    for mode, expected in (("ADAPTED", set()), ("BLEND", {"style_a", "style_b", "blend"}),
+    for mode, expected in (("ADAPTED", {"walker_detail"}), ("BLEND", {"style_a", "style_b", "blend"}),
                            ("WEIGHTS", {"weights"})):
         drawn = []
         fake = type("Op", (), {"layout": RecordingLayout(drawn), "bl_rna": rna,
-                               "range_mode": "CUSTOM", "style_mode": mode, "root_travel": True})()
+                               "range_mode": "CUSTOM", "style_mode": mode, "root_travel": True,
+                               "adaptation": "BATCH"})()
         op.draw(fake, bpy.context)
         names = {d[1] for d in drawn if d[0] == "prop"}
         assert {"horizon", "cadence", "style_mode", "stride", "root_travel", "plant_feet",
                 "frame_start", "target"} <= names
-        assert names & {"style_a", "style_b", "blend", "weights"} == expected
+        assert names & {"style_a", "style_b", "blend", "weights", "walker_detail"} == expected
     assert [d for d in drawn if d[1] == "weights"] == [("prop", "weights")] * len(TRAIN)
