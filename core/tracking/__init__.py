@@ -22,13 +22,13 @@ from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_de
                      solve_with_prediction)
 from .parallel import SequenceResult, track_keyframes
 from .presets import CMU_PARTS, TABLE1, table1_dof_mask
-from .problem import TrackingError, TrackingOptions, TrackingProblem
+from .problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
 from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_error,
                          track_accumulated, track_interval)
 
 __all__ = [
     "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "MotionLayout", "PinholeCamera",
-    "Pose", "RayHits", "SequenceResult", "SilhouetteSamples", "TABLE1", "TrackingError",
+    "Pose", "RayHits", "SequenceResult", "SilhouetteSamples", "TABLE1", "TrackingCancelled", "TrackingError",
     "TrackingOptions", "TrackingProblem", "apply_motion", "bilinear", "body_model_from_skeleton",
     "camera_from_blender", "central_derivatives", "correct_root_positions", "estimate_motions",
     "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
