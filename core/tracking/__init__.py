@@ -7,7 +7,8 @@ Modules: ``camera`` (pinhole + Blender contract), ``body_model`` (tapered cylind
 casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), ``jacobians``
 (eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10, coarse-to-fine), ``drift`` (eqs. 11-24),
 ``trajectory`` (the §2.2 loop), ``parallel`` (several intervals), ``presets`` (Table 1),
-``problem`` (inputs and options), ``suggest`` (where one more keyframe pays off).
+``problem`` (inputs and options), ``suggest`` (where one more keyframe pays off), ``overlay``
+(the body model drawn over frames, contact sheets).
 """
 
 from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
