@@ -147,7 +147,7 @@ def machine_parallel_factor():
 
 
 def bench_accuracy(bpy, folder, movie):
-    from sample_scenes.track_scene import joint_errors
+    from sample_scenes.track_scene import interpolation_errors, joint_errors
     fp = load_footage(folder)
     keys = list(range(1, N_FRAMES + 1, STEP))
     interior = [f for f in range(1, N_FRAMES + 1) if f not in keys]
@@ -156,27 +156,9 @@ def bench_accuracy(bpy, folder, movie):
         obj = build(bpy, folder, 0, source=source, movie=path)
         bpy.ops.track_and_stride.track_keyframes()
         out[f"{name}_mpjpe_cm"] = float(100 * joint_errors(obj, fp, interior).mean())
-    out["interpolation_mpjpe_cm"] = interpolation_baseline(fp, keys)
+    out["interpolation_mpjpe_cm"] = float(100 * interpolation_errors(fp, keys).mean())
     out["bench_tracking_full_mpjpe_cm"] = 4.16
     return out
-
-
-def interpolation_baseline(fp, keys):
-    """MPJPE (cm) of the keyframe interpolation (slerp, linear root) over the in-between frames."""
-    from core.kinematics import forward_kinematics
-    from core.tracking import Pose, interpolate_poses
-    from sample_scenes.track_scene import H36M_JOINTS
-    sk = fp.skeleton
-    joints = [sk.index(n) for n in H36M_JOINTS]
-    errors = []
-    for a, b in zip(keys[:-1], keys[1:]):
-        start = Pose(fp.root_translation[a - 1], fp.local_rotations[a - 1])
-        end = Pose(fp.root_translation[b - 1], fp.local_rotations[b - 1])
-        roots, local = interpolate_poses(sk, start, end, b - a)
-        _, p = forward_kinematics(sk, local[1:-1], roots[1:-1])
-        _, q = forward_kinematics(sk, fp.local_rotations[a:b - 1], fp.root_translation[a:b - 1])
-        errors.append(np.linalg.norm(p[:, joints] - q[:, joints], axis=-1).mean(axis=1))
-    return float(100 * np.concatenate(errors).mean())
 
 
 def main():

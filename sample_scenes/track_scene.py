@@ -17,6 +17,7 @@ import numpy as np
 from mathutils import Matrix
 
 from core.kinematics import forward_kinematics
+from core.tracking import Pose, interpolate_poses
 from sample_scenes.footage_scenes import load_footage
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -82,8 +83,9 @@ def build_walk_scene(folder, step=20, source="FILE", movie=None):
     step : int
         Keyframes every ``step`` frames, from frame 1.
     source : {'FILE', 'CLIP'}
-        The image sequence as a file, or a movie clip (of ``movie`` when given, else of the
-        sequence) opened with *Open Footage*.
+        The footage as a file, or as a movie clip opened with *Open Footage*.
+    movie : Path, optional
+        A movie of the footage (e.g. :func:`encode_mp4`'s) instead of the image sequence.
     """
     folder = Path(folder)
     footage = load_footage(folder)
@@ -97,11 +99,11 @@ def build_walk_scene(folder, step=20, source="FILE", movie=None):
     add_footage_camera(scene, folder)
     scene.frame_start, scene.frame_end = 1, n
     settings = scene.track_and_stride_track
-    first = folder / "frame_0000.png"
+    path = str(movie or folder / "frame_0000.png")
     if source == "CLIP":
-        bpy.ops.track_and_stride.open_footage(filepath=str(movie or first))
+        bpy.ops.track_and_stride.open_footage(filepath=path)
     else:
-        settings.source, settings.filepath, settings.file_start = "FILE", str(first), 1
+        settings.source, settings.filepath, settings.file_start = "FILE", path, 1
     # Settle matrix_world (Blender recomposes it from location/rotation on evaluation: float32
     # differences of 1e-7 that the tracker's discrete choices can amplify).
     bpy.context.view_layer.update()
@@ -165,3 +167,20 @@ def joint_errors(obj, footage, frames):
         out.append(np.linalg.norm(heads - truth[k, joints], axis=1).mean())
     scene.frame_set(current)
     return np.array(out)
+
+
+def interpolation_errors(footage, keys):
+    """Per-frame mean joint distance (m) of the keyframe interpolation (slerp, linear root) over
+    the in-between frames of scene keys ``keys``: the baseline tracking must beat."""
+    sk = footage.skeleton
+    joints = [sk.index(n) for n in H36M_JOINTS]
+    errors = []
+    for a, b in zip(keys[:-1], keys[1:]):
+        start = Pose(footage.root_translation[a - 1], footage.local_rotations[a - 1])
+        end = Pose(footage.root_translation[b - 1], footage.local_rotations[b - 1])
+        roots, local = interpolate_poses(sk, start, end, b - a)
+        _, p = forward_kinematics(sk, local[1:-1], roots[1:-1])
+        _, q = forward_kinematics(sk, footage.local_rotations[a:b - 1],
+                                  footage.root_translation[a:b - 1])
+        errors.append(np.linalg.norm(p[:, joints] - q[:, joints], axis=-1).mean(axis=1))
+    return np.concatenate(errors)

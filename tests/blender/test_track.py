@@ -14,11 +14,10 @@ from PIL import Image
 
 from blender_support import MODULE, bpy, datablock_counts
 from core.kinematics import log_so3
-from core.tracking import (Pose, find_table1_parts, interpolate_poses, table1_dof_mask,
-                           track_keyframes)
-from sample_scenes.footage_scenes import ensure_footage, footage_dir, load_footage
-from sample_scenes.track_scene import (build_walk_scene, channelbag, encode_mp4, joint_errors,
-                                       keep_keys_at)
+from core.tracking import find_table1_parts, table1_dof_mask, track_keyframes
+from sample_scenes.footage_scenes import ensure_footage, load_footage
+from sample_scenes.track_scene import (build_walk_scene, channelbag, encode_mp4,
+                                       interpolation_errors, joint_errors, keep_keys_at)
 
 N_FRAMES, KEYS = 41, (1, 21, 41)
 IN_BETWEEN = [f for f in range(1, N_FRAMES + 1) if f not in KEYS]
@@ -74,23 +73,6 @@ def same_keys(a, b, frames=None):
             assert old[prop][sel_old].tobytes() == new[prop][sel_new].tobytes(), (key, prop)
 
 
-def interpolation_mpjpe(obj, walk):
-    """Error of the keyframe interpolation (slerp), the baseline tracking must beat (cm)."""
-    from core.kinematics import forward_kinematics
-    sk = walk.skeleton
-    errors = []
-    for a, b in zip(KEYS[:-1], KEYS[1:]):
-        start = Pose(walk.root_translation[a - 1], walk.local_rotations[a - 1])
-        end = Pose(walk.root_translation[b - 1], walk.local_rotations[b - 1])
-        roots, local = interpolate_poses(sk, start, end, b - a)
-        _, p = forward_kinematics(sk, local[1:-1], roots[1:-1])
-        _, q = forward_kinematics(sk, walk.local_rotations[a:b - 1], walk.root_translation[a:b - 1])
-        from sample_scenes.track_scene import H36M_JOINTS
-        j = [sk.index(n) for n in H36M_JOINTS]
-        errors.append(np.linalg.norm(p[:, j] - q[:, j], axis=-1).mean(axis=1))
-    return 100 * np.concatenate(errors).mean()
-
-
 def test_image_sequence_tracks_like_the_core_and_the_ground_truth(walk_folder, walk):
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
@@ -127,7 +109,7 @@ def test_image_sequence_tracks_like_the_core_and_the_ground_truth(walk_folder, w
     # Accuracy through Blender's own evaluation of the written F-curves.
     mpjpe = 100 * joint_errors(obj, walk, IN_BETWEEN).mean()
     assert mpjpe < BENCHMARK_MPJPE_CM
-    assert mpjpe < 0.5 * interpolation_mpjpe(obj, walk)
+    assert mpjpe < 0.5 * 100 * interpolation_errors(walk, KEYS).mean()
 
 
 def test_parallel_equals_serial_through_the_operator(walk_folder):
@@ -142,15 +124,24 @@ def test_parallel_equals_serial_through_the_operator(walk_folder):
     assert states[0].keys() == states[1].keys()
 
 
-def test_blender_encoded_mp4_as_a_movie_clip(walk_folder, walk_mp4, walk):
-    obj = build_walk_scene(walk_folder, source="CLIP", movie=walk_mp4)
-    clip = settings().clip
-    assert clip is not None and clip.source == "MOVIE" and clip.frame_duration == N_FRAMES
+@pytest.mark.parametrize("source", ["CLIP", "FILE"])
+def test_blender_encoded_mp4_as_clip_or_file(walk_folder, walk_mp4, walk, source):
+    obj = build_walk_scene(walk_folder, source=source, movie=walk_mp4)
     scene = bpy.context.scene
     camera = scene.camera.data
-    assert camera.show_background_images
-    assert any(bg.source == "MOVIE_CLIP" and bg.clip == clip for bg in camera.background_images)
-    assert (scene.render.resolution_x, scene.render.resolution_y) == tuple(clip.size)
+    if source == "CLIP":                  # Open Footage: clip, render size, background
+        clip = settings().clip
+        assert clip is not None and clip.source == "MOVIE" and clip.frame_duration == N_FRAMES
+        assert camera.show_background_images
+        assert any(bg.source == "MOVIE_CLIP" and bg.clip == clip
+                   for bg in camera.background_images)
+        assert (scene.render.resolution_x, scene.render.resolution_y) == tuple(clip.size)
+    else:                                 # a movie file behind the camera: frame f shows f
+        assert bpy.ops.track_and_stride.show_footage() == {"FINISHED"}
+        (bg,) = camera.background_images
+        assert bg.image.source == "MOVIE" and bg.image_user.frame_duration == N_FRAMES
+        scene.frame_set(17)
+        assert bg.image_user.frame_current == 17
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
     assert 100 * joint_errors(obj, walk, IN_BETWEEN).mean() < BENCHMARK_MPJPE_CM
 
