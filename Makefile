@@ -18,7 +18,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender clean
 
 venv: $(STAMP)
 
@@ -42,7 +42,7 @@ test-core: $(STAMP)
 test-blender: extension
 	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
 
-bench: bench-import bench-gait bench-gait-blender bench-tracking
+bench: bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender
 
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
@@ -56,6 +56,10 @@ bench-gait-blender: extension
 # Renders its footage once (cached under build/footage), then accuracy, speed, throughput.
 bench-tracking: $(STAMP)
 	$(PY) benchmarks/bench_tracking.py --output build/bench/tracking.json
+
+# Track Keyframes through the installed extension: serial vs parallel, phases, accuracy.
+bench-track-blender: extension
+	$(PY) benchmarks/bench_track_blender.py --extension $(ZIP) --output build/bench/track_blender.json
 
 clean:
 	rm -rf build .pytest_cache

@@ -211,3 +211,78 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
             array[positions] = old[prop]
             points.foreach_set(prop, array.reshape(-1))
     return int(len(frames))
+
+
+def enum_value(struct, prop, identifier):
+    """Integer value of an RNA enum item (for ``foreach_set`` on enum properties)."""
+    return _enum_value(struct, prop, identifier)
+
+
+def key_frames_and_types(fcurve):
+    """Frames (float32), values (float32) and key types (RNA enum ints) of an F-curve's keys.
+
+    Returns
+    -------
+    frames, values : ndarray, shape (K,), float32
+    types : ndarray, shape (K,), int32
+    """
+    points = fcurve.keyframe_points
+    n = len(points)
+    co = np.empty(2 * n, dtype=np.float32)
+    types = np.empty(n, dtype=np.int32)
+    points.foreach_get("co", co)
+    points.foreach_get("type", types)
+    return co[0::2], co[1::2], types
+
+
+def set_key_type(fcurve, frames, key_type):
+    """Set the keyframe type (``'GENERATED'``, ``'KEYFRAME'`` ...) of the keys at ``frames``."""
+    frames = np.asarray(frames, dtype=np.float64)
+    points = fcurve.keyframe_points
+    if len(points) == 0 or len(frames) == 0:
+        return
+    at, _, types = key_frames_and_types(fcurve)
+    hit = np.min(np.abs(at.astype(np.float64)[:, None] - frames[None, :]), axis=1) < 1e-4
+    types[hit] = _enum_value(bpy.types.Keyframe, "type", key_type)
+    points.foreach_set("type", types)
+
+
+def remove_keys_at(fcurve, frames):
+    """Remove the keys at ``frames``; every other key keeps its exact state (handles too).
+
+    Returns
+    -------
+    int
+        Keys removed.
+    """
+    frames = np.asarray(frames, dtype=np.float64)
+    points = fcurve.keyframe_points
+    if len(points) == 0 or len(frames) == 0:
+        return 0
+    at = _keyframe_state(points)["co"][:, 0].astype(np.float64)
+    doomed = np.nonzero(np.min(np.abs(at[:, None] - frames[None, :]), axis=1) < 1e-4)[0]
+    if len(doomed) == 0:
+        return 0
+    for index in doomed[::-1]:
+        points.remove(points[int(index)], fast=True)
+    kept = _keyframe_state(points)
+    fcurve.update()
+    for prop in ("handle_left", "handle_right"):
+        points.foreach_set(prop, kept[prop].reshape(-1))
+    return int(len(doomed))
+
+
+def update_keeping_handles(fcurve, kept):
+    """``fcurve.update()`` (sorts keys, computes the handles of new keys from their final
+    neighbours) and then give the keys in ``kept`` (a :func:`keyframe_state` taken earlier)
+    back their exact handles."""
+    points = fcurve.keyframe_points
+    fcurve.update()
+    if len(kept["co"]) == 0:
+        return
+    state = _keyframe_state(points)
+    positions = np.searchsorted(state["co"][:, 0], kept["co"][:, 0])
+    for prop in ("handle_left", "handle_right"):
+        array = state[prop]
+        array[positions] = kept[prop]
+        points.foreach_set(prop, array.reshape(-1))

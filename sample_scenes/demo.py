@@ -6,7 +6,13 @@ builds the envelope body, saves ``track_and_stride_demo.blend`` and renders
 ``walk_mid_stride.png`` (Workbench) for a person to look at. The gait step learns a model from
 eight CMU walks (Gait › Learn), observes the first 1.67 s of the held-out walk 35_08 and writes
 the prediction up to 4 s into a new action of that armature (Gait › Predict), and plots observed,
-predicted and captured angles of the left leg in ``gait_prediction.png``.
+predicted and captured angles of the left leg in ``gait_prediction.png``. The tracking step
+renders the synthetic walk footage (Workbench, known poses; cached under ``build/footage``),
+builds the scene ``Track Footage`` over it (the walk keyed every 20 frames, envelopes = the
+rendered body, the footage as a movie clip behind the camera), runs Track › Track Keyframes and
+Suggest Keyframes, and writes ``track_contact_sheet.png`` (every 5th frame: footage with the
+tracked body and bones over it) and ``track_confidence.png`` (residual, rank and the error
+against the ground truth per frame).
 
 Usage: ``python sample_scenes/demo.py --extension build/track_and_stride-<v>.zip --output build/demo``
 """
@@ -118,6 +124,149 @@ def plot_gait(path, frames, dofs, names, last, fps):
     plt.close(fig)
 
 
+TRACK_FRAMES, TRACK_STEP, SHEET_EVERY = 61, 20, 5
+
+
+def step_track_footage(bpy):
+    """Track the rendered walk in a scene of its own; returns what the pictures need."""
+    import importlib
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT))
+    from sample_scenes import track_scene
+    from sample_scenes.footage_scenes import ensure_footage, load_footage
+
+    folder = ensure_footage("walk", 640, 360, TRACK_FRAMES, python=sys.executable)
+    footage = load_footage(folder, color=True)
+    addon = "bl_ext.user_default.track_and_stride.addon."
+    track_bridge = importlib.import_module(addon + "track_bridge")
+    pose_bridge = importlib.import_module(addon + "pose_bridge")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.name = "Track Footage"
+    walker = track_scene.build_walk_scene(folder, step=TRACK_STEP, source="CLIP")
+    walker.name = "Tracked Walker"
+    bpy.ops.track_and_stride.show_envelopes()
+    request = track_bridge.prepare_tracking(bpy.context, scene.track_and_stride_track)
+    tic = time.perf_counter()
+    bpy.ops.track_and_stride.track_keyframes()
+    wall = time.perf_counter() - tic
+    bpy.ops.track_and_stride.suggest_keyframes()
+    frames = np.arange(1, TRACK_FRAMES + 1)
+    errors = track_scene.joint_errors(walker, footage, frames)
+    roots, local = pose_bridge.read_pose(request.rig, frames)
+    residual_frames, residuals = importlib.import_module(
+        addon + "track_keys").read_residuals(walker, 1, TRACK_FRAMES)
+    rank = track_scene.channelbag(walker).fcurves.find('["track_and_stride_rank"]')
+    keys = request.key_frames.tolist()
+    suggested = [m.frame for m in scene.timeline_markers if m.name.startswith("Key? ")]
+    interior = np.setdiff1d(frames, keys)
+    mpjpe = 100 * errors[interior - 1].mean()
+    print(f"demo: tracked {TRACK_FRAMES} frames (keys {keys}) in {wall:.1f} s through the "
+          f"operator; MPJPE {mpjpe:.2f} cm against the ground truth; suggested keys: "
+          f"{suggested or 'none'}")
+    return dict(footage=footage, problem=request.problem, roots=roots, local=local,
+                frames=frames, keys=keys, suggested=suggested, errors=errors,
+                residual_frames=residual_frames, residuals=residuals,
+                ranks=[rank.evaluate(float(f)) for f in residual_frames], mpjpe=mpjpe)
+
+
+def merge_scene(bpy, blend, source):
+    """Copy every scene of ``source`` (.blend) into ``blend`` and save it."""
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    with bpy.data.libraries.load(str(source), link=False) as (data_from, data_to):
+        data_to.scenes = list(data_from.scenes)
+    bpy.ops.wm.save_mainfile()
+    return [s.name for s in data_to.scenes]
+
+
+def _crop(tile, labels, margin=0.12, aspect=0.75):
+    """The part of ``tile`` around the silhouette (``margin`` of its height on each side,
+    width at least ``aspect`` x height)."""
+    import numpy as np
+
+    ys, xs = np.nonzero(labels >= 0)
+    if not len(ys):
+        return tile
+    h, w = labels.shape
+    ch = min(h, int((ys.max() - ys.min()) * (1 + 2 * margin)) + 1)
+    cw = min(w, max(int((xs.max() - xs.min()) * (1 + 2 * margin)) + 1, int(aspect * ch)))
+    cy = int(np.clip((ys.min() + ys.max()) // 2 - ch // 2, 0, h - ch))
+    cx = int(np.clip((xs.min() + xs.max()) // 2 - cw // 2, 0, w - cw))
+    return tile[cy:cy + ch, cx:cx + cw]
+
+
+def contact_sheet_png(path, track, every=SHEET_EVERY, columns=7):
+    """Every ``every``-th frame: footage, tracked body (tint + outlines) and bones, cropped
+    around the body."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from core.tracking.body_model import joint_frames_in_camera
+    from core.tracking.overlay import draw_overlay, draw_segments, silhouette_labels
+
+    problem, fp = track["problem"], track["footage"]
+    sk, cam = problem.skeleton, problem.camera
+    shown = list(range(1, TRACK_FRAMES + 1, every))
+    rows = -(-len(shown) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(2.0 * columns, 3.0 * rows))
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, frame in zip(axes.ravel(), shown):
+        k = frame - 1
+        labels = silhouette_labels(problem.body, cam, sk, track["roots"][k], track["local"][k])
+        tile = draw_overlay(fp.rgb[k], labels)
+        rot, org = joint_frames_in_camera(sk, cam.world2camera, track["roots"][k][None],
+                                          track["local"][k][None])
+        tails = org[0] + np.einsum("bij,bj->bi", rot[0], sk.tails)
+        bodied = np.unique(problem.body.joints)
+        tile = draw_segments(tile, cam.project(org[0, bodied]), cam.project(tails[bodied]),
+                             width=2)
+        ax.imshow(_crop(tile, labels))
+        what = "key" if frame in track["keys"] else (
+            "suggested" if frame in track["suggested"] else "")
+        ax.set_title(f"{frame} {what}\n{100 * track['errors'][k]:.1f} cm", fontsize=8,
+                     color="tab:orange" if what == "suggested" else "k")
+    fig.suptitle("Track Keyframes on the rendered walk (keys every 20 frames): tracked body "
+                 "(orange, outlined) and bones (cyan) over the footage;\nframe number and mean "
+                 "joint error against the ground truth", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def confidence_png(path, track):
+    """Residual and rank curves (as in the Graph Editor) against the true per-frame error."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
+    axes[0].plot(track["residual_frames"], track["residuals"], color="tab:red")
+    axes[0].set_ylabel("eq. 4 residual")
+    axes[1].step(track["residual_frames"], track["ranks"], where="mid", color="tab:blue")
+    axes[1].set_ylabel("rank of A")
+    axes[2].plot(track["frames"], 100 * np.asarray(track["errors"]), color="k")
+    axes[2].set_ylabel("joint error (cm)")
+    axes[2].set_xlabel("frame")
+    for ax in axes:
+        for key in track["keys"]:
+            ax.axvline(key, color="0.6", lw=0.8)
+        for frame in track["suggested"]:
+            ax.axvline(frame, color="tab:orange", lw=1.2, ls="--")
+    axes[0].set_title("Confidence curves written by Track Keyframes (grey: keyframes, dashed: "
+                      "suggested keys)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def frame_camera_on(bpy, walker, frame):
     """Side view of the walker at `frame`, perpendicular to its direction of travel."""
     import numpy as np
@@ -184,8 +333,19 @@ def main():
     plot_gait(gait_png, *step_gait_prediction(bpy))
     blend = output / "track_and_stride_demo.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-    print(f"demo: wrote {blend.relative_to(ROOT) if blend.is_relative_to(ROOT) else blend}")
-    for written in (png, gait_png):
+    # Tracking in a file of its own (a scene needs a window to be evaluated headless), then
+    # its scene goes into the demo file.
+    track = step_track_footage(bpy)
+    sheet_png, confidence = output / "track_contact_sheet.png", output / "track_confidence.png"
+    contact_sheet_png(sheet_png, track)
+    confidence_png(confidence, track)
+    track_blend = output / "track_footage.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(track_blend))
+    scenes = merge_scene(bpy, blend, track_blend)
+    track_blend.unlink()
+    print(f"demo: wrote {blend.relative_to(ROOT) if blend.is_relative_to(ROOT) else blend}"
+          f" (scenes: the imported walk and gait prediction; {', '.join(scenes)})")
+    for written in (png, gait_png, sheet_png, confidence):
         print(f"demo: wrote {written.relative_to(ROOT) if written.is_relative_to(ROOT) else written}")
     print(f"demo: done in {time.perf_counter() - t0:.1f} s")
     return 0

@@ -7,7 +7,8 @@ Modules: ``camera`` (pinhole + Blender contract), ``body_model`` (tapered cylind
 casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), ``jacobians``
 (eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10, coarse-to-fine), ``drift`` (eqs. 11-24),
 ``trajectory`` (the §2.2 loop), ``parallel`` (several intervals), ``presets`` (Table 1),
-``problem`` (inputs and options).
+``problem`` (inputs and options), ``suggest`` (where one more keyframe pays off), ``overlay``
+(the body model drawn over frames, contact sheets).
 """
 
 from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
@@ -21,20 +22,23 @@ from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_betwe
 from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_decompositions,
                      solve_with_prediction)
 from .parallel import SequenceResult, track_keyframes
-from .presets import CMU_PARTS, TABLE1, table1_dof_mask
-from .problem import TrackingError, TrackingOptions, TrackingProblem
+from .presets import CMU_PARTS, RIG_PARTS, TABLE1, find_table1_parts, table1_dof_mask
+from .problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
+from .suggest import KeySuggestion, robust_z_scores, suggest_keyframes
 from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_error,
                          track_accumulated, track_interval)
 
 __all__ = [
-    "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "MotionLayout", "PinholeCamera",
-    "Pose", "RayHits", "SequenceResult", "SilhouetteSamples", "TABLE1", "TrackingError",
-    "TrackingOptions", "TrackingProblem", "apply_motion", "bilinear", "body_model_from_skeleton",
-    "camera_from_blender", "central_derivatives", "correct_root_positions", "estimate_motions",
+    "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
+    "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
+    "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
+    "apply_motion", "bilinear", "body_model_from_skeleton", "camera_from_blender",
+    "central_derivatives", "correct_root_positions", "estimate_motions", "find_table1_parts",
     "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
     "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
-    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition", "rank_decompositions", "ray_cast",
-    "sample_silhouette", "sample_with_gradient", "solve_with_prediction", "table1_dof_mask",
+    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition",
+    "rank_decompositions", "ray_cast", "robust_z_scores", "sample_silhouette",
+    "sample_with_gradient", "solve_with_prediction", "suggest_keyframes", "table1_dof_mask",
     "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
     "world2camera_from_blender",
 ]

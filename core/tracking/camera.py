@@ -13,24 +13,30 @@ The paper's centred image coordinates are ``X = u - cx = fx x / z`` and ``Y = v 
 Blender contract (:func:`camera_from_blender`)
 ----------------------------------------------
 A Blender camera looks down its local -Z with +Y up. With ``camera2world_blender`` its
-``matrix_world`` (4x4, scale 1)::
+``matrix_world`` (4x4; Blender ignores the object's scale, so it is removed)::
 
     world2camera = diag(1, -1, -1, 1) @ inverse(camera2world_blender)
 
-Intrinsics from the camera data and the render settings (perspective cameras, pixel aspect 1,
-any resolution percentage already applied to ``width`` and ``height``). Blender fits the sensor
-to one image side: ``sensor_fit='HORIZONTAL'`` uses ``sensor_width`` across the width,
-``'VERTICAL'`` uses ``sensor_height`` across the height, ``'AUTO'`` uses ``sensor_width``
-across the **larger** side. With ``side`` that fitted side in pixels and ``sensor`` the
-sensor size used (mm)::
+Intrinsics from the camera data and the render settings (perspective cameras; ``width`` and
+``height`` after the resolution percentage; pixel aspect ``ax = pixel_aspect_x``,
+``ay = pixel_aspect_y``, so a pixel is ``ax / ay`` times as wide as it is tall). Blender fits
+the sensor to one side of the *displayed* frame (``width * ax`` by ``height * ay``):
+``sensor_fit='HORIZONTAL'`` uses ``sensor_width`` across the width, ``'VERTICAL'`` uses
+``sensor_height`` across the height, ``'AUTO'`` uses ``sensor_width`` across the **larger**
+displayed side. With ``sensor`` the sensor size used (mm), ``a = ay / ax`` and ``side`` the
+fitted side in horizontal-pixel units (``width`` when fitted horizontally, ``a * height``
+vertically)::
 
-    fx = fy = lens * side / sensor
+    fx = lens * side / sensor,            fy = fx / a
     cx = (width - 1) / 2 - shift_x * side
-    cy = (height - 1) / 2 + shift_y * side
+    cy = (height - 1) / 2 + shift_y * side / a
 
 (Blender's shift is in units of the fitted side; +shift_y moves the view up, i.e. the image
-content down in the picture, hence the sign flip with v pointing down.) These formulas are
-checked against rendered footage in ``tests/footage/test_tracking_camera_contract.py``.
+content down in the picture, hence the sign flip with v pointing down.) With square pixels
+(``a = 1``) this is ``fx = fy = lens * side / sensor``. These formulas are checked against
+rendered footage in ``tests/footage/test_tracking_camera_contract.py`` and against Blender's
+``world_to_camera_view`` (non-square pixels, every sensor fit) in
+``tests/blender/test_camera_bridge.py``.
 
 Image pyramids: level ``L`` halves the resolution ``L`` times with 2x2-aligned pixels (level-L
 pixel ``i`` covers level-0 pixels ``2^L i .. 2^L (i+1) - 1``), so a point at ``u0`` on level 0 is
@@ -167,11 +173,21 @@ def world2camera_from_blender(camera2world_blender):
 
     ``world2camera = diag(1, -1, -1, 1) @ inverse(matrix_world)``; any scale in
     ``matrix_world`` is removed first (Blender ignores camera object scale when rendering).
+
+    Raises
+    ------
+    ValueError
+        Not a 4x4 matrix, or a degenerate / mirrored (negative scale) transform.
     """
     m = np.asarray(camera2world_blender, dtype=float)
     if m.shape != (4, 4):
         raise ValueError(f"Expected shape (4, 4), got {m.shape}")
-    rot = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+    norms = np.linalg.norm(m[:3, :3], axis=0)
+    if not np.all(np.isfinite(m)) or np.any(norms < 1e-12):
+        raise ValueError("camera matrix_world is degenerate (zero scale or non-finite)")
+    rot = m[:3, :3] / norms
+    if np.abs(rot.T @ rot - np.eye(3)).max() > 1e-6 or np.linalg.det(rot) <= 0:
+        raise ValueError("camera matrix_world is sheared or mirrored (negative scale)")
     out = np.eye(4)
     out[:3, :3] = BLENDER_TO_CV @ rot.T
     out[:3, 3] = -BLENDER_TO_CV @ rot.T @ m[:3, 3]
@@ -179,8 +195,12 @@ def world2camera_from_blender(camera2world_blender):
 
 
 def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, shift_y,
-                        width, height, camera2world_blender):
+                        width, height, camera2world_blender, pixel_aspect_x=1.0,
+                        pixel_aspect_y=1.0):
     """Tracker camera of a Blender perspective camera (see the module docstring).
+
+    The one implementation of Blender's camera maths in the project: the add-on
+    (``addon/camera_bridge.py``) only reads these values from Blender.
 
     Parameters
     ----------
@@ -195,14 +215,18 @@ def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, 
         Rendered image size in pixels (``resolution_x/y * resolution_percentage / 100``).
     camera2world_blender : array_like, shape (4, 4)
         ``camera_object.matrix_world``.
+    pixel_aspect_x, pixel_aspect_y : float
+        ``scene.render.pixel_aspect_x`` / ``pixel_aspect_y`` (1 = square pixels).
 
     Returns
     -------
     PinholeCamera
     """
     width, height = int(width), int(height)
+    if not (pixel_aspect_x > 0 and pixel_aspect_y > 0):
+        raise ValueError(f"pixel aspect must be positive, got {pixel_aspect_x} x {pixel_aspect_y}")
     if sensor_fit == "AUTO":
-        horizontal = width >= height
+        horizontal = width * pixel_aspect_x >= height * pixel_aspect_y
         sensor = sensor_width
     elif sensor_fit == "HORIZONTAL":
         horizontal, sensor = True, sensor_width
@@ -212,8 +236,10 @@ def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, 
         raise ValueError(f"sensor_fit must be 'AUTO', 'HORIZONTAL' or 'VERTICAL', got {sensor_fit!r}")
     if not (lens > 0 and sensor > 0):
         raise ValueError(f"lens and sensor size must be positive, got {lens} and {sensor}")
-    side = width if horizontal else height
-    f = lens * side / sensor
-    return PinholeCamera(fx=f, fy=f, cx=(width - 1) / 2.0 - shift_x * side,
-                         cy=(height - 1) / 2.0 + shift_y * side, width=width, height=height,
+    # a: pixel height over pixel width; sides measured in horizontal-pixel units.
+    a = float(pixel_aspect_y) / float(pixel_aspect_x)
+    side = width if horizontal else a * height
+    fx = lens * side / sensor
+    return PinholeCamera(fx=fx, fy=fx / a, cx=(width - 1) / 2.0 - shift_x * side,
+                         cy=(height - 1) / 2.0 + shift_y * side / a, width=width, height=height,
                          world2camera=world2camera_from_blender(camera2world_blender))

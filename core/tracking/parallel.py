@@ -6,22 +6,80 @@ process pool; the frames are shared with the workers through one shared-memory b
 per interval), and every worker runs exactly the serial code on exactly the same data, so the
 results are bit-identical (checked in ``tests/core/test_tracking_parallel.py``).
 
-Blender note: worker processes are started with the ``'spawn'`` method (a fresh interpreter that
-imports this package by its module name). Inside Blender, ``sys.executable`` is Blender's bundled
-Python; the add-on must keep the package importable (it is, as ``bl_ext.<repo>.<id>``).
+Worker processes and Blender
+----------------------------
+With ``processes=p > 1``, this process (in a thread, so the caller stays free to report
+progress) and ``p - 1`` child processes take intervals from one list, longest first. The
+children are plain child interpreters (``sys.executable``: the venv's Python, or Blender's
+bundled Python inside Blender) started with :mod:`subprocess`, talking to this process through
+their stdin/stdout (length-prefixed pickles). Two things rule out :mod:`multiprocessing`'s
+``spawn`` here: a spawned child re-runs the parent's ``__main__`` script (a user's
+``blender -b -P script.py`` would run again in every worker), and it unpickles its target by
+module name before any set-up code can run. Inside Blender the core is the subpackage
+``bl_ext.<repo>.track_and_stride.core`` of an installed extension; ``bl_ext`` is a package that
+Blender creates at start-up, and the extension's own ``__init__`` imports ``bpy`` -- a child
+interpreter can import neither. So a worker starts with a small bootstrap (:data:`_BOOTSTRAP`,
+standard library only): it takes the parent's ``sys.path``, registers empty stand-ins for the
+parent packages of the core (``bl_ext``, ``bl_ext.<repo>``, ``bl_ext.<repo>.track_and_stride``;
+their ``__path__`` is the matching folder), imports the core by its full name -- the core only
+uses relative imports inside itself, so no ``bpy`` and no add-on code runs -- and only then
+unpickles the work. With the core imported as a top-level ``core`` (tests, benchmarks) there is
+nothing to stand in for. The frames go to the workers as one temporary ``.npy`` file, memory
+mapped by each (no copy per interval). A worker whose parent dies sees its stdin close and
+exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and its copy
+of the frames.
+
+Progress and cancelling
+-----------------------
+``progress(fraction)`` is called in the calling thread with the done share of the whole job
+(intervals weighted by their frame count), after the pyramid, the seed and every loop iteration
+of an interval (workers report them as messages). ``cancel`` (any object with ``is_set()``,
+e.g. a ``threading.Event``) stops the job: in this process at the next progress step, child
+processes at once (they are killed); the call then raises :class:`~.problem.TrackingCancelled`.
 """
 
-import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+import pickle
+import queue as queue_module
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import traceback
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from .problem import TrackingError, TrackingOptions
+from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, track_interval
 
-_WORKER = {}
+#: Full module name of the core package this module belongs to ('core', or
+#: 'bl_ext.<repo>.track_and_stride.core' inside Blender) and its folder.
+CORE_PACKAGE = __name__.rsplit(".", 2)[0]
+CORE_DIR = Path(__file__).resolve().parent.parent
+
+# The worker's first code (argv: core package name, core folder). Standard library only:
+# nothing of the core is importable before it has run.
+_BOOTSTRAP = r"""
+import importlib, pathlib, pickle, struct, sys, types
+channel_in, channel_out = sys.stdin.buffer, sys.stdout.buffer
+sys.stdout = sys.stderr                       # stray prints must not corrupt the channel
+head = channel_in.read(8)
+path = pickle.loads(channel_in.read(struct.unpack("<Q", head)[0]))
+sys.path.extend(p for p in path if p not in sys.path)
+core_name, folder = sys.argv[1], pathlib.Path(sys.argv[2])
+parts = core_name.split(".")
+for k in range(1, len(parts)):
+    name = ".".join(parts[:k])
+    module = types.ModuleType(name)
+    module.__path__ = [str(folder.parents[len(parts) - 1 - k])]
+    sys.modules[name] = module
+    if k > 1:
+        setattr(sys.modules[".".join(parts[:k - 1])], parts[k - 1], module)
+importlib.import_module(core_name + ".tracking.parallel").serve(channel_in, channel_out)
+"""
 
 
 @dataclass(eq=False)
@@ -70,29 +128,14 @@ def _check_keys(problem, frames, key_frames, key_roots, key_locals):
     return frames, keys, roots, local
 
 
-def _interval(problem, options, frames, keys, roots, local, i):
+def _interval(problem, options, frames, keys, roots, local, i, progress=None):
     a, b = keys[i], keys[i + 1]
     return track_interval(problem, frames[a:b + 1], Pose(roots[i], local[i]),
-                          Pose(roots[i + 1], local[i + 1]), options)
-
-
-def _init_worker(shm_name, shape, dtype, problem, options, keys, roots, local):
-    from multiprocessing import shared_memory
-
-    # Spawned workers share the parent's resource tracker, which already knows the block; the
-    # parent unlinks it when the pool is done.
-    shm = shared_memory.SharedMemory(name=shm_name)
-    _WORKER.update(shm=shm, frames=np.ndarray(shape, dtype=dtype, buffer=shm.buf),
-                   args=(problem, options, keys, roots, local))
-
-
-def _run_in_worker(i):
-    problem, options, keys, roots, local = _WORKER["args"]
-    return _interval(problem, options, _WORKER["frames"], keys, roots, local, i)
+                          Pose(roots[i + 1], local[i + 1]), options, progress=progress)
 
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
-                    processes=None):
+                    processes=None, progress=None, cancel=None):
     """Track every interval between consecutive keyframes.
 
     Parameters
@@ -106,42 +149,214 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     key_locals : array_like, shape (K, B, 3, 3)
     options : TrackingOptions, optional
     processes : int, optional
-        Worker processes; ``None`` = one per CPU (at most one per interval), ``1`` = serial
-        in this process.
+        Processes working on intervals: ``None`` = one per CPU (at most one per interval),
+        ``1`` = serial in this process. With ``p > 1``, this process (in a thread) and
+        ``p - 1`` child processes share the intervals.
+    progress : callable, optional
+        ``progress(fraction)``: done share of the job in [0, 1] (see the module docstring).
+    cancel : object with ``is_set()``, optional
+        Set it (from another thread) to stop; the call then raises ``TrackingCancelled``.
 
     Returns
     -------
     SequenceResult
+
+    Raises
+    ------
+    TrackingError
+        Invalid inputs, or a worker process that died.
+    TrackingCancelled
+        ``cancel`` was set.
     """
     options = options or TrackingOptions()
     frames, keys, roots, local = _check_keys(problem, frames, key_frames, key_roots, key_locals)
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
+    weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])
+    report = progress if progress is not None else (lambda fraction: None)
+
+    def stop_requested():
+        return cancel is not None and cancel.is_set()
+
     if workers <= 1:
-        results = [_interval(problem, options, frames, keys, roots, local, i) for i in range(n_int)]
+        results = []
+        for i in range(n_int):
+            done = float(weights[:i].sum())
+
+            def hook(fraction, done=done, weight=weights[i]):
+                if stop_requested():
+                    raise TrackingCancelled("tracking cancelled")
+                report(min(1.0, done + weight * fraction))
+
+            results.append(_interval(problem, options, frames, keys, roots, local, i, hook))
     else:
-        results = _run_pool(problem, options, frames, keys, roots, local, workers)
+        results = _run_pool((problem, options, keys, roots, local), frames, workers, weights,
+                            report, stop_requested)
     return _assemble(keys, results)
 
 
-def _run_pool(problem, options, frames, keys, roots, local, workers):
-    from multiprocessing import shared_memory
+# -- worker processes --------------------------------------------------------------------------
 
-    data = np.ascontiguousarray(frames)
-    shm = shared_memory.SharedMemory(create=True, size=max(data.nbytes, 1))
-    try:
-        np.ndarray(data.shape, dtype=data.dtype, buffer=shm.buf)[...] = data
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                                 initargs=(shm.name, data.shape, data.dtype.str, problem, options,
-                                           keys, roots, local)) as pool:
-            # Longest intervals first: better load balance.
-            order = sorted(range(len(keys) - 1), key=lambda i: keys[i] - keys[i + 1])
-            futures = {i: pool.submit(_run_in_worker, i) for i in order}
-            return [futures[i].result() for i in range(len(keys) - 1)]
-    finally:
-        shm.close()
-        shm.unlink()
+def _send(stream, message):
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(struct.pack("<Q", len(data)) + data)
+    stream.flush()
+
+
+def _receive(stream):
+    """The next message, or ``None`` at the end of the stream."""
+    head = stream.read(8)
+    if len(head) < 8:
+        return None
+    size = struct.unpack("<Q", head)[0]
+    data = stream.read(size)
+    if len(data) < size:
+        return None
+    return pickle.loads(data)
+
+
+def serve(channel_in, channel_out):
+    """Worker main loop: set-up message, then interval indices until ``'stop'`` or EOF.
+
+    Sends ``('progress', i, fraction)``, ``('result', i, IntervalResult)`` or
+    ``('error', i, exception, traceback text)`` for each interval.
+    """
+    setup = _receive(channel_in)
+    if setup is None:
+        return
+    frames_path, (problem, options, keys, roots, local) = setup
+    frames = np.load(frames_path, mmap_mode="r")
+    while True:
+        i = _receive(channel_in)
+        if i is None or i == "stop":
+            return
+        try:
+            result = _interval(problem, options, frames, keys, roots, local, i,
+                               lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)))
+        except Exception as exc:  # reported to the parent, which re-raises it
+            try:
+                pickle.dumps(exc)
+            except Exception:
+                exc = RuntimeError(f"{type(exc).__name__}: {exc}")
+            _send(channel_out, ("error", i, exc, traceback.format_exc()))
+        else:
+            _send(channel_out, ("result", i, result))
+
+
+def _reader(k, stream, inbox):
+    """Forward worker ``k``'s messages into ``inbox``; ``(k, None)`` when its stream ends."""
+    while True:
+        message = _receive(stream)
+        inbox.put((k, message))
+        if message is None:
+            return
+
+
+#: Workers run one BLAS thread each: the processes are the parallelism (no oversubscription).
+_WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _start_worker():
+    proc = subprocess.Popen([sys.executable, "-c", _BOOTSTRAP, CORE_PACKAGE, str(CORE_DIR)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            env={**os.environ, **_WORKER_ENV})
+    _send(proc.stdin, list(sys.path))
+    return proc
+
+
+def _local_worker(work, frames, todo, lock, inbox, stop):
+    """The calling process's share: a thread taking intervals from ``todo`` like a worker."""
+    problem, options, keys, roots, local = work
+    while not stop.is_set():
+        with lock:
+            if not todo:
+                return
+            i = todo.pop(0)
+
+        def hook(fraction, i=i):
+            if stop.is_set():
+                raise TrackingCancelled("tracking cancelled")
+            inbox.put((-1, ("progress", i, fraction)))
+
+        try:
+            result = _interval(problem, options, frames, keys, roots, local, i, hook)
+        except TrackingCancelled:
+            return
+        except Exception as exc:  # reported to the caller's loop, which re-raises it
+            inbox.put((-1, ("error", i, exc, traceback.format_exc())))
+            return
+        inbox.put((-1, ("result", i, result)))
+
+
+def _run_pool(work, frames, workers, weights, report, stop_requested):
+    """Intervals over ``workers`` processes: this one (a thread) and ``workers - 1`` children.
+
+    Idle workers take the next interval, longest first. The calling thread only collects
+    messages, reports progress and watches ``stop_requested``.
+    """
+    n_int = len(weights)
+    keys = work[2]
+    todo = sorted(range(n_int), key=lambda i: keys[i] - keys[i + 1])
+    lock, stop = threading.Lock(), threading.Event()
+    results, fractions = [None] * n_int, np.zeros(n_int)
+    inbox = queue_module.Queue()
+    local = threading.Thread(target=_local_worker, args=(work, frames, todo, lock, inbox, stop),
+                             name="track_keyframes local worker", daemon=True)
+
+    def next_task():
+        with lock:
+            return todo.pop(0) if todo else None
+
+    with tempfile.TemporaryDirectory(prefix="ts-track-") as folder:
+        frames_path = os.path.join(folder, "frames.npy")
+        np.save(frames_path, np.ascontiguousarray(frames))
+        procs, stopped = [], set()
+        try:
+            local.start()
+            for k in range(workers - 1):
+                proc = _start_worker()
+                procs.append(proc)
+                threading.Thread(target=_reader, args=(k, proc.stdout, inbox), daemon=True).start()
+                _send(proc.stdin, (frames_path, work))
+                task = next_task()
+                _send(proc.stdin, "stop" if task is None else task)
+                if task is None:
+                    stopped.add(k)
+            while any(r is None for r in results):
+                try:
+                    k, message = inbox.get(timeout=0.05)
+                except queue_module.Empty:
+                    message = ()
+                if stop_requested():
+                    raise TrackingCancelled("tracking cancelled")
+                if message is None and k in stopped:
+                    continue
+                if message is None:
+                    code = procs[k].wait()
+                    raise TrackingError(f"tracking worker process {k} exited unexpectedly "
+                                        f"(exit code {code})")
+                if message and message[0] == "progress":
+                    fractions[message[1]] = max(fractions[message[1]], message[2])
+                elif message and message[0] == "error":
+                    raise message[2]
+                elif message:
+                    results[message[1]], fractions[message[1]] = message[2], 1.0
+                    if k >= 0:
+                        task = next_task()
+                        _send(procs[k].stdin, "stop" if task is None else task)
+                        if task is None:
+                            stopped.add(k)
+                report(float(np.dot(weights, fractions)))
+        finally:
+            stop.set()
+            for proc in procs:
+                if proc.poll() is None:
+                    proc.kill()
+                proc.wait()
+                proc.stdin.close()
+                proc.stdout.close()
+            local.join()
+    return results
 
 
 def _assemble(keys, results):

@@ -16,7 +16,21 @@ upper arm (L/R) 2    swing                                                      
 forearm (L/R)  1     hinge                                                         l/rradius
 ============== ===== ============================================================ ===========
 
-Total 23. "Across the bone" uses the bone direction ``skeleton.tails[j]`` in the joint frame
+Total 23. Bone names of common humanoid rigs (:data:`RIG_PARTS`, :func:`find_table1_parts`):
+
+============== ========= ============== ===================== ============================
+part           CMU ASF   CMU BVH        Mixamo (mixamorig:)   Blender human metarig
+============== ========= ============== ===================== ============================
+Waist          root      Hips           Hips                  spine
+Chest          lowerback LowerBack      Spine                 spine.001
+Head           head      Head           Head                  spine.006
+thigh          l/rfemur  Left/RightUpLeg Left/RightUpLeg      thigh.L / thigh.R
+shin           l/rtibia  Left/RightLeg  Left/RightLeg         shin.L / shin.R
+upper arm      l/rhumerus Left/RightArm Left/RightArm         upper_arm.L / upper_arm.R
+forearm        l/rradius Left/RightForeArm Left/RightForeArm  forearm.L / forearm.R
+============== ========= ============== ===================== ============================
+
+"Across the bone" uses the bone direction ``skeleton.tails[j]`` in the joint frame
 (CMU limbs and Blender bones lie along their joint's Y axis, so swing = X and Z, hinge = X,
 turn = Y). Every other joint (upper back, thorax, neck, clavicles, hips, hands, feet, toes ...)
 gets no DOF: it moves rigidly with its parent, and its keyed rotation is interpolated. A mask
@@ -47,6 +61,68 @@ CMU_PARTS = {
     "Left upper arm": "lhumerus", "Right upper arm": "rhumerus",
     "Left forearm": "lradius", "Right forearm": "rradius",
 }
+
+
+def _humanoid(waist, chest, head, thigh, shin, upper_arm, forearm):
+    """Table 1 parts of a rig; the limb arguments are (left, right) bone names."""
+    out = {"Waist": waist, "Chest": chest, "Head": head}
+    for part, (left, right) in (("thigh", thigh), ("shin", shin), ("upper arm", upper_arm),
+                                ("forearm", forearm)):
+        out[f"Left {part}"], out[f"Right {part}"] = left, right
+    return out
+
+
+#: Table 1 parts on the bone names of common humanoid rigs (see the module docstring).
+RIG_PARTS = {
+    "CMU (Acclaim)": CMU_PARTS,
+    "CMU (BVH)": _humanoid("Hips", "LowerBack", "Head", ("LeftUpLeg", "RightUpLeg"),
+                           ("LeftLeg", "RightLeg"), ("LeftArm", "RightArm"),
+                           ("LeftForeArm", "RightForeArm")),
+    "Mixamo": _humanoid("mixamorig:Hips", "mixamorig:Spine", "mixamorig:Head",
+                        ("mixamorig:LeftUpLeg", "mixamorig:RightUpLeg"),
+                        ("mixamorig:LeftLeg", "mixamorig:RightLeg"),
+                        ("mixamorig:LeftArm", "mixamorig:RightArm"),
+                        ("mixamorig:LeftForeArm", "mixamorig:RightForeArm")),
+    "Blender metarig": _humanoid("spine", "spine.001", "spine.006", ("thigh.L", "thigh.R"),
+                                 ("shin.L", "shin.R"), ("upper_arm.L", "upper_arm.R"),
+                                 ("forearm.L", "forearm.R")),
+}
+
+#: A rig must name at least this many Table 1 parts (including the Waist) to be recognised.
+MIN_TABLE1_PARTS = 7
+
+
+def find_table1_parts(bone_names):
+    """The :data:`RIG_PARTS` mapping that fits a rig's bone names best.
+
+    Parameters
+    ----------
+    bone_names : iterable of str
+
+    Returns
+    -------
+    rig : str
+        The preset's name (a key of :data:`RIG_PARTS`).
+    parts : dict
+        Table 1 part -> bone name, ``None`` for the parts the rig lacks (they are skipped).
+
+    Raises
+    ------
+    ValueError
+        No preset names the Waist and at least :data:`MIN_TABLE1_PARTS` parts of the rig; the
+        message lists what the closest preset misses.
+    """
+    names = set(bone_names)
+    best = max(RIG_PARTS, key=lambda rig: (RIG_PARTS[rig]["Waist"] in names,
+                                          sum(b in names for b in RIG_PARTS[rig].values())))
+    preset = RIG_PARTS[best]
+    found = {part: (bone if bone in names else None) for part, bone in preset.items()}
+    n_found = sum(b is not None for b in found.values())
+    if found["Waist"] is None or n_found < MIN_TABLE1_PARTS:
+        missing = [bone for bone in preset.values() if bone not in names]
+        raise ValueError(f"not a humanoid rig the Table 1 preset knows (CMU, CMU BVH, Mixamo, "
+                         f"Blender metarig); closest: {best}, missing {', '.join(missing)}")
+    return best, found
 
 
 def _axes_for_role(skeleton, j, role):

@@ -14,6 +14,10 @@ class TrackingError(ValueError):
     """Invalid tracking input (shapes, poses, frames); the operator reports it."""
 
 
+class TrackingCancelled(Exception):
+    """Tracking was stopped on request (``track_keyframes(cancel=...)``); nothing is returned."""
+
+
 @dataclass(frozen=True, eq=False)
 class TrackingProblem:
     """Skeleton, body shapes, camera and the estimated degrees of freedom.

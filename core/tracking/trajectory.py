@@ -333,8 +333,12 @@ class _Trajectory:
                                          *self.cam, options.candidate_budget)
 
 
+#: Share of an interval's work done after the pyramid and after the seed (progress reports).
+_PROGRESS_PYRAMID, _PROGRESS_SEED = 0.05, 0.35
+
+
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
-                   initial=None):
+                   initial=None, progress=None):
     """Track one interval between two keyed poses (the whole of §2.2-§3).
 
     Parameters
@@ -353,15 +357,22 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     initial : tuple (roots (n + 1, 3), local (n + 1, B, 3, 3)), optional
         Initial trajectory instead of the interpolation (e.g. existing animation); its end
         frames are replaced by the keys.
+    progress : callable, optional
+        ``progress(fraction)`` with the share of this interval's work done, in [0, 1], after the
+        pyramid, the seed and every loop iteration (an estimate: the loop may stop before
+        ``max_iterations``, and the last call says 1). An exception it raises (e.g.
+        :class:`~.problem.TrackingCancelled`) stops the interval and propagates.
 
     Returns
     -------
     IntervalResult
     """
     options = options or TrackingOptions()
+    report = progress if progress is not None else (lambda fraction: None)
     sk = problem.skeleton
     tic = time.perf_counter()
     start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    report(_PROGRESS_PYRAMID)
     finest, top = levels
     n = len(pyramid[0]) - 1
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
@@ -408,8 +419,13 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
             traj = seed
         else:
             timings["seed_rejected"] = problem_found
+    report(_PROGRESS_SEED)
     image_pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
-    for iteration in range(len(errors), len(errors) + options.max_iterations):
+    first_iteration = len(errors)
+    for iteration in range(first_iteration, first_iteration + options.max_iterations):
+        if iteration > first_iteration:
+            report(_PROGRESS_SEED + (1.0 - _PROGRESS_SEED) * (iteration - first_iteration)
+                   / options.max_iterations)
         tic = time.perf_counter()
         pred = motion_between(sk, traj.roots[:-1], traj.local[:-1], traj.roots[1:], traj.local[1:])
         cam = traj.cam
@@ -466,6 +482,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         kept = {0: "interpolation", seed_index: "tracked seed"}.get(
             best["iteration"], f"iteration {best['iteration']}")
         reason = f"diverged: {reason}; kept {kept}"
+    report(1.0)
     return IntervalResult(root_translations=best["traj"].roots,
                           local_rotations=best["traj"].local, residuals=best["residuals"],
                           ranks=best["ranks"], n_samples=best["n_samples"],

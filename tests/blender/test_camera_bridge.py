@@ -1,4 +1,5 @@
-"""Blender camera -> pinhole: against Blender's own world_to_camera_view and a Workbench render."""
+"""Blender camera -> pinhole (values read by addon.camera_bridge, maths in
+core.tracking.camera): against Blender's own world_to_camera_view and a Workbench render."""
 
 import importlib
 
@@ -47,7 +48,8 @@ def test_projection_matches_world_to_camera_view(camera_bridge, case):
     pinhole = camera_bridge.pinhole_from_blender(scene)
     rng = np.random.default_rng(0)
     points = rng.uniform([-2, -1, 0], [2, 2, 2], (50, 3))
-    pixels, depth = pinhole.project(points)
+    in_camera = pinhole.world_to_camera(points)
+    pixels, depth = pinhole.project(in_camera), in_camera[:, 2]
     for p, (u, v), z in zip(points, pixels, depth):
         ndc = world_to_camera_view(scene, cam, Vector(p))
         # Blender: ndc (0, 0) = bottom-left image corner, (1, 1) = top-right; our pixel centres.
@@ -90,7 +92,7 @@ def test_rendered_marker_lands_on_projected_pixel(camera_bridge, tmp_path):
     weights = gray[ys, xs]
     observed = np.array([np.sum(xs * weights), np.sum(ys * weights)]) / weights.sum()
     pinhole = camera_bridge.pinhole_from_blender(scene)
-    projected = pinhole.project(centre[None])[0][0]
+    projected = pinhole.project(pinhole.world_to_camera(centre[None]))[0]
     assert len(xs) > 100
     np.testing.assert_allclose(observed, projected, atol=0.25)
 
@@ -104,7 +106,23 @@ def test_unusable_cameras_are_reported(camera_bridge):
     with pytest.raises(camera_bridge.CameraError, match="perspective"):
         camera_bridge.pinhole_from_blender(scene)
     cam.data.type = "PERSP"
-    cam.scale = (2, 2, 2)
+    cam.scale = (1, -1, 1)
     bpy.context.view_layer.update()
-    with pytest.raises(camera_bridge.CameraError, match="scaled"):
+    with pytest.raises(camera_bridge.CameraError, match="mirrored"):
         camera_bridge.pinhole_from_blender(scene)
+
+
+def test_camera_scale_is_ignored_like_blender_does(camera_bridge):
+    """Blender renders a scaled camera as if unscaled; so does the tracker."""
+    scene = bpy.context.scene
+    cam = add_camera(scene, shift=(0.05, 0.02))
+    plain = camera_bridge.pinhole_from_blender(scene)
+    cam.scale = (2.0, 0.5, 3.0)
+    bpy.context.view_layer.update()
+    scaled = camera_bridge.pinhole_from_blender(scene)
+    np.testing.assert_allclose(scaled.world2camera, plain.world2camera, atol=1e-6)
+    point = Vector((0.3, 0.8, 1.1))
+    ndc = world_to_camera_view(scene, cam, point)
+    uv = scaled.project(scaled.world_to_camera(np.array(point)[None]))[0]
+    assert uv[0] == pytest.approx(ndc.x * scaled.width - 0.5, abs=2e-3)
+    assert uv[1] == pytest.approx((1.0 - ndc.y) * scaled.height - 0.5, abs=2e-3)

@@ -71,6 +71,32 @@ def test_blender_intrinsics(fit, width, height, side, sensor):
     assert cam.cy == pytest.approx((height - 1) / 2 - 0.05 * side)
 
 
+@pytest.mark.parametrize("fit,aspect,horizontal", [
+    ("AUTO", (1.0, 1.125), True), ("AUTO", (2.0, 1.0), True), ("AUTO", (1.0, 2.0), False),
+    ("HORIZONTAL", (1.5, 1.0), True), ("VERTICAL", (1.0, 1.5), False)])
+def test_non_square_pixels(fit, aspect, horizontal):
+    """A pixel aspect stretches one focal length: the displayed frame (width * ax by
+    height * ay) is a pinhole picture with square display units."""
+    width, height = 720, 576
+    ax, ay = aspect
+    cam = camera_from_blender(35.0, 36.0, 24.0, fit, 0.05, -0.08, width, height, np.eye(4),
+                              ax, ay)
+    # Displayed frame in units of ax: width x (height * ay / ax), square units (the cases keep
+    # height * a a whole number of pixels).
+    a = ay / ax
+    assert float(height * a).is_integer()
+    square = camera_from_blender(35.0, 36.0, 24.0, fit, 0.05, -0.08, width, height * a,
+                                 np.eye(4))
+    pts = RNG.normal(0, 1, (20, 3)) + [0, 0, 6]
+    uv, uv_square = cam.project(pts), square.project(pts)
+    np.testing.assert_allclose(uv[:, 0], uv_square[:, 0], atol=1e-9)
+    # v in display units = (v + 0.5) * a - 0.5 (pixel centres).
+    np.testing.assert_allclose((uv[:, 1] + 0.5) * a - 0.5, uv_square[:, 1], atol=1e-9)
+    assert cam.fx / cam.fy == pytest.approx(a)
+    sensor = 24.0 if fit == "VERTICAL" else 36.0
+    assert cam.fx == pytest.approx(35.0 * (width if horizontal else height * a) / sensor)
+
+
 def test_invalid_inputs_raise():
     with pytest.raises(ValueError, match="fx must be a positive"):
         PinholeCamera(0.0, 1.0, 0.0, 0.0, 10, 10)
@@ -78,5 +104,9 @@ def test_invalid_inputs_raise():
         PinholeCamera(1.0, 1.0, 0.0, 0.0, 10, 10, np.diag([1.0, 1.0, -1.0, 1.0]))
     with pytest.raises(ValueError, match="sensor_fit"):
         camera_from_blender(50.0, 36.0, 24.0, "DIAGONAL", 0, 0, 10, 10, np.eye(4))
+    with pytest.raises(ValueError, match="pixel aspect"):
+        camera_from_blender(50.0, 36.0, 24.0, "AUTO", 0, 0, 10, 10, np.eye(4), 0.0, 1.0)
+    with pytest.raises(ValueError, match="mirrored"):
+        world2camera_from_blender(np.diag([1.0, -1.0, 1.0, 1.0]))
     with pytest.raises(ValueError, match="Expected shape"):
         PinholeCamera(1.0, 1.0, 0.0, 0.0, 10, 10).project(np.zeros((3, 2)))

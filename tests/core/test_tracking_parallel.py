@@ -1,12 +1,24 @@
-"""Several keyframe intervals: process pool results identical to the serial run."""
+"""Several keyframe intervals: process pool results identical to the serial run; progress,
+cancelling, and workers that import the core under an add-on's package name."""
+
+import importlib
+import io
+import pickle
+import shutil
+import sys
+import threading
+import types
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.tracking.parallel import track_keyframes
-from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
+from core.tracking.problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
 from core.tracking.trajectory import Pose, track_interval
 from tests.core.test_tracking_trajectory import _sequence
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_parallel_equals_serial_and_matches_single_intervals():
@@ -39,3 +51,91 @@ def test_key_validation():
         track_keyframes(problem, frames, [0, 0, 4], roots[[0, 0, 4]], local[[0, 0, 4]])
     with pytest.raises(TrackingError, match="key poses of shapes"):
         track_keyframes(problem, frames, [0, 4], roots[:3], local[:2])
+
+
+def test_progress_rises_to_one_serial_and_pooled():
+    sk, body, cam, roots, local, frames = _sequence(10)
+    problem = TrackingProblem(sk, body, cam)
+    keys = [0, 4, 10]
+    options = TrackingOptions(max_iterations=2)
+    for processes in (1, 2):
+        seen = []
+        track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                        processes=processes, progress=seen.append)
+        assert len(seen) >= 4
+        assert np.all(np.diff(seen) >= -1e-12) and 0.0 <= seen[0] and seen[-1] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_cancel_stops_with_tracking_cancelled(processes):
+    sk, body, cam, roots, local, frames = _sequence(10)
+    problem = TrackingProblem(sk, body, cam)
+    keys = [0, 4, 10]
+    stop = threading.Event()
+    seen = []
+
+    def progress(fraction):
+        seen.append(fraction)
+        stop.set()                       # as if the user pressed Esc at the first report
+
+    with pytest.raises(TrackingCancelled):
+        track_keyframes(problem, frames, keys, roots[keys], local[keys],
+                        TrackingOptions(max_iterations=2), processes=processes,
+                        progress=progress, cancel=stop)
+    assert 1 <= len(seen) <= 2 and seen[-1] < 1.0
+
+
+def test_workers_import_a_nested_core_without_its_parent_package(tmp_path):
+    """Inside Blender the core is ``bl_ext.<repo>.track_and_stride.core``: a worker process can
+    import neither ``bl_ext`` (made by Blender at start-up) nor the add-on's ``__init__`` (it
+    imports bpy). A copy of the core under such a name, whose parent ``__init__`` fails when
+    run, must still work in worker processes, with the serial results."""
+    prefix = "bl_fake.repo.pkg."
+    folder = tmp_path / "bl_fake" / "repo" / "pkg"
+    shutil.copytree(ROOT / "core", folder / "core",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    (folder / "__init__.py").write_text("raise ImportError('a worker ran the add-on __init__')\n")
+    modules = {}
+    for k, name in enumerate(("bl_fake", "bl_fake.repo", "bl_fake.repo.pkg")):
+        module = types.ModuleType(name)
+        module.__path__ = [str(tmp_path.joinpath(*name.split(".")))]
+        modules[name] = module
+    saved = {name: sys.modules.get(name) for name in modules}
+    sys.modules.update(modules)
+    try:
+        nested = importlib.import_module(prefix + "core.tracking")
+        assert nested.TrackingProblem is not TrackingProblem
+
+        class Renamed(pickle.Unpickler):
+            def find_class(self, module, name):
+                if module == "core" or module.startswith("core."):
+                    module = prefix + module
+                return super().find_class(module, name)
+
+        sk, body, cam, roots, local, frames = _sequence(10)
+        keys = [0, 4, 10]
+        options = TrackingOptions(max_iterations=2)
+        problem = TrackingProblem(sk, body, cam)
+        moved = Renamed(io.BytesIO(pickle.dumps((problem, options)))).load()
+        assert type(moved[0]) is nested.TrackingProblem
+        pooled = nested.track_keyframes(moved[0], frames, keys, roots[keys], local[keys],
+                                        moved[1], processes=2)
+        assert type(pooled.intervals[0]) is nested.IntervalResult
+        serial = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                                 processes=1)
+        np.testing.assert_array_equal(pooled.local_rotations, serial.local_rotations)
+        np.testing.assert_array_equal(pooled.root_translations, serial.root_translations)
+    finally:
+        for name in [n for n in sys.modules if n == "bl_fake" or n.startswith("bl_fake.")]:
+            del sys.modules[name]
+        sys.modules.update({k: v for k, v in saved.items() if v is not None})
+
+
+def test_a_failing_interval_raises_in_the_caller():
+    sk, body, cam, roots, local, frames = _sequence(6)
+    problem = TrackingProblem(sk, body, cam)
+    local = local.copy()
+    local[3, 1] *= 2.0                    # not a rotation: the worker's interval check refuses it
+    with pytest.raises(TrackingError, match="not rotation matrices"):
+        track_keyframes(problem, frames, [0, 3, 6], roots[[0, 3, 6]], local[[0, 3, 6]],
+                        TrackingOptions(max_iterations=1), processes=2)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from core.mocap import asf_to_skeleton, read_asf
-from core.tracking.presets import CMU_PARTS, TABLE1, table1_dof_mask
+from core.tracking.presets import CMU_PARTS, RIG_PARTS, TABLE1, find_table1_parts, table1_dof_mask
 from tests.data import cmu_path
 
 
@@ -42,3 +42,25 @@ def test_custom_mapping_and_errors(cmu):
         table1_dof_mask(cmu, {"Tail": "root"})
     with pytest.raises(KeyError, match="Unknown joint"):
         table1_dof_mask(cmu, {"Chest": "spine"})
+
+
+def test_rig_presets_are_found_by_bone_names(cmu):
+    for rig, parts in RIG_PARTS.items():
+        assert set(parts) == set(TABLE1), rig
+        names = list(parts.values()) + ["extra_bone", "another"]
+        found, mapping = find_table1_parts(names)
+        assert found == rig and mapping == parts
+    # A metarig without its head bone: still recognised, the Head part is skipped.
+    names = [b for b in RIG_PARTS["Blender metarig"].values() if b != "spine.006"]
+    rig, mapping = find_table1_parts(names)
+    assert rig == "Blender metarig" and mapping["Head"] is None
+    # The CMU skeleton's own joint names give CMU_PARTS.
+    assert find_table1_parts(cmu.names) == ("CMU (Acclaim)", CMU_PARTS)
+
+
+def test_non_humanoid_rigs_are_refused_with_the_missing_names():
+    with pytest.raises(ValueError, match="closest: Mixamo, missing .*mixamorig:LeftLeg"):
+        find_table1_parts(["mixamorig:Hips", "mixamorig:Spine", "mixamorig:Head",
+                           "mixamorig:LeftUpLeg", "Tail"])
+    with pytest.raises(ValueError, match="not a humanoid rig"):
+        find_table1_parts(["Bone", "Bone.001"])

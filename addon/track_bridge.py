@@ -1,0 +1,415 @@
+"""Track Keyframes between Blender and the tracking core (operators in ``track_ops.py``).
+
+The pipeline, in the order the modal operator runs it:
+
+1. :func:`prepare_tracking` (main thread): read and check everything -- armature, keyframes,
+   camera, footage, body, DOFs -- into a :class:`TrackRequest` of plain arrays. Any problem
+   raises :class:`TrackError` here, before anything is changed.
+2. :func:`read_footage` (main thread, in chunks): the footage frames as grayscale arrays.
+3. :func:`run_core` (any thread: no bpy): ``core.tracking.track_keyframes`` over all intervals,
+   in worker processes when there are several, with progress and cancel.
+4. :func:`apply_result` (main thread): write keys and confidence curves in one go, only when
+   the whole result is there and finite (cancelling before it leaves the file untouched).
+
+Coordinates: the core works in the armature's space (``pose_bridge``); the camera is brought
+into it (``world2camera @ armature2world``).
+"""
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ..core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
+                             body_model_from_skeleton, suggest_keyframes, track_keyframes)
+from .camera_bridge import CameraError, pinhole_from_blender, render_size
+from .fcurves import object_channelbag
+from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
+from .pose_bridge import RigError, read_pose, rig_from_armature
+from .track_keys import (channel_state, classify_frames, evaluate_channels_at, read_residuals,
+                         write_tracking)
+
+_TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
+                    "scale", "delta_location", "delta_rotation_euler",
+                    "delta_rotation_quaternion", "delta_scale")
+
+
+class TrackError(ValueError):
+    """Tracking cannot run (the message says why and what to do); nothing was changed."""
+
+
+@dataclass(eq=False)
+class TrackRequest:
+    """Everything one tracking run needs, read from Blender (see the module docstring).
+
+    Attributes
+    ----------
+    obj_name : str
+    rig : ArmatureRig
+    problem : TrackingProblem
+        Skeleton, envelope body, camera in armature space, estimated DOFs.
+    options : TrackingOptions
+    processes : int or None
+    footage : Footage
+    key_frames : ndarray, shape (K,), int
+        Scene frames of the keyframes (K >= 2).
+    tracked_before : list of int
+        Frames in the span holding earlier tracked keys (replaced).
+    key_roots, key_locals : ndarray, shape (K, 3) and (K, B, 3, 3)
+    key_values : dict
+        Every pose channel's value at the keyframes, (path, index) -> (K,).
+    tracked_bones : list of str
+    state : str
+        Digest of the rig's keys when the request was made.
+    """
+
+    obj_name: str
+    obj_pointer: int
+    rig: object
+    problem: TrackingProblem
+    options: TrackingOptions
+    processes: object
+    footage: object
+    key_frames: np.ndarray
+    tracked_before: list
+    key_roots: np.ndarray
+    key_locals: np.ndarray
+    key_values: dict
+    tracked_bones: list
+    state: str
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def first(self):
+        return int(self.key_frames[0])
+
+    @property
+    def last(self):
+        return int(self.key_frames[-1])
+
+    @property
+    def scene_frames(self):
+        """(F,) every scene frame from the first to the last keyframe."""
+        return np.arange(self.first, self.last + 1)
+
+
+def resolve_armature(context, settings):
+    """The armature to track: the panel's choice, else the active object if it is one."""
+    obj = settings.armature or context.active_object
+    if obj is None or obj.type != "ARMATURE":
+        raise TrackError("Choose an armature (Track panel) or make one active")
+    return obj
+
+
+def resolve_camera(scene, settings):
+    camera = settings.camera or scene.camera
+    if camera is None:
+        raise TrackError("The scene has no camera: add the camera that filmed the footage and "
+                         "set it as the scene camera (or choose it in the Track panel)")
+    return camera
+
+
+def frame_range(scene, settings):
+    """(first, last) frames searched for keyframes."""
+    if settings.range_mode == "CUSTOM":
+        return int(settings.frame_start), int(settings.frame_end)
+    return int(scene.frame_start), int(scene.frame_end)
+
+
+def resolve_footage(settings):
+    """The :class:`~.footage.Footage` chosen in the panel."""
+    try:
+        if settings.source == "CLIP":
+            if settings.clip is None:
+                raise TrackError("Choose the footage: a movie clip (Open Footage…) or a file")
+            return footage_from_clip(settings.clip)
+        if not settings.filepath:
+            raise TrackError("Choose the footage file (a movie, or the first image of a "
+                             "sequence)")
+        return footage_from_path(settings.filepath, scene_start=settings.file_start)
+    except FootageError as exc:
+        raise TrackError(str(exc)) from None
+
+
+def _transform_animated(obj):
+    bag = object_channelbag(obj)
+    return bag is not None and any(f.data_path in _TRANSFORM_PATHS for f in bag.fcurves)
+
+
+def _camera_in_armature_space(scene, camera_obj, rig):
+    if _transform_animated(camera_obj):
+        raise TrackError(f"Camera {camera_obj.name} is animated: the tracker needs the camera "
+                         "that filmed the footage to stand still")
+    if _transform_animated(rig.obj):
+        raise TrackError(f"{rig.obj.name} moves as an object: animate its root bone instead")
+    try:
+        camera = pinhole_from_blender(scene, camera_obj)
+    except CameraError as exc:
+        raise TrackError(str(exc)) from None
+    armature2world = rig.armature2world
+    scale = np.linalg.norm(armature2world[:3, :3], axis=0)
+    if np.any(np.abs(scale - 1.0) > 1e-4):
+        raise TrackError(f"{rig.obj.name} is scaled ({', '.join(f'{s:.3g}' for s in scale)}): "
+                         "apply its scale (Ctrl A › Scale) so that envelope radii are metres")
+    return camera.with_pose(camera.world2camera @ armature2world)
+
+
+def envelope_radii(rig):
+    """(B, 2) head and tail envelope radii of the rig's bones, metres."""
+    bones = rig.obj.data.bones
+    return np.array([[bones[n].head_radius, bones[n].tail_radius] for n in rig.bone_names])
+
+
+def _body(rig):
+    try:
+        return body_model_from_skeleton(rig.skeleton, envelope_radii(rig))
+    except ValueError:
+        raise TrackError(f"No bone of {rig.obj.name} has a body: give the bones envelope radii "
+                         "(Envelope display, Alt S in Edit Mode) that fit the person's "
+                         "limbs") from None
+
+
+def _keyframes(obj, rig, first, last):
+    if last < first:
+        raise TrackError(f"The frame range {first}–{last} is empty")
+    hint = "pose the armature over the footage and key it (I) at two frames or more"
+    if obj.animation_data is None or obj.animation_data.action is None:
+        raise TrackError(f"{obj.name} has no animation: {hint}")
+    keys, tracked = classify_frames(obj, rig, first, last)
+    if not keys:
+        raise TrackError(f"No keyframes of {obj.name} in frames {first}–{last}: {hint}")
+    if len(keys) == 1:
+        raise TrackError(f"Only one keyframe of {obj.name} (frame {keys[0]}) in frames "
+                         f"{first}–{last}: key the pose at one more frame")
+    if np.all(np.diff(keys) < 2):
+        raise TrackError(f"Nothing to track: keyframes {keys[0]}–{keys[-1]} leave no frame "
+                         "between them")
+    tracked = [f for f in tracked if keys[0] < f < keys[-1]]
+    return np.array(keys), tracked
+
+
+def prepare_tracking(context, settings):
+    """Read and check everything a run needs (see the module docstring).
+
+    Raises
+    ------
+    TrackError
+        With a message that says what to do; nothing has been changed.
+    """
+    scene = context.scene
+    obj = resolve_armature(context, settings)
+    if obj.mode == "EDIT":
+        raise TrackError("Leave Edit Mode first")
+    camera_obj = resolve_camera(scene, settings)
+    try:
+        rig = rig_from_armature(obj)
+    except RigError as exc:
+        raise TrackError(str(exc)) from None
+    first, last = frame_range(scene, settings)
+    key_frames, tracked_before = _keyframes(obj, rig, first, last)
+    footage = resolve_footage(settings)
+    width, height = render_size(scene)
+    if (footage.width, footage.height) != (width, height):
+        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
+                         f"is {width}×{height}: set Output › Format to the footage size "
+                         "(Match Render Size) so that the camera sees what was filmed")
+    outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
+    if outside:
+        raise TrackError(f"The footage ({footage.n_frames} frames from scene frame "
+                         f"{footage.scene_start - footage.offset}) does not cover frame "
+                         f"{outside[0]}: move the clip's Start Frame or the keyframes")
+    camera = _camera_in_armature_space(scene, camera_obj, rig)
+    mask = rig.dof_mask
+    translation = np.full(3, bool(rig.root_location_mask.any()))
+    try:
+        problem = TrackingProblem(rig.skeleton, _body(rig), camera, mask, translation)
+    except TrackingError as exc:
+        raise TrackError(str(exc)) from None
+    layout = problem.layout
+    if layout.n_params == 0:
+        raise TrackError(f"Every rotation of {obj.name}'s bodied bones is locked: unlock the axes "
+                         "to estimate (Table 1 DOF sets the paper's)")
+    key_roots, key_locals = read_pose(rig, key_frames)
+    bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
+    if len(layout.translation_axes):
+        bones.add(rig.bone_names[0])
+    options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
+                              estimate_depth=settings.estimate_depth)
+    return TrackRequest(
+        obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
+        options=options, processes=settings.processes or None, footage=footage,
+        key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
+        key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
+        tracked_bones=[n for n in rig.bone_names if n in bones], state=channel_state(obj, rig))
+
+
+def read_footage(request, start, stop):
+    """Grayscale frames (n, H, W) of the request's scene frames ``[start:stop]``."""
+    try:
+        return read_frames(request.footage, request.scene_frames[start:stop].tolist())
+    except FootageError as exc:
+        raise TrackError(str(exc)) from None
+
+
+def run_core(request, frames, progress=None, cancel=None):
+    """The core's ``track_keyframes`` on a request (no bpy: safe in a worker thread).
+
+    Raises ``TrackingCancelled`` when ``cancel`` is set, :class:`TrackError` on invalid input.
+    """
+    tic = time.perf_counter()
+    try:
+        result = track_keyframes(request.problem, frames, request.key_frames - request.first,
+                                 request.key_roots, request.key_locals, request.options,
+                                 processes=request.processes, progress=progress, cancel=cancel)
+    except TrackingError as exc:
+        raise TrackError(str(exc)) from None
+    request.timings["track"] = time.perf_counter() - tic
+    return result
+
+
+def _interval_name(request, i):
+    return f"{request.key_frames[i]}–{request.key_frames[i + 1]}"
+
+
+def apply_result(context, request, result):
+    """Write a finished run into the armature's action.
+
+    Returns
+    -------
+    summary : str
+    warnings : list of str
+        One per diverged interval (by frame range and reason).
+
+    Raises
+    ------
+    TrackError
+        The armature is gone or its keys changed since :func:`prepare_tracking`, or the result
+        is not finite; nothing is written then.
+    """
+    obj = bpy.data.objects.get(request.obj_name)
+    if obj is None or obj.as_pointer() != request.obj_pointer:
+        raise TrackError(f"{request.obj_name} was removed or renamed while tracking")
+    if channel_state(obj, request.rig) != request.state:
+        raise TrackError(f"The keys of {obj.name} changed while tracking: run Track Keyframes "
+                         "again")
+    frames = request.scene_frames
+    residuals = np.concatenate([r.residuals for r in result.intervals])
+    ranks = np.concatenate([r.ranks for r in result.intervals])
+    arrays = (result.root_translations, result.local_rotations, residuals)
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        raise TrackError("The tracker returned non-finite values; nothing was written")
+    layout = request.problem.layout
+    max_rank = layout.n_params - int(len(layout.translation_axes) > 0
+                                     and not request.options.estimate_depth)
+    tic = time.perf_counter()
+    written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
+                             request.tracked_bones, frames, result.root_translations,
+                             result.local_rotations, request.key_values, frames[1:], residuals,
+                             ranks, max_rank)
+    request.timings["write"] = time.perf_counter() - tic
+    warnings = [f"Interval {_interval_name(request, i)} {r.reason}; it keeps that fallback "
+                "trajectory (more keyframes help)"
+                for i, r in enumerate(result.intervals) if r.diverged]
+    n_int = len(result.intervals)
+    summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
+               f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
+               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual and rank "
+               "curves in the Graph Editor")
+    return summary, warnings
+
+
+def track_now(context, settings):
+    """The whole run synchronously (background mode, scripts): returns (summary, warnings)."""
+    request = prepare_tracking(context, settings)
+    frames = read_footage(request, 0, len(request.scene_frames))
+    result = run_core(request, frames)
+    return apply_result(context, request, result)
+
+
+SUGGESTION_PREFIX = "Key? "
+
+
+def suggest_markers(context, settings):
+    """Timeline markers at residual spikes (rule: ``core.tracking.suggest``).
+
+    Markers of an earlier suggestion in the range are replaced.
+
+    Returns
+    -------
+    summary : str
+    frames : list of int
+    """
+    scene = context.scene
+    obj = resolve_armature(context, settings)
+    try:
+        rig = rig_from_armature(obj)
+    except RigError as exc:
+        raise TrackError(str(exc)) from None
+    first, last = frame_range(scene, settings)
+    frames, residuals = read_residuals(obj, first, last)
+    if len(frames) == 0:
+        raise TrackError(f"{obj.name} has no residual curve in frames {first}–{last}: run "
+                         "Track Keyframes first")
+    keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
+    found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)
+    markers = scene.timeline_markers
+    for marker in [m for m in markers if m.name.startswith(SUGGESTION_PREFIX)
+                   and first <= m.frame <= last]:
+        markers.remove(marker)
+    for s in found:
+        markers.new(f"{SUGGESTION_PREFIX}z {s.z:.1f}", frame=s.frame)
+    if not found:
+        return (f"No residual spike above z {settings.suggest_threshold:g} in frames "
+                f"{first}–{last}: the keyframes suffice"), []
+    listed = ", ".join(str(s.frame) for s in found)
+    return (f"Suggested {len(found)} keyframe{'s' * (len(found) != 1)} at frame"
+            f"{'s' * (len(found) != 1)} {listed} (residual spikes, markers '{SUGGESTION_PREFIX}…')"
+            ), [s.frame for s in found]
+
+
+class TrackJob:
+    """:func:`run_core` in a worker thread (the modal operator polls it on a timer).
+
+    Attributes
+    ----------
+    fraction : float
+        Done share of the tracking, [0, 1].
+    result : SequenceResult or None
+    error : BaseException or None
+        What :func:`run_core` raised (``TrackingCancelled`` after :meth:`cancel`).
+    """
+
+    def __init__(self, request, frames):
+        self.request, self.frames = request, frames
+        self.fraction, self.result, self.error = 0.0, None, None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="Track & Stride tracking",
+                                        daemon=True)
+
+    def _run(self):
+        try:
+            self.result = run_core(self.request, self.frames, progress=self._progress,
+                                   cancel=self._stop)
+        except BaseException as exc:  # handed to the main thread, which reports it
+            self.error = exc
+        finally:
+            self.frames = None
+
+    def _progress(self, fraction):
+        self.fraction = fraction
+
+    def start(self):
+        self._thread.start()
+        return self
+
+    @property
+    def running(self):
+        return self._thread.is_alive()
+
+    def cancel(self, wait=True):
+        """Ask the core to stop; with ``wait``, return once it has."""
+        self._stop.set()
+        if wait:
+            self._thread.join()

@@ -1,0 +1,388 @@
+"""Track operators: track keyframes (modal, with progress and Esc), suggest keyframes, and the
+set-up helpers (footage, render size, Table 1 DOF, envelope display). Thin adapters over
+:mod:`.track_bridge` and :mod:`.track_setup`."""
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
+
+from .footage import MOVIE_EXTENSIONS
+from .track_bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
+                           resolve_armature, suggest_markers, track_now)
+from .track_props import track_settings
+from .track_setup import (apply_table1_dof, match_render_size, open_footage,
+                          show_footage_behind_camera)
+
+# The running tracking operator (one at a time).
+_RUNNING = []
+# Viewport navigation stays possible while tracking runs; other input waits.
+_PASS_THROUGH = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "MOUSEMOVE",
+                 "INBETWEEN_MOUSEMOVE", "TRACKPADPAN", "TRACKPADZOOM", "MOUSEROTATE",
+                 "NDOF_MOTION"}
+# Share of the progress bar for reading the footage and for writing the keys.
+_READ_SHARE, _WRITE_SHARE = 0.1, 0.05
+
+
+def _armature_or_message(cls, context):
+    settings = track_settings(context.scene)
+    obj = settings.armature or context.active_object
+    if obj is None or obj.type != "ARMATURE":
+        cls.poll_message_set("Choose the armature to track (Track panel) or make one active")
+        return None
+    if obj.mode == "EDIT":
+        cls.poll_message_set("Leave Edit Mode first")
+        return None
+    return obj
+
+
+def _footage_chosen(settings):
+    return settings.clip is not None if settings.source == "CLIP" else bool(settings.filepath)
+
+
+def track_poll_message(context):
+    """Why Track Keyframes cannot run now (cheap checks), or ``None``."""
+    settings = track_settings(context.scene)
+    if _RUNNING:
+        return "Tracking is running: Esc cancels it"
+    obj = settings.armature or context.active_object
+    if obj is None or obj.type != "ARMATURE":
+        return "Choose the armature to track (Track panel) or make one active"
+    if obj.mode == "EDIT":
+        return "Leave Edit Mode first"
+    if (settings.camera or context.scene.camera) is None:
+        return "Add the camera that filmed the footage (the scene camera)"
+    if not _footage_chosen(settings):
+        return "Choose the footage: Open Footage… or a file"
+    return None
+
+
+class TS_OT_track_keyframes(bpy.types.Operator):
+    """Track the armature through the footage between its keyframes: keys every in-between
+    frame (drift-corrected) and adds residual and rank curves showing where it is unsure.
+    Esc cancels and leaves everything as it was"""
+
+    bl_idname = "track_and_stride.track_keyframes"
+    bl_label = "Track Keyframes"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        message = track_poll_message(context)
+        if message:
+            cls.poll_message_set(message)
+            return False
+        return True
+
+    def _report_done(self, summary, warnings):
+        for warning in warnings:
+            self.report({"WARNING"}, warning)
+        self.report({"INFO"}, summary)
+
+    def execute(self, context):
+        """Synchronous run (background mode, scripts)."""
+        try:
+            summary, warnings = track_now(context, track_settings(context.scene))
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._report_done(summary, warnings)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            request = prepare_tracking(context, track_settings(context.scene))
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._begin(context, request)
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _begin(self, context, request):
+        """State of a modal run: footage read in chunks on timer events, then the job."""
+        footage = request.footage
+        self._request, self._read, self._job, self._timer = request, 0, None, None
+        self._frames = np.empty((len(request.scene_frames), footage.height, footage.width),
+                                dtype=np.float32)
+        self._chunk = 24 if footage.kind == "MOVIE" else 6
+        self._area = context.area
+        context.window_manager.progress_begin(0, 100)
+        _RUNNING.append(self)
+        self._status(context, "reading footage", 0.0)
+
+    def _status(self, context, stage, fraction):
+        context.window_manager.progress_update(int(100 * fraction))
+        text = (f"Track & Stride: tracking {self._request.obj_name}, {stage} "
+                f"({100 * fraction:.0f} %) — Esc cancels")
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+        if self._area is not None:
+            self._area.header_text_set(text)
+
+    def _finish(self, context):
+        """Timer, progress bar, status and header text off (safe to call twice)."""
+        if self not in _RUNNING:
+            return
+        _RUNNING.remove(self)
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        if self._area is not None:
+            try:
+                self._area.header_text_set(None)
+            except ReferenceError:                # the area was closed meanwhile
+                pass
+
+    def cancel(self, context):
+        """Blender ends the operator (file loaded, window closed): stop the worker too."""
+        if self._job is not None:
+            self._job.cancel()
+        self._finish(context)
+
+    def modal(self, context, event):
+        if event.type == "ESC" and event.value == "PRESS":
+            if self._job is not None:
+                self._job.cancel()
+            self._finish(context)
+            self.report({"INFO"}, "Tracking cancelled: nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in _PASS_THROUGH else {"RUNNING_MODAL"}
+        try:
+            return self._step(context)
+        except TrackError as exc:
+            if self._job is not None:
+                self._job.cancel()
+            self._finish(context)
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+
+    def _step(self, context):
+        request, total = self._request, len(self._request.scene_frames)
+        if self._read < total:
+            stop = min(total, self._read + self._chunk)
+            self._frames[self._read:stop] = read_footage(request, self._read, stop)
+            self._read = stop
+            self._status(context, f"reading footage {stop}/{total}", _READ_SHARE * stop / total)
+            if stop == total:
+                self._job = TrackJob(request, self._frames).start()
+                self._frames = None
+            return {"RUNNING_MODAL"}
+        job = self._job
+        if job.running:
+            self._status(context, "tracking",
+                         _READ_SHARE + (1 - _READ_SHARE - _WRITE_SHARE) * job.fraction)
+            return {"RUNNING_MODAL"}
+        if job.error is not None:
+            if isinstance(job.error, TrackError):
+                raise job.error
+            raise TrackError(f"Tracking failed: {type(job.error).__name__}: {job.error}")
+        self._status(context, "writing keys", 1.0 - _WRITE_SHARE)
+        summary, warnings = apply_result(context, request, job.result)
+        self._finish(context)
+        self._report_done(summary, warnings)
+        return {"FINISHED"}
+
+
+def cancel_running():
+    """Stop a running tracking job and its timer (add-on disabled)."""
+    for op in list(_RUNNING):
+        if op._job is not None:
+            op._job.cancel()
+        op._finish(bpy.context)
+
+
+class TS_OT_suggest_keyframes(bpy.types.Operator):
+    """Put timeline markers where the tracked residual spikes: frames where one more keyframe
+    pays off (robust z-score of the residual over all tracked frames)"""
+
+    bl_idname = "track_and_stride.suggest_keyframes"
+    bl_label = "Suggest Keyframes"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _armature_or_message(cls, context) is not None
+
+    def execute(self, context):
+        try:
+            summary, _ = suggest_markers(context, track_settings(context.scene))
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+class TS_OT_table1_dof(bpy.types.Operator):
+    """Lock rotation axes so that only the paper's Table 1 degrees of freedom are estimated
+    (waist 6, chest 3, head 2, thighs and upper arms 2, shins and forearms 1; other bones
+    locked). Knows CMU, CMU BVH, Mixamo and Blender metarig bone names"""
+
+    bl_idname = "track_and_stride.table1_dof"
+    bl_label = "Table 1 DOF"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _armature_or_message(cls, context) is not None
+
+    def execute(self, context):
+        try:
+            obj = resolve_armature(context, track_settings(context.scene))
+            summary = apply_table1_dof(obj)
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+class TS_OT_show_envelopes(bpy.types.Operator):
+    """Display the armature's bones as envelopes: their radii are the body the tracker
+    matches to the footage (scale them with Alt S in Edit Mode to fit the limbs)"""
+
+    bl_idname = "track_and_stride.show_envelopes"
+    bl_label = "Envelope Display"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _armature_or_message(cls, context) is not None
+
+    def execute(self, context):
+        obj = resolve_armature(context, track_settings(context.scene))
+        obj.data.display_type = "ENVELOPE"
+        obj.show_in_front = True
+        self.report({"INFO"}, f"{obj.name} shows its envelopes (in front of the footage)")
+        return {"FINISHED"}
+
+
+class TS_OT_show_footage(bpy.types.Operator):
+    """Show the footage as the camera's background, so the armature is seen over the frames
+    when looking through the camera (Numpad 0)"""
+
+    bl_idname = "track_and_stride.show_footage"
+    bl_label = "Footage Behind Camera"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        settings = track_settings(context.scene)
+        if (settings.camera or context.scene.camera) is None:
+            cls.poll_message_set("Add a camera first (the scene camera)")
+            return False
+        if not _footage_chosen(settings):
+            cls.poll_message_set("Choose the footage first")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            summary = show_footage_behind_camera(context, track_settings(context.scene))
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+class TS_OT_open_footage(bpy.types.Operator, ImportHelper):
+    """Open a movie or the first image of a numbered sequence as a movie clip, use it as the
+    tracking footage and show it behind the camera"""
+
+    bl_idname = "track_and_stride.open_footage"
+    bl_label = "Open Footage"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(
+        default=";".join("*" + e for e in MOVIE_EXTENSIONS + (".png", ".jpg", ".jpeg", ".tif",
+                                                              ".tiff", ".exr", ".bmp")),
+        options={"HIDDEN"})
+    set_frame_range: BoolProperty(
+        name="Set Frame Range", default=True,
+        description="Set the scene's start and end frame to the clip's frames")
+    match_render_size: BoolProperty(
+        name="Match Render Size", default=True,
+        description="Set the render resolution to the footage's (the camera must see what was "
+                    "filmed)")
+
+    def execute(self, context):
+        try:
+            _, summary = open_footage(context, track_settings(context.scene), self.filepath,
+                                      self.set_frame_range, self.match_render_size)
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+class TS_OT_match_render_size(bpy.types.Operator):
+    """Set the render resolution to the footage's size (100 %), so that the camera's
+    intrinsics describe the footage"""
+
+    bl_idname = "track_and_stride.match_render_size"
+    bl_label = "Match Render Size"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not _footage_chosen(track_settings(context.scene)):
+            cls.poll_message_set("Choose the footage first")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            summary = match_render_size(context, track_settings(context.scene))
+        except TrackError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+class TS_OT_use_editor_clip(bpy.types.Operator):
+    """Track the movie clip shown in this Movie Clip Editor"""
+
+    bl_idname = "track_and_stride.use_editor_clip"
+    bl_label = "Use This Clip"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        space = context.space_data
+        if space is None or space.type != "CLIP_EDITOR" or space.clip is None:
+            cls.poll_message_set("Open a clip in the Movie Clip Editor")
+            return False
+        return True
+
+    def execute(self, context):
+        settings = track_settings(context.scene)
+        settings.source, settings.clip = "CLIP", context.space_data.clip
+        self.report({"INFO"}, f"Tracking footage: {settings.clip.name}")
+        return {"FINISHED"}
+
+
+CLASSES = (TS_OT_track_keyframes, TS_OT_suggest_keyframes, TS_OT_table1_dof, TS_OT_show_envelopes,
+           TS_OT_show_footage, TS_OT_open_footage, TS_OT_match_render_size, TS_OT_use_editor_clip)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    cancel_running()
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

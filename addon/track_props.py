@@ -1,0 +1,93 @@
+"""Scene settings of the Track panel (saved in the .blend)."""
+
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
+                       StringProperty)
+
+SETTINGS = "track_and_stride_track"
+
+
+def _is_armature(self, obj):
+    return obj.type == "ARMATURE"
+
+
+def _is_camera(self, obj):
+    return obj.type == "CAMERA"
+
+
+class TS_TrackSettings(bpy.types.PropertyGroup):
+    """What Track Keyframes tracks, over which footage, and how."""
+
+    armature: PointerProperty(
+        type=bpy.types.Object, poll=_is_armature, name="Armature",
+        description="The armature posed over the footage at the keyframes (empty: the active "
+                    "armature). Its envelope radii are the body, its locked rotation axes are "
+                    "not estimated")
+    source: EnumProperty(
+        name="Footage", description="Where the reference frames come from",
+        items=(("CLIP", "Movie Clip", "A movie clip datablock (movie or image sequence); its "
+                "Start Frame and Frame Offset place it on the timeline"),
+               ("FILE", "File", "A movie file, or the first image of a numbered sequence")),
+        default="CLIP")
+    clip: PointerProperty(
+        type=bpy.types.MovieClip, name="Clip",
+        description="Movie clip with the reference footage (Open Footage loads one)")
+    filepath: StringProperty(
+        name="File", subtype="FILE_PATH", options={"PATH_SUPPORTS_BLEND_RELATIVE"},
+        description="Movie file, or the first image of a numbered image sequence "
+                    "(frame_0001.png, frame_0002.png …)")
+    file_start: IntProperty(
+        name="Start Frame", default=1,
+        description="Scene frame that shows the file's first frame")
+    camera: PointerProperty(
+        type=bpy.types.Object, poll=_is_camera, name="Camera",
+        description="The camera that filmed the footage (empty: the scene camera). Lens, "
+                    "sensor fit, shift, render size and pixel aspect give its intrinsics; it "
+                    "must not move during the clip")
+    range_mode: EnumProperty(
+        name="Frames", description="Frames searched for keyframes",
+        items=(("SCENE", "Scene Range", "The scene's start to end frame"),
+               ("CUSTOM", "Custom", "The frames set below")),
+        default="SCENE")
+    frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)")
+    frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)")
+    iterations: IntProperty(
+        name="Iterations", default=4, min=1, max=20,
+        description="Drift-correction passes per interval (track, accumulate, correct, score; "
+                    "the pass with the smallest photometric error is kept)")
+    processes: IntProperty(
+        name="Processes", default=0, min=0, max=64,
+        description="Worker processes for the intervals (0 = one per CPU, at most one per "
+                    "interval; 1 = all in Blender's process)")
+    estimate_depth: BoolProperty(
+        name="Estimate Depth", default=False,
+        description="Also estimate motion along the camera's axis (rigid objects, whose size "
+                    "changes measure depth; off for bodies, as in the paper)")
+    rank_threshold: FloatProperty(
+        name="Rank Threshold", default=0.02, min=1e-4, max=0.5, precision=3,
+        description="Singular values below this fraction of the largest count as zero (hidden "
+                    "or textureless parts take the predicted motion)")
+    suggest_threshold: FloatProperty(
+        name="Spike Threshold", default=3.5, min=1.0, max=20.0,
+        description="Robust z-score of the residual above which a frame counts as a spike "
+                    "(median and MAD over all tracked frames)")
+
+
+def track_settings(scene):
+    """The scene's :class:`TS_TrackSettings`."""
+    return getattr(scene, SETTINGS)
+
+
+CLASSES = (TS_TrackSettings,)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    setattr(bpy.types.Scene, SETTINGS, PointerProperty(type=TS_TrackSettings))
+
+
+def unregister():
+    delattr(bpy.types.Scene, SETTINGS)
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,167 @@
+"""Setting a scene up for tracking: footage behind the camera, render size, Table 1 DOF.
+
+Camera background: a Blender camera shows background images (a movie clip, or an image /
+movie / image sequence) in the viewport when looking through it (Numpad 0), so the armature is
+seen over the frame of the current time. The footage lines up with the tracker's camera when
+the render size equals the footage size (checked before tracking).
+"""
+
+import os
+import re
+
+import bpy
+import numpy as np
+
+from ..core.tracking import find_table1_parts, table1_dof_mask
+from .camera_bridge import render_size
+from .pose_bridge import RigError, rig_from_armature
+from .track_bridge import TrackError, resolve_camera, resolve_footage
+
+
+def _clip_background(camera_data, clip):
+    for bg in camera_data.background_images:
+        if bg.source == "MOVIE_CLIP" and bg.clip == clip:
+            return bg
+    bg = camera_data.background_images.new()
+    bg.source = "MOVIE_CLIP"
+    bg.clip = clip
+    return bg
+
+
+def _image_background(camera_data, footage):
+    path = os.path.normpath(footage.path)
+    image = next((im for im in bpy.data.images
+                  if im.filepath and os.path.normpath(bpy.path.abspath(im.filepath)) == path), None)
+    if image is None:
+        image = bpy.data.images.load(path, check_existing=False)
+    image.source = "MOVIE" if footage.kind == "MOVIE" else "SEQUENCE"
+    bg = next((b for b in camera_data.background_images
+               if b.source == "IMAGE" and b.image == image), None)
+    if bg is None:
+        bg = camera_data.background_images.new()
+        bg.source = "IMAGE"
+        bg.image = image
+    user = bg.image_user
+    # Image user: scene frame f shows file number (f - frame_start + 1 + frame_offset); movies
+    # count from 1, a sequence from the number in its first file's name.
+    first_number = 1
+    if footage.kind == "SEQUENCE":
+        match = re.search(r"(\d+)\D*$", os.path.basename(path))
+        first_number = int(match.group(1)) if match else 1
+    user.frame_start = footage.scene_start
+    user.frame_offset = first_number - 1 + footage.offset
+    user.frame_duration = footage.n_frames
+    user.use_auto_refresh = True
+    return bg
+
+
+def show_footage_behind_camera(context, settings):
+    """Show the chosen footage as the tracking camera's background; returns a summary."""
+    scene = context.scene
+    camera_obj = resolve_camera(scene, settings)
+    footage = resolve_footage(settings)
+    data = camera_obj.data
+    if settings.source == "CLIP":
+        bg = _clip_background(data, settings.clip)
+        bg.use_camera_clip = False
+        name = settings.clip.name
+    else:
+        bg = _image_background(data, footage)
+        name = os.path.basename(footage.path)
+    bg.alpha = 1.0
+    bg.display_depth = "BACK"
+    bg.frame_method = "FIT"
+    bg.show_background_image = True
+    data.show_background_images = True
+    return f"{name} shows behind {camera_obj.name}: look through the camera (Numpad 0)"
+
+
+def open_footage(context, settings, path, set_frame_range=True, match_render_size=True):
+    """Load a movie or image sequence as a movie clip and set the scene up for it.
+
+    Returns
+    -------
+    clip : bpy.types.MovieClip
+    summary : str
+    """
+    path = bpy.path.abspath(path)
+    if not os.path.isfile(path):
+        raise TrackError(f"Footage file not found: {path}")
+    try:
+        clip = bpy.data.movieclips.load(path, check_existing=True)
+    except RuntimeError as exc:
+        raise TrackError(f"Blender cannot open {os.path.basename(path)} as a movie clip: "
+                         f"{exc}") from None
+    width, height = clip.size
+    if width == 0 or clip.frame_duration == 0:
+        bpy.data.movieclips.remove(clip)
+        raise TrackError(f"Blender cannot decode {os.path.basename(path)}")
+    settings.source, settings.clip = "CLIP", clip
+    scene = context.scene
+    notes = [f"{clip.name}: {width}×{height}, {clip.frame_duration} frames from frame "
+             f"{clip.frame_start}"]
+    if set_frame_range:
+        scene.frame_start = clip.frame_start
+        scene.frame_end = clip.frame_start + clip.frame_duration - 1
+        notes.append("scene range set")
+    if match_render_size:
+        scene.render.resolution_x, scene.render.resolution_y = width, height
+        scene.render.resolution_percentage = 100
+        notes.append("render size set")
+    if settings.camera or scene.camera:
+        notes.append(show_footage_behind_camera(context, settings))
+    else:
+        notes.append("add a camera to see it behind the armature")
+    return clip, "; ".join(notes)
+
+
+def match_render_size(context, settings):
+    """Set the render size to the footage's; returns a summary."""
+    footage = resolve_footage(settings)
+    render = context.scene.render
+    render.resolution_x, render.resolution_y = footage.width, footage.height
+    render.resolution_percentage = 100
+    return f"Render size set to {footage.width}×{footage.height} (the footage's)"
+
+
+def footage_size_mismatch(scene, footage):
+    """A message when the footage and the render size differ, else ``None``."""
+    width, height = render_size(scene)
+    if (footage.width, footage.height) == (width, height):
+        return None
+    return f"Footage {footage.width}×{footage.height} ≠ render {width}×{height}"
+
+
+def apply_table1_dof(obj):
+    """Lock rotation axes so that only Yamamoto's Table 1 DOF are estimated.
+
+    Bones of the Table 1 parts keep the axes of their role (``core.tracking.presets``), every
+    other bone of the tracked tree is locked (it follows its keys between keyframes). Axes are
+    only ever locked, never unlocked (an axis the rig itself locks stays locked).
+
+    Returns
+    -------
+    str
+        Summary naming the recognised rig and the DOF count.
+    """
+    try:
+        rig = rig_from_armature(obj)
+        rig_name, parts = find_table1_parts(rig.bone_names)
+    except (RigError, ValueError) as exc:
+        raise TrackError(f"{obj.name}: {exc}") from None
+    mask, translation = table1_dof_mask(rig.skeleton, parts)
+    for k, name in enumerate(rig.bone_names):
+        obj.pose.bones[name].lock_rotation = [bool(v) for v in ~mask[k]]
+    skipped = [part for part, bone in parts.items() if bone is None]
+    total = int(mask.sum()) + (3 if translation.any() and rig.root_location_mask.any() else 0)
+    note = f"; no bone for {', '.join(skipped)}" if skipped else ""
+    return (f"Table 1 DOF on {obj.name} ({rig_name} bone names): {total} degrees of freedom "
+            f"estimated, every other rotation axis locked{note}")
+
+
+def dof_summary(rig):
+    """Short text: unlocked rotation axes and root translation."""
+    axes = int(np.count_nonzero(rig.dof_mask))
+    moving = int(np.count_nonzero(rig.dof_mask.any(axis=1)))
+    loc = "root moves" if rig.root_location_mask.any() else "root location locked"
+    return f"{axes} rotation axes on {moving} bones unlocked, {loc}"

@@ -1,0 +1,213 @@
+"""Track & Stride › Track: the sidebar panel in the 3D Viewport and in the Movie Clip Editor.
+
+The panel reads top to bottom as the workflow: armature (body = envelopes, DOF = locks),
+footage (behind the camera), camera, frames and keyframes, then Track and Suggest. Each line
+says what is set and what is missing; disabled buttons say why in their tooltip and on a line
+below. Drawing only reads Blender data (nothing is loaded or created while drawing).
+"""
+
+import bpy
+import numpy as np
+
+from .camera_bridge import render_size
+from .pose_bridge import RigError, rig_from_armature
+from .track_bridge import envelope_radii, frame_range
+from .track_keys import PROP_RESIDUAL, classify_frames
+from .track_ops import track_poll_message
+from .track_props import track_settings
+
+
+def _list(frames, limit=8):
+    text = ", ".join(str(f) for f in frames[:limit])
+    return text + (f" … ({len(frames)})" if len(frames) > limit else "")
+
+
+def _draw_armature(layout, context, settings):
+    col = layout.column(align=True)
+    col.label(text="Armature", icon="ARMATURE_DATA")
+    col.prop(settings, "armature", text="")
+    obj = settings.armature or context.active_object
+    if obj is None or obj.type != "ARMATURE":
+        col.label(text="Choose one, or make an armature active", icon="ERROR")
+        return None
+    if settings.armature is None:
+        col.label(text=f"Active: {obj.name}")
+    try:
+        rig = rig_from_armature(obj)
+    except RigError as exc:
+        col.label(text=str(exc), icon="ERROR")
+        return obj
+    radii = envelope_radii(rig)
+    bodied = int(np.count_nonzero(radii.max(axis=1) > 0))
+    col.label(text=f"Body: {bodied} of {len(rig.bone_names)} bones have envelope radii",
+              icon="MESH_CYLINDER")
+    row = col.row(align=True)
+    row.operator("track_and_stride.show_envelopes", icon="BONE_DATA")
+    row.operator("track_and_stride.add_envelope_body", text="Body Mesh")
+    axes = int(np.count_nonzero(rig.dof_mask))
+    col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
+              icon="CON_ROTLIMIT")
+    col.operator("track_and_stride.table1_dof", icon="LOCKED")
+    return obj
+
+
+def _draw_footage(layout, context, settings, in_clip_editor):
+    col = layout.column(align=True)
+    col.label(text="Footage", icon="FILE_MOVIE")
+    col.row(align=True).prop(settings, "source", expand=True)
+    scene = context.scene
+    if settings.source == "CLIP":
+        col.template_ID(settings, "clip", open="track_and_stride.open_footage")
+        if in_clip_editor:
+            col.operator("track_and_stride.use_editor_clip", icon="EYEDROPPER")
+        clip = settings.clip
+        if clip is not None:
+            width, height = clip.size
+            end = clip.frame_start + clip.frame_duration - 1
+            col.label(text=f"{width}×{height}, {clip.frame_duration} frames at "
+                           f"{clip.frame_start}–{end}")
+            if (width, height) != render_size(scene):
+                rw, rh = render_size(scene)
+                col.label(text=f"Render size is {rw}×{rh}", icon="ERROR")
+                col.operator("track_and_stride.match_render_size", icon="FULLSCREEN_ENTER")
+    else:
+        col.prop(settings, "filepath", text="")
+        col.prop(settings, "file_start")
+    col.operator("track_and_stride.show_footage", icon="IMAGE_BACKGROUND")
+
+
+def _draw_camera(layout, context, settings):
+    col = layout.column(align=True)
+    col.label(text="Camera", icon="CAMERA_DATA")
+    col.prop(settings, "camera", text="")
+    camera = settings.camera or context.scene.camera
+    if camera is None:
+        col.label(text="Add the camera that filmed the footage", icon="ERROR")
+    elif settings.camera is None:
+        col.label(text=f"Scene camera: {camera.name}")
+    if camera is not None and camera.type == "CAMERA":
+        data = camera.data
+        width, height = render_size(context.scene)
+        col.label(text=f"{data.lens:.0f} mm, {data.sensor_fit.lower()} fit, render "
+                       f"{width}×{height}")
+
+
+def _draw_frames(layout, context, settings, obj):
+    col = layout.column(align=True)
+    col.label(text="Frames", icon="KEYFRAME")
+    col.prop(settings, "range_mode", text="")
+    if settings.range_mode == "CUSTOM":
+        row = col.row(align=True)
+        row.prop(settings, "frame_start")
+        row.prop(settings, "frame_end")
+    first, last = frame_range(context.scene, settings)
+    if obj is not None and obj.animation_data is not None and obj.animation_data.action:
+        try:
+            keys, tracked = classify_frames(obj, rig_from_armature(obj), first, last)
+        except RigError:
+            keys, tracked = [], []
+        if len(keys) >= 2:
+            col.label(text=f"Keyframes {_list(keys)}: {len(keys) - 1} intervals")
+        else:
+            col.label(text=f"{len(keys)} keyframe in {first}–{last}: key 2 or more",
+                      icon="ERROR")
+        if tracked:
+            col.label(text=f"{len(tracked)} tracked frames (replaced when tracking again)")
+    col.prop(settings, "iterations")
+
+
+def draw_track_panel(layout, context, in_clip_editor=False):
+    """The Track panel's content (shared by the 3D Viewport and the Movie Clip Editor)."""
+    settings = track_settings(context.scene)
+    obj = _draw_armature(layout, context, settings)
+    _draw_footage(layout, context, settings, in_clip_editor)
+    _draw_camera(layout, context, settings)
+    _draw_frames(layout, context, settings, obj)
+    col = layout.column(align=True)
+    row = col.row()
+    row.scale_y = 1.5
+    row.operator("track_and_stride.track_keyframes", icon="TRACKING")
+    message = track_poll_message(context)
+    if message:
+        col.label(text=message, icon="INFO")
+    col = layout.column(align=True)
+    col.label(text="Where is tracking unsure?", icon="GRAPH")
+    if obj is not None and PROP_RESIDUAL in obj.keys():
+        col.label(text="Graph Editor: residual and rank curves")
+    col.operator("track_and_stride.suggest_keyframes", icon="MARKER_HLT")
+    col.prop(settings, "suggest_threshold")
+
+
+def draw_advanced(layout, context):
+    settings = track_settings(context.scene)
+    layout.use_property_split = True
+    layout.prop(settings, "processes")
+    layout.prop(settings, "rank_threshold")
+    layout.prop(settings, "estimate_depth")
+
+
+class VIEW3D_PT_track_and_stride_track(bpy.types.Panel):
+    """Track footage: armature over a movie clip, keyframes in, every frame out."""
+
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Track & Stride"
+    bl_label = "Track"
+    bl_parent_id = "VIEW3D_PT_track_and_stride"
+
+    def draw(self, context):
+        draw_track_panel(self.layout, context)
+
+
+class VIEW3D_PT_track_and_stride_track_advanced(bpy.types.Panel):
+    """Numerical settings of the tracker."""
+
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Track & Stride"
+    bl_label = "Advanced"
+    bl_parent_id = "VIEW3D_PT_track_and_stride_track"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        draw_advanced(self.layout, context)
+
+
+class CLIP_PT_track_and_stride_track(bpy.types.Panel):
+    """Track footage from the Movie Clip Editor's sidebar."""
+
+    bl_space_type = "CLIP_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Track & Stride"
+    bl_label = "Track"
+
+    def draw(self, context):
+        draw_track_panel(self.layout, context, in_clip_editor=True)
+
+
+class CLIP_PT_track_and_stride_track_advanced(bpy.types.Panel):
+    """Numerical settings of the tracker."""
+
+    bl_space_type = "CLIP_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Track & Stride"
+    bl_label = "Advanced"
+    bl_parent_id = "CLIP_PT_track_and_stride_track"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        draw_advanced(self.layout, context)
+
+
+CLASSES = (VIEW3D_PT_track_and_stride_track, VIEW3D_PT_track_and_stride_track_advanced,
+           CLIP_PT_track_and_stride_track, CLIP_PT_track_and_stride_track_advanced)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

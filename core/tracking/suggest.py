@@ -1,0 +1,126 @@
+"""Where one more keyframe pays off: frames whose eq. 4 residual spikes.
+
+Yamamoto's Table 2 reports how many keyframes real motions needed: slow everyday motion (tea
+ceremony) about one every 28 frames, fast or complex motion (gymnastics, a marathon runner) one
+every 7. Where the motion is too fast or too complex for the model, the tracked trajectory
+stops explaining the images, and the photometric residual of eq. 4 between consecutive frames
+rises. The paper's remedy (§5, Fig. 9) is to key the frames where tracking went wrong; this
+module finds candidates for those frames.
+
+Rule (:func:`suggest_keyframes`)
+--------------------------------
+1. Each tracked frame ``f`` carries the residual ``r_f`` of the frame pair ``f-1 -> f`` of the
+   kept trajectory (``IntervalResult.residuals``).
+2. Robust z-score over all tracked frames of the clip (Iglewicz & Hoaglin's modified z-score):
+   ``z_f = (r_f - median(r)) / (1.4826 * MAD(r))``, ``MAD = median(|r - median(r)|)`` (1.4826 MAD
+   estimates the standard deviation of normal data and ignores the spikes themselves). The
+   whole clip is the reference, so an interval that fails as a whole stands out against the
+   others. The MAD is floored at ``1e-3 * median(r)`` (a flat curve suggests nothing).
+3. Frames with ``z_f > threshold`` (default 3.5, the usual outlier cut-off of that score) form
+   runs of consecutive frames; each run suggests its peak frame.
+4. A suggestion closer than ``min_gap`` frames to an existing keyframe is dropped (that key
+   already pins the motion there), and of two suggestions closer than ``min_gap`` to each
+   other only the higher one is kept.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: 1 / Phi^-1(3/4): MAD -> standard deviation for normal data.
+MAD_TO_SIGMA = 1.4826
+
+
+@dataclass(frozen=True)
+class KeySuggestion:
+    """A frame where one more keyframe would help.
+
+    Attributes
+    ----------
+    frame : int
+    z : float
+        Robust z-score of its residual.
+    residual : float
+        Its eq. 4 residual.
+    """
+
+    frame: int
+    z: float
+    residual: float
+
+
+def robust_z_scores(values):
+    """Modified z-scores ``(x - median) / (1.4826 MAD)`` of a 1-D array (see the module doc).
+
+    Parameters
+    ----------
+    values : array_like, shape (N,), finite
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    x = np.asarray(values, dtype=float)
+    if x.ndim != 1 or len(x) == 0:
+        raise ValueError(f"Expected a non-empty 1-D array, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("residuals must be finite")
+    median = np.median(x)
+    mad = np.median(np.abs(x - median))
+    scale = MAD_TO_SIGMA * max(mad, 1e-3 * abs(median), np.finfo(float).tiny)
+    return (x - median) / scale
+
+
+def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2):
+    """Frames where the residual spikes (see the module docstring for the rule).
+
+    Parameters
+    ----------
+    frames : array_like, shape (N,), int
+        Frames carrying a residual (frame ``f``: the pair ``f-1 -> f``).
+    residuals : array_like, shape (N,)
+        Eq. 4 residual per frame.
+    key_frames : array_like, shape (K,), int
+        Existing keyframes.
+    threshold : float
+        z-score above which a frame counts as a spike.
+    min_gap : int
+        Frames: suggestions this close to a key (or to a higher suggestion) are dropped.
+
+    Returns
+    -------
+    list of KeySuggestion
+        By frame.
+    """
+    frames = np.asarray(frames, dtype=int)
+    residuals = np.asarray(residuals, dtype=float)
+    if frames.shape != residuals.shape or frames.ndim != 1:
+        raise ValueError(f"frames and residuals must be 1-D of equal length, got {frames.shape} "
+                         f"and {residuals.shape}")
+    if len(frames) == 0:
+        return []
+    order = np.argsort(frames)
+    frames, residuals = frames[order], residuals[order]
+    z = robust_z_scores(residuals)
+    spike = z > threshold
+    peaks = []
+    k = 0
+    while k < len(frames):
+        if not spike[k]:
+            k += 1
+            continue
+        end = k
+        while end + 1 < len(frames) and spike[end + 1] and frames[end + 1] == frames[end] + 1:
+            end += 1
+        peak = k + int(np.argmax(z[k:end + 1]))
+        peaks.append(peak)
+        k = end + 1
+    keys = np.asarray(key_frames, dtype=int).reshape(-1)
+    if len(keys):
+        peaks = [p for p in peaks if np.min(np.abs(keys - frames[p])) >= min_gap]
+    kept = []
+    for p in sorted(peaks, key=lambda p: -z[p]):
+        if all(abs(frames[p] - frames[q]) >= min_gap for q in kept):
+            kept.append(p)
+    return [KeySuggestion(frame=int(frames[p]), z=float(z[p]), residual=float(residuals[p]))
+            for p in sorted(kept)]
