@@ -7,7 +7,9 @@ other CMU trials -- walks of subjects 08 and 35, a run, another camera angle
 sets on them::
 
     .venv/bin/python benchmarks/validate_tracking.py \
-        --config base='' --config spline='prior="spline"' --keys 10,20,30
+        --config base='' --config p1='patience=1' --keys 10,20,30
+    .venv/bin/python benchmarks/validate_tracking.py --priors --keys 10,20,30 \
+        --clips cmu_08_04,cmu_35_01,...      # slerp vs spline prior, ground truth only
 
 Per clip, keyframe spacing and option set: MPJPE (cm, the benchmark's 17 joints, interior
 frames) of the keyframe interpolation and of the full method, split into joints the camera
@@ -109,6 +111,63 @@ def interp_trajectory(fp, keys):
     return np.concatenate(roots), np.concatenate(local)
 
 
+def _hermite(prev, a, b, nxt, h_prev, h, h_next, n):
+    """Cubic Hermite from ``a`` (s = 0) to ``b`` (s = 1) in n steps, tangents of the parabola
+    through the neighbouring keys (one-sided where there is none): Catmull-Rom for uneven
+    key spacing."""
+    def tangent(x0, x1, x2, h0, h1):
+        if x0 is None:
+            return (x2 - x1) / h1
+        if x2 is None:
+            return (x1 - x0) / h0
+        return (h1 * (x1 - x0) / h0 + h0 * (x2 - x1) / h1) / (h0 + h1)
+    ma, mb = tangent(prev, a, b, h_prev, h) * h, tangent(a, b, nxt, h, h_next) * h
+    s = (np.arange(n + 1) / n).reshape((-1,) + (1,) * np.ndim(a))
+    return ((2 * s ** 3 - 3 * s ** 2 + 1) * a + (s ** 3 - 2 * s ** 2 + s) * ma
+            + (-2 * s ** 3 + 3 * s ** 2) * b + (s ** 3 - s ** 2) * mb)
+
+
+def spline_trajectory(roots, local, keys):
+    """Keyed poses joined by cubic splines through the neighbouring keys: root positions, and
+    every joint's rotation as a rotation vector relative to the interval's start key."""
+    from core.kinematics import exp_so3, log_so3
+    out_t, out_r = [], []
+    for i in range(len(keys) - 1):
+        a, b = keys[i], keys[i + 1]
+        p = keys[i - 1] if i > 0 else None
+        q = keys[i + 2] if i + 2 < len(keys) else None
+        inv = np.swapaxes(local[a], -1, -2)
+        rv = lambda k: None if k is None else log_so3(inv @ local[k])  # noqa: E731
+        h_p, h_q = (a - p if p is not None else 1), (q - b if q is not None else 1)
+        w = _hermite(rv(p), np.zeros((local.shape[1], 3)), rv(b), rv(q), h_p, b - a, h_q, b - a)
+        t = _hermite(None if p is None else roots[p], roots[a], roots[b],
+                     None if q is None else roots[q], h_p, b - a, h_q, b - a)
+        out_t.append(t[:-1]), out_r.append(local[a][None] @ exp_so3(w)[:-1])
+    out_t.append(roots[keys[-1:]]), out_r.append(local[keys[-1:]])
+    return np.concatenate(out_t), np.concatenate(out_r)
+
+
+def prior_comparison(trials, steps, frames=61):
+    """Ground truth only (no footage, no tracking): MPJPE (cm, 17 joints, interior frames) of
+    the per-interval slerp (the paper's prediction, the tracker's prior for what the image
+    does not constrain) and of a cubic spline through the neighbouring keys."""
+    from sample_scenes.footage_scenes import cmu_scene
+    out = {}
+    for trial in trials:
+        sk, _, roots, local, _, _ = cmu_scene(trial, frames)
+        fp = type("GT", (), dict(skeleton=sk, root_translation=roots, local_rotations=local))
+        for step in steps:
+            keys = np.arange(0, frames, step)
+            all_frames = np.arange(keys[0], keys[-1] + 1)
+            interior = ~np.isin(all_frames, keys)
+            res = {}
+            for name, (t, r) in (("slerp", interp_trajectory(fp, keys)),
+                                 ("spline", spline_trajectory(roots, local, keys))):
+                res[name] = float(joint_errors(fp, t, r, all_frames)[interior].mean())
+            out.setdefault(trial, {})[f"keys_every_{step}"] = res
+    return out
+
+
 def validate_clip(fp, configs, steps, processes=1):
     problem = problem_for(fp)
     n = len(fp.frames) - 1
@@ -146,7 +205,20 @@ def main(argv=None):
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--processes", type=int, default=1)
     ap.add_argument("--output", default=str(ROOT / "build" / "bench" / "validate_tracking.json"))
+    ap.add_argument("--priors", action="store_true",
+                    help="only compare slerp and spline priors on the ground truth of --clips")
     args = ap.parse_args(argv)
+    if args.priors:
+        steps = [int(k) for k in args.keys.split(",")]
+        res = prior_comparison(args.clips.split(","), steps)
+        for trial, r in res.items():
+            print(f"{trial:>14} " + " | ".join(f"keys {k.split('_')[-1]}: slerp {v['slerp']:5.2f} "
+                                                 f"spline {v['spline']:5.2f}" for k, v in r.items()))
+        for step in steps:
+            k = f"keys_every_{step}"
+            print(f"mean keys {step:>2}: slerp {np.mean([r[k]['slerp'] for r in res.values()]):5.2f}"
+                  f"  spline {np.mean([r[k]['spline'] for r in res.values()]):5.2f}")
+        return
     configs = {}
     for c in args.config or ["default="]:
         name, _, opts = c.partition("=")
