@@ -329,7 +329,11 @@ def _prepare(problem, frames, start, end, options, pyramid, initial=None):
     if roi is not None:
         u0, v0, w, h = roi
         problem = dataclasses.replace(problem, camera=cam.cropped(u0, v0, w, h))
-        frames = np.ascontiguousarray(frames[:, v0:v0 + h, u0:u0 + w])
+        frames = frames[:, v0:v0 + h, u0:u0 + w]
+        if levels[0] == 0:
+            # Level 0 is sampled (flat indices): a contiguous copy. Otherwise it is only
+            # reduced, which works on the strided window directly.
+            frames = np.ascontiguousarray(frames)
     return problem, start, end, gaussian_pyramid(frames, levels[1] + 1), levels
 
 
