@@ -9,6 +9,11 @@ Scenes
 ``walk``  CMU 08_01 (walk), resampled from 120 Hz to 30 fps.
 ``run``   CMU 35_17 (run), resampled from 120 Hz to 60 fps (30 fps is too coarse for a run).
 ``calib`` small textured boxes at known points (camera-contract test).
+``cmu_<trial>[_v<deg>]``  any CMU trial of ``sample_scenes/data/cmu`` (e.g. ``cmu_35_05``,
+          ``cmu_08_04_v20``): 30 fps, runs (35_17 .. 35_26) 60 fps; the landscape camera
+          ``<deg>`` degrees off the perpendicular (default ``VIEW_ANGLE``). Validation clips
+          of the tracker (``benchmarks/validate_tracking.py``), so that its settings are chosen
+          on other footage than the benchmark's 08_01 walk.
 
 The body is one tapered cylinder per CMU bone (radii from
 :func:`core.armature.plausible_envelope_radii`, bones shorter than 4 cm skipped: fingers,
@@ -16,6 +21,7 @@ thumbs, hands), i.e. exactly the tracker's :class:`~core.tracking.BodyModel`.
 """
 
 import json
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -91,9 +97,21 @@ def skeleton_from_arrays(d):
                     dof_axes=dof, limits=d["limits"], root_translation=bool(d["root_translation"]))
 
 
+def motion_spec(motion):
+    """(CMU trial, fps, view angle in degrees) of a CMU motion name (module docstring)."""
+    if motion in MOTIONS:
+        return MOTIONS[motion] + (VIEW_ANGLE,)
+    m = re.fullmatch(r"cmu_(\d\d)_(\d\d)(?:_v(-?\d+(?:\.\d+)?))?", motion)
+    if not m or not (CMU / f"{m[1]}_{m[2]}.amc").exists():
+        raise ValueError(f"unknown motion {motion!r}: 'walk', 'run', 'box', 'calib' or "
+                         f"'cmu_<trial>[_v<deg>]' with a trial in {CMU}")
+    fps = 60.0 if m[1] == "35" and 17 <= int(m[2]) <= 26 else 30.0
+    return f"{m[1]}_{m[2]}", fps, float(m[3]) if m[3] else VIEW_ANGLE
+
+
 def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
     """Skeleton, body and poses of a CMU trial (see the module docstring)."""
-    trial, fps = MOTIONS[motion]
+    trial, fps, view_angle = motion_spec(motion)
     asf = read_asf(CMU / f"{trial.split('_')[0]}.asf")
     sk = asf_to_skeleton(asf)
     values = read_amc(CMU / f"{trial}.amc", asf).values
@@ -125,7 +143,7 @@ def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
         # length frames the walked path (or the body's height, whichever needs more room).
         span = float(np.linalg.norm(path[-1] - path[0]))
         dist = 4.5
-        ang = np.radians(VIEW_ANGLE)
+        ang = np.radians(view_angle)
         view = np.cos(ang) * side + np.sin(ang) * heading
         eye = centre + np.r_[dist * view, 0.35]
         visible = max((span * np.cos(ang) + 0.7) / 0.85, 2.2 * aspect)

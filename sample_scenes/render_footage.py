@@ -152,7 +152,8 @@ def setup_render(scene, width, height, out_dir):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--motion", choices=["box", "walk", "run", "calib"], required=True)
+    ap.add_argument("--motion", required=True,
+                    help="box, walk, run, calib or cmu_<trial>[_v<deg>] (footage_scenes.py)")
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=180)
     ap.add_argument("--frames", type=int, default=21)

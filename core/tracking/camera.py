@@ -162,6 +162,12 @@ class PinholeCamera:
                              width=max(1, self.width >> level), height=max(1, self.height >> level),
                              world2camera=self.world2camera)
 
+    def cropped(self, u0, v0, width, height):
+        """The camera of the window ``width x height`` whose top-left pixel is ``(u0, v0)``:
+        pixel ``(u, v)`` of the window is pixel ``(u + u0, v + v0)`` of the full image."""
+        return PinholeCamera(self.fx, self.fy, self.cx - u0, self.cy - v0, width, height,
+                             self.world2camera)
+
     def with_pose(self, world2camera):
         """Same intrinsics, another pose."""
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height,

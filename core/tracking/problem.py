@@ -156,6 +156,16 @@ class TrackingOptions:
     min_part_samples : int
         A joint whose subtree shows fewer points than this is not measured in that frame: its
         columns of ``A`` are dropped and it takes the prediction (hidden or tiny parts).
+    roi_margin : float or None
+        The pyramid is built on a window of the frames around the body only
+        (``trajectory.region_of_interest``): the body's bounding box over the keys and the
+        interpolation, widened by this fraction of its larger side on every side. ``None``:
+        whole frames. The cost of the pyramid then follows the body's size, not the frame's;
+        the tracking result is the same (to rounding) as long as the body stays inside.
+    min_improvement : float
+        An iteration counts as an improvement (for ``patience``) only when it lowers the best
+        eq. 4 error by more than this fraction; the minimum is kept either way. 0: any
+        decrease counts (default; see docs/tracking.md, *Validation*).
     """
 
     tau: float = 0.02
@@ -180,6 +190,8 @@ class TrackingOptions:
     seed: str = "bidirectional"
     root_displacement: str = "measured"
     estimate_depth: bool = False
+    roi_margin: float = 0.25
+    min_improvement: float = 0.0
 
     def __post_init__(self):
         if self.seed not in ("interpolation", "forward", "bidirectional"):
@@ -188,6 +200,10 @@ class TrackingOptions:
         if self.root_displacement not in ("measured", "accumulated"):
             raise ValueError(f"root_displacement must be 'measured' or 'accumulated', got "
                              f"{self.root_displacement!r}")
+        if self.roi_margin is not None and not self.roi_margin >= 0.0:
+            raise ValueError(f"roi_margin must be >= 0 or None, got {self.roi_margin}")
+        if not 0.0 <= self.min_improvement < 1.0:
+            raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")
         if not 0.0 < self.tau < 1.0:
             raise ValueError(f"tau must be in (0, 1), got {self.tau}")
         for name in ("sample_budget", "candidate_budget", "levels", "warp_iterations",

@@ -16,6 +16,7 @@
    one before the divergence -- the interpolation if no iteration improved on it.
 """
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -305,22 +306,73 @@ def _check_pose(name, pose, b):
     return Pose(t, r)
 
 
-def _prepare(problem, frames, start, end, options, pyramid):
+def _prepare(problem, frames, start, end, options, pyramid, initial=None):
+    """Checked keys, the problem (its camera cropped to the region of interest), the pyramid and
+    the (finest, top) levels."""
     sk = problem.skeleton
     start = _check_pose("start", start, sk.n_joints)
     end = _check_pose("end", end, sk.n_joints)
-    if pyramid is None:
-        frames = np.asarray(frames)
-        cam = problem.camera
-        if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
-            raise TrackingError(f"Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
-                                f"got {frames.shape}")
-        if len(frames) < 2:
-            raise TrackingError("an interval needs at least two frames")
-        if frames.dtype not in (np.float32, np.float64):
-            frames = frames.astype(np.float32)
-        pyramid = gaussian_pyramid(frames, pyramid_levels(problem, options))
-    return start, end, pyramid, choose_levels(problem, options, start, end, len(pyramid))
+    if pyramid is not None:
+        return problem, start, end, pyramid, choose_levels(problem, options, start, end,
+                                                           len(pyramid))
+    frames = np.asarray(frames)
+    cam = problem.camera
+    if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
+        raise TrackingError(f"Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
+                            f"got {frames.shape}")
+    if len(frames) < 2:
+        raise TrackingError("an interval needs at least two frames")
+    if frames.dtype not in (np.float32, np.float64):
+        frames = frames.astype(np.float32)
+    levels = choose_levels(problem, options, start, end, pyramid_levels(problem, options))
+    roi = region_of_interest(problem, options, start, end, len(frames) - 1, levels[1], initial)
+    if roi is not None:
+        u0, v0, w, h = roi
+        problem = dataclasses.replace(problem, camera=cam.cropped(u0, v0, w, h))
+        frames = frames[:, v0:v0 + h, u0:u0 + w]
+        if levels[0] == 0:
+            # Level 0 is sampled (flat indices): a contiguous copy. Otherwise it is only
+            # reduced, which works on the strided window directly.
+            frames = np.ascontiguousarray(frames)
+    return problem, start, end, gaussian_pyramid(frames, levels[1] + 1), levels
+
+
+def region_of_interest(problem, options, start, end, n, top, initial=None):
+    """Window ``(u0, v0, width, height)`` of the frames that the tracker works in, or None for
+    the whole frame (``TrackingOptions.roi_margin``).
+
+    The body's conservative bounding box (:func:`~.body_model.part_bounds`) over the keys and
+    the interpolated trajectory (and ``initial``), widened on every side by ``roi_margin`` x
+    the box's larger side plus ``4 * 2**top`` pixels (the pyramid filters' reach on the
+    coarsest level), with its corners on multiples of ``2**top`` (every pyramid level of the
+    window is then a window of the full frame's level). The whole frame when the window would
+    cover most of it (90 % of its area) or a part reaches the camera plane.
+    """
+    if options.roi_margin is None:
+        return None
+    cam = problem.camera
+    roots, local = interpolate_poses(problem.skeleton, start, end, n)
+    b = problem.skeleton.n_joints
+    if initial is not None and np.shape(initial[0]) == (n + 1, 3) \
+            and np.shape(initial[1]) == (n + 1, b, 3, 3):
+        roots = np.concatenate([roots, np.asarray(initial[0], dtype=float)])
+        local = np.concatenate([local, np.asarray(initial[1], dtype=float)])
+    rot, org = _frames_in_camera(problem, roots, local)
+    bounds = part_bounds(problem.body, cam, part_geometry(problem.body, rot, org))
+    if not np.all(np.isfinite(bounds)):
+        return None
+    lo_u, hi_u = bounds[..., 0].min(), bounds[..., 1].max()
+    lo_v, hi_v = bounds[..., 2].min(), bounds[..., 3].max()
+    margin = options.roi_margin * max(hi_u - lo_u, hi_v - lo_v) + 4 * 2 ** top
+    align = 2 ** top
+    u0 = int(np.clip(np.floor((lo_u - margin) / align) * align, 0, cam.width))
+    v0 = int(np.clip(np.floor((lo_v - margin) / align) * align, 0, cam.height))
+    u1 = int(np.clip(np.ceil((hi_u + margin + 1) / align) * align, 0, cam.width))
+    v1 = int(np.clip(np.ceil((hi_v + margin + 1) / align) * align, 0, cam.height))
+    if (u1 - u0) < 2 * align or (v1 - v0) < 2 * align \
+            or (u1 - u0) * (v1 - v0) > 0.9 * cam.width * cam.height:
+        return None
+    return u0, v0, u1 - u0, v1 - v0
 
 
 class _Trajectory:
@@ -371,7 +423,8 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     report = progress if progress is not None else (lambda fraction: None)
     sk = problem.skeleton
     tic = time.perf_counter()
-    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    problem, start, end, pyramid, levels = _prepare(problem, frames, start, end, options,
+                                                    pyramid, initial)
     report(_PROGRESS_PYRAMID)
     finest, top = levels
     n = len(pyramid[0]) - 1
@@ -468,6 +521,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         if error < best_error:
             best = dict(traj=new, residuals=per_frame, ranks=fm.ranks, n_samples=fm.n_samples,
                         iteration=iteration)
+        if error < (1.0 - options.min_improvement) * best_error:
             since_best = 0
         else:
             since_best += 1
@@ -618,7 +672,7 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     options = options or TrackingOptions()
-    start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    problem, start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
     n = len(pyramid[0]) - 1
     return _track_sequential(problem, options, pyramid, levels,
                              [_forward_chain(problem.skeleton, start, end, n)])[0]
