@@ -10,6 +10,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from .gait_bridge import (MAX_STYLES, PredictOptions, active_model, gait_settings, learn_gait,
                           predict_gait)
 from .gait_rigs import GaitError
+from .reporting import report_outcome
 
 _MODES = ("OBJECT", "POSE")
 
@@ -74,14 +75,8 @@ class TS_OT_learn_gait(bpy.types.Operator):
         objects = [o for o in context.selected_objects if o.type == "ARMATURE"] \
             if self.use_selected else []
         files = [os.path.join(self.directory, f.name) for f in self.files if f.name]
-        try:
-            _, summary = learn_gait(context, objects, files, self.name, self.n_styles,
-                                    self.range_mode, self.source_fps)
-        except GaitError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, GaitError, lambda: learn_gait(
+            context, objects, files, self.name, self.n_styles, self.range_mode, self.source_fps)[1])
 
 
 class TS_OT_remove_gait_model(bpy.types.Operator):
@@ -205,13 +200,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
             "style_a", "style_b", "blend", "stride", "root_travel", "plant_feet", "walker_detail",
             "adaptation", "target")},
             weights=tuple(self.weights))
-        try:
-            summary = predict_gait(context, context.active_object, options)
-        except GaitError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, GaitError,
+                              lambda: predict_gait(context, context.active_object, options))
 
     def draw(self, context):
         layout = self.layout
@@ -251,11 +241,4 @@ class TS_OT_predict_gait(bpy.types.Operator):
 CLASSES = (TS_OT_learn_gait, TS_OT_remove_gait_model, TS_OT_predict_gait)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -242,9 +242,11 @@ class TS_OT_gait_preview_stop(bpy.types.Operator):
 CLASSES = (TS_OT_gait_preview_start, TS_OT_gait_preview_stop)
 
 
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
 def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+    register_classes()
     bpy.app.handlers.load_pre.append(_on_load_pre)
 
 
@@ -252,5 +254,4 @@ def unregister():
     stop_preview()
     while _on_load_pre in bpy.app.handlers.load_pre:
         bpy.app.handlers.load_pre.remove(_on_load_pre)
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+    unregister_classes()

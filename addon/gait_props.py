@@ -37,13 +37,14 @@ class TS_GaitSettings(bpy.types.PropertyGroup):
 CLASSES = (TS_GaitModelItem, TS_GaitSettings)
 
 
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
 def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+    register_classes()
     setattr(bpy.types.Scene, SETTINGS, PointerProperty(type=TS_GaitSettings))
 
 
 def unregister():
     delattr(bpy.types.Scene, SETTINGS)
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+    unregister_classes()

@@ -59,11 +59,4 @@ class VIEW3D_PT_track_and_stride_gait(bpy.types.Panel):
 CLASSES = (TS_UL_gait_models, VIEW3D_PT_track_and_stride_gait)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -7,6 +7,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ..core.mocap import MocapParseError
 from .acclaim_bridge import AcclaimError, export_acclaim, import_acclaim
+from .reporting import report_outcome
 
 
 class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
@@ -39,15 +40,9 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         name="Set Frame Range", description="Set the scene's start/end frames to the motion", default=True)
 
     def execute(self, context):
-        try:
-            obj, summary = import_acclaim(
-                context, self.filepath, self.asf_filepath, self.frame_rate_mode, self.source_fps,
-                self.frame_start, self.set_frame_range)
-        except (MocapParseError, AcclaimError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, (MocapParseError, AcclaimError), lambda: import_acclaim(
+            context, self.filepath, self.asf_filepath, self.frame_rate_mode, self.source_fps,
+            self.frame_start, self.set_frame_range)[1])
 
     def draw(self, context):
         layout = self.layout
@@ -83,13 +78,9 @@ class TS_OT_export_acclaim(bpy.types.Operator, ExportHelper):
     def execute(self, context):
         scene = context.scene
         start, end = (scene.frame_start, scene.frame_end) if self.use_scene_range else (None, None)
-        try:
-            amc, asf = export_acclaim(context, context.active_object, self.filepath, start, end)
-        except (MocapParseError, AcclaimError, OSError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {amc} and {asf}")
-        return {"FINISHED"}
+        return report_outcome(
+            self, (MocapParseError, AcclaimError, OSError), lambda: "Wrote {} and {}".format(
+                *export_acclaim(context, context.active_object, self.filepath, start, end)))
 
 
 class TS_FH_acclaim(bpy.types.FileHandler):
@@ -117,9 +108,11 @@ CLASSES = (TS_OT_import_acclaim, TS_OT_export_acclaim, TS_FH_acclaim)
 MENUS = ((bpy.types.TOPBAR_MT_file_import, menu_import), (bpy.types.TOPBAR_MT_file_export, menu_export))
 
 
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
 def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+    register_classes()
     for menu, func in MENUS:
         menu.append(func)
 
@@ -127,5 +120,4 @@ def register():
 def unregister():
     for menu, func in reversed(MENUS):
         menu.remove(func)
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+    unregister_classes()

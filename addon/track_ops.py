@@ -8,6 +8,7 @@ from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from .footage import MOVIE_EXTENSIONS
+from .reporting import report_outcome
 from .track_bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
                            resolve_armature, suggest_markers, track_now)
 from .track_props import track_settings
@@ -213,13 +214,8 @@ class TS_OT_suggest_keyframes(bpy.types.Operator):
         return _armature_or_message(cls, context) is not None
 
     def execute(self, context):
-        try:
-            summary, _ = suggest_markers(context, track_settings(context.scene))
-        except TrackError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, TrackError,
+                              lambda: suggest_markers(context, track_settings(context.scene))[0])
 
 
 class TS_OT_table1_dof(bpy.types.Operator):
@@ -236,14 +232,8 @@ class TS_OT_table1_dof(bpy.types.Operator):
         return _armature_or_message(cls, context) is not None
 
     def execute(self, context):
-        try:
-            obj = resolve_armature(context, track_settings(context.scene))
-            summary = apply_table1_dof(obj)
-        except TrackError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, TrackError, lambda: apply_table1_dof(
+            resolve_armature(context, track_settings(context.scene))))
 
 
 class TS_OT_show_envelopes(bpy.types.Operator):
@@ -286,13 +276,8 @@ class TS_OT_show_footage(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        try:
-            summary = show_footage_behind_camera(context, track_settings(context.scene))
-        except TrackError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, TrackError,
+                              lambda: show_footage_behind_camera(context, track_settings(context.scene)))
 
 
 class TS_OT_open_footage(bpy.types.Operator, ImportHelper):
@@ -316,14 +301,9 @@ class TS_OT_open_footage(bpy.types.Operator, ImportHelper):
                     "filmed)")
 
     def execute(self, context):
-        try:
-            _, summary = open_footage(context, track_settings(context.scene), self.filepath,
-                                      self.set_frame_range, self.match_render_size)
-        except TrackError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, TrackError, lambda: open_footage(
+            context, track_settings(context.scene), self.filepath, self.set_frame_range,
+            self.match_render_size)[1])
 
 
 class TS_OT_match_render_size(bpy.types.Operator):
@@ -342,13 +322,8 @@ class TS_OT_match_render_size(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        try:
-            summary = match_render_size(context, track_settings(context.scene))
-        except TrackError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
+        return report_outcome(self, TrackError,
+                              lambda: match_render_size(context, track_settings(context.scene)))
 
 
 class TS_OT_use_editor_clip(bpy.types.Operator):
@@ -377,12 +352,13 @@ CLASSES = (TS_OT_track_keyframes, TS_OT_suggest_keyframes, TS_OT_table1_dof, TS_
            TS_OT_show_footage, TS_OT_open_footage, TS_OT_match_render_size, TS_OT_use_editor_clip)
 
 
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
 def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+    register_classes()
 
 
 def unregister():
     cancel_running()
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+    unregister_classes()

@@ -203,11 +203,4 @@ CLASSES = (VIEW3D_PT_track_and_stride_track, VIEW3D_PT_track_and_stride_track_ad
            CLIP_PT_track_and_stride_track, CLIP_PT_track_and_stride_track_advanced)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

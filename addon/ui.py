@@ -3,6 +3,7 @@
 import bpy
 
 from .body_bridge import build_envelope_body
+from .reporting import report_outcome
 
 
 class TS_OT_add_envelope_body(bpy.types.Operator):
@@ -25,13 +26,8 @@ class TS_OT_add_envelope_body(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        try:
-            body = build_envelope_body(context, context.active_object)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Built {body.name}")
-        return {"FINISHED"}
+        return report_outcome(self, ValueError, lambda: "Built {}".format(
+            build_envelope_body(context, context.active_object).name))
 
 
 class VIEW3D_PT_track_and_stride(bpy.types.Panel):
@@ -60,11 +56,4 @@ class VIEW3D_PT_track_and_stride(bpy.types.Panel):
 CLASSES = (TS_OT_add_envelope_body, VIEW3D_PT_track_and_stride)
 
 
-def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -1,0 +1,26 @@
+"""The one way operators turn a bridge call into reports (operators stay ~20-line adapters)."""
+
+
+def report_outcome(operator, errors, action):
+    """Run ``action()`` and report its outcome on ``operator``.
+
+    Parameters
+    ----------
+    operator : bpy.types.Operator
+    errors : type or tuple of type
+        The domain exceptions that mean "cannot run": reported as ERROR, nothing else is caught.
+    action : callable
+        Returns the INFO line to report.
+
+    Returns
+    -------
+    set
+        ``{'FINISHED'}`` or ``{'CANCELLED'}``.
+    """
+    try:
+        summary = action()
+    except errors as exc:
+        operator.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    operator.report({"INFO"}, summary)
+    return {"FINISHED"}
