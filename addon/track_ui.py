@@ -159,18 +159,23 @@ class VIEW3D_PT_track_and_stride_track(bpy.types.Panel):
         draw_track_panel(self.layout, context)
 
 
-class VIEW3D_PT_track_and_stride_track_advanced(bpy.types.Panel):
-    """Numerical settings of the tracker."""
+class _AdvancedPanel:
+    """Numerical settings of the tracker (shared by the 3D Viewport and Movie Clip Editor)."""
 
-    bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Track & Stride"
     bl_label = "Advanced"
-    bl_parent_id = "VIEW3D_PT_track_and_stride_track"
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         draw_advanced(self.layout, context)
+
+
+class VIEW3D_PT_track_and_stride_track_advanced(_AdvancedPanel, bpy.types.Panel):
+    """Numerical settings of the tracker."""
+
+    bl_space_type = "VIEW_3D"
+    bl_parent_id = "VIEW3D_PT_track_and_stride_track"
 
 
 class CLIP_PT_track_and_stride_track(bpy.types.Panel):
@@ -185,18 +190,11 @@ class CLIP_PT_track_and_stride_track(bpy.types.Panel):
         draw_track_panel(self.layout, context, in_clip_editor=True)
 
 
-class CLIP_PT_track_and_stride_track_advanced(bpy.types.Panel):
+class CLIP_PT_track_and_stride_track_advanced(_AdvancedPanel, bpy.types.Panel):
     """Numerical settings of the tracker."""
 
     bl_space_type = "CLIP_EDITOR"
-    bl_region_type = "UI"
-    bl_category = "Track & Stride"
-    bl_label = "Advanced"
     bl_parent_id = "CLIP_PT_track_and_stride_track"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        draw_advanced(self.layout, context)
 
 
 CLASSES = (VIEW3D_PT_track_and_stride_track, VIEW3D_PT_track_and_stride_track_advanced,
