@@ -97,7 +97,16 @@ def estimate_period(values, fps, lag_range=(0.5, 2.0), peak_ratio=0.85):
                          f"{lo_s}-{hi_s} s")
     if not np.all(np.isfinite(x)):
         raise ValueError("values must be finite")
+    # The period does not depend on the units: scale to unit magnitude so that very small or
+    # very large values neither underflow nor overflow in the squared sums.
+    magnitude = np.abs(x).max() if x.size else 0.0
+    x = x / magnitude if magnitude > 0 else x
     ac = autocorrelation(x, hi + 1)
+    # Constant channels leave only rounding noise (~1e-16 of the magnitude) after mean removal;
+    # its autocorrelation has random peaks that must not be taken for a period.
+    if not ac[0] > x.shape[1] * 1e-20:
+        raise ValueError(f"no periodicity found between {lo_s} and {hi_s} s "
+                         "(the values do not vary)")
     lags = np.arange(lo, hi + 1)
     seg = ac[lo - 1: hi + 2]
     is_peak = (seg[1:-1] >= seg[:-2]) & (seg[1:-1] > seg[2:])

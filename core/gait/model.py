@@ -40,7 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .gp import build_phase_gp
-from .root_travel import RATE_FEATURES, RootFrame
+from .root_travel import RATE_FEATURES, ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, ROOT_FEATURE_UNITS, \
+    RootFrame
 
 __all__ = ["FORMAT_VERSION", "GaitModel", "GaitModelFileError", "TRANSITION"]
 
@@ -122,7 +123,21 @@ class GaitModel:
     def _validate(self):
         d = len(self.channel_names)
         j = self.bases.shape[0] if self.bases.ndim == 3 else -1
+        # The channel layout learn_model writes: the joint angles of dof_names (every DOF that
+        # is not a root DOF, in order), then the root features when root_travel is set.
+        angles = [n for n in self.dof_names if n not in ROOT_DOF_NAMES]
+        root = list(ROOT_FEATURE_NAMES) if self.root_travel else []
         checks = [
+            (len(set(self.dof_names)) == len(self.dof_names), "DOF names must be unique"),
+            (not self.root_travel or all(n in self.dof_names for n in ROOT_DOF_NAMES),
+             "a model with root travel needs the six root DOFs in dof_names"),
+            (len(angles) > 0 and list(self.channel_names) == angles + root,
+             "channel names must be the joint-angle DOF names"
+             + (" followed by the root features" if root else "")),
+            (list(self.units) == ["rad"] * len(angles)
+             + (list(ROOT_FEATURE_UNITS) if root else []),
+             "units must be 'rad' per joint angle" + (" then the root features' units"
+                                                      if root else "")),
             (self.bases.ndim == 3 and self.bases.shape[2] == d and self.bases.shape[1] >= 5,
              f"bases must be (J, C>=5, {d}), got {self.bases.shape}"),
             (len(set(self.channel_names)) == d, "channel names must be unique"),

@@ -82,12 +82,29 @@ def parse_amc(lines, asf, path="<string>", fps=120.0):
         _parse_slow(tokens, layout, start, path)  # raises, naming the line
         raise MocapParseError(path, None, "non-finite value")  # pragma: no cover - defensive
     values = raw[:, layout.file_to_layout]
-    values[:, layout.translation_columns] *= asf.length_scale
+    with np.errstate(over="ignore"):              # checked just below
+        values[:, layout.translation_columns] *= asf.length_scale
+    too_far = ~np.all(np.isfinite(values[:, layout.translation_columns]), axis=1)
+    if np.any(too_far):   # finite in file units, beyond float range in metres
+        frame = int(np.argmax(too_far))
+        raise MocapParseError(path, _root_line(tokens, start, frame),
+                              f"frame {frame_numbers[frame]}: root position is too large in metres")
     values[:, layout.translation_columns] = values[:, layout.translation_columns] @ YUP_TO_ZUP.T
     if degrees:
         values[:, layout.rotation_columns] *= np.pi / 180.0
     return AmcMotion(values=values, frame_numbers=frame_numbers, bone_order=bone_order,
                      fps=float(fps), path=str(path))
+
+
+def _root_line(tokens, start, frame):
+    """1-based line number of the ``root`` line of the ``frame``-th frame (0-based)."""
+    seen = -1
+    for idx, parts in enumerate(tokens):
+        if parts and _is_frame_number(parts[0]):
+            seen += 1
+        elif seen == frame and parts and parts[0] == "root":
+            return start + idx + 1
+    return None  # pragma: no cover - the parsed frame has a root line
 
 
 def _is_frame_number(token):

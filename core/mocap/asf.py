@@ -14,6 +14,7 @@ Conventions of this reader (documented in ``docs/conventions.md``):
   absolute (as in every CMU file, whose root position is 0 0 0).
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -198,6 +199,9 @@ def _parse_units(section, path):
             number_value = parse_float(value, path, number, f"units {key}")
             if number_value <= 0:
                 raise MocapParseError(path, number, f"units {key} must be positive")
+            if key == "length" and not math.isfinite(INCH / number_value):
+                raise MocapParseError(path, number, f"units length {value} is too small: one "
+                                      "file unit would be infinitely long")
             units[key] = number_value
         else:
             raise MocapParseError(path, number, f"unknown unit {key!r}")
@@ -226,7 +230,11 @@ def _parse_root(section, path, length_scale, deg):
                 raise MocapParseError(path, number, f"root axis must be an order like XYZ, got {' '.join(parts)!r}")
             found["root_axis"] = parts[0].upper()
         elif key == "position":
-            found["root_position"] = np.array(_floats(parts, 3, path, number, "root position")) * length_scale
+            with np.errstate(over="ignore"):      # checked just below
+                position = np.array(_floats(parts, 3, path, number, "root position")) * length_scale
+            if not np.all(np.isfinite(position)):
+                raise MocapParseError(path, number, "root position is too large in metres")
+            found["root_position"] = position
         elif key == "orientation":
             found["root_orientation"] = np.array(_floats(parts, 3, path, number, "root orientation")) * angle_scale
         else:
@@ -305,6 +313,8 @@ def _parse_bone(block, start, path, length_scale, angle_scale):
     length = _floats(parts, 1, path, number, f"bone {name!r} length")[0]
     if length < 0:
         raise MocapParseError(path, number, f"bone {name!r}: length must not be negative")
+    if not math.isfinite(length * length_scale):
+        raise MocapParseError(path, number, f"bone {name!r}: length is too large in metres")
     number, parts = fields["axis"]
     if len(parts) != 4 or parts[3].upper() not in _EULER_ORDERS:
         raise MocapParseError(path, number, f"bone {name!r}: axis needs 3 angles and an order like XYZ")

@@ -84,7 +84,10 @@ class PinholeCamera:
                 raise ValueError(f"{name} must be a positive focal length in pixels, got {value}")
             object.__setattr__(self, name, value)
         for name in ("cx", "cy"):
-            object.__setattr__(self, name, float(getattr(self, name)))
+            value = float(getattr(self, name))
+            if not np.isfinite(value):
+                raise ValueError(f"{name} must be a finite principal point in pixels, got {value}")
+            object.__setattr__(self, name, value)
         for name in ("width", "height"):
             value = int(getattr(self, name))
             if value <= 0:
@@ -94,7 +97,8 @@ class PinholeCamera:
         if pose.shape != (4, 4):
             raise ValueError(f"Expected world2camera of shape (4, 4), got {pose.shape}")
         rot = pose[:3, :3]
-        if (np.abs(rot @ rot.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rot) <= 0
+        # (NaN fails no comparison below: test finiteness first.)
+        if (not np.all(np.isfinite(pose)) or np.abs(rot @ rot.T - np.eye(3)).max() > 1e-6 or np.linalg.det(rot) <= 0
                 or np.abs(pose[3] - [0, 0, 0, 1]).max() > 1e-12):
             raise ValueError("world2camera must be a rigid transform (rotation + translation)")
         pose.setflags(write=False)

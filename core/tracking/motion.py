@@ -326,7 +326,9 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
     n_samples = valid.sum(axis=1)
     measured = n_samples >= options.min_samples
     valid &= measured[:, None]
-    points = np.where(valid[..., None], samples.points[safe] if samples.count else 0.0, 0.0)
+    # No samples at all (the body is out of view): (n, S, 3) dummy points, none valid.
+    points = np.where(valid[..., None],
+                      samples.points[safe] if samples.count else np.zeros(slots.shape + (3,)), 0.0)
     points[..., 2] = np.where(valid, points[..., 2], 1.0)
     fr = np.arange(n)[:, None]
     local_points = np.einsum("fsji,fsj->fsi", rot[fr, joints], points - org[fr, joints])

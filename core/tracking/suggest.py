@@ -15,7 +15,8 @@ Rule (:func:`suggest_keyframes`)
    ``z_f = (r_f - median(r)) / (1.4826 * MAD(r))``, ``MAD = median(|r - median(r)|)`` (1.4826 MAD
    estimates the standard deviation of normal data and ignores the spikes themselves). The
    whole clip is the reference, so an interval that fails as a whole stands out against the
-   others. The MAD is floored at ``1e-3 * median(r)`` (a flat curve suggests nothing).
+   others. The MAD is floored at ``1e-3 * median(r)`` (a flat curve suggests nothing) and at
+   ``1e-12 * max|r - median(r)|`` (scores stay finite when most residuals are 0).
 3. Frames with ``z_f > threshold`` (default 3.5, the usual outlier cut-off of that score) form
    runs of consecutive frames; each run suggests its peak frame.
 4. A suggestion closer than ``min_gap`` frames to an existing keyframe is dropped (that key
@@ -67,7 +68,10 @@ def robust_z_scores(values):
         raise ValueError("residuals must be finite")
     median = np.median(x)
     mad = np.median(np.abs(x - median))
-    scale = MAD_TO_SIGMA * max(mad, 1e-3 * abs(median), np.finfo(float).tiny)
+    # Floors: a flat curve (MAD 0) must not divide by zero, and mostly-zero residuals (frames
+    # with nothing to measure) must not turn one spike into an infinite score.
+    scale = MAD_TO_SIGMA * max(mad, 1e-3 * abs(median), 1e-12 * np.max(np.abs(x - median)),
+                               np.finfo(float).tiny)
     return (x - median) / scale
 
 

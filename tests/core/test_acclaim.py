@@ -208,6 +208,48 @@ def test_asf_bad_bone_fields(asf_lines):
     assert "without a 'limits'" in asf_error(lines).reason
 
 
+def _with_units_length(lines, value):
+    i = next(k for k, l in enumerate(lines) if l.split()[:1] == ["length"]
+             and k < lines.index(":root"))
+    out = lines.copy()
+    out[i] = f"  length {value}"
+    return out, i
+
+
+def test_units_and_lengths_beyond_float_range_in_metres(asf_lines):
+    # 1e-320 is a positive (denormal) number, but 0.0254 / 1e-320 m per unit overflows.
+    lines, i = _with_units_length(asf_lines, "1e-320")
+    err = asf_error(lines)
+    assert err.line == i + 1 and "units length" in err.reason
+    # A finite scale (2.54e8 m per unit) whose product with a finite bone length overflows.
+    lines, _ = _with_units_length(asf_lines, "1e-10")
+    j = next(k for k, l in enumerate(lines) if l.split()[:1] == ["length"] and k > i)
+    lines[j] = "     length 1e301"
+    err = asf_error(lines)
+    assert err.line == j + 1 and "length is too large" in err.reason
+    lines, _ = _with_units_length(asf_lines, "1e-10")
+    k = next(k for k, l in enumerate(lines) if l.split()[:1] == ["position"])
+    lines[k] = "    position 0 1e301 0"
+    err = asf_error(lines)
+    assert err.line == k + 1 and "root position" in err.reason
+
+
+def test_amc_root_position_beyond_float_range_in_metres(walk, asf_lines):
+    # 254 m per file unit: a finite AMC root translation of 1e307 units is inf metres.
+    asf = parse_asf(_with_units_length(asf_lines, "0.0001")[0], path="body.asf")
+    assert asf.length_scale == pytest.approx(254.0)
+    _, lines = walk
+    i = [k for k, l in enumerate(lines) if l.split()[:1] == ["root"]][2]   # frame 3
+    bad = lines.copy()
+    parts = bad[i].split()
+    parts[2] = "1e307"
+    bad[i] = " ".join(parts)
+    err = amc_error(bad, asf)
+    assert err.line == i + 1 and "root position" in err.reason
+    cut = [k for k, l in enumerate(lines) if l.strip().isdigit()][5]   # five frames
+    assert np.all(np.isfinite(parse_amc(lines[:cut], asf).values))     # the unchanged file
+
+
 # --------------------------------------------------------------------------- resampling
 
 def test_resample_integer_ratio_keeps_samples_and_interpolates_otherwise():

@@ -118,3 +118,19 @@ def test_mismatched_channels_raise():
         align_sequences([angles("35_01"), angles("35_02")[:, :50]], 60.0)
     with pytest.raises(ValueError, match="mode"):
         cycle_profile(angles("35_01"), 66.0, 0.0, 33, mode="median")
+
+
+@pytest.mark.parametrize("level", [0.0, 0.1, 1.0, 7.3, -250.0])
+def test_constant_signal_has_no_period(level):
+    # Mean removal leaves only rounding noise: no period may be read from it.
+    with pytest.raises(ValueError, match="no periodicity"):
+        estimate_period(np.full((300, 4), level), 60.0)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-12, 1e12, 1e200])
+def test_period_does_not_depend_on_units(scale):
+    # Scaling every channel by a power of two is exact, so the period must not change at all.
+    x = angles("35_01")
+    exact = 2.0 ** np.round(np.log2(scale))
+    assert estimate_period(x * exact, 60.0) == pytest.approx(estimate_period(x, 60.0),
+                                                             rel=1e-12)

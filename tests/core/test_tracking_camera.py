@@ -102,6 +102,17 @@ def test_invalid_inputs_raise():
         PinholeCamera(0.0, 1.0, 0.0, 0.0, 10, 10)
     with pytest.raises(ValueError, match="rigid transform"):
         PinholeCamera(1.0, 1.0, 0.0, 0.0, 10, 10, np.diag([1.0, 1.0, -1.0, 1.0]))
+    for bad in (np.nan, np.inf):
+        pose = np.eye(4)
+        pose[1, 3] = bad
+        with pytest.raises(ValueError, match="rigid transform"):
+            PinholeCamera(1.0, 1.0, 0.0, 0.0, 10, 10, pose)
+        with pytest.raises(ValueError, match="rigid transform"):
+            PinholeCamera(1.0, 1.0, 0.0, 0.0, 10, 10, np.full((4, 4), bad))
+        with pytest.raises(ValueError, match="cx must be a finite"):
+            PinholeCamera(1.0, 1.0, bad, 0.0, 10, 10)
+        with pytest.raises(ValueError, match="cy must be a finite"):
+            PinholeCamera(1.0, 1.0, 0.0, bad, 10, 10)
     with pytest.raises(ValueError, match="sensor_fit"):
         camera_from_blender(50.0, 36.0, 24.0, "DIAGONAL", 0, 0, 10, 10, np.eye(4))
     with pytest.raises(ValueError, match="pixel aspect"):

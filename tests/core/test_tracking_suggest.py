@@ -45,3 +45,17 @@ def test_input_checks():
     with pytest.raises(ValueError, match="equal length"):
         suggest_keyframes([1, 2, 3], [1.0, 2.0], [])
     assert suggest_keyframes([], [], [1]) == []
+
+
+@pytest.mark.parametrize("spike", [1e-3, 12.5, 1e12])
+def test_spike_among_zero_residuals_has_a_finite_score(spike):
+    # Frames with nothing to measure have residual 0: median and MAD are 0. The one spike is
+    # still suggested, with a finite score that does not depend on the residuals' units.
+    residuals = np.zeros(30)
+    residuals[17] = spike                           # frame 18
+    out = suggest_keyframes(np.arange(1, 31), residuals, [1, 30])
+    assert [s.frame for s in out] == [18]
+    assert np.isfinite(out[0].z)
+    assert out[0].z == pytest.approx(robust_z_scores(residuals / spike)[17], rel=1e-12)
+    assert np.all(np.isfinite(robust_z_scores(residuals)))
+    assert np.all(robust_z_scores(np.zeros(5)) == 0.0)

@@ -197,3 +197,20 @@ def test_a_failed_seed_is_dropped(seq, monkeypatch):
     assert "non-finite" in res.timings["seed_rejected"]
     assert len(res.errors) == 3                      # interpolation + two loop iterations
     assert np.all(np.isfinite(res.root_translations))
+
+
+@pytest.mark.parametrize("seed", ["interpolation", "forward", "bidirectional"])
+def test_camera_looking_away_keeps_the_interpolation(seq, seed):
+    # The camera turned half a turn about its vertical (y) axis: the body is behind it, no
+    # model point is visible, nothing can be measured and the keys' interpolation stays.
+    sk, body, cam, roots, local, frames = seq
+    turn = np.diag([-1.0, 1.0, -1.0, 1.0])
+    problem = TrackingProblem(sk, body, cam.with_pose(turn @ cam.world2camera))
+    start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
+    res = track_interval(problem, frames, start, end,
+                         TrackingOptions(max_iterations=2, seed=seed))
+    expected_roots, expected_local = interpolate_poses(sk, start, end, len(frames) - 1)
+    np.testing.assert_allclose(res.root_translations, expected_roots, atol=1e-9)
+    np.testing.assert_allclose(res.local_rotations, expected_local, atol=1e-9)
+    assert np.all(res.ranks == 0) and np.all(res.n_samples == 0)
+    assert np.all(np.isfinite(res.residuals)) and np.all(np.isfinite(res.errors))
