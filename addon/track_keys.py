@@ -198,10 +198,14 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
         new = now - before[(path, index)]
         if not new:
             continue
-        # Keep the keyed pose at every keyframe this channel had no key at.
-        added = insert_keys_preserving(bag, path, index, bone, key_frames, key_values[(path, index)])
-        written += added
+        # Keep the keyed pose at every keyframe this channel had no key at (a key at a
+        # fractional frame counts for the nearest frame: no second key next to it).
         filled = {int(k) for k in key_frames} - before[(path, index)]
+        at = [i for i, k in enumerate(key_frames) if int(k) in filled]
+        if at:
+            written += insert_keys_preserving(bag, path, index, bone,
+                                              np.asarray(key_frames)[at],
+                                              np.asarray(key_values[(path, index)])[at])
         set_key_type(fcurve, sorted(new | filled), GENERATED)
         # Handles of the written keys from their final neighbours (the same whatever the
         # writing order, so tracking again gives the same curve); the user's keys keep theirs.

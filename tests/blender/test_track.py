@@ -245,6 +245,28 @@ def test_track_again_replaces_only_its_own_keys(walk_folder):
     assert not np.array_equal(first[knee]["co"][1:20], retracked[knee]["co"][1:20])
 
 
+def test_a_key_at_a_fractional_frame_stays_the_only_key_there(walk_folder):
+    """A user key at 21.4 counts as keyframe 21; tracking keys the frames around it but adds
+    no key of its own at 21.0 on that channel (only channels without a key there get one)."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    path = ('pose.bones["lfemur"].rotation_euler', 0)
+    fcurve = channelbag(obj).fcurves.find(path[0], index=path[1])
+    (key,) = [k for k in fcurve.keyframe_points if abs(k.co[0] - 21) < 1e-3]
+    for point in (key.co, key.handle_left, key.handle_right):
+        point[0] += 0.4
+    fcurve.update()
+    before = snapshot(obj)
+    assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
+    after = snapshot(obj)
+    same_keys(before, after, [1, np.float32(21.4), 41])
+    near = after[path]["co"][:, 0]
+    near = near[(near > 20.5) & (near < 21.9)]
+    assert near.tolist() == [np.float32(21.4)]          # the user's key, and no other
+    rig = bridge("pose_bridge").rig_from_armature(obj)
+    assert bridge("track_keys").classify_frames(obj, rig, 1, N_FRAMES)[0] == list(KEYS)
+
+
 def test_undo_restores_the_file_in_one_step(walk_folder):
     obj_name = build_walk_scene(walk_folder).name
     before = snapshot(bpy.data.objects[obj_name])
