@@ -258,6 +258,13 @@ def _new_action_from_range(obj, bag, first, last):
         points.add(int(keep.sum()))
         for prop, array in state.items():
             points.foreach_set(prop, np.ascontiguousarray(array[keep]).reshape(-1))
+        # The rest of a key: its type (Keyframe, Breakdown, ...) and easing parameters.
+        source = fcurve.keyframe_points
+        for prop, dtype in (("type", np.int32), ("back", np.float32),
+                            ("amplitude", np.float32), ("period", np.float32)):
+            array = np.empty(len(source), dtype=dtype)
+            source.foreach_get(prop, array)
+            points.foreach_set(prop, np.ascontiguousarray(array[keep]))
     return new_bag
 
 

@@ -284,6 +284,25 @@ def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     assert angle_rms(written[:, 3:], expected[:, 3:]) < 1e-5
 
 
+def test_new_action_copies_the_observed_keys_with_their_types_and_easing(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    original = obj.animation_data.action
+    _, table = fcurve_table(obj)
+    fcurve = table[('pose.bones["lfemur"].rotation_euler', 0)]
+    for k in fcurve.keyframe_points[10:20]:
+        k.type, k.interpolation, k.easing = "BREAKDOWN", "BACK", "EASE_OUT"
+        k.back, k.amplitude, k.period = 2.5, 0.3, 4.0
+    fields = ("type", "interpolation", "easing", "back", "amplitude", "period")
+    before = {f: [getattr(k, f) for k in fcurve.keyframe_points] for f in fields}
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+    assert obj.animation_data.action != original
+    copy = fcurve_table(obj)[1][('pose.bones["lfemur"].rotation_euler', 0)]
+    observed = [k for k in copy.keyframe_points if k.co[0] <= N_OBS]
+    for f in fields:
+        assert [getattr(k, f) for k in observed] == before[f], f
+
+
 def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
     values, asf = trial_dofs(TEST)
     path = tmp_path / f"{TEST}.bvh"
