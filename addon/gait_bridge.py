@@ -23,7 +23,7 @@ from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, Onlin
 from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
-from .fcurves import channelbag, ensure_action, keyframe_state
+from .fcurves import channelbag, ensure_action, keyframe_state, locked_channels
 from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
                         keyed_range, read_dofs)
 
@@ -307,6 +307,13 @@ def _target_bag(obj, grig, options, first, last, frames):
         raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
                         f"F-curves of {anim.action.name}: choose Target › New Action, a shorter "
                         f"horizon, or an earlier observed range")
+    locked = locked_channels(bag, grig.targets())
+    if locked:
+        raise GaitError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of "
+                        f"{anim.action.name} that the prediction writes "
+                        f"{'are' if len(locked) != 1 else 'is'} locked ({', '.join(locked[:3])}"
+                        f"{' …' if len(locked) > 3 else ''}): unlock "
+                        f"{'them' if len(locked) != 1 else 'it'} or choose Target › New Action")
     return bag
 
 

@@ -28,8 +28,8 @@ from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from .fcurves import object_channelbag
 from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
 from .pose_bridge import RigError, read_pose, rig_from_armature
-from .track_keys import (channel_state, classify_frames, evaluate_channels_at, read_residuals,
-                         write_tracking)
+from .track_keys import (channel_state, classify_frames, evaluate_channels_at,
+                         locked_written_channels, read_residuals, write_tracking)
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -235,6 +235,14 @@ def prepare_tracking(context, settings):
     bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
     if len(layout.translation_axes):
         bones.add(rig.bone_names[0])
+    tracked_bones = [n for n in rig.bone_names if n in bones]
+    locked = locked_written_channels(obj, rig, tracked_bones, tracked_before)
+    if locked:
+        raise TrackError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of {obj.name} that "
+                         f"tracking writes {'are' if len(locked) != 1 else 'is'} locked "
+                         f"({', '.join(locked[:3])}{' …' if len(locked) > 3 else ''}): unlock "
+                         f"{'them' if len(locked) != 1 else 'it'} (padlock in the Graph Editor's "
+                         "channel list)")
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
@@ -242,7 +250,7 @@ def prepare_tracking(context, settings):
         options=options, processes=settings.processes or None, footage=footage,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
-        tracked_bones=[n for n in rig.bone_names if n in bones], state=channel_state(obj, rig))
+        tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
 
 def read_footage(request, start, stop):

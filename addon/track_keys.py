@@ -33,7 +33,8 @@ import numpy as np
 
 from ..core.pose_channels import channel_property
 from .fcurves import (channelbag, ensure_action, enum_value, insert_keys_preserving,
-                      key_frames_and_types, keyframe_state, object_channelbag, pose_bone_path,
+                      key_frames_and_types, keyframe_state, locked_channels, object_channelbag,
+                      pose_bone_path,
                       remove_keys_at, set_key_type, update_keeping_handles)
 from .pose_bridge import write_pose_keys
 
@@ -118,6 +119,27 @@ def channel_state(obj, rig):
         h.update(bytes(int(g) for _, _, g in entries[frame]))
     h.update(repr(sorted(_record(obj).items())).encode())
     return h.hexdigest()
+
+
+def locked_written_channels(obj, rig, tracked_bones, tracked_before):
+    """``'path[index]'`` of the locked F-curves that :func:`write_tracking` would change: the
+    tracked bones' channels, those holding earlier tracked keys, the confidence curves."""
+    bag = object_channelbag(obj)
+    if bag is None:
+        return []
+    bones = set(tracked_bones)
+    clear = np.asarray(sorted(tracked_before), dtype=float)
+    channels = []
+    for path, index, bone in rig_channels(rig):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None:
+            continue
+        frames = key_frames_and_types(fcurve)[0].astype(float)
+        if bone in bones or (len(clear) and len(frames) and
+                             np.min(np.abs(frames[:, None] - clear[None, :])) < 1e-4):
+            channels.append((path, index))
+    channels += [(f'["{prop}"]', 0) for prop in (PROP_RESIDUAL, PROP_RANK)]
+    return locked_channels(bag, channels)
 
 
 def evaluate_channels_at(obj, rig, frames):

@@ -259,6 +259,25 @@ def test_refusals_explain_and_change_nothing(scene, tmp_path):
         bpy.ops.track_and_stride.learn_gait(use_selected=False)
 
 
+def test_locked_fcurves_are_not_written(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    _, table = fcurve_table(obj)
+    table[('pose.bones["lfemur"].rotation_euler', 0)].lock = True
+    counts, keys = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match=r"1 F-curve of 35_07 that the prediction writes is "
+                       r'locked \(pose.bones\["lfemur"\].rotation_euler\[0\]\)'):
+        bpy.ops.track_and_stride.predict_gait(horizon=0.5)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
+    # A new action leaves the locked curve (and its action) as they are.
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+
+
 def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     settings = learn_from_files()
     model = bridge("gait_bridge").decode_model(settings.models[0].data)

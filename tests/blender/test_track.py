@@ -175,6 +175,14 @@ def _moving_camera(obj):
     bpy.context.scene.camera.keyframe_insert("location", frame=1)
 
 
+def _locked_fcurve(obj):
+    channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=0).lock = True
+
+
+def _locked_group(obj):
+    next(g for g in channelbag(obj).groups if g.name == "lhumerus").lock = True
+
+
 @pytest.mark.parametrize("breaks,message", [
     (_no_keys_in_range, "No keyframes of 08_01 in frames 25–40"),
     (_one_key, "Only one keyframe of 08_01 \\(frame 21\\)"),
@@ -183,6 +191,9 @@ def _moving_camera(obj):
     (_resolution_mismatch, "footage is 640×360 but the render size is 320×360"),
     (_footage_too_short, "does not cover frame 1"),
     (_moving_camera, "is animated"),
+    (_locked_fcurve, "1 F-curve of 08_01 that tracking writes is locked "
+                     "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
+    (_locked_group, "3 F-curves of 08_01 that tracking writes are locked"),
 ])
 def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     obj = build_walk_scene(walk_folder)
