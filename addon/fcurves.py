@@ -58,6 +58,19 @@ def object_channelbag(obj):
     return channelbag(anim.action, anim.action_slot, ensure=False)
 
 
+def not_editable(*blocks):
+    """Why the first of ``blocks`` (datablocks; ``None`` skipped) cannot be changed -- linked
+    from a library (changes to it are not saved) or a non-editable override -- or ``None``."""
+    for block in blocks:
+        if block is None or block.is_editable:
+            continue
+        where = (f"linked from {bpy.path.basename(block.library.filepath)}" if block.library
+                 else "a non-editable library override")
+        return (f"{block.name} is {where}: changes to it would not be saved; make it local "
+                "(Object › Relations › Make Local) or an editable library override first")
+    return None
+
+
 def is_locked(fcurve):
     """Whether the animator protected an F-curve from editing (its own lock or its group's),
     as Blender's keyframing refuses to key such curves."""

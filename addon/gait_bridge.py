@@ -23,7 +23,7 @@ from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, Onlin
 from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
-from .fcurves import channelbag, ensure_action, keyframe_state, locked_channels
+from .fcurves import channelbag, ensure_action, keyframe_state, locked_channels, not_editable
 from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
                         keyed_range, read_dofs)
 
@@ -329,6 +329,11 @@ def predict_gait(context, obj, options):
     fps = scene_fps(scene)
     item, model = active_model(scene)
     grig = gait_rig(obj)
+    anim = obj.animation_data
+    message = not_editable(obj, anim.action if anim is not None and options.target == "AFTER"
+                           else None)
+    if message:
+        raise GaitError(message)
     cols = _model_columns(model, grig)
     first, last, dofs = _observe(grig, model, scene, options)
     model_dofs = dofs[:, cols]

@@ -25,7 +25,7 @@ import numpy as np
 from ..core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                              body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
-from .fcurves import object_channelbag
+from .fcurves import not_editable, object_channelbag
 from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
 from .pose_bridge import RigError, read_pose, rig_from_armature
 from .track_keys import (channel_state, classify_frames, evaluate_channels_at,
@@ -100,6 +100,18 @@ def resolve_armature(context, settings):
     obj = settings.armature or context.active_object
     if obj is None or obj.type != "ARMATURE":
         raise TrackError("Choose an armature (Track panel) or make one active")
+    return obj
+
+
+def resolve_editable_armature(context, settings, data=False):
+    """:func:`resolve_armature`, refused when it or its action (and with ``data``, its
+    armature data) is library data that cannot be changed."""
+    obj = resolve_armature(context, settings)
+    anim = obj.animation_data
+    message = not_editable(obj, obj.data if data else None,
+                           anim.action if anim is not None else None)
+    if message:
+        raise TrackError(message)
     return obj
 
 
@@ -199,7 +211,7 @@ def prepare_tracking(context, settings):
         With a message that says what to do; nothing has been changed.
     """
     scene = context.scene
-    obj = resolve_armature(context, settings)
+    obj = resolve_editable_armature(context, settings)
     if obj.mode == "EDIT":
         raise TrackError("Leave Edit Mode first")
     camera_obj = resolve_camera(scene, settings)

@@ -6,7 +6,7 @@ import importlib
 import numpy as np
 import pytest
 
-from blender_support import MODULE, bpy, datablock_counts
+from blender_support import MODULE, bpy, datablock_counts, relink_from_library
 from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
     dofs_to_channels_after
 from core.gait import (GaitModel, LookaheadPredictor, adapt, interpolate_styles,
@@ -276,6 +276,22 @@ def test_locked_fcurves_are_not_written(scene, tmp_path):
             assert after[key][prop].tobytes() == array.tobytes()
     # A new action leaves the locked curve (and its action) as they are.
     assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+
+
+def test_a_linked_walker_is_refused(scene, tmp_path):
+    """Keys (or a new action) written into library data would not be saved."""
+    learn_from_files()
+    obj = relink_from_library(import_observed(tmp_path), tmp_path)
+    counts, keys = datablock_counts(), snapshot(obj)
+    for target in ("AFTER", "NEW_ACTION"):
+        with pytest.raises(RuntimeError, match="35_07 is linked from 35_07_library.blend"):
+            bpy.ops.track_and_stride.predict_gait(horizon=0.5, target=target)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
 
 
 def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from blender_support import MODULE, bpy, datablock_counts
+from blender_support import MODULE, bpy, datablock_counts, relink_from_library
 from core.kinematics import log_so3
 from core.tracking import find_table1_parts, table1_dof_mask, track_keyframes
 from sample_scenes.footage_scenes import ensure_footage, load_footage
@@ -206,6 +206,27 @@ def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     assert after.keys() == before.keys()
     same_keys(before, after)
     assert "track_and_stride_residual" not in obj.keys()
+
+
+def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
+    """Changes to library data are not saved: writing keys (or locks, or display) into a
+    linked armature would be lost silently, so each operator refuses instead."""
+    obj = relink_from_library(build_walk_scene(walk_folder), tmp_path)
+    settings().armature = obj
+    settings().processes = 1
+    counts, before = datablock_counts(), snapshot(obj)
+    locks = [tuple(pb.lock_rotation) for pb in obj.pose.bones]
+    display, in_front = obj.data.display_type, obj.show_in_front
+    for op in (bpy.ops.track_and_stride.track_keyframes, bpy.ops.track_and_stride.table1_dof,
+               bpy.ops.track_and_stride.show_envelopes):
+        with pytest.raises(RuntimeError, match="08_01 is linked from 08_01_library.blend"):
+            op()
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
+    assert [tuple(pb.lock_rotation) for pb in obj.pose.bones] == locks
+    assert (obj.data.display_type, obj.show_in_front) == (display, in_front)
 
 
 def test_cancel_leaves_everything_as_it_was(walk_folder):
