@@ -159,11 +159,12 @@ class TS_OT_track_keyframes(bpy.types.Operator):
             return {"PASS_THROUGH"} if event.type in _PASS_THROUGH else {"RUNNING_MODAL"}
         try:
             return self._step(context)
-        except TrackError as exc:
+        except Exception as exc:  # noqa: BLE001  (any failure must end the run and its timer)
             if self._job is not None:
                 self._job.cancel()
             self._finish(context)
-            self.report({"ERROR"}, str(exc))
+            self.report({"ERROR"}, str(exc) if isinstance(exc, TrackError)
+                        else f"Tracking failed: {type(exc).__name__}: {exc}")
             return {"CANCELLED"}
 
     def _step(self, context):

@@ -545,3 +545,24 @@ def test_modal_escape_stops_the_job_and_changes_nothing(walk_folder):
     same_keys(before, snapshot(obj))
     assert snapshot(obj).keys() == before.keys()
     assert not bridge("track_ops")._RUNNING
+
+
+def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, monkeypatch):
+    """An unexpected error in a modal step (here: the decoder) is reported, and the run ends:
+    no stale running state that would keep Track Keyframes disabled, nothing written."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    counts, before = datablock_counts(), snapshot(obj)
+    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
+    ops = bridge("track_ops")
+
+    def broken(request, start, stop):
+        raise RuntimeError("decoder crashed")
+
+    monkeypatch.setattr(ops, "read_footage", broken)
+    op, result, reports = _modal_run(request, lambda op, step: "TIMER")
+    assert result == {"CANCELLED"}
+    assert reports == [("ERROR", "Tracking failed: RuntimeError: decoder crashed")]
+    assert not ops._RUNNING and ops.track_poll_message(bpy.context) is None
+    assert datablock_counts() == counts
+    same_keys(before, snapshot(obj))
