@@ -58,6 +58,37 @@ def object_channelbag(obj):
     return channelbag(anim.action, anim.action_slot, ensure=False)
 
 
+def not_editable(*blocks):
+    """Why the first of ``blocks`` (datablocks; ``None`` skipped) cannot be changed -- linked
+    from a library (changes to it are not saved) or a non-editable override -- or ``None``."""
+    for block in blocks:
+        if block is None or block.is_editable:
+            continue
+        where = (f"linked from {bpy.path.basename(block.library.filepath)}" if block.library
+                 else "a non-editable library override")
+        return (f"{block.name} is {where}: changes to it would not be saved; make it local "
+                "(Object › Relations › Make Local) or an editable library override first")
+    return None
+
+
+def is_locked(fcurve):
+    """Whether the animator protected an F-curve from editing (its own lock or its group's),
+    as Blender's keyframing refuses to key such curves."""
+    return bool(fcurve.lock or (fcurve.group is not None and fcurve.group.lock))
+
+
+def locked_channels(bag, channels):
+    """``'path[index]'`` of the channels whose existing F-curve in ``bag`` is locked."""
+    if bag is None:
+        return []
+    out = []
+    for channel in channels:
+        fcurve = bag.fcurves.find(channel[0], index=channel[1])
+        if fcurve is not None and is_locked(fcurve):
+            out.append(f"{channel[0]}[{channel[1]}]")
+    return out
+
+
 def write_new_fcurves(bag, channels, frames, values, interpolation="LINEAR"):
     """Create one F-curve per channel and fill it with keys in bulk.
 

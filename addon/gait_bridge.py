@@ -23,7 +23,7 @@ from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, Onlin
 from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
-from .fcurves import channelbag, ensure_action, keyframe_state
+from .fcurves import channelbag, ensure_action, keyframe_state, locked_channels, not_editable
 from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
                         keyed_range, read_dofs)
 
@@ -258,6 +258,13 @@ def _new_action_from_range(obj, bag, first, last):
         points.add(int(keep.sum()))
         for prop, array in state.items():
             points.foreach_set(prop, np.ascontiguousarray(array[keep]).reshape(-1))
+        # The rest of a key: its type (Keyframe, Breakdown, ...) and easing parameters.
+        source = fcurve.keyframe_points
+        for prop, dtype in (("type", np.int32), ("back", np.float32),
+                            ("amplitude", np.float32), ("period", np.float32)):
+            array = np.empty(len(source), dtype=dtype)
+            source.foreach_get(prop, array)
+            points.foreach_set(prop, np.ascontiguousarray(array[keep]))
     return new_bag
 
 
@@ -300,6 +307,13 @@ def _target_bag(obj, grig, options, first, last, frames):
         raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
                         f"F-curves of {anim.action.name}: choose Target › New Action, a shorter "
                         f"horizon, or an earlier observed range")
+    locked = locked_channels(bag, grig.targets())
+    if locked:
+        raise GaitError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of "
+                        f"{anim.action.name} that the prediction writes "
+                        f"{'are' if len(locked) != 1 else 'is'} locked ({', '.join(locked[:3])}"
+                        f"{' …' if len(locked) > 3 else ''}): unlock "
+                        f"{'them' if len(locked) != 1 else 'it'} or choose Target › New Action")
     return bag
 
 
@@ -315,6 +329,11 @@ def predict_gait(context, obj, options):
     fps = scene_fps(scene)
     item, model = active_model(scene)
     grig = gait_rig(obj)
+    anim = obj.animation_data
+    message = not_editable(obj, anim.action if anim is not None and options.target == "AFTER"
+                           else None)
+    if message:
+        raise GaitError(message)
     cols = _model_columns(model, grig)
     first, last, dofs = _observe(grig, model, scene, options)
     model_dofs = dofs[:, cols]

@@ -25,11 +25,11 @@ import numpy as np
 from ..core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                              body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
-from .fcurves import object_channelbag
+from .fcurves import not_editable, object_channelbag
 from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
 from .pose_bridge import RigError, read_pose, rig_from_armature
-from .track_keys import (channel_state, classify_frames, evaluate_channels_at, read_residuals,
-                         write_tracking)
+from .track_keys import (channel_state, classify_frames, evaluate_channels_at,
+                         locked_written_channels, read_residuals, write_tracking)
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -100,6 +100,18 @@ def resolve_armature(context, settings):
     obj = settings.armature or context.active_object
     if obj is None or obj.type != "ARMATURE":
         raise TrackError("Choose an armature (Track panel) or make one active")
+    return obj
+
+
+def resolve_editable_armature(context, settings, data=False):
+    """:func:`resolve_armature`, refused when it or its action (and with ``data``, its
+    armature data) is library data that cannot be changed."""
+    obj = resolve_armature(context, settings)
+    anim = obj.animation_data
+    message = not_editable(obj, obj.data if data else None,
+                           anim.action if anim is not None else None)
+    if message:
+        raise TrackError(message)
     return obj
 
 
@@ -199,7 +211,7 @@ def prepare_tracking(context, settings):
         With a message that says what to do; nothing has been changed.
     """
     scene = context.scene
-    obj = resolve_armature(context, settings)
+    obj = resolve_editable_armature(context, settings)
     if obj.mode == "EDIT":
         raise TrackError("Leave Edit Mode first")
     camera_obj = resolve_camera(scene, settings)
@@ -235,6 +247,14 @@ def prepare_tracking(context, settings):
     bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
     if len(layout.translation_axes):
         bones.add(rig.bone_names[0])
+    tracked_bones = [n for n in rig.bone_names if n in bones]
+    locked = locked_written_channels(obj, rig, tracked_bones, tracked_before)
+    if locked:
+        raise TrackError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of {obj.name} that "
+                         f"tracking writes {'are' if len(locked) != 1 else 'is'} locked "
+                         f"({', '.join(locked[:3])}{' …' if len(locked) > 3 else ''}): unlock "
+                         f"{'them' if len(locked) != 1 else 'it'} (padlock in the Graph Editor's "
+                         "channel list)")
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
@@ -242,7 +262,7 @@ def prepare_tracking(context, settings):
         options=options, processes=settings.processes or None, footage=footage,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
-        tracked_bones=[n for n in rig.bone_names if n in bones], state=channel_state(obj, rig))
+        tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
 
 def read_footage(request, start, stop):

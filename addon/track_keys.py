@@ -33,7 +33,8 @@ import numpy as np
 
 from ..core.pose_channels import channel_property
 from .fcurves import (channelbag, ensure_action, enum_value, insert_keys_preserving,
-                      key_frames_and_types, keyframe_state, object_channelbag, pose_bone_path,
+                      key_frames_and_types, keyframe_state, locked_channels, object_channelbag,
+                      pose_bone_path,
                       remove_keys_at, set_key_type, update_keeping_handles)
 from .pose_bridge import write_pose_keys
 
@@ -120,6 +121,27 @@ def channel_state(obj, rig):
     return h.hexdigest()
 
 
+def locked_written_channels(obj, rig, tracked_bones, tracked_before):
+    """``'path[index]'`` of the locked F-curves that :func:`write_tracking` would change: the
+    tracked bones' channels, those holding earlier tracked keys, the confidence curves."""
+    bag = object_channelbag(obj)
+    if bag is None:
+        return []
+    bones = set(tracked_bones)
+    clear = np.asarray(sorted(tracked_before), dtype=float)
+    channels = []
+    for path, index, bone in rig_channels(rig):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None:
+            continue
+        frames = key_frames_and_types(fcurve)[0].astype(float)
+        if bone in bones or (len(clear) and len(frames) and
+                             np.min(np.abs(frames[:, None] - clear[None, :])) < 1e-4):
+            channels.append((path, index))
+    channels += [(f'["{prop}"]', 0) for prop in (PROP_RESIDUAL, PROP_RANK)]
+    return locked_channels(bag, channels)
+
+
 def evaluate_channels_at(obj, rig, frames):
     """(path, index) -> values (F,) of every pose channel at ``frames`` (F-curve or pose value)."""
     bag = object_channelbag(obj)
@@ -198,10 +220,14 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
         new = now - before[(path, index)]
         if not new:
             continue
-        # Keep the keyed pose at every keyframe this channel had no key at.
-        added = insert_keys_preserving(bag, path, index, bone, key_frames, key_values[(path, index)])
-        written += added
+        # Keep the keyed pose at every keyframe this channel had no key at (a key at a
+        # fractional frame counts for the nearest frame: no second key next to it).
         filled = {int(k) for k in key_frames} - before[(path, index)]
+        at = [i for i, k in enumerate(key_frames) if int(k) in filled]
+        if at:
+            written += insert_keys_preserving(bag, path, index, bone,
+                                              np.asarray(key_frames)[at],
+                                              np.asarray(key_values[(path, index)])[at])
         set_key_type(fcurve, sorted(new | filled), GENERATED)
         # Handles of the written keys from their final neighbours (the same whatever the
         # writing order, so tracking again gives the same curve); the user's keys keep theirs.

@@ -10,7 +10,7 @@ from bpy_extras.io_utils import ImportHelper
 from .footage import MOVIE_EXTENSIONS
 from .reporting import report_outcome
 from .track_bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
-                           resolve_armature, suggest_markers, track_now)
+                           resolve_editable_armature, suggest_markers, track_now)
 from .track_props import track_settings
 from .track_setup import (apply_table1_dof, match_render_size, open_footage,
                           show_footage_behind_camera)
@@ -159,11 +159,12 @@ class TS_OT_track_keyframes(bpy.types.Operator):
             return {"PASS_THROUGH"} if event.type in _PASS_THROUGH else {"RUNNING_MODAL"}
         try:
             return self._step(context)
-        except TrackError as exc:
+        except Exception as exc:  # noqa: BLE001  (any failure must end the run and its timer)
             if self._job is not None:
                 self._job.cancel()
             self._finish(context)
-            self.report({"ERROR"}, str(exc))
+            self.report({"ERROR"}, str(exc) if isinstance(exc, TrackError)
+                        else f"Tracking failed: {type(exc).__name__}: {exc}")
             return {"CANCELLED"}
 
     def _step(self, context):
@@ -233,7 +234,7 @@ class TS_OT_table1_dof(bpy.types.Operator):
 
     def execute(self, context):
         return report_outcome(self, TrackError, lambda: apply_table1_dof(
-            resolve_armature(context, track_settings(context.scene))))
+            resolve_editable_armature(context, track_settings(context.scene))))
 
 
 class TS_OT_show_envelopes(bpy.types.Operator):
@@ -249,11 +250,12 @@ class TS_OT_show_envelopes(bpy.types.Operator):
         return _armature_or_message(cls, context) is not None
 
     def execute(self, context):
-        obj = resolve_armature(context, track_settings(context.scene))
-        obj.data.display_type = "ENVELOPE"
-        obj.show_in_front = True
-        self.report({"INFO"}, f"{obj.name} shows its envelopes (in front of the footage)")
-        return {"FINISHED"}
+        def show():
+            obj = resolve_editable_armature(context, track_settings(context.scene), data=True)
+            obj.data.display_type = "ENVELOPE"
+            obj.show_in_front = True
+            return f"{obj.name} shows its envelopes (in front of the footage)"
+        return report_outcome(self, TrackError, show)
 
 
 class TS_OT_show_footage(bpy.types.Operator):

@@ -46,3 +46,23 @@ def datablock_counts():
     """Counts of the datablock kinds operators may create (for 'nothing changed' checks)."""
     return {kind: len(getattr(bpy.data, kind)) for kind in
             ("objects", "armatures", "actions", "meshes", "images", "movieclips", "cameras")}
+
+
+def relink_from_library(obj, folder):
+    """Replace ``obj`` (and its armature data and action) by the same object linked from a
+    library .blend written into ``folder``; returns the linked object, active."""
+    path = str(Path(folder) / f"{obj.name}_library.blend")
+    name, data = obj.name, obj.data
+    action = obj.animation_data.action if obj.animation_data else None
+    bpy.data.libraries.write(path, {obj}, fake_user=True)
+    bpy.data.objects.remove(obj)
+    bpy.data.armatures.remove(data)
+    if action is not None:
+        bpy.data.actions.remove(action)
+    with bpy.data.libraries.load(path, link=True) as (_, linked):
+        linked.objects = [name]
+    obj = linked.objects[0]
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert obj.library is not None and not obj.is_editable
+    return obj

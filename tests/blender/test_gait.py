@@ -6,7 +6,7 @@ import importlib
 import numpy as np
 import pytest
 
-from blender_support import MODULE, bpy, datablock_counts
+from blender_support import MODULE, bpy, datablock_counts, relink_from_library
 from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
     dofs_to_channels_after
 from core.gait import (GaitModel, LookaheadPredictor, adapt, interpolate_styles,
@@ -259,6 +259,41 @@ def test_refusals_explain_and_change_nothing(scene, tmp_path):
         bpy.ops.track_and_stride.learn_gait(use_selected=False)
 
 
+def test_locked_fcurves_are_not_written(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    _, table = fcurve_table(obj)
+    table[('pose.bones["lfemur"].rotation_euler', 0)].lock = True
+    counts, keys = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match=r"1 F-curve of 35_07 that the prediction writes is "
+                       r'locked \(pose.bones\["lfemur"\].rotation_euler\[0\]\)'):
+        bpy.ops.track_and_stride.predict_gait(horizon=0.5)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
+    # A new action leaves the locked curve (and its action) as they are.
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+
+
+def test_a_linked_walker_is_refused(scene, tmp_path):
+    """Keys (or a new action) written into library data would not be saved."""
+    learn_from_files()
+    obj = relink_from_library(import_observed(tmp_path), tmp_path)
+    counts, keys = datablock_counts(), snapshot(obj)
+    for target in ("AFTER", "NEW_ACTION"):
+        with pytest.raises(RuntimeError, match="35_07 is linked from 35_07_library.blend"):
+            bpy.ops.track_and_stride.predict_gait(horizon=0.5, target=target)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
+
+
 def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     settings = learn_from_files()
     model = bridge("gait_bridge").decode_model(settings.models[0].data)
@@ -282,6 +317,25 @@ def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     written = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(N_OBS + 1, N_OBS + FPS + 1)))
     np.testing.assert_allclose(written[:, :3], expected[:, :3], atol=1e-4)
     assert angle_rms(written[:, 3:], expected[:, 3:]) < 1e-5
+
+
+def test_new_action_copies_the_observed_keys_with_their_types_and_easing(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    original = obj.animation_data.action
+    _, table = fcurve_table(obj)
+    fcurve = table[('pose.bones["lfemur"].rotation_euler', 0)]
+    for k in fcurve.keyframe_points[10:20]:
+        k.type, k.interpolation, k.easing = "BREAKDOWN", "BACK", "EASE_OUT"
+        k.back, k.amplitude, k.period = 2.5, 0.3, 4.0
+    fields = ("type", "interpolation", "easing", "back", "amplitude", "period")
+    before = {f: [getattr(k, f) for k in fcurve.keyframe_points] for f in fields}
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+    assert obj.animation_data.action != original
+    copy = fcurve_table(obj)[1][('pose.bones["lfemur"].rotation_euler', 0)]
+    observed = [k for k in copy.keyframe_points if k.co[0] <= N_OBS]
+    for f in fields:
+        assert [getattr(k, f) for k in observed] == before[f], f
 
 
 def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from blender_support import MODULE, bpy, datablock_counts
+from blender_support import MODULE, bpy, datablock_counts, relink_from_library
 from core.kinematics import log_so3
 from core.tracking import find_table1_parts, table1_dof_mask, track_keyframes
 from sample_scenes.footage_scenes import ensure_footage, load_footage
@@ -175,6 +175,14 @@ def _moving_camera(obj):
     bpy.context.scene.camera.keyframe_insert("location", frame=1)
 
 
+def _locked_fcurve(obj):
+    channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=0).lock = True
+
+
+def _locked_group(obj):
+    next(g for g in channelbag(obj).groups if g.name == "lhumerus").lock = True
+
+
 @pytest.mark.parametrize("breaks,message", [
     (_no_keys_in_range, "No keyframes of 08_01 in frames 25–40"),
     (_one_key, "Only one keyframe of 08_01 \\(frame 21\\)"),
@@ -183,6 +191,9 @@ def _moving_camera(obj):
     (_resolution_mismatch, "footage is 640×360 but the render size is 320×360"),
     (_footage_too_short, "does not cover frame 1"),
     (_moving_camera, "is animated"),
+    (_locked_fcurve, "1 F-curve of 08_01 that tracking writes is locked "
+                     "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
+    (_locked_group, "3 F-curves of 08_01 that tracking writes are locked"),
 ])
 def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     obj = build_walk_scene(walk_folder)
@@ -195,6 +206,27 @@ def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     assert after.keys() == before.keys()
     same_keys(before, after)
     assert "track_and_stride_residual" not in obj.keys()
+
+
+def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
+    """Changes to library data are not saved: writing keys (or locks, or display) into a
+    linked armature would be lost silently, so each operator refuses instead."""
+    obj = relink_from_library(build_walk_scene(walk_folder), tmp_path)
+    settings().armature = obj
+    settings().processes = 1
+    counts, before = datablock_counts(), snapshot(obj)
+    locks = [tuple(pb.lock_rotation) for pb in obj.pose.bones]
+    display, in_front = obj.data.display_type, obj.show_in_front
+    for op in (bpy.ops.track_and_stride.track_keyframes, bpy.ops.track_and_stride.table1_dof,
+               bpy.ops.track_and_stride.show_envelopes):
+        with pytest.raises(RuntimeError, match="08_01 is linked from 08_01_library.blend"):
+            op()
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
+    assert [tuple(pb.lock_rotation) for pb in obj.pose.bones] == locks
+    assert (obj.data.display_type, obj.show_in_front) == (display, in_front)
 
 
 def test_cancel_leaves_everything_as_it_was(walk_folder):
@@ -243,6 +275,28 @@ def test_track_again_replaces_only_its_own_keys(walk_folder):
     # Frames 2..20 were tracked again, now between 1, 11 and 21.
     knee = ('pose.bones["rtibia"].rotation_euler', 0)
     assert not np.array_equal(first[knee]["co"][1:20], retracked[knee]["co"][1:20])
+
+
+def test_a_key_at_a_fractional_frame_stays_the_only_key_there(walk_folder):
+    """A user key at 21.4 counts as keyframe 21; tracking keys the frames around it but adds
+    no key of its own at 21.0 on that channel (only channels without a key there get one)."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    path = ('pose.bones["lfemur"].rotation_euler', 0)
+    fcurve = channelbag(obj).fcurves.find(path[0], index=path[1])
+    (key,) = [k for k in fcurve.keyframe_points if abs(k.co[0] - 21) < 1e-3]
+    for point in (key.co, key.handle_left, key.handle_right):
+        point[0] += 0.4
+    fcurve.update()
+    before = snapshot(obj)
+    assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
+    after = snapshot(obj)
+    same_keys(before, after, [1, np.float32(21.4), 41])
+    near = after[path]["co"][:, 0]
+    near = near[(near > 20.5) & (near < 21.9)]
+    assert near.tolist() == [np.float32(21.4)]          # the user's key, and no other
+    rig = bridge("pose_bridge").rig_from_armature(obj)
+    assert bridge("track_keys").classify_frames(obj, rig, 1, N_FRAMES)[0] == list(KEYS)
 
 
 def test_undo_restores_the_file_in_one_step(walk_folder):
@@ -491,3 +545,24 @@ def test_modal_escape_stops_the_job_and_changes_nothing(walk_folder):
     same_keys(before, snapshot(obj))
     assert snapshot(obj).keys() == before.keys()
     assert not bridge("track_ops")._RUNNING
+
+
+def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, monkeypatch):
+    """An unexpected error in a modal step (here: the decoder) is reported, and the run ends:
+    no stale running state that would keep Track Keyframes disabled, nothing written."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    counts, before = datablock_counts(), snapshot(obj)
+    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
+    ops = bridge("track_ops")
+
+    def broken(request, start, stop):
+        raise RuntimeError("decoder crashed")
+
+    monkeypatch.setattr(ops, "read_footage", broken)
+    op, result, reports = _modal_run(request, lambda op, step: "TIMER")
+    assert result == {"CANCELLED"}
+    assert reports == [("ERROR", "Tracking failed: RuntimeError: decoder crashed")]
+    assert not ops._RUNNING and ops.track_poll_message(bpy.context) is None
+    assert datablock_counts() == counts
+    same_keys(before, snapshot(obj))
