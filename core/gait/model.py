@@ -64,6 +64,44 @@ _SCALAR_FIELDS = ("fps", "r")
 _TEXT_FIELDS = ("root_order", "alignment", "refinement")
 _INT_FIELDS = ("forward_axis", "root_travel")
 
+# Plausible ranges checked at load (docs/gait.md, *Errors*). A model learned from real motion
+# lies orders of magnitude inside them (CMU walks and runs at 60 Hz: fps 60, r ≈ 0.03,
+# lag_range (0.5, 2) s, periods 45-80 frames, Q eigenvalues 1e-8 … 3e-5, channel_scale
+# 0.6 … 6, |bases| ≈ 0.2, |styles| ≈ 10, β ≈ [5e-4, 0.85, 9e-7, 8e6]); a finite file outside
+# them is refused instead of overflowing or dividing by zero when adapting or predicting.
+# "Scaled units" are the model's (radians for the joint angles; the root features are scaled to
+# the angles' spread, see learning.py).
+FPS_RANGE = (1.0, 1e4)              # model frame rate, frames per second
+SECONDS_RANGE = (1e-3, 1e3)         # lag_range and the training periods, seconds
+MIN_PERIOD_FRAMES = 2.0             # shorter periods alias (ω above π per frame)
+R_RANGE = (1e-12, 1e6)              # r, scaled units²
+Q_EIG_RANGE = (1e-20, 1e2)          # eigenvalues of Q (rad²/frame², rad²)
+SCALE_RANGE = (1e-6, 1e6)           # channel_scale (learn_model floors it at 1e-6)
+MAX_ANGLE_CENTRE = 2.0 * np.pi      # circular means lie within ±π
+MAX_BASIS = 1e3                     # |bases| (SVD bases have unit-norm rows)
+MAX_STYLE = 1e6                     # |styles|, |style_mean|
+MAX_SCALED_VALUE = 1e3              # |styles @ bases|, |style_mean @ bases|, scaled units
+STYLE_COV_EIG_RANGE = (1e-12, 1e12)  # eigenvalues of style_cov
+BETA_RANGES = ((1e-20, 1e6),        # β1, RBF variance (scaled units²)
+               (1e-6, 1e6),         # β2, RBF inverse squared length (unitless)
+               (1e-20, 1e6),        # β3, linear-kernel variance (scaled units²)
+               (1e-6, 1e20))        # β4, noise precision (1 / scaled units²)
+
+
+def _within(values, bounds):
+    """Every value finite and inside the closed range ``bounds``."""
+    values = np.asarray(values, dtype=float)
+    return bool(np.all(np.isfinite(values)) and np.all(values >= bounds[0])
+                and np.all(values <= bounds[1]))
+
+
+def _eigenvalues(matrix):
+    """Eigenvalues of a symmetric (2-D, square) matrix, or None if it is not one."""
+    if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1] or matrix.size == 0 \
+            or not np.allclose(matrix, matrix.T, rtol=1e-9, atol=0.0):
+        return None
+    return np.linalg.eigvalsh(matrix)
+
 
 @dataclass(frozen=True, eq=False)
 class GaitModel:
@@ -165,6 +203,46 @@ class GaitModel:
         for ok, message in checks:
             if not ok:
                 raise ValueError(f"inconsistent gait model: {message}")
+        self._validate_ranges()
+
+    def _validate_ranges(self):
+        """The plausible ranges of the module constants (the shapes are already checked)."""
+        q_eig, cov_eig = _eigenvalues(self.Q), _eigenvalues(self.style_cov)
+        checks = [
+            (_within(self.fps, FPS_RANGE), f"fps {self.fps:g} outside {FPS_RANGE}"),
+            (_within(self.lag_range, SECONDS_RANGE)
+             and self.lag_range[0] * self.fps >= MIN_PERIOD_FRAMES,
+             f"lag_range {self.lag_range.tolist()} s outside {SECONDS_RANGE} s or shorter than "
+             f"{MIN_PERIOD_FRAMES:g} frames"),
+            (_within(self.periods / self.fps, SECONDS_RANGE)
+             and np.all(self.periods >= MIN_PERIOD_FRAMES),
+             f"periods must lie within {SECONDS_RANGE} s and {MIN_PERIOD_FRAMES:g} frames or "
+             f"more"),
+            (_within(self.r, R_RANGE), f"r {self.r:g} outside {R_RANGE}"),
+            (q_eig is not None and _within(q_eig, Q_EIG_RANGE),
+             f"Q must be symmetric with eigenvalues within {Q_EIG_RANGE}"),
+            (all(_within(b, rng) for b, rng in zip(self.beta, BETA_RANGES)),
+             f"beta {self.beta.tolist()} outside {BETA_RANGES}"),
+            (_within(self.channel_scale, SCALE_RANGE),
+             f"channel_scale outside {SCALE_RANGE}"),
+            (np.all(np.abs(self.angle_centre) <= MAX_ANGLE_CENTRE),
+             f"angle_centre must lie within ±{MAX_ANGLE_CENTRE:g} rad"),
+            (np.all(np.abs(self.bases) <= MAX_BASIS), f"bases must lie within ±{MAX_BASIS:g}"),
+            (np.all(np.abs(self.styles) <= MAX_STYLE)
+             and np.all(np.abs(self.style_mean) <= MAX_STYLE),
+             f"styles and style_mean must lie within ±{MAX_STYLE:g}"),
+            (cov_eig is not None and _within(cov_eig, STYLE_COV_EIG_RANGE),
+             f"style_cov must be symmetric with eigenvalues within {STYLE_COV_EIG_RANGE}"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ValueError(f"implausible gait model: {message}")
+        # The cycles the model describes (training styles and the prior mean) in scaled units.
+        cycles = np.concatenate((self.styles, self.style_mean[None]), axis=0) \
+            @ self.bases.reshape(self.n_bases, -1)
+        if not np.all(np.abs(cycles) <= MAX_SCALED_VALUE):
+            raise ValueError(f"implausible gait model: styles @ bases (and style_mean @ bases) "
+                             f"must lie within ±{MAX_SCALED_VALUE:g} scaled units")
 
     # ---------------------------------------------------------------- sizes and lookups
     @property

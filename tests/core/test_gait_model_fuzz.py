@@ -139,3 +139,88 @@ def test_toggled_root_travel_is_refused_at_load():
     arrays["root_travel"] = np.array(0)
     with pytest.raises(GaitModelFileError, match="channel names"):
         GaitModel.from_bytes(_bytes(arrays), source=SOURCE)
+
+
+# ------------------------------------------------------------------ absurd but finite values
+# Every numeric field scaled by a huge or tiny factor: the file must be refused at load (a
+# GaitModelFileError naming the source) or load and give finite results everywhere — adapting
+# (batch EM and the online filter) included, since that is where r, Q, the style prior and the
+# period range act.
+SCALED_FIELDS = [("fps", None), ("r", None), ("lag_range", None), ("lag_range", 0),
+                 ("lag_range", 1), ("beta", None), ("beta", 0), ("beta", 1), ("beta", 2),
+                 ("beta", 3), ("Q", None), ("Q", 0), ("Q", 3), ("channel_scale", None),
+                 ("channel_scale", 60), ("style_mean", None), ("style_cov", None),
+                 ("bases", None), ("styles", None), ("styles", 0), ("periods", None),
+                 ("periods", 0), ("angle_centre", None), ("singular_values", None)]
+FACTORS = [1e-300, 1e-30, 1e-8, 1e8, 1e30, 1e300]
+
+
+def _check_finite_everywhere(m):
+    from core.gait import OnlineEM, adapt
+
+    values, names = trial("08_01")
+    dofs = _dofs_in_layout(m, values[:150], names)
+    obs = observations_from_dofs(m, dofs, m.dof_names, 60.0)
+    assert np.all(np.isfinite(obs[1:]))
+    res = adapt(m, obs, fps=60.0)
+    for arr in (res.state, res.covariance, res.w, res.residual):
+        assert np.all(np.isfinite(arr))
+    assert np.all(np.isfinite(predict(m, res.state, res.w, 8, residual=res.residual)))
+    assert np.all(np.isfinite(predict_dofs(m, res.state, res.w, 8, dofs[-1], 60.0)))
+    online = OnlineEM(m, fps=60.0)
+    for y in obs[:60]:
+        online.step(y)
+    assert np.all(np.isfinite([online.omega, online.phase]))
+    assert np.all(np.isfinite(online.w)) and np.all(np.isfinite(online.predict(8)))
+
+
+@pytest.mark.parametrize("factor", FACTORS)
+@pytest.mark.parametrize("field, entry", SCALED_FIELDS)
+def test_scaled_field_is_refused_or_gives_finite_results(field, entry, factor):
+    arrays = _arrays(small_model().to_bytes())
+    value = np.array(arrays[field], dtype=float)
+    if entry is None:
+        value = value * factor
+    else:
+        value.reshape(-1)[entry] *= factor
+    arrays[field] = value
+    try:
+        m = GaitModel.from_bytes(_bytes(arrays), source=SOURCE)
+    except GaitModelFileError as err:
+        assert str(err).startswith(SOURCE)
+        return
+    with np.errstate(over="raise", divide="raise", invalid="raise"):  # no inf or 0/0 on the way
+        _check_finite_everywhere(m)
+
+
+@pytest.mark.parametrize("field, factor", [
+    ("r", 1e-300), ("r", 1e300), ("fps", 1e300), ("fps", 1e-300), ("lag_range", 1e300),
+    ("lag_range", 1e-300), ("Q", 1e300), ("Q", 1e-300), ("beta", 1e300), ("style_cov", 1e-300),
+    ("style_cov", 1e300), ("bases", 1e300), ("styles", 1e300), ("style_mean", 1e300),
+    ("channel_scale", 1e300), ("channel_scale", 1e-300), ("periods", 1e-300),
+    ("periods", 1e300)])
+def test_absurd_field_is_refused_at_load(field, factor):
+    arrays = _arrays(small_model().to_bytes())
+    arrays[field] = np.asarray(arrays[field], dtype=float) * factor
+    with pytest.raises(GaitModelFileError, match=f"^{SOURCE}: .*{field}"):
+        GaitModel.from_bytes(_bytes(arrays), source=SOURCE)
+
+
+ALL_CMU = ("08_01", "08_04", "08_07", "35_01", "35_02", "35_03", "35_04", "35_05", "35_06",
+           "35_07", "35_08", "35_17", "35_18", "35_20", "35_21")
+
+
+@pytest.mark.parametrize("fps, model_fps, names", [
+    (24, 24.0, ("08_04", "35_01", "35_17")), (30, 30.0, ("08_04", "35_01", "35_17")),
+    (60, 60.0, ALL_CMU), (120, 120.0, ("08_04", "35_01", "35_17")),
+    (120, 240.0, ("08_04", "35_01", "35_17")), (60, 60.0, ("35_02",)),
+    (30, 30.0, ("08_07",))])
+def test_models_learned_from_cmu_pass_the_plausibility_checks(fps, model_fps, names):
+    from core.gait import learn_model
+
+    data = [trial(n, fps) for n in names]
+    model = learn_model([d[0] for d in data], data[0][1], float(fps), list(names),
+                        model_fps=model_fps)        # the constructor runs the checks
+    loaded = GaitModel.from_bytes(model.to_bytes(), source=SOURCE)
+    assert loaded.fps == model_fps and loaded.style_names == tuple(names)
+    np.testing.assert_array_equal(loaded.bases, model.bases)
