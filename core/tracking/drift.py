@@ -127,7 +127,14 @@ def orientation_correction(motions, target, tol=1e-10, max_iterations=20):
         # Least squares of the 9 equations (eq. 23) via the 3x3 normal equations.
         ata = np.einsum("kia,kib->kab", coeff, coeff)
         atb = np.einsum("kia,ki->ka", coeff, rhs)
-        omega = np.linalg.solve(ata, atb[..., None])[..., 0]
+        try:
+            omega = np.linalg.solve(ata, atb[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            # A singular normal matrix: the first-order equation loses rank, e.g. after a half
+            # turn (sum_j F_j [omega]x G_{j+1} vanishes for omega rotated onto -omega). Take the
+            # minimum-norm least-squares step; the next iterate's system is usually regular
+            # again, otherwise the residual stays and is reported.
+            omega = (np.linalg.pinv(ata, hermitian=True) @ atb[..., None])[..., 0]
         omega[residual < tol] = 0.0
         x = exp_so3(omega)
         motions = motions @ x[:, None]

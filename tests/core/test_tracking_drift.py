@@ -109,3 +109,31 @@ def test_shapes_validated():
         orientation_correction(np.zeros((2, 0, 3, 3)), np.zeros((2, 3, 3)))
     with pytest.raises(ValueError, match="target of shape"):
         orientation_correction(np.zeros((2, 3, 3, 3)), np.zeros((3, 3)))
+
+
+def test_singular_system_after_a_half_turn_is_solved_not_raised():
+    """R_1 = I, R_2 = a half turn about z: eq. 17's coefficients are [omega + R_2 omega]x R_2,
+    which vanish for every omega in the xy plane, so the 3x3 normal matrix is singular. The
+    correction takes the least-squares step instead of raising LinAlgError."""
+    half = np.diag([-1.0, -1.0, 1.0])
+    motions = np.array([[np.eye(3), half]] * 3)
+    target = np.array([half @ exp_so3(np.array([0.0, 0.0, 0.1])),   # reachable along z
+                       exp_so3(np.array([0.2, 0.1, 0.3])),           # leaves the half turn
+                       half @ exp_so3(np.array([0.1, 0.0, 0.0]))])   # stays singular
+    coeff, _ = correction_system(motions, target)
+    assert np.linalg.matrix_rank(np.einsum("kia,kib->kab", coeff, coeff)[0]) == 1
+    res = orientation_correction(motions, target, tol=1e-10)
+    for arr in (res.correction, res.motions, res.residual):
+        assert np.all(np.isfinite(arr))
+    x = res.correction
+    np.testing.assert_allclose(x @ np.swapaxes(x, -1, -2), np.broadcast_to(np.eye(3), x.shape),
+                               atol=1e-12)
+    # The residual reported is the true one; the first two reach the target.
+    np.testing.assert_allclose(res.residual,
+                               np.linalg.norm(_chain(res.motions) - target, axis=(1, 2)),
+                               atol=1e-15)
+    assert np.all(res.residual[:2] < 1e-10)
+    # The z-only case: X = exp(0.05 z) solves X R_2 X = R_2 exp(0.1 z) exactly.
+    np.testing.assert_allclose(x[0], exp_so3(np.array([0.0, 0.0, 0.05])), atol=1e-10)
+    # The third stays at a half-turn distance: reported, not hidden.
+    assert res.residual[2] > 1e-3 and res.iterations == 20
