@@ -306,15 +306,43 @@ def _check_pose(name, pose, b):
     return Pose(t, r)
 
 
+#: Frames whose largest finite |intensity| lies in this range are used as given (footage in
+#: [0, 1], dark or slightly over-bright, keeps its results bit for bit); others are scaled by a
+#: power of two (exact) into (0.5, 1] (see :func:`intensity_exponent`).
+UNIT_RANGE = (2.0 ** -8, 2.0)
+
+
+def intensity_exponent(level0):
+    """``k`` such that ``level0 * 2**-k`` has its largest finite |value| in (0.5, 1], or 0 when
+    it already lies in ``UNIT_RANGE`` (or no pixel is finite and non-zero).
+
+    The tracker's one absolute intensity constant (the robust clip's floor, ``motion.py``) is
+    meant for [0, 1] footage; scaling by a power of two changes no rounding, so footage
+    multiplied by ``2**m`` tracks exactly like the original, and footage in any unit (0..255,
+    1e-200 .. 1e200) neither overflows nor underflows in the squared residuals.
+    """
+    level0 = np.asarray(level0)
+    peak = np.max(np.abs(level0), initial=0.0, where=np.isfinite(level0))
+    if not peak > 0 or UNIT_RANGE[0] <= peak <= UNIT_RANGE[1]:
+        return 0
+    mantissa, exponent = np.frexp(peak)            # peak = mantissa 2**exponent, [0.5, 1)
+    return int(exponent) - 1 if mantissa == 0.5 else int(exponent)
+
+
 def _prepare(problem, frames, start, end, options, pyramid, initial=None):
-    """Checked keys, the problem (its camera cropped to the region of interest), the pyramid and
-    the (finest, top) levels."""
+    """Checked keys, the problem (its camera cropped to the region of interest), the pyramid
+    (scaled by ``2**-k``, :func:`intensity_exponent`), the (finest, top) levels and ``k``."""
     sk = problem.skeleton
     start = _check_pose("start", start, sk.n_joints)
     end = _check_pose("end", end, sk.n_joints)
     if pyramid is not None:
+        if len(pyramid) == 0:
+            raise TrackingError("the pyramid has no levels")
+        k = intensity_exponent(pyramid[0])
+        if k:
+            pyramid = [np.ldexp(level, -k) for level in pyramid]
         return problem, start, end, pyramid, choose_levels(problem, options, start, end,
-                                                           len(pyramid))
+                                                           len(pyramid)), k
     frames = np.asarray(frames)
     cam = problem.camera
     if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
@@ -334,7 +362,10 @@ def _prepare(problem, frames, start, end, options, pyramid, initial=None):
             # Level 0 is sampled (flat indices): a contiguous copy. Otherwise it is only
             # reduced, which works on the strided window directly.
             frames = np.ascontiguousarray(frames)
-    return problem, start, end, gaussian_pyramid(frames, levels[1] + 1), levels
+    k = intensity_exponent(frames)
+    if k:
+        frames = np.ldexp(frames, -k)
+    return problem, start, end, gaussian_pyramid(frames, levels[1] + 1), levels, k
 
 
 def region_of_interest(problem, options, start, end, n, top, initial=None):
@@ -423,8 +454,8 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     report = progress if progress is not None else (lambda fraction: None)
     sk = problem.skeleton
     tic = time.perf_counter()
-    problem, start, end, pyramid, levels = _prepare(problem, frames, start, end, options,
-                                                    pyramid, initial)
+    problem, start, end, pyramid, levels, k = _prepare(problem, frames, start, end, options,
+                                                       pyramid, initial)
     report(_PROGRESS_PYRAMID)
     finest, top = levels
     n = len(pyramid[0]) - 1
@@ -537,10 +568,19 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
             best["iteration"], f"iteration {best['iteration']}")
         reason = f"diverged: {reason}; kept {kept}"
     report(1.0)
+    # Eq. 4 sums back in the caller's intensity units² (exact: a power of two; saturated at the
+    # largest float where those units overflow, e.g. intensities near 1e200).
+    def to_caller(values):
+        with np.errstate(over="ignore"):
+            return np.minimum(np.ldexp(np.asarray(values, dtype=float), 2 * k),
+                              np.finfo(float).max)
+
     return IntervalResult(root_translations=best["traj"].roots,
-                          local_rotations=best["traj"].local, residuals=best["residuals"],
+                          local_rotations=best["traj"].local,
+                          residuals=to_caller(best["residuals"]),
                           ranks=best["ranks"], n_samples=best["n_samples"],
-                          errors=np.array(errors), kept_iteration=best["iteration"],
+                          errors=to_caller(errors),
+                          kept_iteration=best["iteration"],
                           diverged=diverged, reason=reason, finest_level=finest,
                           top_level=top, timings=timings, history=history)
 
@@ -672,7 +712,8 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     options = options or TrackingOptions()
-    problem, start, end, pyramid, levels = _prepare(problem, frames, start, end, options, pyramid)
+    problem, start, end, pyramid, levels, _ = _prepare(problem, frames, start, end, options,
+                                                       pyramid)
     n = len(pyramid[0]) - 1
     return _track_sequential(problem, options, pyramid, levels,
                              [_forward_chain(problem.skeleton, start, end, n)])[0]

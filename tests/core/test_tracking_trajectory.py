@@ -214,3 +214,35 @@ def test_camera_looking_away_keeps_the_interpolation(seq, seed):
     np.testing.assert_allclose(res.local_rotations, expected_local, atol=1e-9)
     assert np.all(res.ranks == 0) and np.all(res.n_samples == 0)
     assert np.all(np.isfinite(res.residuals)) and np.all(np.isfinite(res.errors))
+
+
+@pytest.mark.parametrize("exponent, dtype", [(12, np.float32), (-12, np.float32),
+                                             (300, np.float64), (-300, np.float64)])
+def test_power_of_two_intensity_scale_tracks_identically(seq, exponent, dtype):
+    """Footage in other units (0..4096, 1e-4, 1e±90) is brought back by a power of two, which
+    changes no rounding: the same trajectory bit for bit, eq. 4 in the caller's units."""
+    sk, body, cam, roots, local, frames = seq
+    problem = TrackingProblem(sk, body, cam)
+    start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
+    options = TrackingOptions(max_iterations=3)
+    ref = track_interval(problem, frames.astype(dtype), start, end, options)
+    res = track_interval(problem, np.ldexp(frames.astype(dtype), exponent), start, end, options)
+    np.testing.assert_array_equal(res.local_rotations, ref.local_rotations)
+    np.testing.assert_array_equal(res.root_translations, ref.root_translations)
+    np.testing.assert_array_equal(res.errors, np.ldexp(ref.errors, 2 * exponent))
+    assert res.kept_iteration == ref.kept_iteration > 0
+
+
+@pytest.mark.parametrize("factor", [1e200, 1e-200, 255.0, 1e-3])
+def test_extreme_intensity_scales_still_track(seq, factor):
+    """Huge or tiny intensities neither raise LinAlgError (squares overflowing) nor silently
+    keep the interpolation (squares underflowing)."""
+    sk, body, cam, roots, local, frames = seq
+    problem = TrackingProblem(sk, body, cam)
+    start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
+    res = track_interval(problem, frames.astype(np.float64) * factor, start, end,
+                         TrackingOptions(max_iterations=3))
+    assert res.kept_iteration > 0 and not res.diverged
+    ti, li = interpolate_poses(sk, start, end, len(roots) - 1)
+    assert (_point_error(sk, cam, roots, local, res.root_translations, res.local_rotations)
+            < 0.6 * _point_error(sk, cam, roots, local, ti, li))
