@@ -322,7 +322,10 @@ def intensity_exponent(level0):
     1e-200 .. 1e200) neither overflows nor underflows in the squared residuals.
     """
     level0 = np.asarray(level0)
-    peak = np.max(np.abs(level0), initial=0.0, where=np.isfinite(level0))
+    # Two plain reductions (no temporary arrays); the masked one only when a pixel is not finite.
+    peak = max(-float(np.min(level0, initial=0.0)), float(np.max(level0, initial=0.0)))
+    if not np.isfinite(peak):
+        peak = np.max(np.abs(level0), initial=0.0, where=np.isfinite(level0))
     if not peak > 0 or UNIT_RANGE[0] <= peak <= UNIT_RANGE[1]:
         return 0
     mantissa, exponent = np.frexp(peak)            # peak = mantissa 2**exponent, [0.5, 1)
