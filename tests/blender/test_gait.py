@@ -278,6 +278,31 @@ def test_locked_fcurves_are_not_written(scene, tmp_path):
     assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
 
 
+def test_fcurves_with_active_modifiers_are_not_written(scene, tmp_path):
+    """The observation is read through the curves' modifiers; keys written under them would
+    apply them twice (Noise doubled, a Cycles period changed), so After Observed refuses."""
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    _, table = fcurve_table(obj)
+    table[('pose.bones["lfemur"].rotation_euler', 0)].modifiers.new("NOISE").strength = 0.1
+    table[('pose.bones["lfemur"].rotation_euler', 1)].modifiers.new("CYCLES")
+    table[('pose.bones["rfemur"].rotation_euler', 0)].modifiers.new("NOISE").mute = True
+    counts, keys = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match=r"2 F-curves of 35_07 that the prediction writes "
+                       r'have active modifiers \(pose.bones\["lfemur"\].rotation_euler\[0\], '
+                       r'pose.bones\["lfemur"\].rotation_euler\[1\]\)'):
+        bpy.ops.track_and_stride.predict_gait(horizon=0.5)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
+    assert [len(f.modifiers) for f in fcurve_table(obj)[1].values() if f.modifiers] == [1, 1, 1]
+    # A new action (keys copied without the modifiers) is written.
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+
+
 def test_a_linked_walker_is_refused(scene, tmp_path):
     """Keys (or a new action) written into library data would not be saved."""
     learn_from_files()

@@ -183,6 +183,14 @@ def _locked_group(obj):
     next(g for g in channelbag(obj).groups if g.name == "lhumerus").lock = True
 
 
+def _noise_modifier(obj):
+    """Keys read through a Noise modifier and written under it would carry the noise twice."""
+    fcurve = channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=0)
+    fcurve.modifiers.new("NOISE").strength = 0.2
+    muted = channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=1)
+    muted.modifiers.new("NOISE").mute = True          # a muted modifier changes nothing
+
+
 @pytest.mark.parametrize("breaks,message", [
     (_no_keys_in_range, "No keyframes of 08_01 in frames 25–40"),
     (_one_key, "Only one keyframe of 08_01 \\(frame 21\\)"),
@@ -194,6 +202,8 @@ def _locked_group(obj):
     (_locked_fcurve, "1 F-curve of 08_01 that tracking writes is locked "
                      "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
     (_locked_group, "3 F-curves of 08_01 that tracking writes are locked"),
+    (_noise_modifier, "1 F-curve of 08_01 that tracking writes has active modifiers "
+                      "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
 ])
 def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     obj = build_walk_scene(walk_folder)
@@ -227,6 +237,24 @@ def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
     assert "track_and_stride_residual" not in obj.keys()
     assert [tuple(pb.lock_rotation) for pb in obj.pose.bones] == locks
     assert (obj.data.display_type, obj.show_in_front) == (display, in_front)
+
+
+def test_a_modifier_added_while_tracking_stops_the_write(walk_folder):
+    """The modal run checks again before writing: a curve that got an active modifier (or a
+    padlock) meanwhile is not written under it."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    track = bridge("track_bridge")
+    request = track.prepare_tracking(bpy.context, settings())
+    result = track.run_core(request, track.read_footage(request, 0, len(request.scene_frames)))
+    _noise_modifier(obj)
+    counts, before = datablock_counts(), snapshot(obj)
+    with pytest.raises(track.TrackError, match="has active modifiers"):
+        track.apply_result(bpy.context, request, result)
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
 
 
 def test_cancel_leaves_everything_as_it_was(walk_folder):
