@@ -415,6 +415,72 @@ def test_image_sequence_behind_the_camera(walk_folder):
         assert path.endswith(f"frame_{frame - 1:04d}.png")
 
 
+def _open_footage_state():
+    scene = bpy.context.scene
+    s = settings()
+    cameras = [(o.name, o.data.show_background_images, len(o.data.background_images))
+               for o in bpy.data.objects if o.type == "CAMERA"]
+    return (datablock_counts(), scene.frame_start, scene.frame_end, scene.render.resolution_x,
+            scene.render.resolution_y, scene.render.resolution_percentage, s.source, s.clip,
+            cameras)
+
+
+def _odd_scene(walk_folder):
+    """A scene unlike the footage: range 5–9, 320×200 at 50 %."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 5, 9
+    scene.render.resolution_x, scene.render.resolution_y = 320, 200
+    scene.render.resolution_percentage = 50
+    return str(walk_folder / "frame_0000.png")
+
+
+def test_open_footage_with_a_non_camera_scene_camera_changes_nothing(walk_folder):
+    """The footage cannot go behind an Empty: refused before the clip, range or size change."""
+    path = _odd_scene(walk_folder)
+    empty = bpy.data.objects.new("Not a camera", None)
+    bpy.context.scene.collection.objects.link(empty)
+    bpy.context.scene.camera = empty
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="Not a camera is not a camera"):
+        bpy.ops.track_and_stride.open_footage(filepath=path)
+    assert _open_footage_state() == before
+
+
+def test_open_footage_restores_the_scene_when_showing_it_fails(walk_folder, monkeypatch):
+    """All or nothing: a failure while showing the clip behind the camera puts the clip
+    choice, range, render size and camera backgrounds back and removes the loaded clip."""
+    path = _odd_scene(walk_folder)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    bpy.context.scene.collection.objects.link(camera)
+    bpy.context.scene.camera = camera
+    setup = bridge("track_setup")
+    real = setup._clip_background
+
+    def failing(camera_data, clip):
+        real(camera_data, clip)
+        camera_data.show_background_images = True
+        raise RuntimeError("test: cannot show the clip")
+
+    monkeypatch.setattr(setup, "_clip_background", failing)
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="test: cannot show the clip"):
+        bpy.ops.track_and_stride.open_footage(filepath=path)
+    assert _open_footage_state() == before
+
+
+def test_open_footage_keeps_a_users_clip_it_cannot_decode(tmp_path):
+    """movieclips.load(check_existing=True) returns the user's own clip of that file: refusing
+    it must not delete it."""
+    path = tmp_path / "broken.mp4"
+    path.write_bytes(b"not a movie")
+    clip = bpy.data.movieclips.load(str(path))
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="cannot decode broken.mp4"):
+        bpy.ops.track_and_stride.open_footage(filepath=str(path))
+    assert _open_footage_state() == before
+    assert bpy.data.movieclips.get(clip.name) == clip
+
+
 def test_a_divergent_interval_is_reported_by_name(walk_folder, monkeypatch):
     """The core's fallback (here: forced) keeps the interval's best trajectory; the report
     names the interval and the reason."""
