@@ -481,6 +481,32 @@ def test_open_footage_keeps_a_users_clip_it_cannot_decode(tmp_path):
     assert bpy.data.movieclips.get(clip.name) == clip
 
 
+def test_a_movie_deleted_after_the_checks_is_refused_in_the_synchronous_run(
+        walk_folder, walk_mp4, tmp_path, monkeypatch):
+    """track_now (background mode, scripts): the footage vanishing between the checks and the
+    reading is a clear refusal that changes nothing, not a traceback or black frames."""
+    movie = tmp_path / "walk_copy.mp4"
+    shutil.copy(walk_mp4, movie)
+    obj = build_walk_scene(walk_folder, source="FILE", movie=movie)
+    settings().processes = 1
+    track = bridge("track_bridge")
+    real = track.prepare_tracking
+
+    def prepare_then_delete(context, s):
+        request = real(context, s)
+        movie.unlink()
+        return request
+
+    monkeypatch.setattr(track, "prepare_tracking", prepare_then_delete)
+    counts, before = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match="walk_copy.mp4"):
+        bpy.ops.track_and_stride.track_keyframes()
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
+
+
 def test_a_divergent_interval_is_reported_by_name(walk_folder, monkeypatch):
     """The core's fallback (here: forced) keeps the interval's best trajectory; the report
     names the interval and the reason."""
