@@ -474,6 +474,44 @@ def test_panel_draws_and_every_property_explains_itself(scene):
             assert prop.description, prop.identifier
 
 
+@pytest.mark.parametrize("error_name", ["RuntimeError", "ValueError", "GaitError"])
+def test_a_preview_that_fails_to_start_leaves_nothing_behind(scene, tmp_path, monkeypatch,
+                                                            error_name):
+    """Posing the ghost the first time fails: no ghost, no armature data, no session."""
+    learn_from_files()
+    import_observed(tmp_path)
+    preview = bridge("gait_preview")
+    error = {"RuntimeError": RuntimeError, "ValueError": ValueError,
+             "GaitError": preview.GaitError}[error_name]
+
+    def failing(*args):
+        raise error("test: cannot pose the ghost")
+
+    monkeypatch.setattr(preview, "_pose_ghost", failing)
+    counts = datablock_counts()
+    with pytest.raises(RuntimeError, match="test: cannot pose the ghost"):
+        bpy.ops.track_and_stride.gait_preview_start()
+    assert datablock_counts() == counts
+    assert preview.session() is None and not preview.handler_registered()
+    assert not [o for o in bpy.data.objects if o.get(preview.PROP_GHOST)]
+
+
+def test_preview_refuses_edit_mode(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    preview = bridge("gait_preview")
+    bpy.ops.object.mode_set(mode="EDIT")
+    counts = datablock_counts()
+    assert not bpy.ops.track_and_stride.gait_preview_start.poll()
+    with pytest.raises(RuntimeError, match="Leave Edit Mode first"):
+        bpy.ops.track_and_stride.gait_preview_start()
+    with pytest.raises(preview.GaitError, match="Leave Edit Mode first"):
+        preview.start_preview(bpy.context, obj)
+    assert datablock_counts() == counts and preview.session() is None
+    assert obj.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+
 def test_disabling_the_addon_ends_the_preview(scene, tmp_path):
     import addon_utils
 
