@@ -5,6 +5,7 @@ failure while building removes what was built.
 """
 
 import os
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -12,10 +13,11 @@ import numpy as np
 
 from ..core.armature import (armature_layout, channels_to_dofs, dofs_to_channels,
                              plausible_envelope_radii)
-from ..core.mocap import (AmcMotion, asf_to_skeleton, format_asf, parse_asf, read_amc, read_asf,
-                          resample, write_amc)
+from ..core.mocap import (AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf, read_amc,
+                          read_asf, resample)
 from .armature_build import create_armature_object, remove_ids
-from .fcurves import channelbag, ensure_action, evaluate_fcurves, pose_bone_path, write_new_fcurves
+from .fcurves import (channelbag, ensure_action, evaluate_fcurves, keyframe_state, pose_bone_path,
+                      write_new_fcurves)
 
 # Custom properties on the armature data that let export rebuild the exact skeleton.
 PROP_ASF = "track_and_stride_asf"
@@ -133,10 +135,70 @@ def armature_asf(obj):
     return parse_asf(text, path=f"{obj.name} (stored skeleton)")
 
 
+def _slot_key_range(action, bag):
+    """(first, last) key frames of one slot's channelbag (``None`` when it holds no key); the
+    action's manual frame range when it has one."""
+    if action.use_frame_range:
+        return action.frame_start, action.frame_end
+    frames = []
+    for fcurve in (bag.fcurves if bag is not None else ()):
+        if len(fcurve.keyframe_points):
+            frames.append(keyframe_state(fcurve)["co"][:, 0])
+    if not frames:
+        return None
+    frames = np.concatenate(frames)
+    return float(frames.min()), float(frames.max())
+
+
+def _temporary_beside(path):
+    """A new empty file in ``path``'s folder (same file system: ``os.replace`` is atomic)."""
+    folder, name = os.path.split(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=folder)
+    os.close(fd)
+    return tmp
+
+
+def _write_files(contents):
+    """Write ``{path: text}`` all or nothing: every text goes to a temporary file beside its
+    target first, then the targets are replaced; if a replacement fails, the targets already
+    replaced get their earlier content back (or are removed when they did not exist)."""
+    temps, backups, done = {}, {}, []
+    try:
+        for path, text in contents.items():
+            temps[path] = _temporary_beside(path)
+            with open(temps[path], "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(text)
+        for path, tmp in temps.items():
+            if os.path.isfile(path):
+                backups[path] = _temporary_beside(path)
+                os.replace(path, backups[path])
+            try:
+                os.replace(tmp, path)
+            except OSError:
+                if path in backups:
+                    os.replace(backups.pop(path), path)
+                raise
+            done.append(path)
+    except BaseException:
+        for path in reversed(done):
+            if path in backups:
+                os.replace(backups.pop(path), path)
+            else:
+                os.remove(path)
+        raise
+    finally:
+        for leftover in list(temps.values()) + list(backups.values()):
+            if os.path.exists(leftover):
+                os.remove(leftover)
+
+
 def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
     """Write the armature's action as AMC, and its skeleton as an ASF beside it (same stem).
 
-    One AMC frame per scene frame in ``[frame_start, frame_end]`` (default: the action's range).
+    One AMC frame per scene frame in ``[frame_start, frame_end]`` (default: the keyed range of
+    the armature's own slot, or the action's manual frame range). Both files are written to
+    temporary files beside the targets first and then put in place: a failure leaves the
+    targets as they were.
 
     Returns
     -------
@@ -151,13 +213,16 @@ def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
     anim = obj.animation_data
     if anim is None or anim.action is None:
         raise AcclaimError(f"{obj.name} has no action to export")
+    bag = channelbag(anim.action, anim.action_slot, ensure=False) if anim.action_slot else None
     if frame_start is None or frame_end is None:
-        first, last = anim.action.frame_range
-        frame_start, frame_end = int(np.floor(first)), int(np.ceil(last))
+        keyed = _slot_key_range(anim.action, bag)
+        if keyed is None:
+            raise AcclaimError(f"{anim.action.name} holds no keys for {obj.name}: key it or "
+                               "export the scene frame range")
+        frame_start, frame_end = int(np.floor(keyed[0])), int(np.ceil(keyed[1]))
     if frame_end < frame_start:
         raise AcclaimError("The frame range is empty")
     frames = np.arange(frame_start, frame_end + 1, dtype=float)
-    bag = channelbag(anim.action, anim.action_slot, ensure=False) if anim.action_slot else None
     targets = [(pose_bone_path(bone, prop), index) for bone, prop, index in layout.channels]
     defaults = [getattr(obj.pose.bones[bone], prop)[index] for bone, prop, index in layout.channels]
     values, _ = evaluate_fcurves(bag, targets, frames, defaults)
@@ -166,7 +231,9 @@ def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
                        fps=scene_fps(context.scene), path=str(amc_path))
     amc_path = str(amc_path)
     asf_path = str(Path(amc_path).with_suffix(".asf"))
-    with open(asf_path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(format_asf(asf))
-    write_amc(amc_path, asf, motion, asf_name=os.path.basename(asf_path))
+    if os.path.isdir(amc_path) or os.path.isdir(asf_path):
+        raise AcclaimError(f"Cannot write {os.path.basename(amc_path)}: "
+                           f"{amc_path if os.path.isdir(amc_path) else asf_path} is a folder")
+    _write_files({asf_path: format_asf(asf),
+                  amc_path: format_amc(asf, motion, asf_name=os.path.basename(asf_path))})
     return amc_path, asf_path

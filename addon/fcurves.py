@@ -89,6 +89,27 @@ def locked_channels(bag, channels):
     return out
 
 
+def has_active_modifiers(fcurve):
+    """Whether any of an F-curve's modifiers changes its values (one not muted and valid).
+
+    Such a curve evaluates to its keys *plus* the modifiers (Noise, Cycles, Generator ...):
+    values read from it and keyed back under the same modifiers would apply them twice."""
+    return any(not m.mute and m.is_valid for m in fcurve.modifiers)
+
+
+def modified_channels(bag, channels):
+    """``'path[index]'`` of the channels whose existing F-curve in ``bag`` has active
+    modifiers (:func:`has_active_modifiers`)."""
+    if bag is None:
+        return []
+    out = []
+    for channel in channels:
+        fcurve = bag.fcurves.find(channel[0], index=channel[1])
+        if fcurve is not None and has_active_modifiers(fcurve):
+            out.append(f"{channel[0]}[{channel[1]}]")
+    return out
+
+
 def write_new_fcurves(bag, channels, frames, values, interpolation="LINEAR"):
     """Create one F-curve per channel and fill it with keys in bulk.
 

@@ -44,6 +44,9 @@ class Footage:
         Frames available.
     width, height : int
         Pixels.
+    files : tuple of str
+        A sequence's image files, listed once when the footage is described (a file deleted
+        later is reported by name, not silently skipped); empty for a movie.
     """
 
     kind: str
@@ -53,6 +56,7 @@ class Footage:
     n_frames: int
     width: int
     height: int
+    files: tuple = ()
 
     def footage_index(self, scene_frame):
         """0-based footage frame shown at ``scene_frame``."""
@@ -113,7 +117,10 @@ def footage_from_path(path, scene_start=1, offset=0):
     if not path or not os.path.isfile(path):
         raise FootageError(f"Footage file not found: {path or '(none)'}")
     if path.lower().endswith(MOVIE_EXTENSIONS):
-        clip = bpy.data.movieclips.load(path, check_existing=False)
+        try:
+            clip = bpy.data.movieclips.load(path, check_existing=False)
+        except RuntimeError as exc:
+            raise FootageError(f"Cannot open movie {path}: {exc}") from None
         try:
             width, height = clip.size
             n_frames = clip.frame_duration
@@ -124,7 +131,8 @@ def footage_from_path(path, scene_start=1, offset=0):
         return Footage("MOVIE", path, int(scene_start), int(offset), int(n_frames), int(width), int(height))
     files = _sequence_files(path)
     width, height = _image_size(files[0])
-    return Footage("SEQUENCE", files[0], int(scene_start), int(offset), len(files), width, height)
+    return Footage("SEQUENCE", files[0], int(scene_start), int(offset), len(files), width, height,
+                   tuple(files))
 
 
 def footage_from_clip(clip):
@@ -149,6 +157,9 @@ def _pixels_gray(image):
 def _read_sequence(files, indices, width, height):
     out = np.empty((len(indices), height, width), dtype=np.float32)
     for k, index in enumerate(indices):
+        if not os.path.isfile(files[index]):
+            raise FootageError(f"Footage image {files[index]} is missing (moved or deleted "
+                               "since the footage was chosen)")
         image = _load_image(files[index])
         try:
             if tuple(image.size) != (width, height):
@@ -160,12 +171,33 @@ def _read_sequence(files, indices, width, height):
     return out
 
 
+def _render_frames(scene):
+    """Render the scene's frame range (its output settings) with Blender's renderer."""
+    bpy.ops.render.render(animation=True, scene=scene.name)
+
+
 def _decode_movie(footage, first, last, folder):
-    """Render movie frames first..last (0-based) to PNG files via a temporary VSE scene."""
+    """Render movie frames first..last (0-based) to PNG files via a temporary VSE scene.
+
+    Raises
+    ------
+    FootageError
+        The movie is gone or Blender cannot decode or render it (the sequencer makes a
+        one-frame strip of a missing file and renders black: that is caught too).
+    """
+    if not os.path.isfile(footage.path):
+        raise FootageError(f"Footage file {footage.path} is missing (moved or deleted since the "
+                           "footage was chosen)")
     scene = bpy.data.scenes.new("Track & Stride footage decoder")
     try:
         editor = scene.sequence_editor_create()
-        strip = editor.strips.new_movie("footage", footage.path, 1, 1)
+        try:
+            strip = editor.strips.new_movie("footage", footage.path, 1, 1)
+        except RuntimeError as exc:
+            raise FootageError(f"Blender cannot decode {footage.path}: {exc}") from None
+        if strip.frame_final_duration < last + 1:
+            raise FootageError(f"Blender cannot decode {footage.path}: it holds "
+                               f"{strip.frame_final_duration} frames, frame {last + 1} is needed")
         strip.colorspace_settings.name = "sRGB"
         scene.view_settings.view_transform = "Standard"
         scene.view_settings.look = "None"
@@ -179,7 +211,11 @@ def _decode_movie(footage, first, last, folder):
         scene.render.image_settings.color_depth = "8"
         scene.frame_start, scene.frame_end = first + 1, last + 1
         scene.render.filepath = os.path.join(folder, "frame_")
-        bpy.ops.render.render(animation=True, scene=scene.name)
+        try:
+            _render_frames(scene)
+        except RuntimeError as exc:
+            raise FootageError(f"Blender could not decode frames {first + 1}–{last + 1} of "
+                               f"{footage.path}: {exc}") from None
     finally:
         bpy.data.scenes.remove(scene)
     return [os.path.join(folder, f"frame_{i + 1:04d}.png") for i in range(first, last + 1)]
@@ -208,7 +244,8 @@ def read_frames(footage, scene_frames):
         raise FootageError(f"Scene frames {outside[0]}..{outside[-1]} lie outside the footage "
                            f"({footage.n_frames} frames starting at scene frame {footage.scene_start})")
     if footage.kind == "SEQUENCE":
-        return _read_sequence(_sequence_files(footage.path), indices, footage.width, footage.height)
+        files = footage.files or tuple(_sequence_files(footage.path))
+        return _read_sequence(files, indices, footage.width, footage.height)
     first, last = min(indices), max(indices)
     folder = tempfile.mkdtemp(prefix="ts-footage-")
     try:

@@ -23,7 +23,8 @@ from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, Onlin
 from ..core.gait.foot_slide import planted_stride
 from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from .acclaim_bridge import find_asf_beside, scene_fps
-from .fcurves import channelbag, ensure_action, keyframe_state, locked_channels, not_editable
+from .fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
+                      modified_channels, not_editable)
 from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
                         keyed_range, read_dofs)
 
@@ -314,6 +315,17 @@ def _target_bag(obj, grig, options, first, last, frames):
                         f"{'are' if len(locked) != 1 else 'is'} locked ({', '.join(locked[:3])}"
                         f"{' …' if len(locked) > 3 else ''}): unlock "
                         f"{'them' if len(locked) != 1 else 'it'} or choose Target › New Action")
+    # The observation was read through the curves' modifiers: keys written under them would
+    # apply them twice (a Noise doubled, a Cycles period stretched).
+    modified = modified_channels(bag, grig.targets())
+    if modified:
+        one = len(modified) == 1
+        raise GaitError(f"{len(modified)} F-curve{'s' * (not one)} of {anim.action.name} that "
+                        f"the prediction writes {'has' if one else 'have'} active modifiers "
+                        f"({', '.join(modified[:3])}{' …' if len(modified) > 3 else ''}): keys "
+                        f"written under a modifier would apply it twice; mute or remove "
+                        f"{'it' if one else 'them'} (Graph Editor › Sidebar › Modifiers) or choose "
+                        "Target › New Action")
     return bag
 
 

@@ -51,21 +51,29 @@ def handler_registered():
 
 
 def _make_ghost(context, obj):
+    """A ghost copy of ``obj`` (own armature data); on any error nothing is left behind."""
     data = obj.data.copy()
-    data.name = f"{obj.data.name} Ghost"
-    data.display_type = "STICK"
-    ghost = bpy.data.objects.new(f"{obj.name} Ghost", data)
-    context.scene.collection.objects.link(ghost)
-    ghost.matrix_world = obj.matrix_world
-    ghost.show_in_front = True
-    ghost.hide_select = True
-    ghost.color = (0.3, 0.7, 1.0, 0.6)
-    ghost[PROP_GHOST] = obj.name
-    context.view_layer.update()          # builds the ghost's pose
-    for pb in obj.pose.bones:
-        gb = ghost.pose.bones[pb.name]
-        gb.rotation_mode = pb.rotation_mode
-        gb.lock_rotation = pb.lock_rotation
+    ghost = None
+    try:
+        data.name = f"{obj.data.name} Ghost"
+        data.display_type = "STICK"
+        ghost = bpy.data.objects.new(f"{obj.name} Ghost", data)
+        context.scene.collection.objects.link(ghost)
+        ghost.matrix_world = obj.matrix_world
+        ghost.show_in_front = True
+        ghost.hide_select = True
+        ghost.color = (0.3, 0.7, 1.0, 0.6)
+        ghost[PROP_GHOST] = obj.name
+        context.view_layer.update()          # builds the ghost's pose
+        for pb in obj.pose.bones:
+            gb = ghost.pose.bones[pb.name]
+            gb.rotation_mode = pb.rotation_mode
+            gb.lock_rotation = pb.lock_rotation
+    except Exception:
+        if ghost is not None:
+            bpy.data.objects.remove(ghost)
+        bpy.data.armatures.remove(data)
+        raise
     return ghost
 
 
@@ -88,9 +96,12 @@ def start_preview(context, obj):
     Raises
     ------
     GaitError
-        Before anything is created, when the armature or model cannot be used.
+        Before anything is created, when the armature or model cannot be used; and when the
+        first update fails, after removing the ghost, the session and the handler again.
     """
     scene = context.scene
+    if obj is not None and obj.mode == "EDIT":
+        raise GaitError("Leave Edit Mode first")
     _, model = active_model(scene)
     grig = gait_rig(obj)
     lookup = {n: i for i, n in enumerate(grig.dof_names)}
@@ -107,13 +118,26 @@ def start_preview(context, obj):
                                    ahead=max(1, round(settings.preview_ahead * fps)),
                                    replay=max(2, round(settings.preview_replay * fps)),
                                    first_frame=first)
-    ghost = _make_ghost(context, obj)
     global _SESSION
-    _SESSION = PreviewSession(scene.name, obj.name, ghost.name, grig, predictor,
-                              np.array([lookup[n] for n in model.dof_names], dtype=int))
-    if not bpy.app.background and not handler_registered():
-        bpy.app.handlers.frame_change_post.append(_on_frame_change)
-    update_preview(scene)
+    ghost_name = None
+    try:
+        ghost = _make_ghost(context, obj)
+        ghost_name = ghost.name
+        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor,
+                                  np.array([lookup[n] for n in model.dof_names], dtype=int))
+        if not bpy.app.background and not handler_registered():
+            bpy.app.handlers.frame_change_post.append(_on_frame_change)
+        update_preview(scene)
+    except Exception as exc:
+        # Nothing of a preview that did not start stays behind (ghost, its data, handler).
+        stop_preview()
+        left = bpy.data.objects.get(ghost_name) if ghost_name else None
+        if left is not None and left.get(PROP_GHOST) == obj.name:
+            _remove_ghost(left)
+        if isinstance(exc, GaitError):
+            raise
+        raise GaitError(f"The live preview of {obj.name} could not start: "
+                        f"{type(exc).__name__}: {exc}") from None
     return _SESSION
 
 
@@ -202,6 +226,9 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
         obj = context.active_object
         if obj is None or obj.type != "ARMATURE" or obj.get(PROP_GHOST):
             cls.poll_message_set("Select the walking armature")
+            return False
+        if obj.mode == "EDIT":
+            cls.poll_message_set("Leave Edit Mode first")
             return False
         if len(gait_settings(context.scene).models) == 0:
             cls.poll_message_set("Learn a gait model first")

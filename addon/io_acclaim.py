@@ -65,7 +65,8 @@ class TS_OT_export_acclaim(bpy.types.Operator, ExportHelper):
     filter_glob: StringProperty(default="*.amc", options={"HIDDEN"})
     use_scene_range: BoolProperty(
         name="Scene Frame Range",
-        description="Export the scene's frame range instead of the action's keyed range", default=False)
+        description="Export the scene's frame range instead of the armature's keyed range (its "
+                    "slot of the action, or the action's manual frame range)", default=False)
 
     @classmethod
     def poll(cls, context):

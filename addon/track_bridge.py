@@ -29,7 +29,7 @@ from .fcurves import not_editable, object_channelbag
 from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
 from .pose_bridge import RigError, read_pose, rig_from_armature
 from .track_keys import (channel_state, classify_frames, evaluate_channels_at,
-                         locked_written_channels, read_residuals, write_tracking)
+                         read_residuals, unwritable_channels, write_tracking)
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -202,6 +202,29 @@ def _keyframes(obj, rig, first, last):
     return np.array(keys), tracked
 
 
+def _listed(names):
+    return f"{', '.join(names[:3])}{' …' if len(names) > 3 else ''}"
+
+
+def _check_writable(obj, rig, tracked_bones, tracked_before):
+    """:class:`TrackError` when an F-curve that tracking writes is locked or has active
+    modifiers (``track_keys.unwritable_channels``)."""
+    locked, modified = unwritable_channels(obj, rig, tracked_bones, tracked_before)
+    if locked:
+        raise TrackError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of {obj.name} that "
+                         f"tracking writes {'are' if len(locked) != 1 else 'is'} locked "
+                         f"({_listed(locked)}): unlock "
+                         f"{'them' if len(locked) != 1 else 'it'} (padlock in the Graph Editor's "
+                         "channel list)")
+    if modified:
+        one = len(modified) == 1
+        raise TrackError(f"{len(modified)} F-curve{'s' * (not one)} of {obj.name} that tracking "
+                         f"writes {'has' if one else 'have'} active modifiers "
+                         f"({_listed(modified)}): keys written under a modifier would apply it "
+                         f"twice; mute or remove {'it' if one else 'them'} (Graph Editor › "
+                         "Sidebar › Modifiers)")
+
+
 def prepare_tracking(context, settings):
     """Read and check everything a run needs (see the module docstring).
 
@@ -248,13 +271,7 @@ def prepare_tracking(context, settings):
     if len(layout.translation_axes):
         bones.add(rig.bone_names[0])
     tracked_bones = [n for n in rig.bone_names if n in bones]
-    locked = locked_written_channels(obj, rig, tracked_bones, tracked_before)
-    if locked:
-        raise TrackError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of {obj.name} that "
-                         f"tracking writes {'are' if len(locked) != 1 else 'is'} locked "
-                         f"({', '.join(locked[:3])}{' …' if len(locked) > 3 else ''}): unlock "
-                         f"{'them' if len(locked) != 1 else 'it'} (padlock in the Graph Editor's "
-                         "channel list)")
+    _check_writable(obj, rig, tracked_bones, tracked_before)
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
@@ -314,6 +331,7 @@ def apply_result(context, request, result):
     if channel_state(obj, request.rig) != request.state:
         raise TrackError(f"The keys of {obj.name} changed while tracking: run Track Keyframes "
                          "again")
+    _check_writable(obj, request.rig, request.tracked_bones, request.tracked_before)
     frames = request.scene_frames
     residuals = np.concatenate([r.residuals for r in result.intervals])
     ranks = np.concatenate([r.ranks for r in result.intervals])

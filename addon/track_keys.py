@@ -33,8 +33,8 @@ import numpy as np
 
 from ..core.pose_channels import channel_property
 from .fcurves import (channelbag, ensure_action, enum_value, insert_keys_preserving,
-                      key_frames_and_types, keyframe_state, locked_channels, object_channelbag,
-                      pose_bone_path,
+                      key_frames_and_types, keyframe_state, locked_channels, modified_channels,
+                      object_channelbag, pose_bone_path,
                       remove_keys_at, set_key_type, update_keeping_handles)
 from .pose_bridge import write_pose_keys
 
@@ -121,8 +121,8 @@ def channel_state(obj, rig):
     return h.hexdigest()
 
 
-def locked_written_channels(obj, rig, tracked_bones, tracked_before):
-    """``'path[index]'`` of the locked F-curves that :func:`write_tracking` would change: the
+def written_channels(obj, rig, tracked_bones, tracked_before):
+    """``(path, index)`` of the existing F-curves that :func:`write_tracking` would change: the
     tracked bones' channels, those holding earlier tracked keys, the confidence curves."""
     bag = object_channelbag(obj)
     if bag is None:
@@ -139,7 +139,17 @@ def locked_written_channels(obj, rig, tracked_bones, tracked_before):
                              np.min(np.abs(frames[:, None] - clear[None, :])) < 1e-4):
             channels.append((path, index))
     channels += [(f'["{prop}"]', 0) for prop in (PROP_RESIDUAL, PROP_RANK)]
-    return locked_channels(bag, channels)
+    return channels
+
+
+def unwritable_channels(obj, rig, tracked_bones, tracked_before):
+    """``'path[index]'`` of the F-curves :func:`write_tracking` would change that must not be
+    written: (locked, with active modifiers). Locked curves are protected by the animator;
+    curves with active modifiers were read through them (the keyframes' values), so keys written
+    under them would apply the modifiers twice."""
+    bag = object_channelbag(obj)
+    channels = written_channels(obj, rig, tracked_bones, tracked_before)
+    return locked_channels(bag, channels), modified_channels(bag, channels)
 
 
 def evaluate_channels_at(obj, rig, frames):

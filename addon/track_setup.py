@@ -14,6 +14,8 @@ import numpy as np
 
 from ..core.tracking import find_table1_parts, table1_dof_mask
 from .camera_bridge import render_size
+from .fcurves import not_editable
+from .footage import FootageError, footage_from_clip
 from .pose_bridge import RigError, rig_from_armature
 from .track_bridge import TrackError, resolve_camera, resolve_footage
 
@@ -55,10 +57,22 @@ def _image_background(camera_data, footage):
     return bg
 
 
+def _check_background_camera(camera_obj):
+    """:class:`TrackError` unless ``camera_obj`` is a camera whose background images can be
+    changed."""
+    if camera_obj.type != "CAMERA" or camera_obj.data is None:
+        raise TrackError(f"{camera_obj.name} is not a camera: choose the camera that filmed the "
+                         "footage (Track panel) or make one the scene camera")
+    message = not_editable(camera_obj.data)
+    if message:
+        raise TrackError(message)
+
+
 def show_footage_behind_camera(context, settings):
     """Show the chosen footage as the tracking camera's background; returns a summary."""
     scene = context.scene
     camera_obj = resolve_camera(scene, settings)
+    _check_background_camera(camera_obj)
     footage = resolve_footage(settings)
     data = camera_obj.data
     if settings.source == "CLIP":
@@ -76,8 +90,49 @@ def show_footage_behind_camera(context, settings):
     return f"{name} shows behind {camera_obj.name}: look through the camera (Numpad 0)"
 
 
+_BACKGROUND_PROPS = ("source", "clip", "use_camera_clip", "alpha", "display_depth",
+                     "frame_method", "show_background_image")
+
+
+def _setup_state(scene, settings, camera_data):
+    """What :func:`open_footage` may change (restored by :func:`_restore_setup`)."""
+    render = scene.render
+    state = {"settings": (settings.source, settings.clip),
+             "range": (scene.frame_start, scene.frame_end),
+             "size": (render.resolution_x, render.resolution_y, render.resolution_percentage)}
+    if camera_data is not None:
+        state["camera"] = (camera_data.show_background_images,
+                           [{p: getattr(bg, p) for p in _BACKGROUND_PROPS}
+                            for bg in camera_data.background_images])
+    return state
+
+
+def _restore_setup(scene, settings, camera_data, state):
+    settings.source, settings.clip = state["settings"]
+    # Start, then end: setting the start past the end moves the end along, and the old end is
+    # at least the old start.
+    scene.frame_start, scene.frame_end = state["range"]
+    render = scene.render
+    render.resolution_x, render.resolution_y, render.resolution_percentage = state["size"]
+    if camera_data is not None:
+        show, backgrounds = state["camera"]
+        images = camera_data.background_images
+        while len(images) > len(backgrounds):
+            images.remove(images[len(images) - 1])
+        for bg, props in zip(images, backgrounds):
+            for prop, value in props.items():
+                if getattr(bg, prop) != value:
+                    setattr(bg, prop, value)
+        camera_data.show_background_images = show
+
+
 def open_footage(context, settings, path, set_frame_range=True, match_render_size=True):
     """Load a movie or image sequence as a movie clip and set the scene up for it.
+
+    All or nothing: everything that can be checked is checked before anything changes, and a
+    failure while setting up puts the clip choice, frame range, render size and camera
+    backgrounds back and removes the clip this call loaded (a clip of the same file that the
+    file already had is never removed).
 
     Returns
     -------
@@ -87,31 +142,59 @@ def open_footage(context, settings, path, set_frame_range=True, match_render_siz
     path = bpy.path.abspath(path)
     if not os.path.isfile(path):
         raise TrackError(f"Footage file not found: {path}")
+    scene = context.scene
+    camera_obj = settings.camera or scene.camera
+    if camera_obj is not None:
+        _check_background_camera(camera_obj)
+    existing = {c.as_pointer() for c in bpy.data.movieclips}
     try:
         clip = bpy.data.movieclips.load(path, check_existing=True)
     except RuntimeError as exc:
         raise TrackError(f"Blender cannot open {os.path.basename(path)} as a movie clip: "
                          f"{exc}") from None
+    created = clip.as_pointer() not in existing
+
+    def discard():
+        if created:
+            bpy.data.movieclips.remove(clip)
+
     width, height = clip.size
+    problem = None
     if width == 0 or clip.frame_duration == 0:
-        bpy.data.movieclips.remove(clip)
-        raise TrackError(f"Blender cannot decode {os.path.basename(path)}")
-    settings.source, settings.clip = "CLIP", clip
-    scene = context.scene
-    notes = [f"{clip.name}: {width}×{height}, {clip.frame_duration} frames from frame "
-             f"{clip.frame_start}"]
-    if set_frame_range:
-        scene.frame_start = clip.frame_start
-        scene.frame_end = clip.frame_start + clip.frame_duration - 1
-        notes.append("scene range set")
-    if match_render_size:
-        scene.render.resolution_x, scene.render.resolution_y = width, height
-        scene.render.resolution_percentage = 100
-        notes.append("render size set")
-    if settings.camera or scene.camera:
-        notes.append(show_footage_behind_camera(context, settings))
+        problem = f"Blender cannot decode {os.path.basename(path)}"
     else:
-        notes.append("add a camera to see it behind the armature")
+        try:
+            footage_from_clip(clip)          # what showing it behind the camera will read
+        except (FootageError, RuntimeError) as exc:
+            problem = str(exc)
+    if problem:
+        discard()
+        raise TrackError(problem)
+    camera_data = camera_obj.data if camera_obj is not None else None
+    state = _setup_state(scene, settings, camera_data)
+    try:
+        settings.source, settings.clip = "CLIP", clip
+        notes = [f"{clip.name}: {width}×{height}, {clip.frame_duration} frames from frame "
+                 f"{clip.frame_start}"]
+        if set_frame_range:
+            scene.frame_start = clip.frame_start
+            scene.frame_end = clip.frame_start + clip.frame_duration - 1
+            notes.append("scene range set")
+        if match_render_size:
+            scene.render.resolution_x, scene.render.resolution_y = width, height
+            scene.render.resolution_percentage = 100
+            notes.append("render size set")
+        if camera_obj is not None:
+            notes.append(show_footage_behind_camera(context, settings))
+        else:
+            notes.append("add a camera to see it behind the armature")
+    except Exception as exc:
+        _restore_setup(scene, settings, camera_data, state)
+        discard()
+        if isinstance(exc, TrackError):
+            raise
+        raise TrackError(f"Cannot set the scene up for {os.path.basename(path)} (nothing was "
+                         f"changed): {exc}") from None
     return clip, "; ".join(notes)
 
 

@@ -1,9 +1,11 @@
 """File › Import/Export › Acclaim through bpy.ops: parity with core FK, round trip, errors."""
 
+import importlib
+
 import numpy as np
 import pytest
 
-from blender_support import bpy, datablock_counts
+from blender_support import MODULE, bpy, datablock_counts
 from core.kinematics import forward_kinematics, local_rotations_from_dofs
 from core.mocap import asf_to_skeleton, parse_amc, read_amc, read_asf, resample
 from tests.data import asf_path, cmu_path
@@ -87,6 +89,60 @@ def test_import_export_round_trip(trial, tmp_path):
     diff_deg = (diff_deg + 180.0) % 360.0 - 180.0
     assert np.abs(diff_deg).max() < 1e-4
     assert np.abs(exported.values[:, :3] - original.values[:, :3]).max() < 1e-5  # metres (float32)
+
+
+def test_a_failed_export_leaves_the_target_folder_as_it_was(tmp_path):
+    """The .amc cannot be written (here: a folder has its name): the user's .asf beside it is
+    not overwritten and no partial or temporary file is left."""
+    import_trial("08_01")
+    (tmp_path / "exported.asf").write_text("the user's own skeleton\n")
+    (tmp_path / "exported.amc").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(RuntimeError, match="exported.amc"):
+        bpy.ops.export_anim.acclaim(filepath=str(tmp_path / "exported.amc"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert (tmp_path / "exported.asf").read_text() == "the user's own skeleton\n"
+    # Without an earlier .asf, none is left either.
+    (tmp_path / "exported.asf").unlink()
+    with pytest.raises(RuntimeError, match="exported.amc"):
+        bpy.ops.export_anim.acclaim(filepath=str(tmp_path / "exported.amc"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["exported.amc"]
+
+
+def test_writing_both_files_rolls_back_when_the_second_cannot_be_put_in_place(tmp_path):
+    """The replacement of the second file fails after the first was put in place: the first
+    gets its earlier content back; no temporary file stays."""
+    bridge = importlib.import_module(MODULE + ".addon.acclaim_bridge")
+    (tmp_path / "a.asf").write_text("old\n")
+    (tmp_path / "a.amc").mkdir()
+    with pytest.raises(OSError):
+        bridge._write_files({str(tmp_path / "a.asf"): "new\n", str(tmp_path / "a.amc"): "x"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.amc", "a.asf"]
+    assert (tmp_path / "a.asf").read_text() == "old\n"
+    bridge._write_files({str(tmp_path / "b.asf"): "new\n", str(tmp_path / "a.asf"): "newer\n"})
+    assert (tmp_path / "b.asf").read_text() == "new\n"
+    assert (tmp_path / "a.asf").read_text() == "newer\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.amc", "a.asf", "b.asf"]
+
+
+def test_default_export_range_is_this_armatures_slot(tmp_path):
+    """A slotted action shared with another object (its own slot keyed up to frame 500): the
+    armature's export covers the armature's keys only."""
+    obj = import_trial("08_01", frame_rate_mode="KEEP")
+    action = obj.animation_data.action
+    n = len(read_amc(cmu_path("08_01.amc"), read_asf(asf_path("08_01"))).values)
+    other = bpy.data.objects.new("Other", None)
+    bpy.context.scene.collection.objects.link(other)
+    other.animation_data_create().action = action
+    if other.animation_data.action_slot is None or other.animation_data.action_slot == \
+            obj.animation_data.action_slot:
+        other.animation_data.action_slot = action.slots.new(id_type="OBJECT", name="Other")
+    other.keyframe_insert("location", frame=500)
+    assert action.frame_range[1] == 500
+    out = tmp_path / "exported.amc"
+    assert bpy.ops.export_anim.acclaim(filepath=str(out)) == {"FINISHED"}
+    exported = parse_amc(out.read_text(), read_asf(tmp_path / "exported.asf"))
+    assert len(exported.values) == n
 
 
 def test_malformed_amc_reports_file_and_line_and_changes_nothing(tmp_path):

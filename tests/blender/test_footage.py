@@ -1,6 +1,7 @@
 """addon.footage: image sequences and Blender-encoded movies decode to the rendered frames."""
 
 import importlib
+import shutil
 
 import numpy as np
 import pytest
@@ -98,3 +99,46 @@ def test_errors_name_the_problem(footage_mod, rendered_clip, tmp_path):
     junk.write_bytes(b"not a png")
     with pytest.raises(footage_mod.FootageError, match="junk_0001.png"):
         footage_mod.footage_from_path(str(junk))
+
+
+def test_a_sequence_listed_once_names_an_image_deleted_mid_run(footage_mod, rendered_clip, tmp_path):
+    """The files are listed when the footage is chosen: an image deleted between two chunks
+    is a FootageError naming it (not an IndexError from a shorter second listing)."""
+    folder, reference = rendered_clip
+    for f in range(1, 7):
+        shutil.copy(folder / f"seq_{f:04d}.png", tmp_path / f"seq_{f:04d}.png")
+    footage = footage_mod.footage_from_path(str(tmp_path / "seq_0001.png"), scene_start=1)
+    np.testing.assert_allclose(footage_mod.read_frames(footage, [1, 2]), reference[:2], atol=1e-6)
+    (tmp_path / "seq_0003.png").unlink()
+    with pytest.raises(footage_mod.FootageError, match="seq_0003.png"):
+        footage_mod.read_frames(footage, [3, 4, 5, 6])
+    (tmp_path / "seq_0003.png").write_bytes(b"not a png")
+    with pytest.raises(footage_mod.FootageError, match="seq_0003.png"):
+        footage_mod.read_frames(footage, [3, 4])
+    np.testing.assert_allclose(footage_mod.read_frames(footage, [5, 6]), reference[4:], atol=1e-6)
+
+
+def test_a_movie_deleted_after_the_checks_is_a_footage_error(footage_mod, rendered_clip, tmp_path):
+    """Blender's sequencer makes a strip of a missing file and renders black frames: that must
+    not pass for footage."""
+    folder, _ = rendered_clip
+    movie = tmp_path / "gone.mp4"
+    shutil.copy(folder / "clip.mp4", movie)
+    footage = footage_mod.footage_from_path(str(movie), scene_start=1)
+    movie.unlink()
+    with pytest.raises(footage_mod.FootageError, match="gone.mp4"):
+        footage_mod.read_frames(footage, [1, 2, 3])
+    assert len(bpy.data.scenes) == 1
+
+
+def test_a_render_error_while_decoding_is_a_footage_error(footage_mod, rendered_clip, monkeypatch):
+    folder, _ = rendered_clip
+    footage = footage_mod.footage_from_path(str(folder / "clip.mp4"), scene_start=1)
+
+    def failing(scene):
+        raise RuntimeError("Error: test: cannot render")
+
+    monkeypatch.setattr(footage_mod, "_render_frames", failing)
+    with pytest.raises(footage_mod.FootageError, match="clip.mp4.*test: cannot render"):
+        footage_mod.read_frames(footage, [1, 2])
+    assert len(bpy.data.scenes) == 1

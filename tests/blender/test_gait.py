@@ -278,6 +278,31 @@ def test_locked_fcurves_are_not_written(scene, tmp_path):
     assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
 
 
+def test_fcurves_with_active_modifiers_are_not_written(scene, tmp_path):
+    """The observation is read through the curves' modifiers; keys written under them would
+    apply them twice (Noise doubled, a Cycles period changed), so After Observed refuses."""
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    _, table = fcurve_table(obj)
+    table[('pose.bones["lfemur"].rotation_euler', 0)].modifiers.new("NOISE").strength = 0.1
+    table[('pose.bones["lfemur"].rotation_euler', 1)].modifiers.new("CYCLES")
+    table[('pose.bones["rfemur"].rotation_euler', 0)].modifiers.new("NOISE").mute = True
+    counts, keys = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match=r"2 F-curves of 35_07 that the prediction writes "
+                       r'have active modifiers \(pose.bones\["lfemur"\].rotation_euler\[0\], '
+                       r'pose.bones\["lfemur"\].rotation_euler\[1\]\)'):
+        bpy.ops.track_and_stride.predict_gait(horizon=0.5)
+    assert datablock_counts() == counts
+    after = snapshot(obj)
+    assert after.keys() == keys.keys()
+    for key, state in keys.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes()
+    assert [len(f.modifiers) for f in fcurve_table(obj)[1].values() if f.modifiers] == [1, 1, 1]
+    # A new action (keys copied without the modifiers) is written.
+    assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
+
+
 def test_a_linked_walker_is_refused(scene, tmp_path):
     """Keys (or a new action) written into library data would not be saved."""
     learn_from_files()
@@ -447,6 +472,44 @@ def test_panel_draws_and_every_property_explains_itself(scene):
     for prop in settings.bl_rna.properties:
         if prop.identifier not in ("rna_type", "name"):
             assert prop.description, prop.identifier
+
+
+@pytest.mark.parametrize("error_name", ["RuntimeError", "ValueError", "GaitError"])
+def test_a_preview_that_fails_to_start_leaves_nothing_behind(scene, tmp_path, monkeypatch,
+                                                            error_name):
+    """Posing the ghost the first time fails: no ghost, no armature data, no session."""
+    learn_from_files()
+    import_observed(tmp_path)
+    preview = bridge("gait_preview")
+    error = {"RuntimeError": RuntimeError, "ValueError": ValueError,
+             "GaitError": preview.GaitError}[error_name]
+
+    def failing(*args):
+        raise error("test: cannot pose the ghost")
+
+    monkeypatch.setattr(preview, "_pose_ghost", failing)
+    counts = datablock_counts()
+    with pytest.raises(RuntimeError, match="test: cannot pose the ghost"):
+        bpy.ops.track_and_stride.gait_preview_start()
+    assert datablock_counts() == counts
+    assert preview.session() is None and not preview.handler_registered()
+    assert not [o for o in bpy.data.objects if o.get(preview.PROP_GHOST)]
+
+
+def test_preview_refuses_edit_mode(scene, tmp_path):
+    learn_from_files()
+    obj = import_observed(tmp_path)
+    preview = bridge("gait_preview")
+    bpy.ops.object.mode_set(mode="EDIT")
+    counts = datablock_counts()
+    assert not bpy.ops.track_and_stride.gait_preview_start.poll()
+    with pytest.raises(RuntimeError, match="Leave Edit Mode first"):
+        bpy.ops.track_and_stride.gait_preview_start()
+    with pytest.raises(preview.GaitError, match="Leave Edit Mode first"):
+        preview.start_preview(bpy.context, obj)
+    assert datablock_counts() == counts and preview.session() is None
+    assert obj.mode == "EDIT"
+    bpy.ops.object.mode_set(mode="OBJECT")
 
 
 def test_disabling_the_addon_ends_the_preview(scene, tmp_path):

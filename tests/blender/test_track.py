@@ -183,6 +183,14 @@ def _locked_group(obj):
     next(g for g in channelbag(obj).groups if g.name == "lhumerus").lock = True
 
 
+def _noise_modifier(obj):
+    """Keys read through a Noise modifier and written under it would carry the noise twice."""
+    fcurve = channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=0)
+    fcurve.modifiers.new("NOISE").strength = 0.2
+    muted = channelbag(obj).fcurves.find('pose.bones["lfemur"].rotation_euler', index=1)
+    muted.modifiers.new("NOISE").mute = True          # a muted modifier changes nothing
+
+
 @pytest.mark.parametrize("breaks,message", [
     (_no_keys_in_range, "No keyframes of 08_01 in frames 25–40"),
     (_one_key, "Only one keyframe of 08_01 \\(frame 21\\)"),
@@ -194,6 +202,8 @@ def _locked_group(obj):
     (_locked_fcurve, "1 F-curve of 08_01 that tracking writes is locked "
                      "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
     (_locked_group, "3 F-curves of 08_01 that tracking writes are locked"),
+    (_noise_modifier, "1 F-curve of 08_01 that tracking writes has active modifiers "
+                      "\\(pose.bones\\[\"lfemur\"\\].rotation_euler\\[0\\]\\)"),
 ])
 def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     obj = build_walk_scene(walk_folder)
@@ -227,6 +237,24 @@ def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
     assert "track_and_stride_residual" not in obj.keys()
     assert [tuple(pb.lock_rotation) for pb in obj.pose.bones] == locks
     assert (obj.data.display_type, obj.show_in_front) == (display, in_front)
+
+
+def test_a_modifier_added_while_tracking_stops_the_write(walk_folder):
+    """The modal run checks again before writing: a curve that got an active modifier (or a
+    padlock) meanwhile is not written under it."""
+    obj = build_walk_scene(walk_folder)
+    settings().processes = 1
+    track = bridge("track_bridge")
+    request = track.prepare_tracking(bpy.context, settings())
+    result = track.run_core(request, track.read_footage(request, 0, len(request.scene_frames)))
+    _noise_modifier(obj)
+    counts, before = datablock_counts(), snapshot(obj)
+    with pytest.raises(track.TrackError, match="has active modifiers"):
+        track.apply_result(bpy.context, request, result)
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
 
 
 def test_cancel_leaves_everything_as_it_was(walk_folder):
@@ -385,6 +413,98 @@ def test_image_sequence_behind_the_camera(walk_folder):
         bpy.context.scene.frame_set(frame)
         path = bg.image.filepath_from_user(image_user=bg.image_user)
         assert path.endswith(f"frame_{frame - 1:04d}.png")
+
+
+def _open_footage_state():
+    scene = bpy.context.scene
+    s = settings()
+    cameras = [(o.name, o.data.show_background_images, len(o.data.background_images))
+               for o in bpy.data.objects if o.type == "CAMERA"]
+    return (datablock_counts(), scene.frame_start, scene.frame_end, scene.render.resolution_x,
+            scene.render.resolution_y, scene.render.resolution_percentage, s.source, s.clip,
+            cameras)
+
+
+def _odd_scene(walk_folder):
+    """A scene unlike the footage: range 5–9, 320×200 at 50 %."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 5, 9
+    scene.render.resolution_x, scene.render.resolution_y = 320, 200
+    scene.render.resolution_percentage = 50
+    return str(walk_folder / "frame_0000.png")
+
+
+def test_open_footage_with_a_non_camera_scene_camera_changes_nothing(walk_folder):
+    """The footage cannot go behind an Empty: refused before the clip, range or size change."""
+    path = _odd_scene(walk_folder)
+    empty = bpy.data.objects.new("Not a camera", None)
+    bpy.context.scene.collection.objects.link(empty)
+    bpy.context.scene.camera = empty
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="Not a camera is not a camera"):
+        bpy.ops.track_and_stride.open_footage(filepath=path)
+    assert _open_footage_state() == before
+
+
+def test_open_footage_restores_the_scene_when_showing_it_fails(walk_folder, monkeypatch):
+    """All or nothing: a failure while showing the clip behind the camera puts the clip
+    choice, range, render size and camera backgrounds back and removes the loaded clip."""
+    path = _odd_scene(walk_folder)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    bpy.context.scene.collection.objects.link(camera)
+    bpy.context.scene.camera = camera
+    setup = bridge("track_setup")
+    real = setup._clip_background
+
+    def failing(camera_data, clip):
+        real(camera_data, clip)
+        camera_data.show_background_images = True
+        raise RuntimeError("test: cannot show the clip")
+
+    monkeypatch.setattr(setup, "_clip_background", failing)
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="test: cannot show the clip"):
+        bpy.ops.track_and_stride.open_footage(filepath=path)
+    assert _open_footage_state() == before
+
+
+def test_open_footage_keeps_a_users_clip_it_cannot_decode(tmp_path):
+    """movieclips.load(check_existing=True) returns the user's own clip of that file: refusing
+    it must not delete it."""
+    path = tmp_path / "broken.mp4"
+    path.write_bytes(b"not a movie")
+    clip = bpy.data.movieclips.load(str(path))
+    before = _open_footage_state()
+    with pytest.raises(RuntimeError, match="cannot decode broken.mp4"):
+        bpy.ops.track_and_stride.open_footage(filepath=str(path))
+    assert _open_footage_state() == before
+    assert bpy.data.movieclips.get(clip.name) == clip
+
+
+def test_a_movie_deleted_after_the_checks_is_refused_in_the_synchronous_run(
+        walk_folder, walk_mp4, tmp_path, monkeypatch):
+    """track_now (background mode, scripts): the footage vanishing between the checks and the
+    reading is a clear refusal that changes nothing, not a traceback or black frames."""
+    movie = tmp_path / "walk_copy.mp4"
+    shutil.copy(walk_mp4, movie)
+    obj = build_walk_scene(walk_folder, source="FILE", movie=movie)
+    settings().processes = 1
+    track = bridge("track_bridge")
+    real = track.prepare_tracking
+
+    def prepare_then_delete(context, s):
+        request = real(context, s)
+        movie.unlink()
+        return request
+
+    monkeypatch.setattr(track, "prepare_tracking", prepare_then_delete)
+    counts, before = datablock_counts(), snapshot(obj)
+    with pytest.raises(RuntimeError, match="walk_copy.mp4"):
+        bpy.ops.track_and_stride.track_keyframes()
+    assert datablock_counts() == counts
+    assert snapshot(obj).keys() == before.keys()
+    same_keys(before, snapshot(obj))
+    assert "track_and_stride_residual" not in obj.keys()
 
 
 def test_a_divergent_interval_is_reported_by_name(walk_folder, monkeypatch):
