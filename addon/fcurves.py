@@ -77,16 +77,22 @@ def is_locked(fcurve):
     return bool(fcurve.lock or (fcurve.group is not None and fcurve.group.lock))
 
 
-def locked_channels(bag, channels):
-    """``'path[index]'`` of the channels whose existing F-curve in ``bag`` is locked."""
+def _channels_where(bag, channels, predicate):
+    """``'path[index]'`` of the channels whose existing F-curve in ``bag`` satisfies
+    ``predicate(fcurve)``."""
     if bag is None:
         return []
     out = []
     for channel in channels:
         fcurve = bag.fcurves.find(channel[0], index=channel[1])
-        if fcurve is not None and is_locked(fcurve):
+        if fcurve is not None and predicate(fcurve):
             out.append(f"{channel[0]}[{channel[1]}]")
     return out
+
+
+def locked_channels(bag, channels):
+    """``'path[index]'`` of the channels whose existing F-curve in ``bag`` is locked."""
+    return _channels_where(bag, channels, is_locked)
 
 
 def has_active_modifiers(fcurve):
@@ -100,14 +106,7 @@ def has_active_modifiers(fcurve):
 def modified_channels(bag, channels):
     """``'path[index]'`` of the channels whose existing F-curve in ``bag`` has active
     modifiers (:func:`has_active_modifiers`)."""
-    if bag is None:
-        return []
-    out = []
-    for channel in channels:
-        fcurve = bag.fcurves.find(channel[0], index=channel[1])
-        if fcurve is not None and has_active_modifiers(fcurve):
-            out.append(f"{channel[0]}[{channel[1]}]")
-    return out
+    return _channels_where(bag, channels, has_active_modifiers)
 
 
 def write_new_fcurves(bag, channels, frames, values, interpolation="LINEAR"):

@@ -64,6 +64,16 @@ def snapshot(obj):
     return {k: state(f) for k, f in fcurve_table(obj)[1].items()}
 
 
+def assert_keys_unchanged(obj, before):
+    """Every F-curve of the object's action holds exactly the keys of ``before`` (a
+    :func:`snapshot`), bit for bit, and no F-curve was added or removed."""
+    after = snapshot(obj)
+    assert after.keys() == before.keys()
+    for key, state in before.items():
+        for prop, array in state.items():
+            assert after[key][prop].tobytes() == array.tobytes(), (key, prop)
+
+
 def keys_at(obj, layout, frames):
     """Key values (F, channels) of the layout's F-curves at the given frames."""
     _, table = fcurve_table(obj)
@@ -232,11 +242,7 @@ def test_refusals_explain_and_change_nothing(scene, tmp_path):
         with pytest.raises(RuntimeError, match=match):
             bpy.ops.track_and_stride.predict_gait(**kwargs)
         assert datablock_counts() == counts
-        after = snapshot(obj)
-        assert after.keys() == keys.keys()
-        for key, state in keys.items():
-            for prop, array in state.items():
-                assert after[key][prop].tobytes() == array.tobytes()
+        assert_keys_unchanged(obj, keys)
 
     refused("shorter than one gait cycle", range_mode="CUSTOM", frame_start=1, frame_end=25)
     refused("already hold keys", range_mode="CUSTOM", frame_start=1, frame_end=90)
@@ -269,11 +275,7 @@ def test_locked_fcurves_are_not_written(scene, tmp_path):
                        r'locked \(pose.bones\["lfemur"\].rotation_euler\[0\]\)'):
         bpy.ops.track_and_stride.predict_gait(horizon=0.5)
     assert datablock_counts() == counts
-    after = snapshot(obj)
-    assert after.keys() == keys.keys()
-    for key, state in keys.items():
-        for prop, array in state.items():
-            assert after[key][prop].tobytes() == array.tobytes()
+    assert_keys_unchanged(obj, keys)
     # A new action leaves the locked curve (and its action) as they are.
     assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
 
@@ -293,11 +295,7 @@ def test_fcurves_with_active_modifiers_are_not_written(scene, tmp_path):
                        r'pose.bones\["lfemur"\].rotation_euler\[1\]\)'):
         bpy.ops.track_and_stride.predict_gait(horizon=0.5)
     assert datablock_counts() == counts
-    after = snapshot(obj)
-    assert after.keys() == keys.keys()
-    for key, state in keys.items():
-        for prop, array in state.items():
-            assert after[key][prop].tobytes() == array.tobytes()
+    assert_keys_unchanged(obj, keys)
     assert [len(f.modifiers) for f in fcurve_table(obj)[1].values() if f.modifiers] == [1, 1, 1]
     # A new action (keys copied without the modifiers) is written.
     assert bpy.ops.track_and_stride.predict_gait(horizon=0.5, target="NEW_ACTION") == {"FINISHED"}
@@ -312,11 +310,7 @@ def test_a_linked_walker_is_refused(scene, tmp_path):
         with pytest.raises(RuntimeError, match="35_07 is linked from 35_07_library.blend"):
             bpy.ops.track_and_stride.predict_gait(horizon=0.5, target=target)
     assert datablock_counts() == counts
-    after = snapshot(obj)
-    assert after.keys() == keys.keys()
-    for key, state in keys.items():
-        for prop, array in state.items():
-            assert after[key][prop].tobytes() == array.tobytes()
+    assert_keys_unchanged(obj, keys)
 
 
 def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
