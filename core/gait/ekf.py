@@ -50,6 +50,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .model import FPS_RANGE
+
 __all__ = ["FilterContext", "FilterResult", "ekf_filter", "ekf_predict", "ekf_update",
            "make_context", "observation_jacobian", "observation_mean"]
 
@@ -205,8 +207,10 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
     FilterContext
     """
     fps = model.fps if fps is None else float(fps)
-    if not (fps > 0 and np.isfinite(fps)):
-        raise ValueError(f"fps must be positive, got {fps}")
+    # The model file's own bounds (GaitModel: FPS_RANGE): outside them ω and Q over- or underflow.
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
+        raise ValueError(f"fps must be between {FPS_RANGE[0]:g} and {FPS_RANGE[1]:g} frames "
+                         f"per second, got {fps:g}")
     if not style_prior_scale > 0:
         raise ValueError(f"style_prior_scale must be positive, got {style_prior_scale}")
     if not outlier_ratio > 0:

@@ -114,3 +114,21 @@ def test_channel_subset_and_errors():
         adapt(model, obs[:, :1], channels=["tail.rx"])
     with pytest.raises(ValueError, match="style must be 3"):
         adapt(model, obs, style=[1.0, 2.0])
+
+
+@pytest.mark.parametrize("fps", [1e-300, 0.5, 2e4, 1e300, 0.0, -60.0, float("nan"), float("inf")])
+def test_an_observation_frame_rate_outside_the_model_bounds_is_refused(fps):
+    """ω and Q are converted to the observation's frame rate: outside the rates a model file may
+    have (FPS_RANGE) they over- or underflow, so batch and online EM refuse them up front."""
+    from core.gait import OnlineEM
+    from core.gait.model import FPS_RANGE
+
+    model = small_model()
+    obs = observations("35_07")[:120]
+    with pytest.raises(ValueError, match="fps must be between"):
+        adapt(model, obs, fps=fps)
+    with pytest.raises(ValueError, match="fps must be between"):
+        OnlineEM(model, fps=fps)
+    # The bounds themselves are accepted and give finite estimates.
+    for edge in FPS_RANGE:
+        assert np.all(np.isfinite(make_context(model, fps=edge).Q))
