@@ -1,13 +1,17 @@
 """Everything that touches bpy: operators, panels, properties and the bridges between Blender
 state and the NumPy core (Blender state -> bridge -> arrays -> core -> arrays -> bridge ->
-F-curves). Operators are thin adapters; logic lives in ``core/`` and the ``*_bridge`` modules.
+F-curves). Operators are thin adapters; logic lives in ``core/`` and the bridge modules.
+Grouped by feature: ``tracking/``, ``gait/``, ``mocap/`` (file import/export), ``common/`` (F-curves,
+poses, reports shared by all).
 """
 
-from . import (gait_ops, gait_preview, gait_props, gait_ui, io_acclaim, track_ops, track_props,
-               track_ui, ui)
+from . import ui
+from .gait import ops as gait_ops, preview as gait_preview, props as gait_props, ui as gait_ui
+from .mocap import acclaim_ops
+from .tracking import ops as track_ops, props as track_props, ui as track_ui
 
 # Registered in this order, unregistered in reverse.
-MODULES = (io_acclaim, ui, gait_props, gait_ops, gait_preview, gait_ui, track_props, track_ops,
+MODULES = (acclaim_ops, ui, gait_props, gait_ops, gait_preview, gait_ui, track_props, track_ops,
            track_ui)
 
 

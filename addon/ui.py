@@ -2,8 +2,8 @@
 
 import bpy
 
-from .body_bridge import build_envelope_body
-from .reporting import report_outcome
+from .common.body_bridge import build_envelope_body
+from .common.reporting import report_outcome
 
 
 class TS_OT_add_envelope_body(bpy.types.Operator):

@@ -99,7 +99,7 @@ def bench_learn_time(bpy, repeat=5):
 
 
 def written_dofs(bpy, obj, skeleton, frames):
-    rigs = importlib.import_module(MODULE + ".addon.gait_rigs")
+    rigs = importlib.import_module(MODULE + ".addon.gait.rigs")
     return rigs.read_dofs(rigs.gait_rig(obj), frames)
 
 
@@ -153,7 +153,7 @@ def bench_preview(bpy):
     scene.render.fps = FPS
     learn(bpy, ONLINE_TRAIN, 4)
     bpy.ops.import_anim.acclaim(filepath=str(CMU / "35_05.amc"))
-    preview = importlib.import_module(MODULE + ".addon.gait_preview")
+    preview = importlib.import_module(MODULE + ".addon.gait.preview")
     settings = scene.track_and_stride_gait
     settings.preview_ahead, settings.preview_replay = 0.5, 1.0
     bpy.ops.track_and_stride.gait_preview_start()
@@ -172,7 +172,7 @@ def bench_preview(bpy):
         t0 = time.perf_counter()
         preview.update_preview(scene)
         jumps.append(time.perf_counter() - t0)
-    model = importlib.import_module(MODULE + ".addon.gait_bridge").active_model(scene)[1]
+    model = importlib.import_module(MODULE + ".addon.gait.bridge").active_model(scene)[1]
     bpy.ops.track_and_stride.gait_preview_stop()
     ms = np.array(steps) * 1e3
     return {"J": model.n_bases, "frames": len(steps),

@@ -75,7 +75,7 @@ def bench_operator(bpy, folder, repeats):
 
 def bench_phases(bpy, folder, movie, repeats):
     """Median seconds of each step of the operator (bridge calls)."""
-    track = bridge("track_bridge")
+    track = bridge("tracking.bridge")
     phases = {k: [] for k in ("prepare", "read_png", "read_mp4", "track_serial", "track_parallel",
                               "write")}
     for _ in range(repeats):

@@ -84,7 +84,7 @@ def step_gait_prediction(bpy):
     last = int(round(GAIT_ADAPT_S * fps))
     bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=1, frame_end=last,
                                           horizon=GAIT_END_S - GAIT_ADAPT_S, target="NEW_ACTION")
-    rigs = importlib.import_module("bl_ext.user_default.track_and_stride.addon.gait_rigs")
+    rigs = importlib.import_module("bl_ext.user_default.track_and_stride.addon.gait.rigs")
     grig = rigs.gait_rig(walker)
     frames = np.arange(1, int(round(GAIT_END_S * fps)) + 1)
     return frames, rigs.read_dofs(grig, frames), grig.dof_names, last, fps
@@ -140,8 +140,8 @@ def step_track_footage(bpy):
     folder = ensure_footage("walk", 640, 360, TRACK_FRAMES, python=sys.executable)
     footage = load_footage(folder, color=True)
     addon = "bl_ext.user_default.track_and_stride.addon."
-    track_bridge = importlib.import_module(addon + "track_bridge")
-    pose_bridge = importlib.import_module(addon + "pose_bridge")
+    track_bridge = importlib.import_module(addon + "tracking.bridge")
+    pose_bridge = importlib.import_module(addon + "common.pose_bridge")
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     scene.name = "Track Footage"
@@ -157,7 +157,7 @@ def step_track_footage(bpy):
     errors = track_scene.joint_errors(walker, footage, frames)
     roots, local = pose_bridge.read_pose(request.rig, frames)
     residual_frames, residuals = importlib.import_module(
-        addon + "track_keys").read_residuals(walker, 1, TRACK_FRAMES)
+        addon + "tracking.keys").read_residuals(walker, 1, TRACK_FRAMES)
     rank = track_scene.channelbag(walker).fcurves.find('["track_and_stride_rank"]')
     keys = request.key_frames.tolist()
     suggested = [m.frame for m in scene.timeline_markers if m.name.startswith("Key? ")]

@@ -210,7 +210,7 @@ def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, 
     """Tracker camera of a Blender perspective camera (see the module docstring).
 
     The one implementation of Blender's camera maths in the project: the add-on
-    (``addon/camera_bridge.py``) only reads these values from Blender.
+    (``addon/tracking/camera_bridge.py``) only reads these values from Blender.
 
     Parameters
     ----------

@@ -112,7 +112,7 @@ def test_a_failed_export_leaves_the_target_folder_as_it_was(tmp_path):
 def test_writing_both_files_rolls_back_when_the_second_cannot_be_put_in_place(tmp_path):
     """The replacement of the second file fails after the first was put in place: the first
     gets its earlier content back; no temporary file stays."""
-    bridge = importlib.import_module(MODULE + ".addon.acclaim_bridge")
+    bridge = importlib.import_module(MODULE + ".addon.mocap.acclaim_bridge")
     (tmp_path / "a.asf").write_text("old\n")
     (tmp_path / "a.amc").mkdir()
     with pytest.raises(OSError):

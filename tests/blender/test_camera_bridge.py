@@ -1,4 +1,4 @@
-"""Blender camera -> pinhole (values read by addon.camera_bridge, maths in
+"""Blender camera -> pinhole (values read by addon.tracking.camera_bridge, maths in
 core.tracking.camera): against Blender's own world_to_camera_view and a Workbench render."""
 
 import importlib
@@ -13,7 +13,7 @@ from blender_support import MODULE, bpy
 
 @pytest.fixture
 def camera_bridge():
-    return importlib.import_module(MODULE + ".addon.camera_bridge")
+    return importlib.import_module(MODULE + ".addon.tracking.camera_bridge")
 
 
 def add_camera(scene, lens=35.0, fit="AUTO", shift=(0.0, 0.0), sensor=(36.0, 24.0)):

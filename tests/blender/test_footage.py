@@ -1,4 +1,4 @@
-"""addon.footage: image sequences and Blender-encoded movies decode to the rendered frames."""
+"""addon.tracking.footage: image sequences and Blender-encoded movies decode to the rendered frames."""
 
 import importlib
 import shutil
@@ -12,7 +12,7 @@ from blender_support import MODULE, bpy
 
 @pytest.fixture
 def footage_mod():
-    return importlib.import_module(MODULE + ".addon.footage")
+    return importlib.import_module(MODULE + ".addon.tracking.footage")
 
 
 @pytest.fixture(scope="module")

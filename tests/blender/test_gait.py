@@ -54,13 +54,13 @@ def learn_from_files(*trials):
 
 def fcurve_table(obj):
     anim = obj.animation_data
-    bag = bridge("fcurves").channelbag(anim.action, anim.action_slot)
+    bag = bridge("common.fcurves").channelbag(anim.action, anim.action_slot)
     return bag, {(f.data_path, f.array_index): f for f in bag.fcurves}
 
 
 def snapshot(obj):
     """Exact key state of every F-curve of the object's action."""
-    state = bridge("fcurves").keyframe_state
+    state = bridge("common.fcurves").keyframe_state
     return {k: state(f) for k, f in fcurve_table(obj)[1].items()}
 
 
@@ -79,7 +79,7 @@ def keys_at(obj, layout, frames):
     _, table = fcurve_table(obj)
     out = np.empty((len(frames), len(layout.channels)))
     for c, (bone, prop, index) in enumerate(layout.channels):
-        co = bridge("fcurves").keyframe_state(table[(f'pose.bones["{bone}"].{prop}', index)])["co"]
+        co = bridge("common.fcurves").keyframe_state(table[(f'pose.bones["{bone}"].{prop}', index)])["co"]
         lookup = dict(zip(co[:, 0].tolist(), co[:, 1].tolist()))
         out[:, c] = [lookup[float(f)] for f in frames]
     return out
@@ -127,7 +127,7 @@ def test_learn_from_imported_walks_then_predict_another(scene, tmp_path):
     assert bpy.ops.track_and_stride.learn_gait(name="Walks") == {"FINISHED"}
     settings = scene.track_and_stride_gait
     assert [m.name for m in settings.models] == ["Walks"] and "J=" in settings.models[0].summary
-    model = bridge("gait_bridge").decode_model(settings.models[0].data)
+    model = bridge("gait.bridge").decode_model(settings.models[0].data)
     assert model.style_names == TRAIN
 
     obj = import_observed(tmp_path)
@@ -136,7 +136,7 @@ def test_learn_from_imported_walks_then_predict_another(scene, tmp_path):
     for frame, value in ((5, 1.1), (300, 0.9)):
         other.scale[0] = value
         other.keyframe_insert("scale", index=0, frame=frame)
-    other_state = bridge("fcurves").keyframe_state(fcurve_table(obj)[1][
+    other_state = bridge("common.fcurves").keyframe_state(fcurve_table(obj)[1][
         ('pose.bones["lfemur"].scale', 0)])
     assert bpy.ops.track_and_stride.predict_gait(horizon=2.0) == {"FINISHED"}
 
@@ -172,7 +172,7 @@ def test_walker_detail_off_gives_the_plain_style_model(scene, tmp_path):
     learn_from_files()
     obj = import_observed(tmp_path)
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.0, walker_detail=False) == {"FINISHED"}
-    model = bridge("gait_bridge").decode_model(scene.track_and_stride_gait.models[0].data)
+    model = bridge("gait.bridge").decode_model(scene.track_and_stride_gait.models[0].data)
     skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
     layout = armature_layout(skeleton)
     observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
@@ -315,7 +315,7 @@ def test_a_linked_walker_is_refused(scene, tmp_path):
 
 def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
     settings = learn_from_files()
-    model = bridge("gait_bridge").decode_model(settings.models[0].data)
+    model = bridge("gait.bridge").decode_model(settings.models[0].data)
     obj = import_observed(tmp_path)
     original = obj.animation_data.action
     before = snapshot(obj)
@@ -323,8 +323,8 @@ def test_blend_of_learned_styles_into_a_new_action(scene, tmp_path):
         horizon=1.0, style_mode="BLEND", style_a="08_04", style_b="35_02", blend=0.25,
         stride=1.3, target="NEW_ACTION") == {"FINISHED"}
     assert obj.animation_data.action != original and original.use_fake_user
-    bag = bridge("fcurves").channelbag(original, original.slots[0])
-    state = bridge("fcurves").keyframe_state
+    bag = bridge("common.fcurves").channelbag(original, original.slots[0])
+    state = bridge("common.fcurves").keyframe_state
     for fcurve in bag.fcurves:                         # the original action is untouched
         for prop, array in before[(fcurve.data_path, fcurve.array_index)].items():
             assert state(fcurve)[prop].tobytes() == array.tobytes()
@@ -363,7 +363,7 @@ def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
     path.write_text(format_bvh(asf, values[:N_OBS], FPS))
     assert bpy.ops.import_anim.bvh(filepath=str(path)) == {"FINISHED"}
     obj = bpy.context.active_object
-    rigs = bridge("gait_rigs")
+    rigs = bridge("gait.rigs")
     grig = rigs.gait_rig(obj)
     assert grig.kind == "BVH" and grig.scale == pytest.approx(0.0254 / 0.45)
     seen = rigs.read_dofs(grig, np.arange(1, N_OBS + 1))
@@ -374,7 +374,7 @@ def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
     assert np.abs(t_seen - t_true).max() < 1e-4               # metres
     learn_from_files()
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
-    model = bridge("gait_bridge").active_model(scene)[1]
+    model = bridge("gait.bridge").active_model(scene)[1]
     expected = core_prediction(model, grig.skeleton, seen, FPS)
     back = rigs.read_dofs(grig, np.arange(N_OBS + 1, N_OBS + FPS + 1))
     _, local_back = local_rotations_from_dofs(grig.skeleton, back)
@@ -386,14 +386,14 @@ def test_bvh_conversion_is_observed_as_its_amc_and_predicted(scene, tmp_path):
 def test_live_preview_logic_without_the_handler(scene, tmp_path):
     learn_from_files()
     obj = import_observed(tmp_path)
-    preview = bridge("gait_preview")
+    preview = bridge("gait.preview")
     scene.track_and_stride_gait.preview_ahead = 0.25
     counts = datablock_counts()
     assert bpy.ops.track_and_stride.gait_preview_start() == {"FINISHED"}
     assert bpy.app.background and not preview.handler_registered()
     ghost = bpy.data.objects[preview.session().ghost_name]
     assert ghost.animation_data is None and ghost.data != obj.data
-    model = bridge("gait_bridge").active_model(scene)[1]
+    model = bridge("gait.bridge").active_model(scene)[1]
     skeleton = asf_to_skeleton(read_asf(asf_path(TEST)))
     layout = armature_layout(skeleton)
     dofs = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
@@ -474,7 +474,7 @@ def test_a_preview_that_fails_to_start_leaves_nothing_behind(scene, tmp_path, mo
     """Posing the ghost the first time fails: no ghost, no armature data, no session."""
     learn_from_files()
     import_observed(tmp_path)
-    preview = bridge("gait_preview")
+    preview = bridge("gait.preview")
     error = {"RuntimeError": RuntimeError, "ValueError": ValueError,
              "GaitError": preview.GaitError}[error_name]
 
@@ -493,7 +493,7 @@ def test_a_preview_that_fails_to_start_leaves_nothing_behind(scene, tmp_path, mo
 def test_preview_refuses_edit_mode(scene, tmp_path):
     learn_from_files()
     obj = import_observed(tmp_path)
-    preview = bridge("gait_preview")
+    preview = bridge("gait.preview")
     bpy.ops.object.mode_set(mode="EDIT")
     counts = datablock_counts()
     assert not bpy.ops.track_and_stride.gait_preview_start.poll()
@@ -521,7 +521,7 @@ def test_disabling_the_addon_ends_the_preview(scene, tmp_path):
                        for h in bpy.app.handlers.frame_change_post + bpy.app.handlers.load_pre)
     finally:
         addon_utils.enable(MODULE, default_set=True)
-    assert bridge("gait_preview").session() is None
+    assert bridge("gait.preview").session() is None
 
 
 def test_redo_panel_draws_the_options_by_style_mode(scene):

@@ -1,4 +1,4 @@
-"""addon.pose_bridge: armature <-> core skeleton and poses, checked against Blender's evaluation."""
+"""addon.common.pose_bridge: armature <-> core skeleton and poses, checked against Blender's evaluation."""
 
 import importlib
 
@@ -13,12 +13,12 @@ from core.kinematics import forward_kinematics
 
 @pytest.fixture
 def bridge():
-    return importlib.import_module(MODULE + ".addon.pose_bridge")
+    return importlib.import_module(MODULE + ".addon.common.pose_bridge")
 
 
 @pytest.fixture
 def fcurves_mod():
-    return importlib.import_module(MODULE + ".addon.fcurves")
+    return importlib.import_module(MODULE + ".addon.common.fcurves")
 
 
 def make_armature():

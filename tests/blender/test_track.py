@@ -55,7 +55,7 @@ def settings():
 
 def snapshot(obj):
     """Exact state of every key of the object's action, by F-curve."""
-    state = bridge("fcurves").keyframe_state
+    state = bridge("common.fcurves").keyframe_state
     return {(f.data_path, f.array_index): state(f) for f in channelbag(obj).fcurves}
 
 
@@ -77,24 +77,24 @@ def test_image_sequence_tracks_like_the_core_and_the_ground_truth(walk_folder, w
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
     before = snapshot(obj)
-    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
     assert request.key_frames.tolist() == list(KEYS)
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
     after = snapshot(obj)
     same_keys(before, after, KEYS)                       # the keyframes' keys, bit for bit
     # The core on the same arrays gives the same poses (keys are float32).
-    frames = bridge("footage").read_frames(request.footage, request.scene_frames.tolist())
+    frames = bridge("tracking.footage").read_frames(request.footage, request.scene_frames.tolist())
     core = track_keyframes(request.problem, frames, request.key_frames - 1, request.key_roots,
                            request.key_locals, request.options, processes=1)
-    roots, local = bridge("pose_bridge").read_pose(request.rig, request.scene_frames)
+    roots, local = bridge("common.pose_bridge").read_pose(request.rig, request.scene_frames)
     rel = np.swapaxes(local, -1, -2) @ core.local_rotations
     tracked = [request.rig.bone_names.index(b) for b in request.tracked_bones]
     assert np.degrees(np.linalg.norm(log_so3(rel[:, tracked]), axis=-1)).max() < 1e-3
     np.testing.assert_allclose(roots, core.root_translations, atol=2e-6)
     # Confidence curves: eq. 4 residual and rank of every frame pair, as the core says.
     bag = channelbag(obj)
-    residual = bridge("fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_residual"]'))
-    rank = bridge("fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_rank"]'))
+    residual = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_residual"]'))
+    rank = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_rank"]'))
     assert residual["co"][:, 0].tolist() == list(range(2, N_FRAMES + 1))
     np.testing.assert_allclose(residual["co"][:, 1],
                                np.concatenate([r.residuals for r in core.intervals]), rtol=1e-6)
@@ -244,7 +244,7 @@ def test_a_modifier_added_while_tracking_stops_the_write(walk_folder):
     padlock) meanwhile is not written under it."""
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
-    track = bridge("track_bridge")
+    track = bridge("tracking.bridge")
     request = track.prepare_tracking(bpy.context, settings())
     result = track.run_core(request, track.read_footage(request, 0, len(request.scene_frames)))
     _noise_modifier(obj)
@@ -261,7 +261,7 @@ def test_cancel_leaves_everything_as_it_was(walk_folder):
     """What Esc does in the modal operator: the job stops and nothing is written."""
     obj = build_walk_scene(walk_folder)
     settings().processes = 2
-    track = bridge("track_bridge")
+    track = bridge("tracking.bridge")
     counts, before = datablock_counts(), snapshot(obj)
     request = track.prepare_tracking(bpy.context, settings())
     frames = track.read_footage(request, 0, len(request.scene_frames))
@@ -283,8 +283,8 @@ def test_track_again_replaces_only_its_own_keys(walk_folder):
     settings().processes = 1
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
     first = snapshot(obj)
-    keys = bridge("track_keys")
-    rig = bridge("pose_bridge").rig_from_armature(obj)
+    keys = bridge("tracking.keys")
+    rig = bridge("common.pose_bridge").rig_from_armature(obj)
     assert keys.classify_frames(obj, rig, 1, N_FRAMES) == (list(KEYS), IN_BETWEEN)
     # Again: the same keyframes, the tracked frames replaced by the same result.
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
@@ -323,8 +323,8 @@ def test_a_key_at_a_fractional_frame_stays_the_only_key_there(walk_folder):
     near = after[path]["co"][:, 0]
     near = near[(near > 20.5) & (near < 21.9)]
     assert near.tolist() == [np.float32(21.4)]          # the user's key, and no other
-    rig = bridge("pose_bridge").rig_from_armature(obj)
-    assert bridge("track_keys").classify_frames(obj, rig, 1, N_FRAMES)[0] == list(KEYS)
+    rig = bridge("common.pose_bridge").rig_from_armature(obj)
+    assert bridge("tracking.keys").classify_frames(obj, rig, 1, N_FRAMES)[0] == list(KEYS)
 
 
 def test_undo_restores_the_file_in_one_step(walk_folder):
@@ -374,7 +374,7 @@ def test_suggest_needs_a_tracked_residual(walk_folder):
 def test_table1_dof_locks_the_papers_axes(walk_folder):
     obj = build_walk_scene(walk_folder)
     assert bpy.ops.track_and_stride.table1_dof() == {"FINISHED"}
-    rig = bridge("pose_bridge").rig_from_armature(obj)
+    rig = bridge("common.pose_bridge").rig_from_armature(obj)
     unlocked = {n: tuple(np.nonzero(m)[0]) for n, m in zip(rig.bone_names, rig.dof_mask) if m.any()}
     # Blender bone frames: Y along the bone; swing = X, Z; hinge = X; head nod + turn = X, Y.
     assert unlocked == {"root": (0, 1, 2), "lowerback": (0, 1, 2), "head": (0, 1),
@@ -385,7 +385,7 @@ def test_table1_dof_locks_the_papers_axes(walk_folder):
     # Tracking with Table 1 DOF still works (23 parameters; rank at most 22, as in Fig. 10).
     settings().processes = 1
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
-    rank = bridge("fcurves").keyframe_state(channelbag(obj).fcurves.find(
+    rank = bridge("common.fcurves").keyframe_state(channelbag(obj).fcurves.find(
         '["track_and_stride_rank"]'))["co"][:, 1]
     assert rank.max() <= 22
     # A non-humanoid armature is refused by name.
@@ -453,7 +453,7 @@ def test_open_footage_restores_the_scene_when_showing_it_fails(walk_folder, monk
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     bpy.context.scene.collection.objects.link(camera)
     bpy.context.scene.camera = camera
-    setup = bridge("track_setup")
+    setup = bridge("tracking.setup")
     real = setup._clip_background
 
     def failing(camera_data, clip):
@@ -489,7 +489,7 @@ def test_a_movie_deleted_after_the_checks_is_refused_in_the_synchronous_run(
     shutil.copy(walk_mp4, movie)
     obj = build_walk_scene(walk_folder, source="FILE", movie=movie)
     settings().processes = 1
-    track = bridge("track_bridge")
+    track = bridge("tracking.bridge")
     real = track.prepare_tracking
 
     def prepare_then_delete(context, s):
@@ -512,7 +512,7 @@ def test_a_divergent_interval_is_reported_by_name(walk_folder, monkeypatch):
     names the interval and the reason."""
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
-    track = bridge("track_bridge")
+    track = bridge("tracking.bridge")
     real = track.track_keyframes
 
     def diverging(*args, **kwargs):
@@ -625,7 +625,7 @@ def _modal_run(request, events):
 def test_modal_run_reads_in_chunks_tracks_and_writes_like_execute(walk_folder):
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
-    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
     seen = []
 
     def timer(op, step):
@@ -635,7 +635,7 @@ def test_modal_run_reads_in_chunks_tracks_and_writes_like_execute(walk_folder):
     op, result, reports = _modal_run(request, timer)
     assert result == {"FINISHED"} and reports[-1][0] == "INFO"
     assert [r for r, _ in seen[:8]] == [0, 6, 12, 18, 24, 30, 36, 41]     # chunks of 6 frames
-    assert not bridge("track_ops")._RUNNING
+    assert not bridge("tracking.ops")._RUNNING
     modal = snapshot(obj)
     bpy.ops.wm.read_homefile(use_empty=True)
     obj = build_walk_scene(walk_folder)
@@ -648,7 +648,7 @@ def test_modal_escape_stops_the_job_and_changes_nothing(walk_folder):
     obj = build_walk_scene(walk_folder)
     settings().processes = 2
     counts, before = datablock_counts(), snapshot(obj)
-    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
     jobs = []
 
     def escape_once_tracking(op, step):
@@ -664,7 +664,7 @@ def test_modal_escape_stops_the_job_and_changes_nothing(walk_folder):
     assert datablock_counts() == counts
     same_keys(before, snapshot(obj))
     assert snapshot(obj).keys() == before.keys()
-    assert not bridge("track_ops")._RUNNING
+    assert not bridge("tracking.ops")._RUNNING
 
 
 def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, monkeypatch):
@@ -673,8 +673,8 @@ def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, mon
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
     counts, before = datablock_counts(), snapshot(obj)
-    request = bridge("track_bridge").prepare_tracking(bpy.context, settings())
-    ops = bridge("track_ops")
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    ops = bridge("tracking.ops")
 
     def broken(request, start, stop):
         raise RuntimeError("decoder crashed")

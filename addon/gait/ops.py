@@ -1,5 +1,5 @@
 """Gait operators: learn a model, remove one, predict a walk (thin adapters over
-:mod:`.gait_bridge`)."""
+:mod:`.bridge`)."""
 
 import os
 
@@ -7,10 +7,10 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
                        FloatVectorProperty, IntProperty, StringProperty)
 
-from .gait_bridge import (MAX_STYLES, PredictOptions, active_model, gait_settings, learn_gait,
-                          predict_gait)
-from .gait_rigs import GaitError
-from .reporting import report_outcome
+from .bridge import (MAX_STYLES, PredictOptions, active_model, gait_settings, learn_gait,
+                     predict_gait)
+from .rigs import GaitError
+from ..common.reporting import report_outcome
 
 _MODES = ("OBJECT", "POSE")
 

@@ -12,12 +12,12 @@ import re
 import bpy
 import numpy as np
 
-from ..core.tracking import find_table1_parts, table1_dof_mask
+from ...core.tracking import find_table1_parts, table1_dof_mask
 from .camera_bridge import render_size
-from .fcurves import not_editable
+from ..common.fcurves import not_editable
 from .footage import FootageError, footage_from_clip
-from .pose_bridge import RigError, rig_from_armature
-from .track_bridge import TrackError, resolve_camera, resolve_footage
+from ..common.pose_bridge import RigError, rig_from_armature
+from .bridge import TrackError, resolve_camera, resolve_footage
 
 
 def _clip_background(camera_data, clip):

@@ -6,7 +6,7 @@ Models are stored on the scene (``scene.track_and_stride_gait.models``): name, t
 saved with the file. Decoded models are cached by content.
 
 Nothing is changed before every check has passed: a request that cannot be carried out raises
-:class:`~.gait_rigs.GaitError` first.
+:class:`~.rigs.GaitError` first.
 """
 
 import base64
@@ -17,18 +17,18 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..core.gait import (GaitModelFileError, GaitModel, ObservationStream, OnlineEM, adapt,
-                         interpolate_styles, learn_model, mix_styles, observations_from_dofs,
-                         predict_dofs)
-from ..core.gait.foot_slide import planted_stride
-from ..core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
-from .acclaim_bridge import find_asf_beside, scene_fps
-from .fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
-                      modified_channels, not_editable)
-from .gait_rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
-                        keyed_range, read_dofs)
+from ...core.gait import (GaitModelFileError, GaitModel, ObservationStream, OnlineEM, adapt,
+                          interpolate_styles, learn_model, mix_styles, observations_from_dofs,
+                          predict_dofs)
+from ...core.gait.foot_slide import planted_stride
+from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
+from ..mocap.acclaim_bridge import find_asf_beside, scene_fps
+from ..common.fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
+                              modified_channels, not_editable)
+from .rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
+                   keyed_range, read_dofs)
 
-SETTINGS = "track_and_stride_gait"   # Scene pointer property (addon/gait_props.py)
+SETTINGS = "track_and_stride_gait"   # Scene pointer property (addon/gait/props.py)
 MAX_STYLES = 16                      # learned styles the redo panel's weight vector can address
 _CACHE = {}
 

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.armature import skeleton_from_bones, topological_order
-from ..core.kinematics import EULER_ORDERS
-from ..core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
+from ...core.armature import skeleton_from_bones, topological_order
+from ...core.kinematics import EULER_ORDERS
+from ...core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
 from .fcurves import ensure_action, channelbag, evaluate_fcurves, insert_keys_preserving, pose_bone_path
 
 

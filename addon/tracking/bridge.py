@@ -1,4 +1,4 @@
-"""Track Keyframes between Blender and the tracking core (operators in ``track_ops.py``).
+"""Track Keyframes between Blender and the tracking core (operators in ``ops.py``).
 
 The pipeline, in the order the modal operator runs it:
 
@@ -22,14 +22,14 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
-                             body_model_from_skeleton, suggest_keyframes, track_keyframes)
+from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
+                              body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
-from .fcurves import not_editable, object_channelbag
+from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
-from .pose_bridge import RigError, read_pose, rig_from_armature
-from .track_keys import (channel_state, classify_frames, evaluate_channels_at,
-                         read_residuals, unwritable_channels, write_tracking)
+from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from .keys import (channel_state, classify_frames, evaluate_channels_at,
+                   read_residuals, unwritable_channels, write_tracking)
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -208,7 +208,7 @@ def _listed(names):
 
 def _check_writable(obj, rig, tracked_bones, tracked_before):
     """:class:`TrackError` when an F-curve that tracking writes is locked or has active
-    modifiers (``track_keys.unwritable_channels``)."""
+    modifiers (``keys.unwritable_channels``)."""
     locked, modified = unwritable_channels(obj, rig, tracked_bones, tracked_before)
     if locked:
         raise TrackError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of {obj.name} that "

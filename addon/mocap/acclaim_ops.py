@@ -5,9 +5,9 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from ..core.mocap import MocapParseError
+from ...core.mocap import MocapParseError
 from .acclaim_bridge import AcclaimError, export_acclaim, import_acclaim
-from .reporting import report_outcome
+from ..common.reporting import report_outcome
 
 
 class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):

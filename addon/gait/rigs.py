@@ -16,15 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.armature import armature_layout, channels_to_dofs, dofs_to_channels_after
-from ..core.kinematics import forward_kinematics, rest_pose
-from ..core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_deltas,
-                          asf_to_skeleton, cmu_template_asf, fill_unmapped,
-                          world_deltas_from_asf_dofs)
-from .acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
-from .fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, keyframe_state,
-                      pose_bone_path)
-from .pose_bridge import RigError, read_pose, rig_from_armature
+from ...core.armature import armature_layout, channels_to_dofs, dofs_to_channels_after
+from ...core.kinematics import forward_kinematics, rest_pose
+from ...core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_deltas,
+                           asf_to_skeleton, cmu_template_asf, fill_unmapped,
+                           world_deltas_from_asf_dofs)
+from ..mocap.acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
+from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, keyframe_state,
+                              pose_bone_path)
+from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 
 # Metres per armature unit a BVH conversion may use: metres, CMU file units (1/0.45 inch),
 # inches, centimetres. The armature's leg lengths pick the nearest (see _bvh_scale).
@@ -73,7 +73,7 @@ class GaitRig:
         if self.kind == "ACCLAIM":
             return [(pose_bone_path(b, p), i, b) for b, p, i in self.layout.channels]
         out = []
-        from ..core.pose_channels import channel_property
+        from ...core.pose_channels import channel_property
         for k in sorted(set(self.bone_of_joint[self.bone_of_joint >= 0].tolist())):
             name = self.rig.bone_names[k]
             prop, count = channel_property(self.rig.rotation_modes[k])
@@ -194,7 +194,7 @@ def read_dofs(grig, frames):
 def _bvh_channels(grig, dofs, last_values):
     """Pose-channel values (N, len(targets)) of DOF rows for a BVH rig, continuous with the
     channel values ``last_values`` at the frame before."""
-    from ..core.pose_channels import channel_property, channels_from_rotations
+    from ...core.pose_channels import channel_property, channels_from_rotations
 
     rig = grig.rig
     deltas, root_world = world_deltas_from_asf_dofs(grig.skeleton, dofs)

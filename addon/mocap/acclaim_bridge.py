@@ -11,13 +11,13 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..core.armature import (armature_layout, channels_to_dofs, dofs_to_channels,
-                             plausible_envelope_radii)
-from ..core.mocap import (AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf, read_amc,
-                          read_asf, resample)
-from .armature_build import create_armature_object, remove_ids
-from .fcurves import (channelbag, ensure_action, evaluate_fcurves, keyframe_state, pose_bone_path,
-                      write_new_fcurves)
+from ...core.armature import (armature_layout, channels_to_dofs, dofs_to_channels,
+                              plausible_envelope_radii)
+from ...core.mocap import (AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf, read_amc,
+                           read_asf, resample)
+from ..common.armature_build import create_armature_object, remove_ids
+from ..common.fcurves import (channelbag, ensure_action, evaluate_fcurves, keyframe_state, pose_bone_path,
+                              write_new_fcurves)
 
 # Custom properties on the armature data that let export rebuild the exact skeleton.
 PROP_ASF = "track_and_stride_asf"

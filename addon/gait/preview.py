@@ -15,11 +15,11 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from ..core.armature import dofs_to_channels
-from ..core.gait import LookaheadPredictor
-from .acclaim_bridge import scene_fps
-from .gait_bridge import active_model, frame_range, gait_settings
-from .gait_rigs import GaitError, _bvh_channels, gait_rig, read_dofs
+from ...core.armature import dofs_to_channels
+from ...core.gait import LookaheadPredictor
+from ..mocap.acclaim_bridge import scene_fps
+from .bridge import active_model, frame_range, gait_settings
+from .rigs import GaitError, _bvh_channels, gait_rig, read_dofs
 
 PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
 

@@ -7,7 +7,7 @@ computer-vision axis flip) lives once, in :func:`core.tracking.camera.camera_fro
 
 import numpy as np
 
-from ..core.tracking.camera import PinholeCamera, camera_from_blender
+from ...core.tracking.camera import PinholeCamera, camera_from_blender
 
 __all__ = ["CameraError", "PinholeCamera", "pinhole_from_blender", "render_size"]
 

@@ -1,6 +1,6 @@
 """Track operators: track keyframes (modal, with progress and Esc), suggest keyframes, and the
 set-up helpers (footage, render size, Table 1 DOF, envelope display). Thin adapters over
-:mod:`.track_bridge` and :mod:`.track_setup`."""
+:mod:`.bridge` and :mod:`.setup`."""
 
 import bpy
 import numpy as np
@@ -8,12 +8,12 @@ from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from .footage import MOVIE_EXTENSIONS
-from .reporting import report_outcome
-from .track_bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
-                           resolve_editable_armature, suggest_markers, track_now)
-from .track_props import track_settings
-from .track_setup import (apply_table1_dof, match_render_size, open_footage,
-                          show_footage_behind_camera)
+from ..common.reporting import report_outcome
+from .bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
+                     resolve_editable_armature, suggest_markers, track_now)
+from .props import track_settings
+from .setup import (apply_table1_dof, match_render_size, open_footage,
+                    show_footage_behind_camera)
 
 # The running tracking operator (one at a time).
 _RUNNING = []

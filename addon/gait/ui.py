@@ -2,8 +2,8 @@
 
 import bpy
 
-from . import gait_preview
-from .gait_bridge import gait_settings
+from . import preview as gait_preview
+from .bridge import gait_settings
 
 
 class TS_UL_gait_models(bpy.types.UIList):

@@ -4,7 +4,7 @@ import bpy
 from bpy.props import (CollectionProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
-from .gait_bridge import SETTINGS
+from .bridge import SETTINGS
 
 
 class TS_GaitModelItem(bpy.types.PropertyGroup):

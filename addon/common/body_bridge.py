@@ -3,7 +3,7 @@
 import bpy
 import numpy as np
 
-from ..core.body_mesh import tapered_cylinders
+from ...core.body_mesh import tapered_cylinders
 from .armature_build import active_collection
 
 # Armature-object property naming the body mesh object built for it.

@@ -10,11 +10,11 @@ import bpy
 import numpy as np
 
 from .camera_bridge import render_size
-from .pose_bridge import RigError, rig_from_armature
-from .track_bridge import envelope_radii, frame_range
-from .track_keys import PROP_RESIDUAL, classify_frames
-from .track_ops import track_poll_message
-from .track_props import track_settings
+from ..common.pose_bridge import RigError, rig_from_armature
+from .bridge import envelope_radii, frame_range
+from .keys import PROP_RESIDUAL, classify_frames
+from .ops import track_poll_message
+from .props import track_settings
 
 
 def _list(frames, limit=8):

@@ -1,0 +1,1 @@
+"""Gait: learn models, predict/retime/restyle, live preview."""

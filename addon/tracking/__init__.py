@@ -1,0 +1,1 @@
+"""Track Keyframes and its setup: footage, camera, body envelopes, keys and confidence curves."""
