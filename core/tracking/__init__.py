@@ -3,7 +3,8 @@
 Between two keyed poses of an articulated body, estimate every in-between frame from the video
 and remove the drift that accumulates (``docs/tracking.md``, ``DESIGN.md`` §1).
 
-Modules: ``camera`` (pinhole + Blender contract), ``body_model`` (tapered cylinders / boxes, ray
+Modules: ``camera`` (pinhole + Blender contract), ``distortion`` (Brown–Conrady lens
+distortion), ``calibration`` (calibration files: Pose2Sim TOML, Qualisys QCA), ``body_model`` (tapered cylinders / boxes, ray
 casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), ``jacobians``
 (eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10, coarse-to-fine), ``drift`` (eqs. 11-24),
 ``trajectory`` (the §2.2 loop), ``parallel`` (several intervals), ``presets`` (Table 1),
@@ -13,7 +14,10 @@ casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), 
 
 from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
                          joint_frames_in_camera, ray_cast, sample_silhouette)
+from .calibration import (CalibratedCamera, CalibrationError, fit_to_footage, qca_binning_factor,
+                          read_calibration)
 from .camera import PinholeCamera, camera_from_blender, world2camera_from_blender
+from .distortion import LensDistortion
 from .drift import (correct_root_positions, orientation_correction)
 from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyramid, pyr_down,
                     sample_with_gradient, to_grayscale)
@@ -29,15 +33,15 @@ from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_er
                          track_accumulated, track_interval)
 
 __all__ = [
-    "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
+    "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "LensDistortion", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
     "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
     "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
     "apply_motion", "bilinear", "body_model_from_skeleton", "camera_from_blender",
-    "central_derivatives", "correct_root_positions", "estimate_motions", "find_table1_parts",
+    "central_derivatives", "correct_root_positions", "estimate_motions", "find_table1_parts", "fit_to_footage",
     "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
     "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
-    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition",
-    "rank_decompositions", "ray_cast", "robust_z_scores", "sample_silhouette",
+    "photometric_error", "point_jacobians", "pyr_down", "qca_binning_factor", "rank_decomposition",
+    "rank_decompositions", "ray_cast", "read_calibration", "robust_z_scores", "sample_silhouette",
     "sample_with_gradient", "solve_with_prediction", "suggest_keyframes", "table1_dof_mask",
     "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
     "world2camera_from_blender",

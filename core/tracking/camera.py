@@ -38,6 +38,16 @@ rendered footage in ``tests/footage/test_tracking_camera_contract.py`` and again
 ``world_to_camera_view`` (non-square pixels, every sensor fit) in
 ``tests/blender/test_camera_bridge.py``.
 
+Lens distortion (optional, :mod:`.distortion`): OpenCV's Brown–Conrady model acts on the
+normalised coordinates between the perspective division and the pixel scaling::
+
+    (x'', y'') = distort(x / z, y / z),      u = fx x'' + cx,      v = fy y'' + cy
+
+:meth:`PinholeCamera.project` distorts, :meth:`PinholeCamera.rays` undistorts, and
+:meth:`PinholeCamera.gradient_rows` (eq. A.8) carries the distortion's Jacobian, so the tracker
+follows distorted footage without resampling it. Pyramid levels and crops keep the same
+:class:`~.distortion.LensDistortion` (it acts on normalised coordinates).
+
 Image pyramids: level ``L`` halves the resolution ``L`` times with 2x2-aligned pixels (level-L
 pixel ``i`` covers level-0 pixels ``2^L i .. 2^L (i+1) - 1``), so a point at ``u0`` on level 0 is
 at ``(u0 + 0.5) / 2^L - 0.5`` on level ``L`` (:meth:`PinholeCamera.at_level`).
@@ -46,6 +56,8 @@ at ``(u0 + 0.5) / 2^L - 0.5`` on level ``L`` (:meth:`PinholeCamera.at_level`).
 from dataclasses import dataclass
 
 import numpy as np
+
+from .distortion import LensDistortion
 
 # Blender camera axes (x right, y up, z backwards) -> tracker camera axes (x right, y down,
 # z forward): a half turn about x.
@@ -67,6 +79,10 @@ class PinholeCamera:
     world2camera : ndarray, shape (4, 4)
         Homogeneous transform from the (Z-up) world to the camera frame (x right, y down,
         z forward), metres.
+    distortion : LensDistortion or None
+        Lens distortion (:mod:`.distortion`); None for an ideal pinhole. May be given as the
+        OpenCV coefficients ``(k1, k2, p1, p2[, k3])``: they are then checked on this image
+        (:meth:`~.distortion.LensDistortion.for_image`), and all-zero coefficients give None.
     """
 
     fx: float
@@ -76,6 +92,7 @@ class PinholeCamera:
     width: int
     height: int
     world2camera: np.ndarray = None
+    distortion: LensDistortion = None
 
     def __post_init__(self):
         for name in ("fx", "fy"):
@@ -103,6 +120,9 @@ class PinholeCamera:
             raise ValueError("world2camera must be a rigid transform (rotation + translation)")
         pose.setflags(write=False)
         object.__setattr__(self, "world2camera", pose)
+        if self.distortion is not None and not isinstance(self.distortion, LensDistortion):
+            object.__setattr__(self, "distortion", LensDistortion.for_image(
+                self.distortion, self.fx, self.fy, self.cx, self.cy, self.width, self.height))
 
     @property
     def rotation(self):
@@ -134,6 +154,9 @@ class PinholeCamera:
         if p.shape[-1:] != (3,):
             raise ValueError(f"Expected shape (..., 3), got {p.shape}")
         inv_z = 1.0 / p[..., 2]
+        if self.distortion is not None:
+            d = self.distortion.distort(p[..., :2] * inv_z[..., None])
+            return np.stack([self.fx * d[..., 0] + self.cx, self.fy * d[..., 1] + self.cy], axis=-1)
         return np.stack([self.fx * p[..., 0] * inv_z + self.cx,
                          self.fy * p[..., 1] * inv_z + self.cy], axis=-1)
 
@@ -154,7 +177,69 @@ class PinholeCamera:
         out = np.ones(q.shape[:-1] + (3,))
         out[..., 0] = (q[..., 0] - self.cx) / self.fx
         out[..., 1] = (q[..., 1] - self.cy) / self.fy
+        if self.distortion is not None:
+            out[..., :2] = self.distortion.undistort(out[..., :2])
         return out
+
+    def gradient_rows(self, points, e_u, e_v):
+        """The row vectors ``g`` of Yamamoto eq. A.8: ``g . dp = E_u du + E_v dv`` to first order.
+
+        Pinhole: ``g = (1/z) [f_x E_u, f_y E_v, -(X E_u + Y E_v)]`` with ``X = f_x x / z``,
+        ``Y = f_y y / z`` (eqs. A.5-A.7). With distortion the image gradient is pulled back
+        through the distortion's Jacobian ``D`` at ``(x/z, y/z)``:
+        ``(a, b) = D^T (f_x E_u, f_y E_v)``, ``g = (1/z) [a, b, -(a x/z + b y/z)]``.
+
+        Parameters
+        ----------
+        points : array_like, shape (..., 3), camera frame, metres
+        e_u, e_v : array_like, shape (...)
+            Image derivatives at the points' projections (intensity per pixel).
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+        """
+        points = np.asarray(points, dtype=float)
+        inv_z = 1.0 / points[..., 2]
+        if self.distortion is None:
+            x_c = self.fx * points[..., 0] * inv_z
+            y_c = self.fy * points[..., 1] * inv_z
+            return np.stack([self.fx * e_u, self.fy * e_v, -(x_c * e_u + y_c * e_v)], axis=-1) \
+                * inv_z[..., None]
+        ideal = points[..., :2] * inv_z[..., None]
+        _, jac = self.distortion.distort_with_jacobian(ideal)
+        g_u, g_v = self.fx * np.asarray(e_u), self.fy * np.asarray(e_v)
+        a = jac[..., 0, 0] * g_u + jac[..., 1, 0] * g_v
+        b = jac[..., 0, 1] * g_u + jac[..., 1, 1] * g_v
+        return np.stack([a, b, -(a * ideal[..., 0] + b * ideal[..., 1])], axis=-1) \
+            * inv_z[..., None]
+
+    @property
+    def distortion_margin(self):
+        """Pixels by which lens distortion can move any point of the image (0 for a pinhole).
+
+        Conservative pixel bounds computed with the pinhole formulas (``body_model``) are
+        widened by this much to hold for the distorted image.
+        """
+        if self.distortion is None:
+            return 0.0
+        return self.distortion.max_shift * max(self.fx, self.fy)
+
+    def distort_pixels(self, pixels):
+        """Where the lens puts ideal (pinhole) pixels (..., 2); the identity without distortion."""
+        q = np.asarray(pixels, dtype=float)
+        if self.distortion is None:
+            return q.copy()
+        f, c = np.array([self.fx, self.fy]), np.array([self.cx, self.cy])
+        return self.distortion.distort((q - c) / f) * f + c
+
+    def undistort_pixels(self, pixels):
+        """Ideal (pinhole) pixels (..., 2) of image pixels (inverse of :meth:`distort_pixels`)."""
+        q = np.asarray(pixels, dtype=float)
+        if self.distortion is None:
+            return q.copy()
+        f, c = np.array([self.fx, self.fy]), np.array([self.cx, self.cy])
+        return self.distortion.undistort((q - c) / f) * f + c
 
     def at_level(self, level):
         """The same camera for pyramid level ``level`` (resolution halved ``level`` times)."""
@@ -164,18 +249,24 @@ class PinholeCamera:
         return PinholeCamera(fx=self.fx * s, fy=self.fy * s,
                              cx=(self.cx + 0.5) * s - 0.5, cy=(self.cy + 0.5) * s - 0.5,
                              width=max(1, self.width >> level), height=max(1, self.height >> level),
-                             world2camera=self.world2camera)
+                             world2camera=self.world2camera, distortion=self.distortion)
 
     def cropped(self, u0, v0, width, height):
         """The camera of the window ``width x height`` whose top-left pixel is ``(u0, v0)``:
         pixel ``(u, v)`` of the window is pixel ``(u + u0, v + v0)`` of the full image."""
         return PinholeCamera(self.fx, self.fy, self.cx - u0, self.cy - v0, width, height,
-                             self.world2camera)
+                             self.world2camera, self.distortion)
 
     def with_pose(self, world2camera):
         """Same intrinsics, another pose."""
         return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height,
-                             world2camera)
+                             world2camera, self.distortion)
+
+    def with_distortion(self, distortion):
+        """Same intrinsics and pose, another lens distortion (coefficients, LensDistortion or
+        None)."""
+        return PinholeCamera(self.fx, self.fy, self.cx, self.cy, self.width, self.height,
+                             self.world2camera, distortion)
 
 
 def world2camera_from_blender(camera2world_blender):

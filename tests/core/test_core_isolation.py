@@ -10,7 +10,7 @@ SCRIPT = textwrap.dedent("""
     import importlib, pkgutil, sys
 
     class Blocker:
-        BLOCKED = ("bpy", "mathutils", "scipy", "bmesh")
+        BLOCKED = ("bpy", "mathutils", "scipy", "bmesh", "cv2")
         def find_spec(self, name, path=None, target=None):
             if name.split(".")[0] in self.BLOCKED:
                 raise ImportError(f"blocked import of {name}")

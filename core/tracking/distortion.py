@@ -1,0 +1,273 @@
+"""Lens distortion: OpenCV's Brown–Conrady model on normalised image coordinates (NumPy only).
+
+A camera-frame point ``(x, y, z)`` has the *ideal* normalised coordinates ``(x/z, y/z)``
+(x right, y down, ``docs/conventions.md``). With ``r2 = x'^2 + y'^2`` the lens moves it to
+(OpenCV ``projectPoints``, coefficients ``(k1, k2, p1, p2, k3)`` in OpenCV's order)::
+
+    radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3
+    x'' = x' radial + 2 p1 x' y' + p2 (r2 + 2 x'^2)
+    y'' = y' radial + p1 (r2 + 2 y'^2) + 2 p2 x' y'
+
+and the pixel is ``u = fx x'' + cx``, ``v = fy y'' + cy``. The coefficients do not depend on
+the image resolution (they act on normalised coordinates), so a pyramid level or a crop of the
+image keeps the same :class:`LensDistortion`.
+
+Outside the calibrated image the polynomial means nothing and can fold back (a point far outside
+the view would land inside the image). Beyond ``radius_limit`` (a quarter more than the
+farthest image corner) the radial factor and the tangential terms are therefore held at their
+values on that circle (scaled with the radius), so the mapping stays one-to-one and monotonic
+everywhere. Inside the limit the model is exactly OpenCV's: :meth:`LensDistortion.for_image`
+refuses coefficients that fold inside it.
+
+Blender (``addon/``) stores the same model as a movie clip's tracking camera (distortion model
+``'BROWN'``, libmv's convention, y up): ``k1, k2, k3`` equal, libmv ``p1 = p2`` (OpenCV) and
+libmv ``p2 = -p1`` (OpenCV); see :func:`brown_from_opencv`.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+N_COEFFICIENTS = 5
+# Undistortion: Newton iterations and the tolerance they stop at (normalised units; 1e-12 is
+# ~2e-9 px at f = 2000 px).
+_NEWTON_ITERATIONS = 20
+_NEWTON_TOL = 1e-12
+# Radius limit = this factor times the farthest image corner's ideal radius.
+_LIMIT_FACTOR = 1.25
+
+
+def coefficients_array(coefficients):
+    """OpenCV distortion coefficients as a (5,) float array ``(k1, k2, p1, p2, k3)``.
+
+    Accepts 4 values (``k3 = 0``), 5 values, or OpenCV's longer vectors (8, 12, 14) when every
+    coefficient after the fifth is zero (the rational, thin-prism and tilt models are not
+    supported).
+
+    Raises
+    ------
+    ValueError
+        Wrong length, non-finite values, or non-zero higher-order coefficients.
+    """
+    c = np.asarray(coefficients, dtype=float).ravel()
+    if c.size not in (4, 5, 8, 12, 14):
+        raise ValueError(f"Expected 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3]), got {c.size}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"Distortion coefficients must be finite, got {c.tolist()}")
+    if c.size > 5 and np.any(c[5:] != 0):
+        raise ValueError("Only the Brown–Conrady coefficients (k1, k2, p1, p2, k3) are supported; "
+                         f"the higher-order ones are not zero: {c[5:].tolist()}")
+    out = np.zeros(N_COEFFICIENTS)
+    out[:min(c.size, 5)] = c[:5]
+    return out
+
+
+def distort_points(points, coefficients):
+    """OpenCV's distortion of ideal normalised points, no radius limit.
+
+    Parameters
+    ----------
+    points : array_like, shape (..., 2)
+        Ideal normalised coordinates ``(x/z, y/z)``.
+    coefficients : array_like, shape (5,)
+        ``(k1, k2, p1, p2, k3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+    """
+    distorted, _ = _distort(np.asarray(points, dtype=float), coefficients_array(coefficients),
+                            np.inf, jacobian=False)
+    return distorted
+
+
+def _distort(p, c, r2_limit, jacobian):
+    """Distorted points (..., 2) and, if asked, the Jacobian (..., 2, 2) d distorted / d ideal.
+
+    Beyond ``r2_limit`` the point is scaled onto the limit circle, distorted there and scaled
+    back: ``d(p) = s d(p / s)`` with ``s = r / r_limit`` (one-to-one and monotonic outward).
+    """
+    k1, k2, p1, p2, k3 = c
+    x, y = p[..., 0], p[..., 1]
+    r2 = x * x + y * y
+    outside = r2 > r2_limit
+    if np.any(outside):
+        s = np.where(outside, np.sqrt(r2 / np.where(outside, r2_limit, 1.0)), 1.0)
+        x, y = x / s, y / s
+        r2 = np.where(outside, r2_limit, r2)
+    else:
+        s = None
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xy = x * y
+    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
+    if s is not None:
+        xd, yd = xd * s, yd * s
+    out = np.stack([xd, yd], axis=-1)
+    if not jacobian:
+        return out, None
+    # d radial / d x = 2 x radial', radial' = k1 + 2 k2 r2 + 3 k3 r2^2.
+    dr = 2.0 * (k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3))
+    jac = np.empty(p.shape + (2,))
+    jac[..., 0, 0] = radial + x * x * dr + 2.0 * p1 * y + 6.0 * p2 * x
+    jac[..., 0, 1] = x * y * dr + 2.0 * p1 * x + 2.0 * p2 * y
+    jac[..., 1, 0] = x * y * dr + 2.0 * p1 * x + 2.0 * p2 * y
+    jac[..., 1, 1] = radial + y * y * dr + 6.0 * p1 * y + 2.0 * p2 * x
+    if s is not None and np.any(outside):
+        # d(p) = s d(q), q = p / s, s = |p| / r_limit: d d(p)/dp = d(q) n^T / r_limit
+        # + J(q) (I - q_hat q_hat^T) (the radial part of q is fixed on the circle).
+        r_lim = np.sqrt(r2_limit)
+        qx, qy = x, y
+        nx, ny = qx / r_lim, qy / r_lim                      # unit direction of p
+        j = jac.copy()
+        # J(q) (I - n n^T)
+        jq = np.empty_like(j)
+        for a in range(2):
+            jn = j[..., a, 0] * nx + j[..., a, 1] * ny
+            jq[..., a, 0] = j[..., a, 0] - jn * nx
+            jq[..., a, 1] = j[..., a, 1] - jn * ny
+        dq = np.stack([xd / s, yd / s], axis=-1)            # d(q)
+        full = jq + dq[..., :, None] * np.stack([nx, ny], axis=-1)[..., None, :] / r_lim
+        jac = np.where(outside[..., None, None], full, jac)
+    return out, jac
+
+
+@dataclass(frozen=True, eq=False)
+class LensDistortion:
+    """Brown–Conrady lens distortion of one camera (see the module docstring).
+
+    Build it with :meth:`for_image`, which checks the coefficients on the image they describe.
+
+    Attributes
+    ----------
+    coefficients : ndarray, shape (5,)
+        ``(k1, k2, p1, p2, k3)``, OpenCV's order and convention (x right, y down).
+    radius_limit : float
+        Normalised radius beyond which the distortion is extended radially (module docstring).
+    max_shift : float
+        Largest distance (normalised units) between an ideal point of the image (inside the
+        farthest corner's radius) and its distorted image: multiplied by the focal length in pixels it bounds how far
+        distortion moves any pixel of the image (used to widen conservative bounding boxes).
+    """
+
+    coefficients: np.ndarray
+    radius_limit: float
+    max_shift: float
+
+    @classmethod
+    def for_image(cls, coefficients, fx, fy, cx, cy, width, height):
+        """The distortion of a ``width`` x ``height`` image with intrinsics ``fx, fy, cx, cy``.
+
+        Returns
+        -------
+        LensDistortion or None
+            None when every coefficient is zero (an exact pinhole camera).
+
+        Raises
+        ------
+        ValueError
+            Invalid coefficients, or a distortion that folds over (is not one-to-one) within
+            the image: the calibration does not describe this image.
+        """
+        c = coefficients_array(coefficients)
+        if not np.any(c):
+            return None
+        c.setflags(write=False)
+        # The image's border, sampled densely, in distorted normalised coordinates.
+        u = np.linspace(-0.5, width - 0.5, 65)
+        v = np.linspace(-0.5, height - 0.5, 65)
+        border = np.concatenate([np.stack(np.broadcast_arrays(u, v[0]), -1),
+                                 np.stack(np.broadcast_arrays(u, v[-1]), -1),
+                                 np.stack(np.broadcast_arrays(u[0], v), -1),
+                                 np.stack(np.broadcast_arrays(u[-1], v), -1)])
+        normalised = (border - [cx, cy]) / [fx, fy]
+        ideal, converged = _undistort(normalised, c, np.inf)
+        if not np.all(converged):
+            raise ValueError(f"Lens distortion {c.tolist()} cannot be inverted at the image border "
+                             f"({width}x{height} px): it does not describe this image")
+        limit = _LIMIT_FACTOR * float(np.sqrt((ideal ** 2).sum(axis=-1).max()))
+        # One-to-one inside the limit: the Jacobian's determinant stays positive on a polar grid.
+        radius = np.linspace(0.0, limit, 97)[:, None]
+        angle = np.linspace(0.0, 2 * np.pi, 73)[None, :]
+        grid = np.stack(np.broadcast_arrays(radius * np.cos(angle), radius * np.sin(angle)), -1)
+        moved, jac = _distort(grid, c, np.inf, jacobian=True)
+        det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+        if not np.all(det > 0):
+            bad = float(radius[np.nonzero(~(det > 0))[0].min(), 0])
+            raise ValueError(f"Lens distortion {c.tolist()} folds over at normalised radius "
+                             f"{bad:.3f}, inside the image ({width}x{height} px, corners at "
+                             f"{limit / _LIMIT_FACTOR:.3f}): not a usable calibration")
+        inside = radius[:, 0] <= limit / _LIMIT_FACTOR * 1.01
+        shift = float(np.sqrt(((moved - grid)[inside] ** 2).sum(axis=-1)).max())
+        # The grid misses the exact maximum by a little: widen by 5 % of the step's effect.
+        return cls(coefficients=c, radius_limit=limit, max_shift=1.05 * shift)
+
+    def distort(self, points):
+        """Distorted normalised points (..., 2) of ideal normalised points (..., 2)."""
+        out, _ = _distort(np.asarray(points, dtype=float), self.coefficients,
+                          self.radius_limit ** 2, jacobian=False)
+        return out
+
+    def distort_with_jacobian(self, points):
+        """Distorted points (..., 2) and the Jacobian (..., 2, 2) ``d distorted / d ideal``."""
+        return _distort(np.asarray(points, dtype=float), self.coefficients,
+                        self.radius_limit ** 2, jacobian=True)
+
+    def undistort(self, points):
+        """Ideal normalised points (..., 2) of distorted normalised points (..., 2).
+
+        Newton's method on ``distort(q) = points`` from ``q = points`` (quadratic convergence;
+        a few iterations inside the image). Exact inverse of :meth:`distort` to ~1e-12.
+        """
+        out, _ = _undistort(np.asarray(points, dtype=float), self.coefficients,
+                            self.radius_limit ** 2)
+        return out
+
+
+def _undistort(target, c, r2_limit):
+    """Newton's method for ``distort(q) = target``: (ideal points, converged mask)."""
+    q = np.array(target, dtype=float)
+    active = np.ones(q.shape[:-1], dtype=bool)
+    for _ in range(_NEWTON_ITERATIONS):
+        d, jac = _distort(q, c, r2_limit, jacobian=True)
+        err = d - target
+        a, b = jac[..., 0, 0], jac[..., 0, 1]
+        cc, dd = jac[..., 1, 0], jac[..., 1, 1]
+        det = a * dd - b * cc
+        ok = np.abs(det) > 1e-12
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        step_x = (dd * err[..., 0] - b * err[..., 1]) * inv
+        step_y = (a * err[..., 1] - cc * err[..., 0]) * inv
+        q[..., 0] -= step_x
+        q[..., 1] -= step_y
+        active = np.abs(err).max(axis=-1) > _NEWTON_TOL
+        if not np.any(active):
+            break
+    d, _ = _distort(q, c, r2_limit, jacobian=False)
+    converged = np.all(np.isfinite(q), axis=-1) & (np.abs(d - target).max(axis=-1) <= 1e-9)
+    return q, converged
+
+
+def brown_from_opencv(coefficients):
+    """Blender/libmv ``'BROWN'`` coefficients ``(k1, k2, k3, k4, p1, p2)`` of OpenCV's.
+
+    libmv writes the tangential terms as ``x += p1 (r2 + 2 x^2) + 2 p2 x y`` and Blender feeds it
+    coordinates with y up; OpenCV has ``x += 2 p1 x y + p2 (r2 + 2 x^2)`` with y down. Matching the
+    two for every point gives ``p1_blender = p2_opencv`` and ``p2_blender = -p1_opencv``.
+    """
+    k1, k2, p1, p2, k3 = coefficients_array(coefficients)
+    return np.array([k1, k2, k3, 0.0, p2, -p1])
+
+
+def opencv_from_brown(k1, k2, k3, k4, p1, p2):
+    """OpenCV ``(k1, k2, p1, p2, k3)`` of Blender's ``'BROWN'`` coefficients (inverse of
+    :func:`brown_from_opencv`).
+
+    Raises
+    ------
+    ValueError
+        ``k4`` is not zero (OpenCV's five-coefficient model has no r^8 term).
+    """
+    if k4 != 0:
+        raise ValueError(f"Brown k4 = {k4} has no OpenCV equivalent (five-coefficient model)")
+    return np.array([k1, k2, -p2, p1, k3], dtype=float)
