@@ -14,7 +14,7 @@ image keeps the same :class:`LensDistortion`.
 
 Outside the calibrated image the polynomial means nothing and can fold back (a point far outside
 the view would land inside the image). Beyond ``radius_limit`` (a quarter more than the
-farthest image corner) the radial factor and the tangential terms are therefore held at their
+farthest image corner, or less where the polynomial folds sooner) the radial factor and the tangential terms are therefore held at their
 values on that circle (scaled with the radius), so the mapping stays one-to-one and monotonic
 everywhere. Inside the limit the model is exactly OpenCV's: :meth:`LensDistortion.for_image`
 refuses coefficients that fold inside it.
@@ -185,19 +185,25 @@ class LensDistortion:
         if not np.all(converged):
             raise ValueError(f"Lens distortion {c.tolist()} cannot be inverted at the image border "
                              f"({width}x{height} px): it does not describe this image")
-        limit = _LIMIT_FACTOR * float(np.sqrt((ideal ** 2).sum(axis=-1).max()))
-        # One-to-one inside the limit: the Jacobian's determinant stays positive on a polar grid.
-        radius = np.linspace(0.0, limit, 97)[:, None]
+        corner = float(np.sqrt((ideal ** 2).sum(axis=-1).max()))
+        # One-to-one: the Jacobian's determinant stays positive on a polar grid. The limit is
+        # a quarter beyond the corners, or just before the polynomial folds if that is nearer;
+        # a fold inside the image is refused.
+        radius = np.linspace(0.0, 2.0 * corner, 193)[:, None]
         angle = np.linspace(0.0, 2 * np.pi, 73)[None, :]
         grid = np.stack(np.broadcast_arrays(radius * np.cos(angle), radius * np.sin(angle)), -1)
         moved, jac = _distort(grid, c, np.inf, jacobian=True)
         det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
-        if not np.all(det > 0):
-            bad = float(radius[np.nonzero(~(det > 0))[0].min(), 0])
+        good_ring = np.all(det > 0, axis=1)
+        first_bad = int(np.argmin(good_ring)) if not np.all(good_ring) else len(good_ring)
+        if first_bad < len(good_ring) and radius[first_bad, 0] <= corner * 1.001:
             raise ValueError(f"Lens distortion {c.tolist()} folds over at normalised radius "
-                             f"{bad:.3f}, inside the image ({width}x{height} px, corners at "
-                             f"{limit / _LIMIT_FACTOR:.3f}): not a usable calibration")
-        inside = radius[:, 0] <= limit / _LIMIT_FACTOR * 1.01
+                             f"{radius[first_bad, 0]:.3f}, inside the image ({width}x{height} px, "
+                             f"corners at {corner:.3f}): not a usable calibration")
+        limit = _LIMIT_FACTOR * corner
+        if first_bad < len(good_ring):
+            limit = min(limit, float(radius[first_bad - 1, 0]))
+        inside = radius[:, 0] <= corner * 1.01
         shift = float(np.sqrt(((moved - grid)[inside] ** 2).sum(axis=-1)).max())
         # The grid misses the exact maximum by a little: widen by 5 % of the step's effect.
         return cls(coefficients=c, radius_limit=limit, max_shift=1.05 * shift)
