@@ -257,6 +257,10 @@ def _sphere_interval(c, cz, r, f, offset):
     return f * lo + offset, f * hi + offset
 
 
+# Lens distortion moves pixels by up to camera.distortion_margin: bounds widen by that much.
+_WIDEN = np.array([-1.0, 1.0, -1.0, 1.0])
+
+
 def part_bounds(model, camera, geometry):
     """Conservative pixel bounding boxes of every part.
 
@@ -295,7 +299,7 @@ def part_bounds(model, camera, geometry):
                 lo_u, hi_u = np.minimum(lo_u, a), np.maximum(hi_u, b)
                 lo_v, hi_v = np.minimum(lo_v, e), np.maximum(hi_v, f)
                 near = near | n
-        box = np.stack([lo_u, hi_u, lo_v, hi_v], axis=-1)
+        box = np.stack([lo_u, hi_u, lo_v, hi_v], axis=-1) + camera.distortion_margin * _WIDEN
         box[near] = (-np.inf, np.inf, -np.inf, np.inf)
         out.append(box)
     return np.concatenate(out, axis=-2)
@@ -660,7 +664,8 @@ def _capsule_rows(model, camera, geo, poses, parts, v):
     vb = camera.fy * b[:, 1] / zb_c + camera.cy
     stretch_a = 1.0 + (a[:, 0] ** 2 + a[:, 1] ** 2) / za_c ** 2
     stretch_b = 1.0 + (b[:, 0] ** 2 + b[:, 1] ** 2) / zb_c ** 2
-    radius = max(camera.fx, camera.fy) * np.maximum(stretch_a * r0 / za, stretch_b * r1 / zb) + 1.0
+    radius = max(camera.fx, camera.fy) * np.maximum(stretch_a * r0 / za, stretch_b * r1 / zb) + 1.0 \
+        + camera.distortion_margin
     lo, hi = np.full(len(cyl), np.inf), np.full(len(cyl), -np.inf)
     with np.errstate(invalid="ignore", divide="ignore"):
         # End discs.
