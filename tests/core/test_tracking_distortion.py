@@ -168,3 +168,84 @@ def test_blender_brown_coefficients_reproduce_opencv():
 
 def test_lens_distortion_for_image_is_none_for_zero():
     assert LensDistortion.for_image([0, 0, 0, 0], FX, FY, CX, CY, W, H) is None
+
+
+def test_distorted_footage_tracks_like_undistorted_footage():
+    """Footage filmed through a wide-angle lens (the test renderer casts its rays through the
+    lens): tracked with the lens model it matches tracking undistorted footage; without the
+    model it does clearly worse."""
+    from core.tracking.body_model import joint_frames_in_camera, sample_silhouette
+    from core.tracking.problem import TrackingOptions, TrackingProblem
+    from core.tracking.trajectory import Pose, photometric_error, track_interval
+    import tests.core.test_tracking_trajectory as trajectory_tests
+
+    # The two-arm body seen 17 degrees off the optical axis, where the lens moves it by 6 px
+    # on average (13 px at most).
+    front = trajectory_tests.front_camera(200, 160, f=420.0)
+    turn = np.eye(4)
+    angle = np.arctan(0.3)
+    turn[:3, :3] = [[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]]
+    pinhole = PinholeCamera(420.0, 420.0, 199.5, 119.5, 400, 240, turn @ front.world2camera)
+    lens = pinhole.with_distortion([-0.35, 0.1, 0.004, -0.003, 0.0])
+    sequences = {}
+    for name, cam in (("pinhole", pinhole), ("lens", lens)):
+        original = trajectory_tests.front_camera
+        trajectory_tests.front_camera = lambda *args, cam=cam, **kw: cam
+        try:
+            sequences[name] = trajectory_tests._sequence()
+        finally:
+            trajectory_tests.front_camera = original
+    sk, body, _, roots, local, undistorted = sequences["pinhole"]
+    distorted = sequences["lens"][-1]
+    start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
+
+    def eq4_of_truth(cam, frames):
+        problem = TrackingProblem(sk, body, cam)
+        frames_cam = joint_frames_in_camera(sk, cam.world2camera, roots, local)
+        return photometric_error(problem, frames, 0, frames_cam,
+                                 sample_silhouette(body, cam, *frames_cam, 2000)).sum()
+
+    # The true motion explains the distorted images only through the lens model.
+    assert eq4_of_truth(lens, distorted) < 0.05 * eq4_of_truth(pinhole, distorted)
+    assert eq4_of_truth(lens, distorted) < 2.0 * eq4_of_truth(pinhole, undistorted)
+
+    def error(cam, frames):
+        res = track_interval(TrackingProblem(sk, body, cam), frames, start, end,
+                             TrackingOptions(max_iterations=3))
+        return trajectory_tests._point_error(sk, cam, roots, local, res.root_translations,
+                                             res.local_rotations)
+
+    reference = error(pinhole, undistorted)         # 3.1 cm (interpolation: 7.7 cm)
+    with_model = error(lens, distorted)             # 2.5 cm
+    without_model = error(pinhole, distorted)       # 4.8 cm
+    assert with_model < 0.75 * without_model
+    assert with_model < 1.25 * reference + 0.002
+
+
+def test_local_margins_bound_the_shift_and_ray_casting_misses_nothing():
+    """Part bounds widened by the local lens shift keep every hit: ray casting through the
+    distorted camera equals casting every ray against every part."""
+    from core.tracking.body_model import joint_frames_in_camera, ray_cast
+    from tests.core.tracking_fixtures import chain_body, chain_skeleton, random_pose
+    cam = PinholeCamera(300.0, 300.0, 160.0, 120.0, 320, 240, distortion=WIDE)
+    boxes = np.sort(RNG.uniform([-50, -50], [370, 290], (400, 2, 2)), axis=1)
+    box = np.stack([boxes[:, 0, 0], boxes[:, 1, 0], boxes[:, 0, 1], boxes[:, 1, 1]], -1)
+    margin = cam.distortion_margin_near(*box.T)
+    corners = RNG.uniform(0, 1, (400, 50, 2)) * (box[:, None, [1, 3]] - box[:, None, [0, 2]]) \
+        + box[:, None, [0, 2]]
+    shift = np.linalg.norm(cam.distort_pixels(corners) - corners, axis=-1).max(axis=1)
+    assert np.all(shift <= margin)
+    rng = np.random.default_rng(5)
+    sk = chain_skeleton(rng)
+    body = chain_body(sk, radius=0.06)
+    root, local = random_pose(rng, sk)
+    rot, org = joint_frames_in_camera(sk, cam.world2camera,
+                                      root[None], local[None])
+    v, u = np.mgrid[0:240, 0:320]
+    pixels = np.stack([u.ravel(), v.ravel()], 1).astype(float)
+    hits = ray_cast(body, cam, rot[0], org[0], pixels)
+    everything = np.tile([-np.inf, np.inf, -np.inf, np.inf], (1, body.n_parts, 1))
+    brute = ray_cast(body, cam, rot[0], org[0], pixels, bounds=everything)
+    assert hits.hit.sum() > 1000
+    np.testing.assert_array_equal(hits.parts, brute.parts)
+    np.testing.assert_array_equal(hits.depth, brute.depth)
