@@ -29,7 +29,7 @@ from mathutils import Matrix
 
 from ...core.tracking.calibration import CalibrationError, fit_to_footage, read_calibration
 from ...core.tracking.camera import blender_from_camera, movie_clip_intrinsics
-from ..tracking.footage import MOVIE_EXTENSIONS
+from .footage import MOVIE_EXTENSIONS
 
 __all__ = ["CalibrationImportError", "find_footage", "import_calibration", "use_camera"]
 
@@ -204,7 +204,8 @@ def import_calibration(context, path, binning_factor=0, link_footage=True, set_s
             data.type = "PERSP"
             data.lens_unit = "MILLIMETERS"
             data.sensor_fit = blender["sensor_fit"]
-            data.sensor_width, data.sensor_height = blender["sensor_width"], blender["sensor_height"]
+            data.sensor_width = blender["sensor_width"]
+            data.sensor_height = blender["sensor_height"]
             data.lens = blender["lens"]
             data.shift_x, data.shift_y = blender["shift_x"], blender["shift_y"]
             data.clip_start = 0.05

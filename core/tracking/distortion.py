@@ -14,9 +14,9 @@ image keeps the same :class:`LensDistortion`.
 
 Outside the calibrated image the polynomial means nothing and can fold back (a point far outside
 the view would land inside the image). Beyond ``radius_limit`` (a quarter more than the
-farthest image corner, or less where the polynomial folds sooner) the radial factor and the tangential terms are therefore held at their
-values on that circle (scaled with the radius), so the mapping stays one-to-one and monotonic
-everywhere. Inside the limit the model is exactly OpenCV's: :meth:`LensDistortion.for_image`
+farthest image corner, or less where the polynomial folds sooner) a point is therefore
+distorted as its image on that circle, scaled with the radius: ``d(p) = s d(p / s)``,
+``s = |p| / radius_limit``; the mapping stays one-to-one and monotonic everywhere. Inside the limit the model is exactly OpenCV's: :meth:`LensDistortion.for_image`
 refuses coefficients that fold inside it.
 
 Blender (``addon/``) stores the same model as a movie clip's tracking camera (distortion model
@@ -56,7 +56,8 @@ def coefficients_array(coefficients):
     """
     c = np.asarray(coefficients, dtype=float).ravel()
     if c.size not in (4, 5, 8, 12, 14):
-        raise ValueError(f"Expected 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3]), got {c.size}")
+        raise ValueError("Expected 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3]), got "
+                         f"{c.size}")
     if not np.all(np.isfinite(c)):
         raise ValueError(f"Distortion coefficients must be finite, got {c.tolist()}")
     if c.size > 5 and np.any(c[5:] != 0):

@@ -73,7 +73,7 @@ def test_projection_equals_opencv_through_the_calibration():
                                    cam.world2camera[:3, 3], cam.matrix, cam.distortion)
         ours = pin.project(pin.world_to_camera(world))
         assert np.abs(ours - ref[:, 0]).max() < 1e-6
-        np.testing.assert_allclose(ours, pixels, atol=1e-6)
+        np.testing.assert_allclose(ours, pixels, atol=5e-3)   # rays: the lookup table
 
 
 def _write_toml(path, cameras, extra=""):
