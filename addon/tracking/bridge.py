@@ -150,14 +150,14 @@ def _transform_animated(obj):
     return bag is not None and any(f.data_path in _TRANSFORM_PATHS for f in bag.fcurves)
 
 
-def _camera_in_armature_space(scene, camera_obj, rig):
+def _camera_in_armature_space(scene, camera_obj, rig, clip=None):
     if _transform_animated(camera_obj):
         raise TrackError(f"Camera {camera_obj.name} is animated: the tracker needs the camera "
                          "that filmed the footage to stand still")
     if _transform_animated(rig.obj):
         raise TrackError(f"{rig.obj.name} moves as an object: animate its root bone instead")
     try:
-        camera = pinhole_from_blender(scene, camera_obj)
+        camera = pinhole_from_blender(scene, camera_obj, clip)   # clip: its lens distortion
     except CameraError as exc:
         raise TrackError(str(exc)) from None
     armature2world = rig.armature2world
@@ -255,7 +255,8 @@ def prepare_tracking(context, settings):
         raise TrackError(f"The footage ({footage.n_frames} frames from scene frame "
                          f"{footage.scene_start - footage.offset}) does not cover frame "
                          f"{outside[0]}: move the clip's Start Frame or the keyframes")
-    camera = _camera_in_armature_space(scene, camera_obj, rig)
+    camera = _camera_in_armature_space(scene, camera_obj, rig,
+                                       settings.clip if settings.source == "CLIP" else None)
     mask = rig.dof_mask
     translation = np.full(3, bool(rig.root_location_mask.any()))
     try:

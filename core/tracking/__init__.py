@@ -16,7 +16,8 @@ from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_
                          joint_frames_in_camera, ray_cast, sample_silhouette)
 from .calibration import (CalibratedCamera, CalibrationError, fit_to_footage, qca_binning_factor,
                           read_calibration)
-from .camera import PinholeCamera, camera_from_blender, world2camera_from_blender
+from .camera import (PinholeCamera, blender_from_camera, camera_from_blender,
+                     distortion_from_movie_clip, movie_clip_intrinsics, world2camera_from_blender)
 from .distortion import LensDistortion
 from .drift import (correct_root_positions, orientation_correction)
 from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyramid, pyr_down,
@@ -36,10 +37,10 @@ __all__ = [
     "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "LensDistortion", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
     "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
     "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
-    "apply_motion", "bilinear", "body_model_from_skeleton", "camera_from_blender",
-    "central_derivatives", "correct_root_positions", "estimate_motions", "find_table1_parts", "fit_to_footage",
+    "apply_motion", "bilinear", "blender_from_camera", "body_model_from_skeleton", "camera_from_blender",
+    "central_derivatives", "correct_root_positions", "distortion_from_movie_clip", "estimate_motions", "find_table1_parts", "fit_to_footage",
     "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
-    "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
+    "joint_frames_in_camera", "motion_between", "motion_layout", "movie_clip_intrinsics", "orientation_correction",
     "photometric_error", "point_jacobians", "pyr_down", "qca_binning_factor", "rank_decomposition",
     "rank_decompositions", "ray_cast", "read_calibration", "robust_z_scores", "sample_silhouette",
     "sample_with_gradient", "solve_with_prediction", "suggest_keyframes", "table1_dof_mask",

@@ -295,7 +295,7 @@ def part_bounds(model, camera, geometry):
                 lo_u, hi_u = np.minimum(lo_u, a), np.maximum(hi_u, b)
                 lo_v, hi_v = np.minimum(lo_v, e), np.maximum(hi_v, f)
                 near = near | n
-        box = np.stack([lo_u, hi_u, lo_v, hi_v], axis=-1)
+        box = camera.widen_for_distortion(np.stack([lo_u, hi_u, lo_v, hi_v], axis=-1))
         box[near] = (-np.inf, np.inf, -np.inf, np.inf)
         out.append(box)
     return np.concatenate(out, axis=-2)
@@ -477,7 +477,7 @@ def ray_cast(model, camera, rotations, origins, pixels, frames=None, normals=Fal
     u, v = pixels[:, 0:1], pixels[:, 1:2]
     inside = (u >= b[..., 0]) & (u <= b[..., 1]) & (v >= b[..., 2]) & (v <= b[..., 3])
     ray_idx, part_idx = np.nonzero(inside)
-    return _hits(model, geo, camera.rays(pixels), frames, ray_idx, part_idx, normals)
+    return _hits(model, geo, camera.rays(pixels, only=ray_idx), frames, ray_idx, part_idx, normals)
 
 
 def _normals(model, geo, frames, points, parts, face, hit):
@@ -661,6 +661,10 @@ def _capsule_rows(model, camera, geo, poses, parts, v):
     stretch_a = 1.0 + (a[:, 0] ** 2 + a[:, 1] ** 2) / za_c ** 2
     stretch_b = 1.0 + (b[:, 0] ** 2 + b[:, 1] ** 2) / zb_c ** 2
     radius = max(camera.fx, camera.fy) * np.maximum(stretch_a * r0 / za, stretch_b * r1 / zb) + 1.0
+    if camera.distortion is not None:   # the lens moves the capsule by up to this much
+        radius = radius + camera.distortion_margin_near(
+            np.minimum(ua, ub) - radius, np.maximum(ua, ub) + radius,
+            np.minimum(va, vb) - radius, np.maximum(va, vb) + radius)
     lo, hi = np.full(len(cyl), np.inf), np.full(len(cyl), -np.inf)
     with np.errstate(invalid="ignore", divide="ignore"):
         # End discs.
@@ -771,7 +775,8 @@ def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0,
     pp = pose[pair_row]
     ray_idx = start[pp] + row[pair_row] * cols[pp] + col
     part_idx = part[pair_row]
-    hits = _hits(model, geo, camera.rays(pixels), node_pose, ray_idx, part_idx, normals=False)
+    hits = _hits(model, geo, camera.rays(pixels, only=ray_idx), node_pose, ray_idx, part_idx,
+                 normals=False)
     interior = np.zeros(total, dtype=bool)
     for f in range(n):
         if sizes[f] == 0:

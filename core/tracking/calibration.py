@@ -101,6 +101,9 @@ class CalibratedCamera:
         The file.
     line : int
         Line of the file where the camera is defined.
+    sensor_width_mm : float or None
+        Physical sensor width when the file gives it (QCA: ``focallength`` in mm times
+        ``width / fx``), else None.
     """
 
     name: str
@@ -111,6 +114,7 @@ class CalibratedCamera:
     world2camera: np.ndarray
     source: str = ""
     line: int = 0
+    sensor_width_mm: float = None
 
     @property
     def fx(self):
@@ -309,7 +313,7 @@ def _numbers(path, line, value, shape, what):
     return array
 
 
-def _camera(path, line, name, size, matrix, distortion, rotation, translation):
+def _camera(path, line, name, size, matrix, distortion, rotation, translation, focal_mm=None):
     """Check and build one CalibratedCamera (world2camera from rotation (3, 3) + translation)."""
     width, height = size
     if width != int(width) or height != int(height) or width < 1 or height < 1:
@@ -335,7 +339,9 @@ def _camera(path, line, name, size, matrix, distortion, rotation, translation):
     matrix[0, 1] = 0.0
     camera = CalibratedCamera(name=name, width=int(width), height=int(height), matrix=matrix,
                               distortion=np.asarray(distortion, dtype=float), world2camera=pose,
-                              source=path, line=line)
+                              source=path, line=line,
+                              sensor_width_mm=(focal_mm * int(width) / matrix[0, 0]
+                                               if focal_mm else None))
     try:
         camera.pinhole()
     except ValueError as exc:
@@ -452,8 +458,11 @@ def _read_qca(path, data, binning_factor):
                                    "rotation (orthonormal, determinant +1)")
         # Pose2Sim: R = M^T (camera -> world), inverted, then turned half about x.
         rotation = _FLIP_YZ @ m
+        focal_mm = intrinsic.attrib.get("focallength")
+        focal_mm = _attr(path, intrinsic, "focallength") if focal_mm is not None else None
         cameras.append(_camera(path, element.line, name, np.array([width, height]), matrix,
-                               distortion, rotation, -rotation @ position))
+                               distortion, rotation, -rotation @ position,
+                               focal_mm if focal_mm and focal_mm > 0 else None))
     if not cameras:
         raise CalibrationError(path, root.line, "no video camera in the calibration (cameras "
                                "whose model contains 'video' or 'none')")

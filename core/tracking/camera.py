@@ -160,12 +160,20 @@ class PinholeCamera:
         return np.stack([self.fx * p[..., 0] * inv_z + self.cx,
                          self.fy * p[..., 1] * inv_z + self.cy], axis=-1)
 
-    def rays(self, pixels):
+    def rays(self, pixels, only=None):
         """Ray directions (camera frame, scaled to z = 1) through pixels.
+
+        With lens distortion the pixels are undistorted by
+        :meth:`~.distortion.LensDistortion.undistort_fast` (to 2e-6 in normalised units, a few
+        thousandths of a pixel); :meth:`undistort_pixels` is exact.
 
         Parameters
         ----------
         pixels : array_like, shape (..., 2), pixels (u, v)
+        only : array_like of int, optional
+            With lens distortion, undistort only these rows of ``pixels`` (shape (M, 2)); the
+            other rows get the pinhole direction, for callers that ignore them (the ray caster
+            needs only the rays paired with a part). No effect without distortion.
 
         Returns
         -------
@@ -178,7 +186,11 @@ class PinholeCamera:
         out[..., 0] = (q[..., 0] - self.cx) / self.fx
         out[..., 1] = (q[..., 1] - self.cy) / self.fy
         if self.distortion is not None:
-            out[..., :2] = self.distortion.undistort(out[..., :2])
+            if only is None:
+                out[..., :2] = self.distortion.undistort_fast(out[..., :2])
+            else:
+                rows = np.unique(np.asarray(only, dtype=np.intp))
+                out[rows, :2] = self.distortion.undistort_fast(out[rows, :2])
         return out
 
     def gradient_rows(self, points, e_u, e_v):
@@ -224,6 +236,40 @@ class PinholeCamera:
         if self.distortion is None:
             return 0.0
         return self.distortion.max_shift * max(self.fx, self.fy)
+
+    def widen_for_distortion(self, box):
+        """Pinhole pixel boxes widened to hold the distorted image of what they bound.
+
+        A point whose ideal (pinhole) pixel lies in the box ``(u_min, u_max, v_min, v_max)`` is
+        moved by the lens by at most the shift within the radius of the box's farthest corner
+        (:meth:`~.distortion.LensDistortion.shift_within`); each side moves out by that much.
+
+        Parameters
+        ----------
+        box : ndarray, shape (..., 4)
+            ``u_min, u_max, v_min, v_max``, pixels (may be infinite).
+
+        Returns
+        -------
+        ndarray, shape (..., 4)
+            ``box`` itself without distortion.
+        """
+        if self.distortion is None:
+            return box
+        margin = self.distortion_margin_near(box[..., 0], box[..., 1], box[..., 2], box[..., 3])
+        return box + margin[..., None] * np.array([-1.0, 1.0, -1.0, 1.0])
+
+    def distortion_margin_near(self, u_min, u_max, v_min, v_max):
+        """Pixels by which the lens can move points whose pinhole pixel is in the given boxes
+        (...,); 0 without distortion."""
+        if self.distortion is None:
+            return 0.0
+        with np.errstate(invalid="ignore"):
+            x = np.maximum(np.abs(np.asarray(u_min) - self.cx), np.abs(np.asarray(u_max) - self.cx))
+            y = np.maximum(np.abs(np.asarray(v_min) - self.cy), np.abs(np.asarray(v_max) - self.cy))
+            radius = np.hypot(x / self.fx, y / self.fy)
+        radius = np.where(np.isnan(radius), np.inf, radius)
+        return self.distortion.shift_within(radius) * max(self.fx, self.fy) + 1e-6
 
     def distort_pixels(self, pixels):
         """Where the lens puts ideal (pinhole) pixels (..., 2); the identity without distortion."""
@@ -344,3 +390,134 @@ def camera_from_blender(lens, sensor_width, sensor_height, sensor_fit, shift_x, 
     return PinholeCamera(fx=fx, fy=fx / a, cx=(width - 1) / 2.0 - shift_x * side,
                          cy=(height - 1) / 2.0 + shift_y * side / a, width=width, height=height,
                          world2camera=world2camera_from_blender(camera2world_blender))
+
+
+def blender_from_camera(camera, sensor_width=36.0):
+    """Blender camera settings that reproduce a pinhole camera (inverse of
+    :func:`camera_from_blender`).
+
+    The sensor is fitted horizontally (``sensor_fit='HORIZONTAL'``, ``side = width``); the pixel
+    aspect carries ``fx / fy`` (``pixel_aspect_y / pixel_aspect_x = fx / fy``, the smaller one 1);
+    lens shift carries the principal point. The render size must be ``camera.width`` x
+    ``camera.height`` at 100 %. Lens distortion is not part of a Blender camera (see
+    :func:`movie_clip_intrinsics`).
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+        Pose in the Blender world (``world2camera``).
+    sensor_width : float, mm
+        Any positive width: only ``lens / sensor_width`` matters for the picture.
+
+    Returns
+    -------
+    dict
+        ``lens``, ``sensor_width``, ``sensor_height`` (mm), ``sensor_fit``, ``shift_x``,
+        ``shift_y``, ``pixel_aspect_x``, ``pixel_aspect_y``, ``resolution`` (width, height) and
+        ``matrix_world`` (4, 4): the camera object's transform (Blender camera axes).
+    """
+    if not sensor_width > 0:
+        raise ValueError(f"sensor_width must be positive, got {sensor_width}")
+    a = camera.fx / camera.fy                      # pixel height over pixel width
+    aspect_x, aspect_y = (1.0, a) if a >= 1.0 else (1.0 / a, 1.0)
+    side = float(camera.width)
+    pose = camera.world2camera
+    camera2world = np.eye(4)
+    camera2world[:3, :3] = pose[:3, :3].T @ BLENDER_TO_CV
+    camera2world[:3, 3] = -pose[:3, :3].T @ pose[:3, 3]
+    return {"lens": camera.fx * sensor_width / side, "sensor_width": float(sensor_width),
+            "sensor_height": float(sensor_width) * camera.height * a / side,
+            "sensor_fit": "HORIZONTAL",
+            "shift_x": ((camera.width - 1) / 2.0 - camera.cx) / side,
+            "shift_y": (camera.cy - (camera.height - 1) / 2.0) * a / side,
+            "pixel_aspect_x": aspect_x, "pixel_aspect_y": aspect_y,
+            "resolution": (camera.width, camera.height), "matrix_world": camera2world}
+
+
+def movie_clip_intrinsics(camera):
+    """A movie clip's tracking-camera values (``clip.tracking.camera``) for a pinhole camera.
+
+    Blender (libmv) measures the clip in pixels from the frame's **bottom-left corner**, y up,
+    with one focal length ``f`` and ``pixel_aspect = fy / fx`` (libmv scales y by
+    ``1 / pixel_aspect``). So ``focal_length_pixels = fx``,
+    ``principal_point_pixels = (cx + 0.5, height - 0.5 - cy)`` and the distortion model
+    ``'BROWN'`` with :func:`~.distortion.brown_from_opencv` of the OpenCV coefficients.
+
+    Returns
+    -------
+    dict
+        ``focal_length_pixels``, ``principal_point_pixels`` (2,), ``pixel_aspect``,
+        ``distortion_model`` ('BROWN'), ``brown`` (k1, k2, k3, k4, p1, p2).
+    """
+    from .distortion import brown_from_opencv
+    coefficients = np.zeros(5) if camera.distortion is None else camera.distortion.coefficients
+    return {"focal_length_pixels": camera.fx,
+            "principal_point_pixels": (camera.cx + 0.5, camera.height - 0.5 - camera.cy),
+            "pixel_aspect": camera.fy / camera.fx, "distortion_model": "BROWN",
+            "brown": tuple(float(v) for v in brown_from_opencv(coefficients))}
+
+
+# How far a movie clip's tracking camera may disagree with the scene camera before its
+# distortion is refused: the distortion is defined on the clip's normalised coordinates.
+CLIP_FOCAL_TOLERANCE = 1e-3          # relative
+CLIP_PRINCIPAL_TOLERANCE = 1.0       # pixels
+
+
+def distortion_from_movie_clip(camera, focal_length_pixels, principal_point_pixels, pixel_aspect,
+                               distortion_model, coefficients):
+    """OpenCV distortion coefficients (5,) of a movie clip's tracking camera, or None.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+        The scene camera that filmed the clip (its intrinsics at the footage size).
+    focal_length_pixels, principal_point_pixels, pixel_aspect
+        ``clip.tracking.camera`` values (see :func:`movie_clip_intrinsics` for the
+        conventions).
+    distortion_model : {'POLYNOMIAL', 'BROWN', 'DIVISION', 'NUKE'}
+    coefficients : dict
+        The model's coefficients by RNA name: ``k1, k2, k3`` (POLYNOMIAL) or ``brown_k1`` …
+        ``brown_k4``, ``brown_p1``, ``brown_p2`` (BROWN).
+
+    Returns
+    -------
+    ndarray, shape (5,), or None
+        None when the clip has no distortion (all coefficients zero).
+
+    Raises
+    ------
+    ValueError
+        A model the tracker does not know (DIVISION, NUKE with non-zero coefficients), or
+        intrinsics that disagree with the camera (the distortion would be applied at the wrong
+        place): the message says both values.
+    """
+    from .distortion import opencv_from_brown
+    if distortion_model == "POLYNOMIAL":
+        k1, k2, k3 = (float(coefficients[k]) for k in ("k1", "k2", "k3"))
+        opencv = np.array([k1, k2, 0.0, 0.0, k3])
+    elif distortion_model == "BROWN":
+        opencv = opencv_from_brown(*(float(coefficients[f"brown_{k}"])
+                                     for k in ("k1", "k2", "k3", "k4", "p1", "p2")))
+    else:
+        values = [float(v) for v in coefficients.values()]
+        if not any(values):
+            return None
+        raise ValueError(f"lens distortion model {distortion_model.title()} is not supported by "
+                         "the tracker: use Polynomial or Brown (Movie Clip Editor › Track › "
+                         "Camera › Lens)")
+    if not np.any(opencv):
+        return None
+    expected = movie_clip_intrinsics(camera)
+    f_error = abs(focal_length_pixels - expected["focal_length_pixels"]) / camera.fx
+    c_error = np.abs(np.subtract(principal_point_pixels, expected["principal_point_pixels"])).max()
+    a_error = abs(pixel_aspect - expected["pixel_aspect"])
+    if f_error > CLIP_FOCAL_TOLERANCE or c_error > CLIP_PRINCIPAL_TOLERANCE or a_error > 1e-3:
+        raise ValueError(
+            "the footage's lens (focal length {:.2f} px, optical centre {:.1f}, {:.1f} px, pixel "
+            "aspect {:.4f}) does not match the camera ({:.2f} px, {:.1f}, {:.1f} px, {:.4f}): its "
+            "distortion cannot be applied; re-import the calibration or set the clip's camera "
+            "data to the camera's".format(
+                focal_length_pixels, *principal_point_pixels, pixel_aspect,
+                expected["focal_length_pixels"], *expected["principal_point_pixels"],
+                expected["pixel_aspect"]))
+    return opencv

@@ -248,7 +248,8 @@ def image_gradient_rows(camera, points, e_u, e_v):
     """The row vectors ``g`` of eq. A.8 (projection of 3-D motion onto the image gradient).
 
     ``g = (1/z) [f_x E_X, f_y E_Y, -(X E_X + Y E_Y)]``, ``X = f_x x / z``, ``Y = f_y y / z``,
-    so that ``g . dp = E_X du + E_Y dv`` to first order (eqs. A.5-A.7).
+    so that ``g . dp = E_X du + E_Y dv`` to first order (eqs. A.5-A.7); with lens distortion
+    the gradient goes through the distortion's Jacobian (:meth:`PinholeCamera.gradient_rows`).
 
     Parameters
     ----------
@@ -261,12 +262,7 @@ def image_gradient_rows(camera, points, e_u, e_v):
     -------
     ndarray, shape (M, 3)
     """
-    p = np.asarray(points, dtype=float)
-    inv_z = 1.0 / p[:, 2]
-    x_c = camera.fx * p[:, 0] * inv_z
-    y_c = camera.fy * p[:, 1] * inv_z
-    return np.stack([camera.fx * e_u, camera.fy * e_v, -(x_c * e_u + y_c * e_v)], axis=1) \
-        * inv_z[:, None]
+    return camera.gradient_rows(points, e_u, e_v)
 
 
 def image_jacobian(layout, ancestors, joints, points, rotations, origins, g, translation_basis=None):

@@ -414,11 +414,7 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
 
 def _gradient_rows(camera, points, e_u, e_v):
     """Eq. A.8 rows g (n, S, 3) (see :func:`~.jacobians.image_gradient_rows`)."""
-    inv_z = 1.0 / points[..., 2]
-    x_c = camera.fx * points[..., 0] * inv_z
-    y_c = camera.fy * points[..., 1] * inv_z
-    return np.stack([camera.fx * e_u, camera.fy * e_v, -(x_c * e_u + y_c * e_v)], axis=-1) \
-        * inv_z[..., None]
+    return camera.gradient_rows(points, e_u, e_v)   # lens distortion included
 
 
 def _jacobian(layout, rot, org, points, g, cols, anc):

@@ -42,7 +42,9 @@ def test_zip_holds_only_what_the_extension_needs():
 def test_operators_and_menus_are_registered():
     assert bpy.ops.import_anim.acclaim.idname() == "IMPORT_ANIM_OT_acclaim"
     assert bpy.ops.export_anim.acclaim.idname() == "EXPORT_ANIM_OT_acclaim"
-    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 1
+    assert bpy.ops.import_scene.camera_calibration.idname() == "IMPORT_SCENE_OT_camera_calibration"
+    # File › Import: Acclaim Motion Capture and Camera Calibration.
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 2
     assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_export)) == 1
     assert hasattr(bpy.types, "VIEW3D_PT_track_and_stride")
 
@@ -61,6 +63,6 @@ def test_register_unregister_register_leaves_nothing_stale():
     finally:
         addon_utils.enable(MODULE, default_set=True)
     assert {c.__name__ for c in _our_classes()} == registered
-    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 1  # no duplicate entries
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 2  # no duplicate entries
     assert len(_our_handlers()) == handlers_before
     assert bpy.ops.import_anim.acclaim.poll() in (True, False)
