@@ -10,10 +10,10 @@ key spacing, on a fresh scene, as an animator would set it up:
 1. **Camera and footage**: *File › Import › Camera Calibration*
    (``bpy.ops.import_scene.camera_calibration``: one camera per calibrated camera, the video of
    its name as its movie clip, lens distortion in the clip's tracking camera), then that
-   camera made the scene camera with its render size (the extension's ``use_camera``). If the
-   installed extension has no such operator (before the calibration import existed), the
-   camera is built here from the calibration without distortion and the video opened with
-   *Open Footage*; the output says which (``camera_setup``).
+   camera made the scene camera with its render size (the extension's ``use_camera``). With
+   ``plan["camera_setup"] == "fallback"`` (for comparison only) the camera is built here from
+   the calibration without lens distortion and the video opened with *Open Footage*; the
+   output says which (``camera_setup``).
 2. **Armature**: the rig's bones (edit bones from the rest matrices), envelope radii, rotation
    mode; the fitted poses keyed with ``keyframe_insert`` at the key frames only (Blender's
    defaults: Bezier, auto-clamped handles) -- quaternion signs kept continuous between keys.
@@ -90,7 +90,8 @@ def _fallback_camera(bpy, scene, calibration_path, name, video):
     scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = (1.0, a) if a >= 1 else (1 / a,
                                                                                         1.0)
     result = bpy.ops.track_and_stride.open_footage(filepath=str(video), set_frame_range=False)
-    assert result == {"FINISHED"}, result
+    if result != {"FINISHED"}:
+        raise RuntimeError(f"Open Footage returned {result}")
     return [note] if note else []
 
 
@@ -105,9 +106,10 @@ def setup_cameras(bpy, plan, cameras):
     name = cameras[0]
     scene = bpy.context.scene
     # (bpy.ops answers hasattr for any name: ask the operator list.)
-    if plan["camera_setup"] != "fallback" and "camera_calibration" in dir(bpy.ops.import_scene):
+    if plan["camera_setup"] == "import" and "camera_calibration" in dir(bpy.ops.import_scene):
         result = bpy.ops.import_scene.camera_calibration(filepath=plan["calibration"])
-        assert result == {"FINISHED"}, result
+        if result != {"FINISHED"}:
+            raise RuntimeError(f"Import Camera Calibration returned {result}")
         calibration = ext("addon.tracking.calibration")
         obj = next(o for o in bpy.data.objects if o.type == "CAMERA"
                    and o.data.get(calibration.CALIBRATION_PROP, {}).get("camera") == name)
@@ -284,7 +286,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
     if plan["radii_operator"]:
         module, op = plan["radii_operator"].split(".")
         result = getattr(getattr(bpy.ops, module), op)()
-        assert result == {"FINISHED"}, (plan["radii_operator"], result)
+        if result != {"FINISHED"}:
+            raise RuntimeError(f"{plan['radii_operator']} returned {result}")
     bpy.context.view_layer.update()
     names = [b["name"] for b in plan["bones"]]
     scene_frames = np.arange(1, n + 1)
