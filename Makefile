@@ -18,7 +18,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real clean
 
 venv: $(STAMP)
 
@@ -60,6 +60,19 @@ bench-tracking: $(STAMP)
 # Track Keyframes through the installed extension: serial vs parallel, phases, accuracy.
 bench-track-blender: extension
 	$(PY) benchmarks/bench_track_blender.py --extension $(ZIP) --output build/bench/track_blender.json
+
+# Real footage (docs/bench_real.md): MediaPipe reference over the Pose2Sim demo's 4 cameras,
+# Track Keyframes through the operator per camera; its own venv (MediaPipe, never in .venv).
+BENCH_VENV := .venv-bench
+BENCH_STAMP := $(BENCH_VENV)/.installed
+
+$(BENCH_STAMP): requirements-bench.txt
+	$(PYTHON) -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --no-deps -r requirements-bench.txt
+	touch $(BENCH_STAMP)
+
+bench-real: extension $(BENCH_STAMP)
+	$(BENCH_VENV)/bin/python benchmarks/bench_real.py --extension $(ZIP) --blender-python $(PY) --output build/bench/real.json
 
 clean:
 	rm -rf build .pytest_cache
