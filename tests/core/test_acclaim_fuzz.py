@@ -171,5 +171,7 @@ def test_binary_and_missing_files(tmp_path):
     junk.write_bytes(bytes(range(256)) * 4)
     with pytest.raises(MocapParseError, match="junk.amc"):
         read_amc(junk, asf)
-    with pytest.raises(MocapParseError, match="cannot read"):
+    with pytest.raises(MocapParseError, match=r"missing\.asf: the file does not exist"):
         read_asf(tmp_path / "missing.asf")
+    with pytest.raises(MocapParseError, match=r"missing\.amc: the file does not exist"):
+        read_amc(tmp_path / "missing.amc", asf)
