@@ -24,14 +24,21 @@ class AcclaimError(Exception):
 
 
 def find_asf_beside(amc_path):
-    """The skeleton file for ``amc_path``: same stem, CMU subject prefix, or the only .asf there.
+    """The skeleton file for ``amc_path``: the same name (``take.v2.amc`` -> ``take.v2.asf``,
+    as Export writes it), the name up to its first dot, the CMU subject prefix (``08_01.amc`` ->
+    ``08.asf``), or the only .asf there.
 
     Returns ``None`` when none (or several, ambiguously) are found.
     """
     amc = Path(amc_path)
-    stem = amc.name.split(".")[0]
+    name = amc.name
+    for suffix in (".amc.gz", ".amc"):
+        if name.lower().endswith(suffix):
+            name = name[:-len(suffix)]
+            break
+    stem = name.split(".")[0]
     folder = amc.parent
-    for candidate in (stem, stem.split("_")[0]):
+    for candidate in dict.fromkeys((name, stem, stem.split("_")[0])):
         for ext in (".asf", ".ASF", ".asf.gz"):
             path = folder / (candidate + ext)
             if path.is_file():

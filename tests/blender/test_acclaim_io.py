@@ -388,3 +388,16 @@ def test_overflowing_root_values_refuse_with_file_and_line(tmp_path):
     with pytest.raises(RuntimeError, match=rf"08_01\.amc:{i + 1}: root position .*too large in metres"):
         bpy.ops.import_anim.acclaim(filepath=str(bad))
     assert datablock_counts() == before
+
+
+def test_export_and_import_back_a_name_with_dots_among_other_skeletons(tmp_path):
+    """Export writes take.v2.asf beside take.v2.amc; import finds it even when other .asf
+    files lie in the same folder."""
+    import_trial("08_01")
+    (tmp_path / "take.asf").write_bytes(cmu_path("35.asf").read_bytes())
+    (tmp_path / "other.asf").write_bytes(cmu_path("35.asf").read_bytes())
+    assert bpy.ops.export_anim.acclaim(filepath=str(tmp_path / "take.v2.amc")) == {"FINISHED"}
+    assert (tmp_path / "take.v2.asf").is_file()
+    assert bpy.ops.import_anim.acclaim(filepath=str(tmp_path / "take.v2.amc")) == {"FINISHED"}
+    stored = bpy.context.active_object.data["track_and_stride_asf"]
+    assert stored == (tmp_path / "take.v2.asf").read_text()
