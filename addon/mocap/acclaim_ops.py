@@ -79,7 +79,8 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
 
     def execute(self, context):
         """Synchronous (scripts, background mode), or the start of the modal run."""
-        if self.run_modal and _can_run_modal(context) and not _RUNNING:
+        repeat = self.options.is_repeat or self.options.is_repeat_last   # redo panel: at once
+        if self.run_modal and not repeat and _can_run_modal(context) and not _RUNNING:
             return self._start_modal(context)
         return report_outcome(self, _ERRORS, lambda: self._job(context).run())
 
@@ -128,10 +129,12 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
 
     def cancel(self, context):
         """Blender ends the operator (file loaded, window closed): undo what was built."""
+        self._import.context = context
         self._import.cancel()
         self._finish(context)
 
     def modal(self, context, event):
+        self._import.context = context             # the job works in the current context
         if event.type == "ESC" and event.value == "PRESS":
             self._import.cancel()
             self._finish(context)

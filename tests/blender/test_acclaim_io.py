@@ -1,6 +1,7 @@
 """File › Import/Export › Acclaim through bpy.ops: parity with core FK, round trip, errors."""
 
 import importlib
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -401,3 +402,50 @@ def test_export_and_import_back_a_name_with_dots_among_other_skeletons(tmp_path)
     assert bpy.ops.import_anim.acclaim(filepath=str(tmp_path / "take.v2.amc")) == {"FINISHED"}
     stored = bpy.context.active_object.data["track_and_stride_asf"]
     assert stored == (tmp_path / "take.v2.asf").read_text()
+
+
+class _FakeModalImport:
+    """Stands in for the operator instance in modal() (headless bpy has no event loop): the
+    real job and steps; progress, reports and the end of the run recorded."""
+
+    def __init__(self, path):
+        self._import = _job_module().AcclaimImport(bpy.context, str(path), frame_rate_mode="KEEP")
+        self._steps = self._import.steps()
+        self.fractions, self.reports, self.finished = [], [], 0
+
+    def _finish(self, context):
+        self.finished += 1
+
+    def _status(self, context, fraction, stage):
+        self.fractions.append(fraction)
+
+    def report(self, kind, text):
+        self.reports.append((kind, text))
+
+
+def test_modal_import_steps_on_timer_events_blocks_input_and_esc_cancels():
+    modal = importlib.import_module(MODULE + ".addon.mocap.acclaim_ops").TS_OT_import_acclaim.modal
+    timer = SimpleNamespace(type="TIMER", value="NOTHING")
+    click = SimpleNamespace(type="LEFTMOUSE", value="PRESS")
+    wheel = SimpleNamespace(type="WHEELUPMOUSE", value="PRESS")
+    esc = SimpleNamespace(type="ESC", value="PRESS")
+    run = _FakeModalImport(cmu_path("35_17.amc"))
+    assert modal(run, bpy.context, click) == {"RUNNING_MODAL"}       # swallowed while importing
+    assert modal(run, bpy.context, wheel) == {"PASS_THROUGH"}        # viewport navigation
+    outcomes = [modal(run, bpy.context, timer)]
+    while outcomes[-1] == {"RUNNING_MODAL"} and len(outcomes) < 500:
+        outcomes.append(modal(run, bpy.context, timer))
+    assert outcomes[-1] == {"FINISHED"} and len(outcomes) > 60 and run.finished == 1
+    assert run.fractions == sorted(run.fractions) and 0 <= run.fractions[0] and run.fractions[-1] < 1
+    assert run.reports[-1][0] == {"INFO"} and run.reports[-1][1].startswith("Imported 35_17")
+    assert bpy.context.active_object.name == "35_17"
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    before = _scene_state()
+    run = _FakeModalImport(cmu_path("35_17.amc"))
+    for _ in range(70):                                               # into the key writing
+        assert modal(run, bpy.context, timer) == {"RUNNING_MODAL"}
+    assert datablock_counts() != before[0]
+    assert modal(run, bpy.context, esc) == {"CANCELLED"}
+    assert _scene_state() == before and run.finished == 1
+    assert "nothing was changed" in run.reports[-1][1]
