@@ -72,7 +72,7 @@ def line_starts(body, step=32 << 20):
     return np.concatenate(found)
 
 
-def parse_regular_frames(body, starts, grid, first_number=None):
+def parse_regular_frames(body, starts, grid, order=None, first_number=None):
     """Parse the leading regular, valid frames of ``body``; a generator.
 
     Parameters
@@ -83,6 +83,9 @@ def parse_regular_frames(body, starts, grid, first_number=None):
     starts : ndarray of int64
         :func:`line_starts` of ``body``.
     grid : FrameGrid
+    order : array_like of int, optional
+        Output column ``k`` holds the file's value column ``order[k]`` (default: file order);
+        the values are written straight into that order (no second copy of a long capture).
     first_number : int, optional
         The frame number the first frame must have (any, when ``None``).
 
@@ -95,7 +98,7 @@ def parse_regular_frames(body, starts, grid, first_number=None):
     -------
     numbers : ndarray, shape (F,), int64
     values : ndarray, shape (F, sum(grid.counts)), float64
-        File units, in the order the file lists them.
+        File units, columns in ``order``.
     stop_line : int
         0-based index (in ``body``) of the first line not parsed: ``len(starts)`` when every
         line was.
@@ -104,8 +107,10 @@ def parse_regular_frames(body, starts, grid, first_number=None):
     n_frames = len(starts) // block
     frame_bytes = int(starts[block] - starts[0]) if len(starts) > block else len(body)
     per_step = max(1, CHUNK_BYTES // max(frame_bytes, 1))
+    width = int(grid.counts.sum())
+    order = np.arange(width) if order is None else np.asarray(order, dtype=int)
     numbers = np.empty(n_frames, dtype=np.int64)
-    values = np.empty((n_frames, int(grid.counts.sum())), dtype=np.float64)
+    values = np.empty((n_frames, width), dtype=np.float64)
     done = 0
     while done < n_frames:
         stop = min(n_frames, done + per_step)
@@ -118,7 +123,7 @@ def parse_regular_frames(body, starts, grid, first_number=None):
             gaps = np.flatnonzero(np.diff(chunk_numbers[:good]) != 1)
             good = int(gaps[0]) + 1 if len(gaps) else good
         numbers[done:done + good] = chunk_numbers[:good]
-        values[done:done + good] = chunk_values[:good]
+        values[done:done + good] = chunk_values[:good, order]
         done += good
         if done < stop:
             break

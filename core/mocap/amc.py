@@ -135,12 +135,12 @@ def parse_amc_steps(source, asf, path="<string>", fps=None):
     starts = line_starts(body)
     grid_bones = _first_frame_bones(body, starts, layout)
     if grid_bones is None:
-        numbers, file_values, stop_line = np.empty(0, dtype=np.int64), None, 0
+        numbers, values, stop_line = np.empty(0, dtype=np.int64), np.empty((0, layout.n_channels)), 0
     else:
         grid = FrameGrid(grid_bones, [layout.bone_counts[b] for b in grid_bones],
                          np.concatenate([units.scales[b] for b in grid_bones]))
-        numbers, file_values, stop_line = yield from parse_regular_frames(body, starts, grid)
-    values = _to_layout(file_values, grid_bones, layout)
+        numbers, values, stop_line = yield from parse_regular_frames(
+            body, starts, grid, order=_layout_order(grid_bones, layout))
     bone_order = tuple(grid_bones) if grid_bones is not None and len(numbers) else None
     if stop_line < len(starts):
         share = stop_line / len(starts)
@@ -252,13 +252,11 @@ def _first_frame_bones(body, starts, layout):
     return names if sorted(names) == sorted(layout.bones) else None
 
 
-def _to_layout(file_values, bones, layout):
-    """Values in file-bone order -> DOF layout order (a new array)."""
-    if file_values is None:
-        return np.empty((0, layout.n_channels))
+def _layout_order(bones, layout):
+    """Columns of a row listing ``bones``' values that give the DOF layout order."""
     canonical = np.concatenate([np.arange(layout.n_channels)[layout.pattern_slice(bones, name)]
                                 for name in layout.bones])
-    return file_values[:, canonical[layout.file_to_layout]]
+    return canonical[layout.file_to_layout]
 
 
 def _to_core_units(values, layout, length_scale, degrees):

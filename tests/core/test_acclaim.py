@@ -318,6 +318,8 @@ def test_resample_unwraps_angles():
     angles = np.array([[3.1], [-3.1], [-2.9]])
     out = resample(angles, 2, 4, [0])
     assert np.all(np.abs(np.diff(out[:, 0])) < 0.2)
+    np.testing.assert_array_equal(resample(angles, 2, 4, np.array([True])), out)   # a mask too
+    assert np.abs(np.diff(resample(angles, 2, 4)[:, 0])).max() > 3                  # not angles
     with pytest.raises(ValueError, match="positive"):
         resample(angles, 0, 4)
 
