@@ -18,7 +18,8 @@ import numpy as np
 
 from ...core.armature import armature_layout, dofs_to_channels, plausible_envelope_radii
 from ...core.kinematics import make_euler_continuous
-from ...core.mocap import asf_to_skeleton, format_asf, read_amc_steps, read_asf, resample
+from ...core.mocap import (asf_to_skeleton, format_asf, read_amc_steps, read_asf, resample,
+                           run_steps)
 from ..common.armature_build import create_armature_object, remove_ids
 from ..common.fcurves import channelbag, ensure_action, pose_bone_path, write_new_fcurves
 from .acclaim_bridge import PROP_ASF, PROP_SOURCE, AcclaimError, find_asf_beside, scene_fps
@@ -99,6 +100,30 @@ class AcclaimImport:
         MocapParseError
             A malformed .amc (while parsing, before anything is created).
         """
+        values, rate, note = yield from self._read()
+        skeleton = asf_to_skeleton(self.asf)
+        layout = armature_layout(skeleton)
+        target_fps = rate if self.frame_rate_mode == "KEEP" else scene_fps(self.context.scene)
+        if target_fps != rate:
+            yield _READ_SHARE, "resampling"
+            values = resample(values, rate, target_fps, np.arange(3, skeleton.n_dofs))
+        channels = yield from self._convert(values, skeleton, layout)
+        del values
+        yield _READ_SHARE + _CONVERT_SHARE, "building the armature"
+        bag = self._build_armature(layout)
+        targets = [(pose_bone_path(bone, prop), index, bone) for bone, prop, index in layout.channels]
+        frames = self.frame_start + np.arange(len(channels))
+        write_share = 1.0 - _READ_SHARE - _CONVERT_SHARE
+        for c, target in enumerate(targets):
+            yield _READ_SHARE + _CONVERT_SHARE + write_share * c / len(targets), "writing keys"
+            write_new_fcurves(bag, [target], frames, channels[:, c:c + 1])
+        self._finish_scene(target_fps, len(channels))
+        self._built = []
+        return (f"Imported {self.name}: {len(layout.names)} bones, {len(layout.channels)} F-curves, "
+                f"{len(channels)} frames at {target_fps:g} fps (capture: {note})")
+
+    def _read(self):
+        """Steps of parsing; returns (DOF rows (N, n_dofs), capture rate, where the rate came from)."""
         yield 0.0, "reading the motion"
         parse = read_amc_steps(self.amc_path, self.asf,
                                fps=None if self.use_file_rate else self.source_fps)
@@ -115,44 +140,22 @@ class AcclaimImport:
             rate = self.source_fps
             note = ("the file records no rate: Capture Rate" if self.use_file_rate
                     else "Capture Rate, not the file's")
-        note = f"{note}, {rate:g} fps"
-        skeleton = asf_to_skeleton(self.asf)
-        layout = armature_layout(skeleton)
-        values = motion.values
-        del motion
-        target_fps = rate if self.frame_rate_mode == "KEEP" else scene_fps(self.context.scene)
-        if target_fps != rate:
-            yield _READ_SHARE, "resampling"
-            values = resample(values, rate, target_fps, np.arange(3, skeleton.n_dofs))
+        return motion.values, rate, f"{note}, {rate:g} fps"
+
+    def _convert(self, values, skeleton, layout):
+        """Steps of converting DOF rows to F-curve values (N, n_channels)."""
         channels = np.empty((len(values), len(layout.channels)))
         for first in range(0, len(values), CONVERT_FRAMES_PER_STEP):
             yield _READ_SHARE + _CONVERT_SHARE * first / len(values), "converting"
             stop = min(len(values), first + CONVERT_FRAMES_PER_STEP)
             channels[first:stop] = dofs_to_channels(skeleton, layout, values[first:stop])
-        del values
         _join_euler_triples(skeleton, layout, channels)
-        yield _READ_SHARE + _CONVERT_SHARE, "building the armature"
-        bag = self._build_armature(layout)
-        targets = [(pose_bone_path(bone, prop), index, bone) for bone, prop, index in layout.channels]
-        frames = self.frame_start + np.arange(len(channels))
-        write_share = 1.0 - _READ_SHARE - _CONVERT_SHARE
-        for c, target in enumerate(targets):
-            yield _READ_SHARE + _CONVERT_SHARE + write_share * c / len(targets), "writing keys"
-            write_new_fcurves(bag, [target], frames, channels[:, c:c + 1])
-        self._finish_scene(target_fps, len(channels))
-        self._built = []
-        return (f"Imported {self.name}: {len(layout.names)} bones, {len(layout.channels)} F-curves, "
-                f"{len(channels)} frames at {target_fps:g} fps (capture: {note})")
+        return channels
 
     def run(self):
         """All steps at once; returns the summary line (cancels what was built on any error)."""
-        steps = self.steps()
         try:
-            while True:
-                try:
-                    next(steps)
-                except StopIteration as done:
-                    return done.value
+            return run_steps(self.steps())
         except BaseException:
             self.cancel()
             raise

@@ -122,7 +122,7 @@ def parse_amc_steps(source, asf, path="<string>", fps=None):
     if isinstance(source, (list, tuple)):
         source = "\n".join(source)
     if isinstance(source, str):
-        source = source.encode("utf-8", errors="surrogateescape")
+        source = source.encode("utf-8", errors="surrogatepass")   # lone surrogates: not text
     data = normalised_bytes(bytes(source), path)
     layout = channel_layout(asf)
     header = _parse_header(data, asf, path)
