@@ -72,7 +72,7 @@ def line_starts(body, step=32 << 20):
     return np.concatenate(found)
 
 
-def parse_regular_frames(body, starts, grid, order=None, first_number=None):
+def parse_regular_frames(body, starts, grid, order=None):
     """Parse the leading regular, valid frames of ``body``; a generator.
 
     Parameters
@@ -86,8 +86,6 @@ def parse_regular_frames(body, starts, grid, order=None, first_number=None):
     order : array_like of int, optional
         Output column ``k`` holds the file's value column ``order[k]`` (default: file order);
         the values are written straight into that order (no second copy of a long capture).
-    first_number : int, optional
-        The frame number the first frame must have (any, when ``None``).
 
     Yields
     ------
@@ -115,13 +113,10 @@ def parse_regular_frames(body, starts, grid, order=None, first_number=None):
     while done < n_frames:
         stop = min(n_frames, done + per_step)
         good, chunk_numbers, chunk_values = _parse_frames(body, starts, grid, done, stop)
-        if good and (first_number is not None or done > 0):
-            expected = (first_number if done == 0 else numbers[done - 1] + 1)
+        if good:      # consecutive frame numbers (the file's first frame may have any number)
+            expected = chunk_numbers[0] if done == 0 else numbers[done - 1] + 1
             gaps = np.flatnonzero(chunk_numbers[:good] != expected + np.arange(good))
             good = int(gaps[0]) if len(gaps) else good
-        elif good:
-            gaps = np.flatnonzero(np.diff(chunk_numbers[:good]) != 1)
-            good = int(gaps[0]) + 1 if len(gaps) else good
         numbers[done:done + good] = chunk_numbers[:good]
         values[done:done + good] = chunk_values[:good, order]
         done += good
