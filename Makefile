@@ -1,13 +1,25 @@
-# Track & Stride — two commands on a fresh machine (Python 3.11 + make):
+# Track & Stride — two commands on a fresh machine (make + Python 3.13; 3.11 for Blender 4.5/5.0):
 #   make demo    the main job end to end (imports CMU mocap, writes build/demo/)
 #   make test    the whole test suite (core tests + headless Blender tests)
 # Each target creates the virtualenv with the pinned dependencies when it is missing.
 #
-# Blender 4.5 LTS: `make test BPY=4.5.15` runs the same suite against bpy 4.5 in its own venv.
+# Supported Blender: 4.5 LTS, 5.0 and 5.2. The default is the newest release (bpy 5.2.3, Python
+# 3.13, NumPy 2), in .venv; `make test BPY=4.5.15` (or BPY=5.0.1) runs the same suite against
+# that bpy (Python 3.11, NumPy 1.26) in its own .venv-bpy<version>. Each bpy release supports
+# exactly one Python; tools/find_python.sh finds it (PATH, then pyenv, then uv) unless
+# PYTHON=/path/to/pythonX.Y is given. requirements.txt pins per Python (environment markers).
 
-PYTHON ?= python3.11
-BPY ?= 5.0.1
-ifeq ($(BPY),5.0.1)
+SUPPORTED_BPY := 4.5.15 5.0.1 5.2.3
+BPY ?= 5.2.3
+ifneq ($(filter 4.5.% 5.0.%,$(BPY)),)
+PYTHON_VERSION := 3.11
+else ifneq ($(filter 5.1.% 5.2.%,$(BPY)),)
+PYTHON_VERSION := 3.13
+else
+$(error BPY=$(BPY) is not a supported Blender (supported: $(SUPPORTED_BPY)))
+endif
+PYTHON ?=
+ifeq ($(BPY),5.2.3)
 VENV ?= .venv
 else
 VENV ?= .venv-bpy$(BPY)
@@ -22,8 +34,12 @@ PYTEST_ARGS ?=
 
 venv: $(STAMP)
 
+# A venv of another Python or bpy (e.g. .venv made for an earlier default) is recreated.
 $(STAMP): requirements.txt
-	$(PYTHON) -m venv $(VENV)
+	@interpreter="$(PYTHON)"; \
+	if [ -z "$$interpreter" ]; then interpreter="$$(sh tools/find_python.sh $(PYTHON_VERSION))" || exit 1; fi; \
+	echo "$(VENV): bpy $(BPY) on $$interpreter"; \
+	"$$interpreter" -m venv --clear $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check bpy==$(BPY) -r requirements.txt
 	touch $(STAMP)
 
@@ -66,8 +82,9 @@ bench-track-blender: extension
 BENCH_VENV := .venv-bench
 BENCH_STAMP := $(BENCH_VENV)/.installed
 
+# MediaPipe 0.10.21 has wheels for Python 3.11 (whatever Blender the tests use).
 $(BENCH_STAMP): requirements-bench.txt
-	$(PYTHON) -m venv $(BENCH_VENV)
+	@interpreter="$$(sh tools/find_python.sh 3.11)" || exit 1; "$$interpreter" -m venv --clear $(BENCH_VENV)
 	$(BENCH_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --no-deps -r requirements-bench.txt
 	touch $(BENCH_STAMP)
 

@@ -1,23 +1,18 @@
-"""Acclaim ASF/AMC <-> Blender armature and action (the bridge behind the import/export operators).
-
-Parsing happens before any Blender data is touched, so a malformed file changes nothing; a
-failure while building removes what was built.
+"""Acclaim ASF/AMC <-> Blender: finding the skeleton beside a motion, the skeleton stored on an
+imported armature, and export (all or nothing). The import runs as a job in steps:
+:mod:`.acclaim_import`.
 """
 
 import os
 import tempfile
 from pathlib import Path
 
-import bpy
 import numpy as np
 
-from ...core.armature import (armature_layout, channels_to_dofs, dofs_to_channels,
-                              plausible_envelope_radii)
-from ...core.mocap import (AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf, read_amc,
-                           read_asf, resample)
-from ..common.armature_build import create_armature_object, remove_ids
-from ..common.fcurves import (channelbag, ensure_action, evaluate_fcurves, keyframe_state, pose_bone_path,
-                              write_new_fcurves)
+from ...core.armature import armature_layout, channels_to_dofs
+from ...core.mocap import AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf
+from ...core.mocap.amc import FPS_RANGE
+from ..common.fcurves import channelbag, evaluate_fcurves, keyframe_state, pose_bone_path
 
 # Custom properties on the armature data that let export rebuild the exact skeleton.
 PROP_ASF = "track_and_stride_asf"
@@ -29,14 +24,21 @@ class AcclaimError(Exception):
 
 
 def find_asf_beside(amc_path):
-    """The skeleton file for ``amc_path``: same stem, CMU subject prefix, or the only .asf there.
+    """The skeleton file for ``amc_path``: the same name (``take.v2.amc`` -> ``take.v2.asf``,
+    as Export writes it), the name up to its first dot, the CMU subject prefix (``08_01.amc`` ->
+    ``08.asf``), or the only .asf there.
 
     Returns ``None`` when none (or several, ambiguously) are found.
     """
     amc = Path(amc_path)
-    stem = amc.name.split(".")[0]
+    name = amc.name
+    for suffix in (".amc.gz", ".amc"):
+        if name.lower().endswith(suffix):
+            name = name[:-len(suffix)]
+            break
+    stem = name.split(".")[0]
     folder = amc.parent
-    for candidate in (stem, stem.split("_")[0]):
+    for candidate in dict.fromkeys((name, stem, stem.split("_")[0])):
         for ext in (".asf", ".ASF", ".asf.gz"):
             path = folder / (candidate + ext)
             if path.is_file():
@@ -48,81 +50,6 @@ def find_asf_beside(amc_path):
 def scene_fps(scene):
     """Frames per second of the scene (``fps / fps_base``)."""
     return scene.render.fps / scene.render.fps_base
-
-
-def import_acclaim(context, amc_path, asf_path="", frame_rate_mode="RESAMPLE", source_fps=120.0,
-                   frame_start=1, set_frame_range=True):
-    """Import an AMC motion (and its ASF skeleton) as a new armature with a slotted action.
-
-    Parameters
-    ----------
-    context : bpy.types.Context
-    amc_path, asf_path : str
-        ``asf_path`` empty: look beside the AMC (:func:`find_asf_beside`).
-    frame_rate_mode : {'RESAMPLE', 'KEEP'}
-        Resample the capture to the scene's fps, or keep every sample and set the scene's fps to
-        ``source_fps``.
-    source_fps : float
-        Capture rate of the AMC (CMU: 120).
-    frame_start : int
-        Scene frame of the first sample.
-    set_frame_range : bool
-        Set the scene's frame range to the motion.
-
-    Returns
-    -------
-    obj : bpy.types.Object
-    summary : str
-
-    Raises
-    ------
-    MocapParseError, AcclaimError
-        Before anything is created.
-    """
-    if not asf_path:
-        asf_path = find_asf_beside(amc_path)
-        if asf_path is None:
-            raise AcclaimError(f"No .asf skeleton found beside {os.path.basename(amc_path)}; "
-                               "choose one with 'Skeleton File'")
-    asf = read_asf(asf_path)
-    motion = read_amc(amc_path, asf, fps=source_fps)
-    skeleton = asf_to_skeleton(asf)
-    layout = armature_layout(skeleton)
-    scene = context.scene
-    values = motion.values
-    if frame_rate_mode == "KEEP":
-        target_fps = source_fps
-    else:
-        target_fps = scene_fps(scene)
-        rotation_columns = np.arange(3, skeleton.n_dofs)
-        values = resample(values, source_fps, target_fps, rotation_columns)
-    channels = dofs_to_channels(skeleton, layout, values)
-    radii = plausible_envelope_radii(layout.names, np.linalg.norm(layout.tails - layout.heads, axis=1))
-    name = Path(amc_path).name.split(".")[0]
-    obj = action = None
-    data = None
-    try:
-        obj = create_armature_object(context, name, layout, radii)
-        data = obj.data
-        data[PROP_ASF] = Path(asf_path).read_text() if not str(asf_path).endswith(".gz") else format_asf(asf)
-        data[PROP_SOURCE] = os.path.basename(amc_path)
-        action, slot = ensure_action(obj, name)
-        bag = channelbag(action, slot, ensure=True)
-        targets = [(pose_bone_path(bone, prop), index, bone) for bone, prop, index in layout.channels]
-        frames = frame_start + np.arange(len(channels))
-        write_new_fcurves(bag, targets, frames, channels)
-    except Exception:
-        remove_ids(obj, data, action)
-        raise
-    if frame_rate_mode == "KEEP":
-        scene.render.fps = int(round(source_fps))
-        scene.render.fps_base = scene.render.fps / source_fps
-    if set_frame_range:
-        scene.frame_start = int(frame_start)
-        scene.frame_end = int(frame_start + len(channels) - 1)
-    summary = (f"Imported {name}: {len(layout.names)} bones, {len(layout.channels)} F-curves, "
-               f"{len(channels)} frames at {target_fps:g} fps")
-    return obj, summary
 
 
 def armature_asf(obj):
@@ -196,13 +123,16 @@ def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
     """Write the armature's action as AMC, and its skeleton as an ASF beside it (same stem).
 
     One AMC frame per scene frame in ``[frame_start, frame_end]`` (default: the keyed range of
-    the armature's own slot, or the action's manual frame range). Both files are written to
-    temporary files beside the targets first and then put in place: a failure leaves the
-    targets as they were.
+    the armature's own slot, or the action's manual frame range); the scene's frame rate is
+    recorded in the .amc header (``core.mocap.amc``), so importing the file back with default
+    options gives the same frames at the same rate. Both files are written to temporary files
+    beside the targets first and then put in place: a failure leaves the targets as they were.
 
     Returns
     -------
     amc_path, asf_path : str
+    n_frames : int
+    fps : float
     """
     asf = armature_asf(obj)
     skeleton = asf_to_skeleton(asf)
@@ -227,8 +157,12 @@ def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
     defaults = [getattr(obj.pose.bones[bone], prop)[index] for bone, prop, index in layout.channels]
     values, _ = evaluate_fcurves(bag, targets, frames, defaults)
     dofs = channels_to_dofs(skeleton, layout, values)
+    fps = scene_fps(context.scene)
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
+        raise AcclaimError(f"The scene's frame rate {fps:g} fps is outside "
+                           f"{FPS_RANGE[0]:g}..{FPS_RANGE[1]:g}")
     motion = AmcMotion(values=dofs, frame_numbers=np.arange(1, len(frames) + 1), bone_order=(),
-                       fps=scene_fps(context.scene), path=str(amc_path))
+                       fps=fps, path=str(amc_path))
     amc_path = str(amc_path)
     asf_path = str(Path(amc_path).with_suffix(".asf"))
     if os.path.isdir(amc_path) or os.path.isdir(asf_path):
@@ -236,4 +170,4 @@ def export_acclaim(context, obj, amc_path, frame_start=None, frame_end=None):
                            f"{amc_path if os.path.isdir(amc_path) else asf_path} is a folder")
     _write_files({asf_path: format_asf(asf),
                   amc_path: format_amc(asf, motion, asf_name=os.path.basename(asf_path))})
-    return amc_path, asf_path
+    return amc_path, asf_path, len(frames), fps

@@ -1,17 +1,36 @@
 """File › Import/Export › Acclaim Motion Capture (.asf/.amc): thin operators over
-:mod:`.acclaim_bridge`."""
+:mod:`.acclaim_import` (a job in steps: modal with progress and Esc from the UI, synchronous
+from scripts) and :mod:`.acclaim_bridge`."""
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...core.mocap import MocapParseError
-from .acclaim_bridge import AcclaimError, export_acclaim, import_acclaim
+from .acclaim_bridge import AcclaimError, export_acclaim
+from .acclaim_import import AcclaimImport
 from ..common.reporting import report_outcome
+
+# What an import or export reports as "cannot run" (nothing else is caught).
+_ERRORS = (MocapParseError, AcclaimError)
+
+
+# The running modal imports (one at a time).
+_RUNNING = []
+# Viewport navigation stays possible while an import runs; other input waits.
+_PASS_THROUGH = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "MOUSEMOVE",
+                 "INBETWEEN_MOUSEMOVE", "TRACKPADPAN", "TRACKPADZOOM", "MOUSEROTATE",
+                 "NDOF_MOTION"}
+
+
+def _can_run_modal(context):
+    """A modal run needs a window with an event loop (not background mode)."""
+    return not bpy.app.background and context.window is not None
 
 
 class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
-    """Import an Acclaim motion (.amc) and its skeleton (.asf) as an animated armature"""
+    """Import an Acclaim motion (.amc) and its skeleton (.asf) as an animated armature.
+    Long captures show progress; Esc cancels and leaves the file as it was"""
 
     bl_idname = "import_anim.acclaim"
     bl_label = "Import Acclaim Motion Capture"
@@ -32,26 +51,128 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
                ("KEEP", "Keep Capture Rate",
                 "One frame per capture sample; set the scene's frames per second to the capture rate")),
         default="RESAMPLE")
+    use_file_rate: BoolProperty(
+        name="Rate From File",
+        description="Use the frame rate the .amc records (files exported by Track & Stride record "
+                    "theirs); files that record none use Capture Rate",
+        default=True)
     source_fps: FloatProperty(
-        name="Capture Rate", description="Samples per second of the .amc (CMU captures: 120)",
+        name="Capture Rate",
+        description="Samples per second of an .amc that records no rate (CMU captures: 120)",
         default=120.0, min=1.0, max=1000.0)
     frame_start: IntProperty(name="Start Frame", description="Scene frame of the first sample", default=1)
     set_frame_range: BoolProperty(
         name="Set Frame Range", description="Set the scene's start/end frames to the motion", default=True)
+    run_modal: BoolProperty(
+        name="Run With Progress", description="Import step by step with a progress bar; Esc cancels",
+        default=False, options={"HIDDEN", "SKIP_SAVE"})
+
+    def _job(self, context):
+        return AcclaimImport(context, self.filepath, self.asf_filepath, self.frame_rate_mode,
+                             self.source_fps, self.use_file_rate, self.frame_start,
+                             self.set_frame_range)
+
+    def invoke(self, context, event):
+        """From the menu or a drop: after the file browser, the import runs modal."""
+        self.run_modal = _can_run_modal(context)
+        return ImportHelper.invoke(self, context, event)
 
     def execute(self, context):
-        return report_outcome(self, (MocapParseError, AcclaimError), lambda: import_acclaim(
-            context, self.filepath, self.asf_filepath, self.frame_rate_mode, self.source_fps,
-            self.frame_start, self.set_frame_range)[1])
+        """Synchronous (scripts, background mode), or the start of the modal run."""
+        repeat = self.options.is_repeat or self.options.is_repeat_last   # redo panel: at once
+        if self.run_modal and not repeat and _can_run_modal(context) and not _RUNNING:
+            return self._start_modal(context)
+        return report_outcome(self, _ERRORS, lambda: self._job(context).run())
+
+    def _start_modal(self, context):
+        try:
+            self._import = self._job(context)
+        except _ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._steps = self._import.steps()
+        self._area = context.area
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        _RUNNING.append(self)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, fraction, stage):
+        context.window_manager.progress_update(int(100 * fraction))
+        text = (f"Track & Stride: importing {self._import.name}, {stage} "
+                f"({100 * fraction:.0f} %) — Esc cancels")
+        if context.workspace is not None:
+            context.workspace.status_text_set(text)
+        if self._area is not None:
+            try:
+                self._area.header_text_set(text)
+            except ReferenceError:                # the area was closed meanwhile
+                self._area = None
+
+    def _finish(self, context):
+        """Timer, progress bar, status and header text off (safe to call twice)."""
+        if self not in _RUNNING:
+            return
+        _RUNNING.remove(self)
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        if self._area is not None:
+            try:
+                self._area.header_text_set(None)
+            except ReferenceError:
+                pass
+
+    def cancel(self, context):
+        """Blender ends the operator (file loaded, window closed): undo what was built."""
+        self._import.context = context
+        self._import.cancel()
+        self._finish(context)
+
+    def modal(self, context, event):
+        self._import.context = context             # the job works in the current context
+        if event.type == "ESC" and event.value == "PRESS":
+            self._import.cancel()
+            self._finish(context)
+            self.report({"INFO"}, "Import cancelled: nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in _PASS_THROUGH else {"RUNNING_MODAL"}
+        try:
+            fraction, stage = next(self._steps)
+        except StopIteration as done:
+            self._finish(context)
+            self.report({"INFO"}, done.value)
+            return {"FINISHED"}
+        except Exception as exc:  # noqa: BLE001  (any failure must end the run and its timer)
+            self._import.cancel()
+            self._finish(context)
+            self.report({"ERROR"}, str(exc) if isinstance(exc, _ERRORS)
+                        else f"Import failed: {type(exc).__name__}: {exc}")
+            return {"CANCELLED"}
+        self._status(context, fraction, stage)
+        return {"RUNNING_MODAL"}
 
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(self, "asf_filepath")
         layout.prop(self, "frame_rate_mode")
+        layout.prop(self, "use_file_rate")
         layout.prop(self, "source_fps")
         layout.prop(self, "frame_start")
         layout.prop(self, "set_frame_range")
+
+
+def cancel_running():
+    """End a running modal import, removing what it built (add-on disabled)."""
+    for op in list(_RUNNING):
+        op._import.cancel()
+        op._finish(bpy.context)
 
 
 class TS_OT_export_acclaim(bpy.types.Operator, ExportHelper):
@@ -80,7 +201,7 @@ class TS_OT_export_acclaim(bpy.types.Operator, ExportHelper):
         scene = context.scene
         start, end = (scene.frame_start, scene.frame_end) if self.use_scene_range else (None, None)
         return report_outcome(
-            self, (MocapParseError, AcclaimError, OSError), lambda: "Wrote {} and {}".format(
+            self, _ERRORS + (OSError,), lambda: "Wrote {} and {} ({} frames at {:g} fps)".format(
                 *export_acclaim(context, context.active_object, self.filepath, start, end)))
 
 
@@ -119,6 +240,7 @@ def register():
 
 
 def unregister():
+    cancel_running()
     for menu, func in reversed(MENUS):
         menu.remove(func)
     unregister_classes()

@@ -176,6 +176,14 @@ def _render_frames(scene):
     bpy.ops.render.render(animation=True, scene=scene.name)
 
 
+def _strip_length(strip):
+    """Frames of a sequencer strip between its handles: ``duration`` from Blender 5.2 on,
+    ``frame_final_duration`` before (deprecated in 5.2, removed in 6.0)."""
+    if "duration" in strip.bl_rna.properties:
+        return strip.duration
+    return strip.frame_final_duration
+
+
 def _decode_movie(footage, first, last, folder):
     """Render movie frames first..last (0-based) to PNG files via a temporary VSE scene.
 
@@ -195,9 +203,10 @@ def _decode_movie(footage, first, last, folder):
             strip = editor.strips.new_movie("footage", footage.path, 1, 1)
         except RuntimeError as exc:
             raise FootageError(f"Blender cannot decode {footage.path}: {exc}") from None
-        if strip.frame_final_duration < last + 1:
+        length = _strip_length(strip)
+        if length < last + 1:
             raise FootageError(f"Blender cannot decode {footage.path}: it holds "
-                               f"{strip.frame_final_duration} frames, frame {last + 1} is needed")
+                               f"{length} frames, frame {last + 1} is needed")
         strip.colorspace_settings.name = "sRGB"
         scene.view_settings.view_transform = "Standard"
         scene.view_settings.look = "None"

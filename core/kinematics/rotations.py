@@ -149,6 +149,14 @@ def make_euler_continuous(angles, order="XYZ"):
     middle, last applied axis) and every angle may move by multiples of 2 pi, so that F-curves
     have no +-pi flips. Same idea as Blender's ``Matrix.to_euler(mode, compat)``.
 
+    The greedy frame-by-frame choice (keep the frame's own triple unless the alternate one is
+    strictly closer, in summed absolute angle, to the previous frame) is computed without a loop
+    over frames: which triple is closer depends only on the triple chosen for the previous frame
+    (the 2 pi shifts do not change the wrapped differences), so each step maps the previous
+    choice to the next by one of four functions (keep, swap, always own, always alternate), and
+    the choices follow from where the last "always" step was and how many swaps came after it.
+    The angles are then unwrapped along the chosen triples (cumulative sum of wrapped steps).
+
     Parameters
     ----------
     angles : array_like, shape (N, 3), radians
@@ -157,7 +165,7 @@ def make_euler_continuous(angles, order="XYZ"):
     Returns
     -------
     ndarray, shape (N, 3), radians
-        Same rotations, continuous representation; the first frame is only wrapped to (-pi, pi].
+        Same rotations, continuous representation; the first frame is kept as given.
     """
     angles = np.array(angles, dtype=float)
     if angles.ndim != 2 or angles.shape[1] != 3:
@@ -167,21 +175,32 @@ def make_euler_continuous(angles, order="XYZ"):
     alternate[:, i] += np.pi
     alternate[:, j] = np.pi - alternate[:, j]
     alternate[:, k] += np.pi
-    two_pi = 2.0 * np.pi
+    if len(angles) < 2:
+        return angles
+    triples = (angles, alternate)
+    # take_alternate[p][t]: frame t + 1 takes its alternate triple when frame t took triple p.
+    take_alternate = [np.abs(_wrapped_step(triples[p][:-1], alternate[1:])).sum(axis=1)
+                      < np.abs(_wrapped_step(triples[p][:-1], angles[1:])).sum(axis=1)
+                      for p in (0, 1)]
+    fixed = take_alternate[0] == take_alternate[1]          # the same choice after either triple
+    swap = take_alternate[0] & ~take_alternate[1]            # the other triple than before
+    steps = np.arange(len(fixed))
+    last_fixed = np.maximum.accumulate(np.where(fixed, steps, -1))
+    swaps = np.cumsum(swap)
+    swaps_before = np.where(last_fixed >= 0, swaps[np.maximum(last_fixed, 0)], 0)
+    start = np.where(last_fixed >= 0, take_alternate[0][np.maximum(last_fixed, 0)], False)
+    chosen = np.concatenate(([False], start ^ ((swaps - swaps_before) % 2 == 1)))
+    picked = np.where(chosen[:, None], alternate, angles)
     out = np.empty_like(angles)
-    if len(angles) == 0:
-        return out
     out[0] = angles[0]
-    for t in range(1, len(angles)):
-        prev = out[t - 1]
-        best, best_cost = None, np.inf
-        for cand in (angles[t], alternate[t]):
-            cand = cand + two_pi * np.round((prev - cand) / two_pi)
-            cost = np.abs(cand - prev).sum()
-            if cost < best_cost:
-                best, best_cost = cand, cost
-        out[t] = best
+    out[1:] = angles[0] + np.cumsum(_wrapped_step(picked[:-1], picked[1:]), axis=0)
     return out
+
+
+def _wrapped_step(before, after):
+    """``after - before`` moved by whole turns into [-pi, pi] (per angle)."""
+    step = after - before
+    return step - 2.0 * np.pi * np.round(step / (2.0 * np.pi))
 
 
 def exp_so3(rotvec):

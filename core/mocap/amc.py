@@ -4,16 +4,43 @@ A motion is returned as one array in the DOF layout of the skeleton built by
 :func:`.acclaim_skeleton.asf_to_skeleton` (root translation x, y, z; root rotations in the
 ``:root order``; then every bone's DOFs in joint order), converted once, here, to the core's
 units and world: metres, radians, Z up (see ``docs/conventions.md``).
+
+Reading is vectorised: the regular frames (every frame listing the same bones in the same order,
+as in CMU's files and ours) are parsed by whole-array operations on the file's bytes
+(:mod:`._amc_grid`), in steps with progress; from the first frame that is irregular or invalid
+on, a line-by-line parser takes over, which accepts any bone order and names the file and line
+of anything wrong.
+
+Frame rate: Acclaim files have no field for it (CMU captures are 120 Hz). Track & Stride writes
+the rate as a comment in the header, which other Acclaim readers skip like any comment::
+
+    #!OML:ASF walk.asf
+    # frames per second: 24
+    :FULLY-SPECIFIED
+    :DEGREES
+
+and reads it back (``AmcMotion.recorded_fps``); files without it are taken as 120 Hz.
 """
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from ._text import parse_float, read_text
+from ._amc_grid import FrameGrid, line_starts, parse_regular_frames
+from ._text import check_magnitude, normalised_bytes, parse_float, read_bytes
 from .acclaim_skeleton import YUP_TO_ZUP, channel_layout
 from .asf import _fmt
 from .errors import MocapParseError
+
+# Sampling rate of a file that records none: CMU's capture rate.
+CMU_FPS = 120.0
+# Frame rates a file may record (frames per second).
+FPS_RANGE = (0.01, 10000.0)
+FPS_COMMENT = "# frames per second:"
+_FPS_LINE = re.compile(r"#\s*frames per second\s*:(.*)$", re.IGNORECASE)
+# Lines between two progress reports of the line-by-line parser.
+_SLOW_STEP_LINES = 50000
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,15 +56,18 @@ class AmcMotion:
     bone_order : tuple of str
         Order in which the file lists bones within a frame (kept for writing).
     fps : float
-        Sampling rate; Acclaim files do not store it, CMU captures are 120 Hz.
+        Sampling rate: the one the file records, else the caller's, else 120 Hz (CMU).
     path : str
+    recorded_fps : float or None
+        The rate the file records in its header comment (``None``: it records none).
     """
 
     values: np.ndarray
     frame_numbers: np.ndarray
     bone_order: tuple
-    fps: float = 120.0
+    fps: float = CMU_FPS
     path: str = "<string>"
+    recorded_fps: float = None
 
     @property
     def n_frames(self):
@@ -45,82 +75,111 @@ class AmcMotion:
         return len(self.values)
 
 
-def read_amc(path, asf, fps=120.0):
+def run_steps(steps):
+    """Drive a ``*_steps`` generator to its end and return its result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+def read_amc(path, asf, fps=None):
     """Read an .amc (or .amc.gz) file that belongs to the skeleton ``asf``.
 
     Parameters
     ----------
     path : str or path-like
     asf : AsfSkeleton
-    fps : float
-        Sampling rate to record (CMU: 120 Hz).
+    fps : float, optional
+        Sampling rate to use whatever the file records; default: the rate the file records,
+        else 120 Hz (CMU).
 
     Raises
     ------
     MocapParseError
-        Naming the file and line: truncated frames, wrong value counts, unknown bones,
-        non-numeric or non-finite values, missing or non-consecutive frame numbers.
+        Naming the file and line: a missing file, truncated frames, wrong value counts, unknown
+        bones, non-numeric, non-finite or overflowing values, missing or non-consecutive frame
+        numbers, an invalid recorded frame rate.
     """
-    return parse_amc(read_text(path), asf, path=path, fps=fps)
+    return run_steps(read_amc_steps(path, asf, fps=fps))
 
 
-def parse_amc(lines, asf, path="<string>", fps=120.0):
-    """Parse the lines of an .amc file (see :func:`read_amc`)."""
-    if isinstance(lines, str):
-        lines = lines.splitlines()
+def read_amc_steps(path, asf, fps=None):
+    """:func:`read_amc` as a generator: yields the fraction done (0..1), returns the
+    :class:`AmcMotion` (``StopIteration.value``)."""
+    data = read_bytes(path)
+    return (yield from parse_amc_steps(data, asf, path=path, fps=fps))
+
+
+def parse_amc(source, asf, path="<string>", fps=None):
+    """Parse an .amc file's content: bytes, text, or a list of lines (see :func:`read_amc`)."""
+    return run_steps(parse_amc_steps(source, asf, path=path, fps=fps))
+
+
+def parse_amc_steps(source, asf, path="<string>", fps=None):
+    """:func:`parse_amc` as a generator (see :func:`read_amc_steps`)."""
+    if isinstance(source, (list, tuple)):
+        source = "\n".join(source)
+    if isinstance(source, str):
+        source = source.encode("utf-8", errors="surrogatepass")   # lone surrogates: not text
+    data = normalised_bytes(bytes(source), path)
     layout = channel_layout(asf)
-    start, degrees = _parse_header(lines, asf, path)
-    body = lines[start:]
-    while body and not body[-1].strip():
-        body = body[:-1]
-    if not body:
-        raise MocapParseError(path, len(lines) or None, "the file has no frames")
-    tokens = [line.split() for line in body]
-    parsed = _parse_fast(tokens, layout) or _parse_slow(tokens, layout, start, path)
-    frame_numbers, bone_order, raw = parsed
-    if not np.all(np.isfinite(raw)):
-        _parse_slow(tokens, layout, start, path)  # raises, naming the line
-        raise MocapParseError(path, None, "non-finite value")  # pragma: no cover - defensive
-    values = raw[:, layout.file_to_layout]
-    with np.errstate(over="ignore"):              # checked just below
-        values[:, layout.translation_columns] *= asf.length_scale
-    too_far = ~np.all(np.isfinite(values[:, layout.translation_columns]), axis=1)
-    if np.any(too_far):   # finite in file units, beyond float range in metres
-        frame = int(np.argmax(too_far))
-        raise MocapParseError(path, _root_line(tokens, start, frame),
-                              f"frame {frame_numbers[frame]}: root position is too large in metres")
-    values[:, layout.translation_columns] = values[:, layout.translation_columns] @ YUP_TO_ZUP.T
-    if degrees:
-        values[:, layout.rotation_columns] *= np.pi / 180.0
-    return AmcMotion(values=values, frame_numbers=frame_numbers, bone_order=bone_order,
-                     fps=float(fps), path=str(path))
+    header = _parse_header(data, asf, path)
+    body_end = _end_of_last_line(data, header.offset)
+    if body_end <= header.offset:
+        total = data.count(b"\n") + (0 if not data or data.endswith(b"\n") else 1)
+        raise MocapParseError(path, total or None, "the file has no frames")
+    units = _value_units(asf, layout, header.degrees)
+    body = np.frombuffer(data, dtype=np.uint8, count=body_end - header.offset, offset=header.offset)
+    starts = line_starts(body)
+    grid_bones = _first_frame_bones(body, starts, layout)
+    if grid_bones is None:
+        numbers, values, stop_line = np.empty(0, dtype=np.int64), np.empty((0, layout.n_channels)), 0
+    else:
+        grid = FrameGrid(grid_bones, [layout.bone_counts[b] for b in grid_bones],
+                         np.concatenate([units.scales[b] for b in grid_bones]))
+        numbers, values, stop_line = yield from parse_regular_frames(
+            body, starts, grid, order=_layout_order(grid_bones, layout))
+    bone_order = tuple(grid_bones) if grid_bones is not None and len(numbers) else None
+    if stop_line < len(starts):
+        share = stop_line / len(starts)
+        lines = _text_lines(data, header.offset + int(starts[stop_line]), body_end)
+        slow_numbers, slow_order, slow_raw = yield from _scaled_progress(
+            _parse_slow(lines, layout, header.lines + stop_line, path, units,
+                        previous=int(numbers[-1]) if len(numbers) else None),
+            share, len(starts) - stop_line)
+        numbers = np.concatenate([numbers, slow_numbers])
+        values = np.concatenate([values, slow_raw[:, layout.file_to_layout]])
+        bone_order = bone_order or slow_order
+    _to_core_units(values, layout, asf.length_scale, header.degrees)
+    rate = float(fps) if fps is not None else (header.fps or CMU_FPS)
+    return AmcMotion(values=values, frame_numbers=numbers, bone_order=bone_order, fps=rate,
+                     path=str(path), recorded_fps=header.fps)
 
 
-def _root_line(tokens, start, frame):
-    """1-based line number of the ``root`` line of the ``frame``-th frame (0-based)."""
-    seen = -1
-    for idx, parts in enumerate(tokens):
-        if parts and _is_frame_number(parts[0]):
-            seen += 1
-        elif seen == frame and parts and parts[0] == "root":
-            return start + idx + 1
-    return None  # pragma: no cover - the parsed frame has a root line
+@dataclass(frozen=True)
+class _Header:
+    offset: int        # byte offset of the first body line
+    lines: int         # number of lines before it
+    degrees: bool
+    fps: float         # recorded rate or None
 
 
-def _is_frame_number(token):
-    """ASCII digits only (``str.isdigit`` also accepts e.g. superscripts)."""
-    return token.isascii() and token.isdigit()
-
-
-def _parse_header(lines, asf, path):
+def _parse_header(data, asf, path):
     degrees = asf.angle_unit == "deg"
-    start = 0
-    for number, raw in enumerate(lines, start=1):
-        text = raw.strip()
+    fps = None
+    start, offset, number, pos = 0, 0, 0, 0
+    while pos < len(data):
+        end = data.find(b"\n", pos)
+        end = len(data) if end < 0 else end
+        number += 1
+        text = data[pos:end].decode("utf-8").strip()
         if not text or text.startswith("#"):
-            start = number
-            continue
-        if text.startswith(":"):
+            match = _FPS_LINE.match(text)
+            if match:
+                fps = _recorded_fps(match.group(1).strip(), path, number)
+        elif text.startswith(":"):
             keyword = text.upper()
             if keyword == ":DEGREES":
                 degrees = True
@@ -128,59 +187,151 @@ def _parse_header(lines, asf, path):
                 degrees = False
             elif keyword != ":FULLY-SPECIFIED":
                 raise MocapParseError(path, number, f"unknown header keyword {text!r}")
-            start = number
-            continue
-        break
-    return start, degrees
+        else:
+            break
+        start, offset, pos = number, min(end + 1, len(data)), end + 1
+    return _Header(offset=offset, lines=start, degrees=degrees, fps=fps)
 
 
-def _parse_fast(tokens, layout):
-    """Vectorised path for the usual file: every frame lists the same bones in the same order.
+def _recorded_fps(token, path, line):
+    value = parse_float(token, path, line, "frames per second")
+    if not FPS_RANGE[0] <= value <= FPS_RANGE[1]:
+        raise MocapParseError(path, line, f"frames per second {token} is outside "
+                              f"{FPS_RANGE[0]:g}..{FPS_RANGE[1]:g}")
+    return value
 
-    Returns ``None`` when anything is irregular; the slow path then parses (or names the error).
-    """
-    if not tokens[0] or not _is_frame_number(tokens[0][0]):
-        return None
-    block = 1
-    while block < len(tokens) and tokens[block] and not _is_frame_number(tokens[block][0]):
-        block += 1
-    pattern = [t[0] for t in tokens[1:block]]
-    if sorted(pattern) != sorted(layout.bone_counts) or len(tokens) % block:
-        return None
-    n = len(tokens) // block
-    heads = [t[0] if t else "" for t in tokens]
-    lengths = [len(t) for t in tokens]
-    for j, name in enumerate(pattern, start=1):
-        if heads[j::block] != [name] * n or lengths[j::block] != [layout.bone_counts[name] + 1] * n:
+
+def _end_of_last_line(data, offset):
+    """Byte offset just after the last non-blank line at or after ``offset``."""
+    end = len(data)
+    while end > offset:
+        newline = data.rfind(b"\n", offset, end)
+        begin = newline + 1 if newline >= 0 else offset
+        if data[begin:end].decode("utf-8").strip():
+            return end
+        end = newline if newline >= 0 else offset
+    return offset
+
+
+@dataclass(frozen=True)
+class _Units:
+    """Per bone: the factor from file units to core units of each value on its line, and the
+    name of that core unit ('metres' or 'radians')."""
+
+    scales: dict
+    names: dict
+
+
+def _value_units(asf, layout, degrees):
+    angle = np.pi / 180.0 if degrees else 1.0
+    root = [(asf.length_scale, "metres") if t.startswith("T") else (angle, "radians")
+            for t in asf.root_order]
+    scales = {"root": np.array([s for s, _ in root])}
+    names = {"root": tuple(u for _, u in root)}
+    for name in layout.bones[1:]:
+        scales[name] = np.full(layout.bone_counts[name], angle)
+        names[name] = ("radians",) * layout.bone_counts[name]
+    return _Units(scales=scales, names=names)
+
+
+def _first_frame_bones(body, starts, layout):
+    """Bone order of the first frame when it is complete (else ``None``: no regular part)."""
+    names = []
+    for i in range(min(len(starts), len(layout.bones) + 2)):
+        end = int(starts[i + 1]) - 1 if i + 1 < len(starts) else len(body)
+        parts = bytes(body[int(starts[i]):end]).decode("utf-8").split()
+        if i == 0:
+            if len(parts) != 1 or not _is_frame_number(parts[0]):
+                return None
+        elif not parts:
             return None
-    try:
-        numbers = np.array([int(h) for h in heads[0::block]])
-    except ValueError:
-        return None
-    if np.any(lengths[0::block] != np.ones(n, dtype=int)) or np.any(np.diff(numbers) != 1):
-        return None
-    flat = [v for j, t in enumerate(tokens) if j % block for v in t[1:]]
-    try:
-        raw_file = np.array(flat, dtype=float).reshape(n, -1)
-    except ValueError:
-        return None
-    # Columns of raw_file follow `pattern`; reorder into the canonical file-bone order.
-    raw = np.concatenate([raw_file[:, layout.pattern_slice(pattern, name)] for name in layout.bones], axis=1)
-    return numbers, tuple(pattern), raw
+        elif _is_frame_number(parts[0]):
+            break
+        else:
+            names.append(parts[0])
+    return names if sorted(names) == sorted(layout.bones) else None
 
 
-def _parse_slow(tokens, layout, start, path):
-    """Line-by-line parse that accepts any bone order and names the first bad line."""
-    frames, numbers, bone_order = [], [], None
+def _layout_order(bones, layout):
+    """Columns of a row listing ``bones``' values that give the DOF layout order."""
+    canonical = np.concatenate([np.arange(layout.n_channels)[layout.pattern_slice(bones, name)]
+                                for name in layout.bones])
+    return canonical[layout.file_to_layout]
+
+
+def _to_core_units(values, layout, length_scale, degrees):
+    """File units and axes -> metres, radians, Z up, in place (magnitudes checked already)."""
+    translation = layout.translation_columns
+    values[:, translation] *= length_scale
+    values[:, translation] = values[:, translation] @ YUP_TO_ZUP.T
+    if degrees:
+        values[:, layout.rotation_columns] *= np.pi / 180.0
+
+
+def _text_lines(data, begin, end, piece=1 << 20):
+    """The lines of ``data[begin:end]``, decoded lazily a piece at a time."""
+    pos = begin
+    while pos < end:
+        cut = min(end, pos + piece)
+        if cut < end:
+            newline = data.find(b"\n", cut, end)
+            cut = end if newline < 0 else newline
+        yield from data[pos:cut].decode("utf-8").split("\n")
+        pos = cut + 1
+
+
+def _scaled_progress(steps, done, lines):
+    """Re-yield a line-by-line parser's line counts as fractions of the whole body."""
+    while True:
+        try:
+            count = next(steps)
+        except StopIteration as finished:
+            return finished.value
+        yield done + (1.0 - done) * min(1.0, count / max(lines, 1))
+
+
+def _is_frame_number(token):
+    """ASCII digits only (``str.isdigit`` also accepts e.g. superscripts)."""
+    return token.isascii() and token.isdigit()
+
+
+def _parse_slow(lines, layout, start, path, units, previous=None):
+    """Line-by-line parse that accepts any bone order and names the first bad line; a generator
+    (yields the count of lines read every few thousand lines).
+
+    Parameters
+    ----------
+    lines : iterable of str
+        Motion lines, the first a frame-number line.
+    start : int
+        Number of file lines before the first of ``lines``.
+    units : _Units
+        Per bone, file units -> metres/radians of its values (:func:`_value_units`).
+    previous : int, optional
+        Number of the frame just before (parsed already).
+
+    Returns
+    -------
+    numbers : ndarray, shape (N,), int
+    bone_order : tuple of str
+    raw : ndarray, shape (N, n_channels)
+        File units, canonical file-bone order (``layout.bones``).
+    """
+    rows, numbers, bone_order = [], [], None
     current, current_line = None, None
+    last = previous
 
     def close(frame, line):
         missing = [b for b in layout.bones if b not in frame]
         if missing:
             raise MocapParseError(path, line, f"frame {numbers[-1]} is truncated: it lacks {', '.join(missing)}")
+        rows.append([v for name in layout.bones for v in frame[name]])
 
-    for idx, parts in enumerate(tokens):
+    for idx, text in enumerate(lines):
+        if idx and idx % _SLOW_STEP_LINES == 0:
+            yield idx
         line = start + idx + 1
+        parts = text.split()
         if not parts:
             raise MocapParseError(path, line, "blank line inside the motion data")
         head = parts[0]
@@ -192,11 +343,11 @@ def _parse_slow(tokens, layout, start, path):
                 if bone_order is None:
                     bone_order = tuple(current)
             number = int(head)
-            if numbers and number != numbers[-1] + 1:
-                raise MocapParseError(path, line, f"frame {number} follows frame {numbers[-1]}: frames must be consecutive")
+            if last is not None and number != last + 1:
+                raise MocapParseError(path, line, f"frame {number} follows frame {last}: frames must be consecutive")
             numbers.append(number)
+            last = number
             current, current_line = {}, line
-            frames.append(current)
             continue
         if current is None:
             raise MocapParseError(path, line, f"expected a frame number, got {head!r}")
@@ -208,24 +359,33 @@ def _parse_slow(tokens, layout, start, path):
         count = layout.bone_counts[head]
         if len(parts) - 1 != count:
             raise MocapParseError(path, line, f"bone {head!r} needs {count} values, got {len(parts) - 1}")
-        current[head] = [parse_float(p, path, line, f"bone {head!r}") for p in parts[1:]]
+        values = [parse_float(p, path, line, f"bone {head!r}") for p in parts[1:]]
+        for value, token, scale, unit in zip(values, parts[1:], units.scales[head], units.names[head]):
+            what = (f"root position {token}" if unit == "metres" else f"bone {head!r}: angle {token}")
+            check_magnitude(value, scale, path, line, what, unit)
+        current[head] = values
     if current is None:
         raise MocapParseError(path, start + 1, "the file has no frames")
     close(current, current_line)
     if bone_order is None:
         bone_order = tuple(current)
-    raw = np.array([[v for name in layout.bones for v in frame[name]] for frame in frames])
-    return np.array(numbers), bone_order, raw
+    raw = np.array(rows, dtype=float).reshape(len(rows), layout.n_channels)
+    return np.array(numbers, dtype=np.int64), bone_order, raw
 
 
 def format_amc(asf, motion, asf_name=None):
-    """Text of an .amc file for ``motion`` (values in core units/world, see :class:`AmcMotion`)."""
+    """Text of an .amc file for ``motion`` (values in core units/world, see :class:`AmcMotion`).
+
+    The header records ``motion.fps`` as a comment (module docstring).
+    """
     layout = channel_layout(asf)
     values = np.array(motion.values, dtype=float)
     if values.ndim != 2 or values.shape[1] != layout.n_channels:
         raise ValueError(f"Expected values of shape (N, {layout.n_channels}), got {values.shape}")
     if not np.all(np.isfinite(values)):
         raise ValueError("motion values must be finite")
+    if not FPS_RANGE[0] <= motion.fps <= FPS_RANGE[1]:
+        raise ValueError(f"frames per second {motion.fps!r} is outside {FPS_RANGE[0]:g}..{FPS_RANGE[1]:g}")
     values[:, layout.translation_columns] = values[:, layout.translation_columns] @ YUP_TO_ZUP
     values[:, layout.translation_columns] /= asf.length_scale
     degrees = asf.angle_unit == "deg"
@@ -241,6 +401,7 @@ def format_amc(asf, motion, asf_name=None):
     out = []
     if asf_name:
         out.append(f"#!OML:ASF {asf_name}")
+    out.append(f"{FPS_COMMENT} {_fmt(motion.fps)}")
     out += [":FULLY-SPECIFIED", ":DEGREES" if degrees else ":RADIANS"]
     for number, row in zip(numbers, raw):
         out.append(str(int(number)))

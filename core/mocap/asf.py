@@ -14,12 +14,11 @@ Conventions of this reader (documented in ``docs/conventions.md``):
   absolute (as in every CMU file, whose root position is 0 0 0).
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._text import parse_float, read_text
+from ._text import MAX_MAGNITUDE, check_magnitude, parse_float, read_text
 from .errors import MocapParseError
 
 INCH = 0.0254
@@ -199,9 +198,9 @@ def _parse_units(section, path):
             number_value = parse_float(value, path, number, f"units {key}")
             if number_value <= 0:
                 raise MocapParseError(path, number, f"units {key} must be positive")
-            if key == "length" and not math.isfinite(INCH / number_value):
+            if key == "length" and not INCH / number_value <= MAX_MAGNITUDE:
                 raise MocapParseError(path, number, f"units length {value} is too small: one "
-                                      "file unit would be infinitely long")
+                                      f"file unit would be longer than {MAX_MAGNITUDE:g} metres")
             units[key] = number_value
         else:
             raise MocapParseError(path, number, f"unknown unit {key!r}")
@@ -230,13 +229,13 @@ def _parse_root(section, path, length_scale, deg):
                 raise MocapParseError(path, number, f"root axis must be an order like XYZ, got {' '.join(parts)!r}")
             found["root_axis"] = parts[0].upper()
         elif key == "position":
-            with np.errstate(over="ignore"):      # checked just below
-                position = np.array(_floats(parts, 3, path, number, "root position")) * length_scale
-            if not np.all(np.isfinite(position)):
-                raise MocapParseError(path, number, "root position is too large in metres")
-            found["root_position"] = position
+            found["root_position"] = np.array([
+                check_magnitude(v, length_scale, path, number, "root position", "metres")
+                for v in _floats(parts, 3, path, number, "root position")])
         elif key == "orientation":
-            found["root_orientation"] = np.array(_floats(parts, 3, path, number, "root orientation")) * angle_scale
+            found["root_orientation"] = np.array([
+                check_magnitude(v, angle_scale, path, number, "root orientation", "radians")
+                for v in _floats(parts, 3, path, number, "root orientation")])
         else:
             raise MocapParseError(path, number, f"unknown :root keyword {key!r}")
     missing = [k for k in ("root_order", "root_axis") if k not in found]
@@ -306,6 +305,9 @@ def _parse_bone(block, start, path, length_scale, angle_scale):
             raise MocapParseError(path, number, f"bone {name!r}: unknown keyword {key!r}")
     number, parts = fields["direction"]
     direction = np.array(_floats(parts, 3, path, number, f"bone {name!r} direction"))
+    if not np.all(np.abs(direction) <= MAX_MAGNITUDE):
+        raise MocapParseError(path, number, f"bone {name!r}: direction is too large (|value| above "
+                              f"{MAX_MAGNITUDE:g})")
     norm = np.linalg.norm(direction)
     if not norm > 1e-12:
         raise MocapParseError(path, number, f"bone {name!r}: direction must not be zero")
@@ -313,12 +315,12 @@ def _parse_bone(block, start, path, length_scale, angle_scale):
     length = _floats(parts, 1, path, number, f"bone {name!r} length")[0]
     if length < 0:
         raise MocapParseError(path, number, f"bone {name!r}: length must not be negative")
-    if not math.isfinite(length * length_scale):
-        raise MocapParseError(path, number, f"bone {name!r}: length is too large in metres")
+    length = check_magnitude(length, length_scale, path, number, f"bone {name!r}: length", "metres")
     number, parts = fields["axis"]
     if len(parts) != 4 or parts[3].upper() not in _EULER_ORDERS:
         raise MocapParseError(path, number, f"bone {name!r}: axis needs 3 angles and an order like XYZ")
-    axis = np.array(_floats(parts[:3], 3, path, number, f"bone {name!r} axis")) * angle_scale
+    axis = np.array([check_magnitude(v, angle_scale, path, number, f"bone {name!r} axis", "radians")
+                     for v in _floats(parts[:3], 3, path, number, f"bone {name!r} axis")])
     dofs = ()
     if "dof" in fields:
         number, parts = fields["dof"]
@@ -333,6 +335,10 @@ def _parse_bone(block, start, path, length_scale, angle_scale):
             raise MocapParseError(path, limit_line or start,
                                   f"bone {name!r}: {len(dofs)} DOFs need {2 * len(dofs)} limit values, got {len(limits)}")
     limit_array = np.array(limits, dtype=float).reshape(len(dofs), 2) * angle_scale
+    finite = np.isfinite(limit_array)
+    if not np.all(np.abs(limit_array[finite]) <= MAX_MAGNITUDE):
+        raise MocapParseError(path, limit_line, f"bone {name!r}: a limit is too large in radians "
+                              f"(|value| above {MAX_MAGNITUDE:g}; write inf for no limit)")
     if np.any(limit_array[:, 0] > limit_array[:, 1]):
         raise MocapParseError(path, limit_line, f"bone {name!r}: a limit has min > max")
     bone_id = None
@@ -341,7 +347,7 @@ def _parse_bone(block, start, path, length_scale, angle_scale):
         if len(parts) != 1 or not (parts[0].lstrip("-").isdigit() and parts[0].isascii()):
             raise MocapParseError(path, number, f"bone {name!r}: id must be an integer")
         bone_id = int(parts[0])
-    return AsfBone(name=name, direction=direction / norm, length=length * length_scale, axis=axis,
+    return AsfBone(name=name, direction=direction / norm, length=length, axis=axis,
                    axis_order=fields["axis"][1][3].upper(), dofs=dofs, limits=limit_array, bone_id=bone_id)
 
 

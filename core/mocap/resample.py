@@ -2,6 +2,9 @@
 
 import numpy as np
 
+# Columns unwrapped and interpolated together (bounds the temporaries on long captures).
+_COLUMNS_PER_STEP = 8
+
 
 def resample(values, src_fps, dst_fps, angle_columns=None):
     """Resample uniformly sampled channels to another frame rate by linear interpolation.
@@ -30,11 +33,10 @@ def resample(values, src_fps, dst_fps, angle_columns=None):
         raise ValueError(f"frame rates must be positive, got {src_fps} and {dst_fps}")
     if len(values) == 0:
         raise ValueError("cannot resample an empty motion")
-    work = values.copy()
-    if angle_columns is not None:
-        cols = np.asarray(angle_columns)
-        if cols.size:
-            work[:, cols] = np.unwrap(work[:, cols], axis=0)
+    is_angle = np.zeros(values.shape[1], dtype=bool)
+    columns = np.asarray([] if angle_columns is None else angle_columns)
+    if columns.size:
+        is_angle[columns if columns.dtype == bool else columns.astype(int)] = True
     duration = (len(values) - 1) / src_fps
     # Small tolerance so that e.g. 120 -> 24 keeps the last sample despite rounding.
     count = int(np.floor(duration * dst_fps + 1e-9)) + 1
@@ -43,4 +45,13 @@ def resample(values, src_fps, dst_fps, angle_columns=None):
     upper = np.minimum(lower + 1, len(values) - 1)
     frac = np.clip(source_index - lower, 0.0, 1.0)[:, None]
     frac[lower == upper] = 0.0
-    return work[lower] * (1.0 - frac) + work[upper] * frac
+    out = np.empty((count, values.shape[1]))
+    # A few columns at a time: the temporaries of unwrapping a long capture stay small.
+    for first in range(0, values.shape[1], _COLUMNS_PER_STEP):
+        block = slice(first, first + _COLUMNS_PER_STEP)
+        work = values[:, block].copy()
+        angles = is_angle[block]
+        if np.any(angles):
+            work[:, angles] = np.unwrap(work[:, angles], axis=0)
+        out[:, block] = work[lower] * (1.0 - frac) + work[upper] * frac
+    return out

@@ -1,14 +1,20 @@
 """File › Import/Export › Acclaim through bpy.ops: parity with core FK, round trip, errors."""
 
 import importlib
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from blender_support import MODULE, bpy, datablock_counts
+from core.armature import armature_layout, dofs_to_channels
 from core.kinematics import forward_kinematics, local_rotations_from_dofs
 from core.mocap import asf_to_skeleton, parse_amc, read_amc, read_asf, resample
 from tests.data import asf_path, cmu_path
+
+# Scene rates of the round-trip tests: rate -> (render.fps, render.fps_base).
+SCENE_RATES = {24: (24, 1.0), 25: (25, 1.0), 29.97: (30, 1.001), 30: (30, 1.0), 60: (60, 1.0),
+               120: (120, 1.0)}
 
 
 def import_trial(trial, **kwargs):
@@ -219,3 +225,227 @@ def test_envelope_body_follows_pose():
     assert nearest.max() < 0.25
     assert bpy.ops.track_and_stride.add_envelope_body() == {"FINISHED"}  # rebuild replaces
     assert sum(1 for o in bpy.data.objects if o.name.startswith(obj.name + " Body")) == 1
+
+
+# --------------------------------------------------------------------------- rate, large files, guards
+
+def set_scene_rate(rate):
+    scene = bpy.context.scene
+    scene.render.fps, scene.render.fps_base = SCENE_RATES[rate]
+    return scene.render.fps / scene.render.fps_base
+
+
+def keys(obj):
+    """{(data path, index): (frames, values)} of every F-curve of the object's slot."""
+    anim = obj.animation_data
+    bag = anim.action.layers[0].strips[0].channelbag(anim.action_slot)
+    out = {}
+    for fcurve in bag.fcurves:
+        co = np.empty(2 * len(fcurve.keyframe_points), dtype=np.float32)
+        fcurve.keyframe_points.foreach_get("co", co)
+        out[(fcurve.data_path, fcurve.array_index)] = (co[0::2].copy(), co[1::2].copy())
+    return out
+
+
+@pytest.mark.parametrize("rate", sorted(SCENE_RATES))
+def test_export_then_import_with_default_options_gives_the_same_frames_at_the_same_rate(rate, tmp_path):
+    """A walk imported into a scene at `rate`, exported, and imported back with default
+    options into a scene at the same rate: the same frames and values; into a 24 fps scene:
+    the same duration. (A 24 fps export used to come back 5x too fast: read as 120 Hz.)"""
+    fps = set_scene_rate(rate)
+    original = import_trial("08_01")
+    exported_keys = keys(original)
+    n = len(next(iter(exported_keys.values()))[0])
+    out = tmp_path / "walk.amc"
+    assert bpy.ops.export_anim.acclaim(filepath=str(out)) == {"FINISHED"}
+    written = read_amc(out, read_asf(tmp_path / "walk.asf"))
+    assert written.recorded_fps == fps and written.n_frames == n
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    set_scene_rate(rate)
+    assert bpy.ops.import_anim.acclaim(filepath=str(out)) == {"FINISHED"}
+    again = keys(bpy.context.active_object)
+    assert again.keys() == exported_keys.keys()
+    for path, (frames, values) in exported_keys.items():
+        np.testing.assert_array_equal(again[path][0], frames)
+        np.testing.assert_allclose(again[path][1], values, atol=2e-5, err_msg=str(path))
+    assert bpy.context.scene.frame_end == n
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.render.fps, bpy.context.scene.render.fps_base = 24, 1.0
+    assert bpy.ops.import_anim.acclaim(filepath=str(out)) == {"FINISHED"}
+    m = len(next(iter(keys(bpy.context.active_object).values()))[0])
+    assert abs((m - 1) / 24 - (n - 1) / fps) < 1 / 24
+
+
+def test_keep_capture_rate_sets_the_scene_to_the_recorded_rate(tmp_path):
+    set_scene_rate(29.97)
+    import_trial("08_01")
+    out = tmp_path / "walk.amc"
+    assert bpy.ops.export_anim.acclaim(filepath=str(out)) == {"FINISHED"}
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.import_anim.acclaim(filepath=str(out), frame_rate_mode="KEEP") == {"FINISHED"}
+    render = bpy.context.scene.render
+    assert render.fps == 30 and render.fps / render.fps_base == pytest.approx(30000 / 1001, rel=1e-6)
+    # Without "Rate From File" the file's rate is ignored: Capture Rate (120) is used.
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.import_anim.acclaim(filepath=str(out), frame_rate_mode="KEEP",
+                                       use_file_rate=False) == {"FINISHED"}
+    assert bpy.context.scene.render.fps == 120
+
+
+def _job_module():
+    return importlib.import_module(MODULE + ".addon.mocap.acclaim_import")
+
+
+def test_stepwise_import_equals_one_conversion_of_the_whole_motion(monkeypatch):
+    """Parsed in many small steps and converted in steps of 50 frames (decomposed bones'
+    Euler triples joined across steps): the keys of one conversion of the whole motion."""
+    monkeypatch.setattr(_job_module(), "CONVERT_FRAMES_PER_STEP", 50)
+    grid = importlib.import_module(MODULE + ".core.mocap._amc_grid")
+    monkeypatch.setattr(grid, "CHUNK_BYTES", 20000)
+    obj = import_trial("35_17", frame_rate_mode="KEEP")
+    asf = read_asf(asf_path("35_17"))
+    skeleton = asf_to_skeleton(asf)
+    layout = armature_layout(skeleton)
+    whole = dofs_to_channels(skeleton, layout, read_amc(cmu_path("35_17.amc"), asf).values)
+    got = keys(obj)
+    for c, (bone, prop, index) in enumerate(layout.channels):
+        path = f'pose.bones["{bone}"].{prop}'
+        np.testing.assert_allclose(got[(path, index)][1], whole[:, c], atol=1e-5, err_msg=path)
+
+
+def _scene_state():
+    scene, view_layer = bpy.context.scene, bpy.context.view_layer
+    active = view_layer.objects.active
+    return (datablock_counts(), scene.render.fps, scene.render.fps_base, scene.frame_start,
+            scene.frame_end, active.name if active else None, active.mode if active else None,
+            sorted(o.name for o in view_layer.objects if o.select_get()))
+
+
+@pytest.mark.parametrize("stage, occurrence", [
+    ("reading the motion", 0), ("reading the motion", 2), ("converting", 1),
+    ("building the armature", 0), ("writing keys", 0), ("writing keys", 1), ("writing keys", 40)])
+def test_cancelling_at_any_step_leaves_the_file_as_it_was(stage, occurrence, monkeypatch):
+    """Esc in the modal import = cancel() after some steps: the datablocks, the scene's rate
+    and range, the selection, the active object and its mode are as before."""
+    job_module = _job_module()
+    monkeypatch.setattr(job_module, "CONVERT_FRAMES_PER_STEP", 100)
+    monkeypatch.setattr(importlib.import_module(MODULE + ".core.mocap._amc_grid"), "CHUNK_BYTES", 20000)
+    import_trial("08_01", frame_rate_mode="KEEP")
+    bpy.ops.object.mode_set(mode="POSE")
+    bpy.context.scene.frame_end = 77
+    before = _scene_state()
+    job = job_module.AcclaimImport(bpy.context, str(cmu_path("35_17.amc")), frame_rate_mode="KEEP")
+    seen = 0
+    for _, name in job.steps():
+        if name == stage:
+            if seen == occurrence:
+                break
+            seen += 1
+    else:
+        pytest.fail(f"no step {stage!r} #{occurrence}")
+    job.cancel()
+    assert _scene_state() == before
+    job.cancel()                                   # twice: still nothing
+    assert _scene_state() == before
+
+
+def test_synchronous_run_in_background_mode_even_if_asked_to_run_modal():
+    assert bpy.app.background
+    assert bpy.ops.import_anim.acclaim(filepath=str(cmu_path("08_01.amc")), run_modal=True) == {"FINISHED"}
+    assert bpy.context.active_object.type == "ARMATURE"
+
+
+def test_summary_says_where_the_rate_came_from(tmp_path):
+    job_module = _job_module()
+    summary = job_module.AcclaimImport(bpy.context, str(cmu_path("08_01.amc"))).run()
+    assert "file records no rate: Capture Rate, 120 fps" in summary
+    assert bpy.ops.export_anim.acclaim(filepath=str(tmp_path / "w.amc")) == {"FINISHED"}
+    summary = job_module.AcclaimImport(bpy.context, str(tmp_path / "w.amc")).run()
+    assert "the rate the file records, 24 fps" in summary
+
+
+def test_missing_motion_file_is_named(tmp_path):
+    (tmp_path / "08.asf").write_bytes(cmu_path("08.asf").read_bytes())
+    before = datablock_counts()
+    with pytest.raises(RuntimeError, match=r"The motion file .*08_99\.amc does not exist"):
+        bpy.ops.import_anim.acclaim(filepath=str(tmp_path / "08_99.amc"))
+    with pytest.raises(RuntimeError, match=r"The skeleton file .*nope\.asf does not exist"):
+        bpy.ops.import_anim.acclaim(filepath=str(cmu_path("08_01.amc")),
+                                    asf_filepath=str(tmp_path / "nope.asf"))
+    assert datablock_counts() == before
+
+
+def test_overflowing_root_values_refuse_with_file_and_line(tmp_path):
+    """Root values of 1e308 (finite) used to import as inf on the location F-curves."""
+    lines = cmu_path("08_01.amc").read_text().splitlines()
+    i = [k for k, l in enumerate(lines) if l.startswith("root ")][3]
+    lines[i] = "root 1e308 1e308 1e308 0 0 0"
+    bad = tmp_path / "08_01.amc"
+    bad.write_text("\n".join(lines))
+    (tmp_path / "08.asf").write_bytes(cmu_path("08.asf").read_bytes())
+    before = datablock_counts()
+    with pytest.raises(RuntimeError, match=rf"08_01\.amc:{i + 1}: root position .*too large in metres"):
+        bpy.ops.import_anim.acclaim(filepath=str(bad))
+    assert datablock_counts() == before
+
+
+def test_export_and_import_back_a_name_with_dots_among_other_skeletons(tmp_path):
+    """Export writes take.v2.asf beside take.v2.amc; import finds it even when other .asf
+    files lie in the same folder."""
+    import_trial("08_01")
+    (tmp_path / "take.asf").write_bytes(cmu_path("35.asf").read_bytes())
+    (tmp_path / "other.asf").write_bytes(cmu_path("35.asf").read_bytes())
+    assert bpy.ops.export_anim.acclaim(filepath=str(tmp_path / "take.v2.amc")) == {"FINISHED"}
+    assert (tmp_path / "take.v2.asf").is_file()
+    assert bpy.ops.import_anim.acclaim(filepath=str(tmp_path / "take.v2.amc")) == {"FINISHED"}
+    stored = bpy.context.active_object.data["track_and_stride_asf"]
+    assert stored == (tmp_path / "take.v2.asf").read_text()
+
+
+class _FakeModalImport:
+    """Stands in for the operator instance in modal() (headless bpy has no event loop): the
+    real job and steps; progress, reports and the end of the run recorded."""
+
+    def __init__(self, path):
+        self._import = _job_module().AcclaimImport(bpy.context, str(path), frame_rate_mode="KEEP")
+        self._steps = self._import.steps()
+        self.fractions, self.reports, self.finished = [], [], 0
+
+    def _finish(self, context):
+        self.finished += 1
+
+    def _status(self, context, fraction, stage):
+        self.fractions.append(fraction)
+
+    def report(self, kind, text):
+        self.reports.append((kind, text))
+
+
+def test_modal_import_steps_on_timer_events_blocks_input_and_esc_cancels():
+    modal = importlib.import_module(MODULE + ".addon.mocap.acclaim_ops").TS_OT_import_acclaim.modal
+    timer = SimpleNamespace(type="TIMER", value="NOTHING")
+    click = SimpleNamespace(type="LEFTMOUSE", value="PRESS")
+    wheel = SimpleNamespace(type="WHEELUPMOUSE", value="PRESS")
+    esc = SimpleNamespace(type="ESC", value="PRESS")
+    run = _FakeModalImport(cmu_path("35_17.amc"))
+    assert modal(run, bpy.context, click) == {"RUNNING_MODAL"}       # swallowed while importing
+    assert modal(run, bpy.context, wheel) == {"PASS_THROUGH"}        # viewport navigation
+    outcomes = [modal(run, bpy.context, timer)]
+    while outcomes[-1] == {"RUNNING_MODAL"} and len(outcomes) < 500:
+        outcomes.append(modal(run, bpy.context, timer))
+    assert outcomes[-1] == {"FINISHED"} and len(outcomes) > 60 and run.finished == 1
+    assert run.fractions == sorted(run.fractions) and 0 <= run.fractions[0] and run.fractions[-1] < 1
+    assert run.reports[-1][0] == {"INFO"} and run.reports[-1][1].startswith("Imported 35_17")
+    assert bpy.context.active_object.name == "35_17"
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    before = _scene_state()
+    run = _FakeModalImport(cmu_path("35_17.amc"))
+    for _ in range(70):                                               # into the key writing
+        assert modal(run, bpy.context, timer) == {"RUNNING_MODAL"}
+    assert datablock_counts() != before[0]
+    assert modal(run, bpy.context, esc) == {"CANCELLED"}
+    assert _scene_state() == before and run.finished == 1
+    assert "nothing was changed" in run.reports[-1][1]

@@ -1,11 +1,15 @@
 """The built zip installs like a user's, registers its operators/menus, and unregisters cleanly."""
 
+import re
+import shutil
+import subprocess
+import sys
 import zipfile
 
 import addon_utils
 import bpy
 
-from blender_support import MODULE, extension_zip
+from blender_support import MODULE, ROOT, extension_zip
 
 
 def _menu_draw_funcs(menu):
@@ -37,6 +41,33 @@ def test_zip_holds_only_what_the_extension_needs():
     assert any(n.startswith("core/") for n in names) and any(n.startswith("addon/") for n in names)
     for bad in ("tests/", "benchmarks/", "sample_scenes/", "__pycache__", ".pyc", "build/", "docs/"):
         assert not any(bad in n for n in names), bad
+
+
+def _build(source_dir, output):
+    return subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"),
+                           "--source-dir", str(source_dir), "--output", str(output)],
+                          capture_output=True, text=True)
+
+
+def test_build_validates_the_manifest_with_blenders_tag_list(tmp_path):
+    """The real manifest passes; the same manifest with a tag outside Blender's list (the one
+    this project once shipped) fails the build, naming the tag, and leaves no zip."""
+    result = _build(ROOT, tmp_path / "ok.zip")
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "ok.zip").is_file()
+    assert result.stdout.count("Success parsing TOML") == 2       # source and zip
+
+    source = tmp_path / "source"
+    source.mkdir()
+    shutil.copy(ROOT / "__init__.py", source / "__init__.py")
+    manifest = (ROOT / "blender_manifest.toml").read_text()
+    bad, count = re.subn(r'(?m)^tags = \[', 'tags = ["Motion Capture", ', manifest)
+    assert count == 1
+    (source / "blender_manifest.toml").write_text(bad)
+    result = _build(source, tmp_path / "bad.zip")
+    assert result.returncode != 0
+    assert 'invalid tag "Motion Capture"' in result.stderr
+    assert not (tmp_path / "bad.zip").exists()
 
 
 def test_operators_and_menus_are_registered():

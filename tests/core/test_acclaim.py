@@ -4,10 +4,15 @@ import re
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from core.mocap import (MocapParseError, asf_to_skeleton, channel_layout, format_amc, format_asf,
                         parse_amc, parse_asf, read_amc, read_asf, resample)
-from core.mocap.amc import AmcMotion, _parse_slow
+from core.mocap import _amc_grid as amc_grid
+from core.mocap import amc as amc_module
+from core.mocap import run_steps
+from core.mocap.amc import AmcMotion
 from tests.data import TRIALS, asf_path, cmu_path
 
 
@@ -54,25 +59,68 @@ def test_amc_values_are_file_values_in_si_units():
     np.testing.assert_allclose(motion.values[0, col:col + 3], np.radians([float(v) for v in lfemur.split()[1:]]))
 
 
-def test_fast_and_slow_paths_agree_and_reordered_frames_parse():
+def _frames(lines, start=3):
+    """Header and the bone lines of each frame (a list per frame, frame line first)."""
+    frames = []
+    for line in lines[start:]:
+        if line.strip().isdigit():
+            frames.append([line])
+        else:
+            frames[-1].append(line)
+    return lines[:start], frames
+
+
+def test_vectorised_and_line_by_line_parsers_agree_and_any_bone_order_parses():
     asf = read_asf(cmu_path("35.asf"))
     lines = raw_lines(cmu_path("35_17.amc"))
     fast = parse_amc(lines, asf)
-    # Reverse the bone lines of every frame: forces the line-by-line path.
-    out, block = lines[:3], []
-    for line in lines[3:]:
-        if line.strip().isdigit():
-            out += block[::-1]
-            block = []
-            out.append(line)
-        else:
-            block.append(line)
-    out += block[::-1]
-    slow = parse_amc(out, asf)
+    head, frames = _frames(lines)
+    # Every frame in its own bone order (reversed / rotated): irregular from frame 2 on.
+    mixed = list(head)
+    for k, frame in enumerate(frames):
+        bones = frame[1:][::-1] if k % 2 else frame[1:][k % 7:] + frame[1:][:k % 7]
+        mixed += [frame[0]] + bones
+    slow = parse_amc(mixed, asf)
     np.testing.assert_array_equal(slow.values, fast.values)
-    tokens = [l.split() for l in lines[3:]]
-    numbers, _, raw = _parse_slow(tokens, channel_layout(asf), 3, "x")
+    np.testing.assert_array_equal(slow.frame_numbers, fast.frame_numbers)
+    # The line-by-line parser alone on the original file.
+    layout = channel_layout(asf)
+    units = amc_module._value_units(asf, layout, True)
+    numbers, order, raw = run_steps(amc_module._parse_slow(lines[3:], layout, 3, "x", units))
     np.testing.assert_array_equal(numbers, fast.frame_numbers)
+    assert order == fast.bone_order
+    again = raw[:, layout.file_to_layout]
+    again[:, :3] = again[:, :3] * asf.length_scale @ amc_module.YUP_TO_ZUP.T
+    again[:, 3:] *= np.pi / 180
+    np.testing.assert_array_equal(again, fast.values)
+
+
+def test_irregular_tail_after_regular_frames(tmp_path):
+    """Regular frames, then frames in another bone order, or a number spelling only the
+    line-by-line parser reads (Python's float syntax: '1_0'): the same values."""
+    asf = read_asf(cmu_path("08.asf"))
+    lines = raw_lines(cmu_path("08_01.amc"))
+    reference = parse_amc(lines, asf)
+    head, frames = _frames(lines)
+    out = list(head)
+    for k, frame in enumerate(frames):
+        bones = frame[1:]
+        if k >= 40:
+            bones = bones[::-1]
+        out += [frame[0]] + bones
+    motion = parse_amc(out, asf)
+    np.testing.assert_array_equal(motion.values, reference.values)
+    assert motion.bone_order == reference.bone_order
+    # '1_0' is 10.0 for Python's float(): the same value as '10'.
+    spelled = list(lines)
+    j = next(k for k, l in enumerate(lines) if k > 400 and l.startswith("lfemur "))
+    parts = spelled[j].split()
+    parts[1] = "1_0"
+    spelled[j] = " ".join(parts)
+    plain = list(lines)
+    parts[1] = "10"
+    plain[j] = " ".join(parts)
+    np.testing.assert_array_equal(parse_amc(spelled, asf).values, parse_amc(plain, asf).values)
 
 
 @pytest.mark.parametrize("trial", ["08_01", "35_17"])
@@ -270,5 +318,172 @@ def test_resample_unwraps_angles():
     angles = np.array([[3.1], [-3.1], [-2.9]])
     out = resample(angles, 2, 4, [0])
     assert np.all(np.abs(np.diff(out[:, 0])) < 0.2)
+    np.testing.assert_array_equal(resample(angles, 2, 4, np.array([True])), out)   # a mask too
+    assert np.abs(np.diff(resample(angles, 2, 4)[:, 0])).max() > 3                  # not angles
     with pytest.raises(ValueError, match="positive"):
         resample(angles, 0, 4)
+
+
+# --------------------------------------------------------------------------- frame rate in the file
+
+@pytest.mark.parametrize("fps", [24.0, 25.0, 30000 / 1001, 30.0, 60.0, 120.0])
+def test_recorded_frame_rate_round_trip(fps):
+    asf = read_asf(cmu_path("08.asf"))
+    motion = read_amc(cmu_path("08_01.amc"), asf)
+    assert motion.recorded_fps is None and motion.fps == 120.0        # CMU: no rate recorded
+    text = format_amc(asf, AmcMotion(values=motion.values[:30], frame_numbers=None,
+                                     bone_order=motion.bone_order, fps=fps), asf_name="08.asf")
+    lines = text.splitlines()
+    assert lines[:2] == ["#!OML:ASF 08.asf", f"# frames per second: {fps!r}".removesuffix(".0")]
+    again = parse_amc(text, asf)
+    assert again.recorded_fps == fps and again.fps == fps              # the same float
+    assert parse_amc(text, asf, fps=50.0).fps == 50.0                  # the caller's rate wins
+    np.testing.assert_allclose(again.values, motion.values[:30], atol=1e-12)
+
+
+def test_invalid_recorded_rate_names_the_line_and_other_comments_are_ignored(walk):
+    asf, lines = walk
+    for token in ("0", "-24", "nan", "inf", "fast", "1e9", ""):
+        bad = lines[:1] + [f"# frames per second: {token}"] + lines[1:]
+        err = amc_error(bad, asf)
+        assert err.line == 2 and "frames per second" in err.reason
+    commented = lines[:1] + ["# captured at the lab, frames per second unknown", "#"] + lines[1:]
+    motion = parse_amc(commented, asf)
+    assert motion.recorded_fps is None and motion.n_frames == parse_amc(lines, asf).n_frames
+
+
+# --------------------------------------------------------------------------- vectorised parsing
+
+@pytest.fixture
+def no_line_by_line(monkeypatch):
+    """Fail if the line-by-line parser is used: proves the vectorised one parsed everything."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the line-by-line parser was used")
+        yield  # pragma: no cover  (a generator, like the parser it replaces)
+    monkeypatch.setattr(amc_module, "_parse_slow", refuse)
+
+
+def test_regular_files_are_parsed_without_the_line_by_line_parser(no_line_by_line, monkeypatch):
+    """Every shipped CMU trial, and our own writer's output (17-digit reprs, exponents), in
+    small steps (many chunk boundaries)."""
+    monkeypatch.setattr(amc_grid, "CHUNK_BYTES", 5000)
+    for trial in TRIALS:
+        asf = read_asf(asf_path(trial))
+        motion = read_amc(cmu_path(trial + ".amc"), asf)
+        assert motion.n_frames == sum(1 for l in raw_lines(cmu_path(trial + ".amc")) if l.strip().isdigit())
+    asf = read_asf(cmu_path("08.asf"))
+    values = read_amc(cmu_path("08_01.amc"), asf).values[:200] * np.pi   # long mantissas
+    values[5, 10] = 1.5e-9
+    text = format_amc(asf, AmcMotion(values=values, frame_numbers=None, bone_order=()))
+    assert "e-" in text
+    np.testing.assert_allclose(parse_amc(text, asf).values, values, rtol=1e-15, atol=1e-300)
+
+
+def _slow_only(monkeypatch):
+    """parse_amc with the vectorised parser switched off (every line by the line parser)."""
+    monkeypatch.setattr(amc_module, "_first_frame_bones", lambda *args: None)
+
+
+_NUMBER_CHARS = "0123456789+-.eE"
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                   HealthCheck.function_scoped_fixture])
+@given(tokens=st.lists(st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False, width=64).map(repr),
+    st.floats(min_value=-1e6, max_value=1e6).map(lambda v: f"{v:+.3e}"),
+    st.floats(min_value=-1e3, max_value=1e3).map(lambda v: f"{v:.4f}".replace("0.", ".", 1)),
+    st.text(alphabet=_NUMBER_CHARS, min_size=1, max_size=7)), min_size=1, max_size=6),
+    where=st.integers(min_value=0, max_value=10 ** 6))
+def test_vectorised_and_line_by_line_parsers_agree_on_any_number_spelling(monkeypatch, tokens, where):
+    """Random spellings (valid, odd, invalid) put into a real file: the vectorised parse either
+    gives exactly the line-by-line parser's values or the same error on the same line."""
+    asf = read_asf(cmu_path("08.asf"))
+    lines = _head(raw_lines(cmu_path("08_01.amc")), 4)
+    bone_lines = [i for i, l in enumerate(lines) if i >= 3 and not l.strip().isdigit()]
+    for n, token in enumerate(tokens):
+        i = bone_lines[(where + 7 * n) % len(bone_lines)]
+        parts = lines[i].split()
+        parts[1 + (where + n) % (len(parts) - 1)] = token
+        lines[i] = " ".join(parts)
+    outcomes = []
+    for switch_off in (False, True):
+        with monkeypatch.context() as patch:
+            if switch_off:
+                _slow_only(patch)
+            try:
+                outcomes.append(parse_amc(lines, asf, path="t.amc").values)
+            except MocapParseError as err:
+                outcomes.append((err.line, err.reason))
+    if isinstance(outcomes[0], tuple) or isinstance(outcomes[1], tuple):
+        assert outcomes[0] == outcomes[1]
+    else:
+        np.testing.assert_array_equal(outcomes[0], outcomes[1])
+
+
+def _head(lines, frames):
+    """Header + the first ``frames`` frames of an AMC file."""
+    count, out = 0, []
+    for line in lines:
+        if line.strip().isdigit():
+            count += 1
+            if count > frames:
+                break
+        out.append(line)
+    return out
+
+
+def test_error_in_a_late_chunk_names_its_line(walk, monkeypatch):
+    asf, lines = walk
+    monkeypatch.setattr(amc_grid, "CHUNK_BYTES", 3000)
+    i = len(lines) - 40
+    while lines[i].strip().isdigit():
+        i += 1
+    bad = lines.copy()
+    bad[i] = bad[i] + " 0.5"
+    err = amc_error(bad, asf)
+    assert err.line == i + 1 and "needs" in err.reason
+
+
+# --------------------------------------------------------------------------- overflowing values
+
+def test_values_beyond_the_magnitude_limit_refuse_with_the_line(walk):
+    asf, lines = walk
+    i = next(k for k, l in enumerate(lines) if l.startswith("lfemur "))
+    for token, ok in (("1e29", True), ("-1e33", False), ("1e308", False)):   # degrees
+        bad = lines.copy()
+        parts = bad[i].split()
+        parts[2] = token
+        bad[i] = " ".join(parts)
+        if ok:
+            assert np.all(np.isfinite(parse_amc(bad, asf).values))
+        else:
+            err = amc_error(bad, asf)
+            assert err.line == i + 1 and "too large in radians" in err.reason
+    j = next(k for k, l in enumerate(lines) if l.startswith("root "))
+    bad = lines.copy()
+    bad[j] = "root 1e308 1e308 1e308 0 0 0"                 # finite, and finite in metres too
+    err = amc_error(bad, asf)
+    assert err.line == j + 1 and "root position" in err.reason and "too large in metres" in err.reason
+
+
+@pytest.mark.parametrize("field, text, phrase", [
+    ("axis", "     axis 0 1e308 0  XYZ", "too large in radians"),
+    ("direction", "     direction 1e308 1e308 0", "direction is too large"),
+    ("limits", "    limits (-1e308 1e308)", "a limit is too large"),
+])
+def test_asf_values_beyond_the_magnitude_limit_refuse_with_the_line(asf_lines, field, text, phrase):
+    i = next(k for k, l in enumerate(asf_lines) if l.strip().startswith(field)
+             and k > asf_lines.index(":bonedata"))
+    lines = asf_lines.copy()
+    lines[i] = text
+    err = asf_error(lines)
+    assert err.line == i + 1 and phrase in err.reason
+
+
+def test_asf_infinite_limits_mean_no_limit(asf_lines):
+    i = next(k for k, l in enumerate(asf_lines) if l.strip().startswith("limits"))
+    lines = asf_lines.copy()
+    lines[i] = "    limits (-inf inf)"
+    asf = parse_asf(lines)
+    assert any(np.all(np.isinf(b.limits[0])) for b in asf.bones if len(b.limits))

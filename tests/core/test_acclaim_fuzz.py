@@ -171,5 +171,9 @@ def test_binary_and_missing_files(tmp_path):
     junk.write_bytes(bytes(range(256)) * 4)
     with pytest.raises(MocapParseError, match="junk.amc"):
         read_amc(junk, asf)
-    with pytest.raises(MocapParseError, match="cannot read"):
+    with pytest.raises(MocapParseError, match="not a text file"):     # a lone surrogate
+        parse_amc("1\n\udc00root 1 2 3 4 5 6", asf)
+    with pytest.raises(MocapParseError, match=r"missing\.asf: the file does not exist"):
         read_asf(tmp_path / "missing.asf")
+    with pytest.raises(MocapParseError, match=r"missing\.amc: the file does not exist"):
+        read_amc(tmp_path / "missing.amc", asf)
