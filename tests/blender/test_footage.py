@@ -163,7 +163,7 @@ def test_high_bit_depth_movie_gives_display_values(footage_mod, tmp_path):
     ramp.filepath_raw, ramp.file_format = str(tmp_path / "ramp.png"), "PNG"
     ramp.save()
     strip = scene.sequence_editor_create().strips.new_image("ramp", str(tmp_path / "ramp.png"), 1, 1)
-    strip.frame_final_duration = 2
+    strip.elements.append("ramp.png")                   # two frames of the ramp
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
     scene.view_settings.view_transform = "Standard"
