@@ -206,6 +206,9 @@ def _read_sequence(files, indices, out):
     return out
 
 
+_DECODER_NAME = "Track & Stride footage decoder"
+
+
 class _MovieDecoder:
     """One movie open in Blender: an Image (source MOVIE) and an IMAGE texture whose image
     user picks the frame (module docstring). Frame numbers are 0-based here."""
@@ -225,8 +228,9 @@ class _MovieDecoder:
                 raise FootageError(f"Blender cannot decode {path} as the movie it was "
                                    f"({footage.width}x{footage.height}) when the footage was "
                                    "chosen")
+            image.name = _DECODER_NAME          # what the Blend File view shows meanwhile
             self.n_frames = image.frame_duration
-            self.texture = bpy.data.textures.new("Track & Stride footage decoder", "IMAGE")
+            self.texture = bpy.data.textures.new(_DECODER_NAME, "IMAGE")
             self.texture.image = image
             self.texture.image_user.frame_duration = self.n_frames
             self.buffer = np.empty(footage.width * footage.height * image.channels,
