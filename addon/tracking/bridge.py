@@ -5,7 +5,8 @@ The pipeline, in the order the modal operator runs it:
 1. :func:`prepare_tracking` (main thread): read and check everything -- armature, keyframes,
    camera, footage, body, DOFs -- into a :class:`TrackRequest` of plain arrays. Any problem
    raises :class:`TrackError` here, before anything is changed.
-2. :func:`read_footage` (main thread, in chunks): the footage frames as grayscale arrays.
+2. :func:`read_footage` (main thread, in chunks, through one :class:`FootageReader` that keeps
+   a movie open between chunks): the footage frames as grayscale arrays.
 3. :func:`run_core` (any thread: no bpy): ``core.tracking.track_keyframes`` over all intervals,
    in worker processes when there are several, with progress and cancel.
 4. :func:`apply_result` (main thread): write keys and confidence curves in one go, only when
@@ -26,7 +27,7 @@ from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
-from .footage import FootageError, footage_from_clip, footage_from_path, read_frames
+from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
                    read_residuals, unwritable_channels, write_tracking)
@@ -283,10 +284,19 @@ def prepare_tracking(context, settings):
         tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
 
-def read_footage(request, start, stop):
-    """Grayscale frames (n, H, W) of the request's scene frames ``[start:stop]``."""
+def read_footage(request, start, stop, reader=None, out=None):
+    """Grayscale frames (n, H, W) of the request's scene frames ``[start:stop]``.
+
+    ``reader``: a :class:`FootageReader` of ``request.footage`` kept open by the caller between
+    chunks (the modal operator); without it the frames are read by a reader opened and closed
+    here. ``out``: where to write them (float32, (n, H, W)), returned.
+    """
+    frames = request.scene_frames[start:stop].tolist()
     try:
-        return read_frames(request.footage, request.scene_frames[start:stop].tolist())
+        if reader is None:
+            with FootageReader(request.footage) as own:
+                return own.read(frames, out)
+        return reader.read(frames, out)
     except FootageError as exc:
         raise TrackError(str(exc)) from None
 

@@ -2,12 +2,14 @@
 set-up helpers (footage, render size, Table 1 DOF, envelope display). Thin adapters over
 :mod:`.bridge` and :mod:`.setup`."""
 
+import time
+
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from .footage import MOVIE_EXTENSIONS
+from .footage import MOVIE_EXTENSIONS, FootageReader
 from ..common.reporting import report_outcome
 from .bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
                      resolve_editable_armature, suggest_markers, track_now)
@@ -23,6 +25,10 @@ _PASS_THROUGH = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "MOUSEMOVE",
                  "NDOF_MOTION"}
 # Share of the progress bar for reading the footage and for writing the keys.
 _READ_SHARE, _WRITE_SHARE = 0.1, 0.05
+# Seconds of footage reading per timer step (frame by frame; at least one frame): longer than
+# the timer's 0.1 s, so reading never waits for the timer, short enough for Esc and the
+# progress bar to answer at once (a 1080x1920 movie frame takes 45-70 ms here).
+_READ_STEP_SECONDS = 0.25
 
 
 def _armature_or_message(cls, context):
@@ -110,7 +116,7 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         self._request, self._read, self._job, self._timer = request, 0, None, None
         self._frames = np.empty((len(request.scene_frames), footage.height, footage.width),
                                 dtype=np.float32)
-        self._chunk = 24 if footage.kind == "MOVIE" else 6
+        self._reader = FootageReader(footage)     # a movie stays open between steps
         self._area = context.area
         context.window_manager.progress_begin(0, 100)
         _RUNNING.append(self)
@@ -130,6 +136,7 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         if self not in _RUNNING:
             return
         _RUNNING.remove(self)
+        self._reader.close()
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
@@ -170,11 +177,16 @@ class TS_OT_track_keyframes(bpy.types.Operator):
     def _step(self, context):
         request, total = self._request, len(self._request.scene_frames)
         if self._read < total:
-            stop = min(total, self._read + self._chunk)
-            self._frames[self._read:stop] = read_footage(request, self._read, stop)
-            self._read = stop
+            tic = time.perf_counter()
+            while self._read < total and time.perf_counter() - tic < _READ_STEP_SECONDS:
+                start = self._read
+                read_footage(request, start, start + 1, self._reader,
+                             out=self._frames[start:start + 1])
+                self._read = start + 1
+            stop = self._read
             self._status(context, f"reading footage {stop}/{total}", _READ_SHARE * stop / total)
             if stop == total:
+                self._reader.close()
                 self._job = TrackJob(request, self._frames).start()
                 self._frames = None
             return {"RUNNING_MODAL"}

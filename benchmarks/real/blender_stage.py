@@ -24,12 +24,13 @@ key spacing, on a fresh scene, as an animator would set it up:
 5. **Track**: ``bpy.ops.track_and_stride.track_keyframes()`` timed (synchronous, as headless),
    then Blender's evaluation of the written F-curves at every frame.
 
-Footage decoding: the operator decodes the movie itself (Blender's FFmpeg through the
-sequencer) on the first run of each camera -- the timed spacing, ``plan["timed_spacing"]``.
-At 1080x1920 that costs 0.5-0.7 s per frame here, three quarters of the operator's time, so
-the camera's other spacings reuse those frames: the bridge's ``read_footage`` step is
-memoised (same camera, same scene frames). Blender's decoding is deterministic (two decodes
-of the same frames compared bit for bit), so the frames the operator tracks are the same.
+Footage decoding: the operator decodes the movie itself (Blender's FFmpeg, through an Image
+datablock: ``addon/tracking/footage.py``) on the first run of each camera -- the timed
+spacing, ``plan["timed_spacing"]``. At 1080x1920 that costs 40-90 ms per frame here (the
+sequencer-to-PNG path it replaced: 0.3-0.5 s), so the camera's other spacings reuse those
+frames: the bridge's ``read_footage`` step is memoised (same camera, same scene frames).
+Blender's decoding is deterministic (two decodes of the same frames compared bit for bit), so
+the frames the operator tracks are the same.
 
 Output (``plan["output"]`` .npz and .json): bone world rotations and origins per frame for the
 three methods, the camera the tracker used, the operator's wall time and phases, its reports,
@@ -242,8 +243,11 @@ class Recorder:
     def __init__(self, bridge, frames=None):
         self.bridge, self.saved, self.log, self.frames = bridge, {}, {}, frames
 
-    def _memo_read(self, request, start, stop):
-        return self.frames[start:stop].copy()
+    def _memo_read(self, request, start, stop, reader=None, out=None):
+        if out is None:
+            return self.frames[start:stop].copy()
+        out[...] = self.frames[start:stop]
+        return out
 
     def __enter__(self):
         for name in ("prepare_tracking", "read_footage", "run_core", "apply_result"):

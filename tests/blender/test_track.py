@@ -622,10 +622,17 @@ def _modal_run(request, events):
     raise AssertionError("the modal run never ended")
 
 
-def test_modal_run_reads_in_chunks_tracks_and_writes_like_execute(walk_folder):
-    obj = build_walk_scene(walk_folder)
+@pytest.mark.parametrize("movie", [False, True], ids=["png_sequence", "mp4_clip"])
+def test_modal_run_reads_in_chunks_tracks_and_writes_like_execute(walk_folder, walk_mp4, movie,
+                                                                  monkeypatch):
+    """Reading spans several timer steps (a movie stays open between them: one reader), then
+    the job; the keys equal the synchronous run's, and the decoder's datablocks are gone."""
+    source = {"source": "CLIP", "movie": walk_mp4} if movie else {}
+    obj = build_walk_scene(walk_folder, **source)
     settings().processes = 1
     request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    monkeypatch.setattr(bridge("tracking.ops"), "_READ_STEP_SECONDS", 0.01)   # several steps
+    counts = len(bpy.data.images), len(bpy.data.textures)
     seen = []
 
     def timer(op, step):
@@ -634,11 +641,14 @@ def test_modal_run_reads_in_chunks_tracks_and_writes_like_execute(walk_folder):
 
     op, result, reports = _modal_run(request, timer)
     assert result == {"FINISHED"} and reports[-1][0] == "INFO"
-    assert [r for r, _ in seen[:8]] == [0, 6, 12, 18, 24, 30, 36, 41]     # chunks of 6 frames
+    reads = [r for r, _ in seen]
+    steps = reads[:reads.index(N_FRAMES) + 1]        # timer steps until every frame is read
+    assert steps[0] == 0 and len(steps) > 2 and all(b > a for a, b in zip(steps, steps[1:]))
+    assert (len(bpy.data.images), len(bpy.data.textures)) == counts
     assert not bridge("tracking.ops")._RUNNING
     modal = snapshot(obj)
     bpy.ops.wm.read_homefile(use_empty=True)
-    obj = build_walk_scene(walk_folder)
+    obj = build_walk_scene(walk_folder, **source)
     settings().processes = 1
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
     same_keys(snapshot(obj), modal)
@@ -676,7 +686,7 @@ def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, mon
     request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
     ops = bridge("tracking.ops")
 
-    def broken(request, start, stop):
+    def broken(request, start, stop, reader=None, out=None):
         raise RuntimeError("decoder crashed")
 
     monkeypatch.setattr(ops, "read_footage", broken)
