@@ -39,6 +39,9 @@ from core.gait.online import OnlineConfig  # noqa: E402
 from core.gait.residual import residual_weights  # noqa: E402
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import gait_lowo  # noqa: E402
+
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
 FPS = 60.0
 N_ANGLES = 56
@@ -54,7 +57,8 @@ ONLINE_J = 4
 HORIZON_S = 0.5
 SKIP_S = 0.2
 
-GOALS = {"offline_ratio": 0.8, "adapt_s": 0.3, "online_step_us": 50.0, "train_s": 5.0}
+GOALS = {"offline_ratio": 0.8, "adapt_s": 0.3, "online_step_us": 50.0, "train_s": 5.0,
+         "lowo_ratio": 0.8, "lowo_ratio_0.5": 0.7, "lowo_bin_excess": 1.05}
 
 
 def load(name):
@@ -325,6 +329,72 @@ def _smooth(err, valid, seconds):
     return np.where(den > 0, num / np.maximum(den, 1), np.nan)
 
 
+# ------------------------------------------------------------------ leave one walker out
+def run_lowo():
+    """Issue 12's leave-one-walker-out block (``benchmarks/gait_lowo.py``) and the online
+    streams built from held-out subjects."""
+    method = gait_lowo.Method("method")
+    t0 = time.perf_counter()
+    scores = gait_lowo.lowo_scores(method)
+    names = gait_lowo.fold_model(method, gait_lowo.SUBJECTS[1:]).angle_names
+    block = gait_lowo.summarise(scores, names)
+    block["evaluate_s"] = time.perf_counter() - t0
+    models = [gait_lowo.fold_model(method, [t for t in gait_lowo.SUBJECTS if t != s])
+              for s in gait_lowo.SUBJECTS]
+    block["n_styles"] = {s: m.n_bases for s, m in zip(gait_lowo.SUBJECTS, models)}
+    block["training_sequences"] = {s: len(m.style_names)
+                                   for s, m in zip(gait_lowo.SUBJECTS, models)}
+    streams, step_us = {}, []
+    for s in gait_lowo.SUBJECTS:
+        rows, steps = gait_lowo.online_stream(method, s)
+        streams[s] = rows
+        step_us.append(steps)
+    block["online"] = {"adapt_s": [r["adapt_s"] for s in gait_lowo.SUBJECTS
+                                   for r in streams[s]],
+                       "streams": streams,
+                       "step_us_median": float(np.median(np.concatenate(step_us)))}
+    return block
+
+
+def print_lowo(block):
+    print("\nLeave one walker out (mean over held-out subjects of the subject means; RMS over the "
+          "56 angles, degrees)")
+    bases = gait_lowo.BASELINES
+    print(f"{'observed':10s}{'method':>9s}" + "".join(f"{b:>15s}" for b in bases)
+          + f"{'method@lc':>11s}{'lc cases':>10s}{'ratio':>8s}  best")
+    for w, b in block["windows"].items():
+        cells = "".join(f"{'—' if b['baselines'][k] is None else format(b['baselines'][k], '.2f'):>15s}"
+                        for k in bases)
+        mlc = b["method_on_last_cycle_cases"]
+        print(f"{w + ' s':10s}{b['method']:9.2f}{cells}"
+              f"{'—' if mlc is None else format(mlc, '.2f'):>11s}"
+              f"{'/'.join(map(str, b['last_cycle_cases'])):>10s}"
+              f"{b['ratio_to_best_baseline']:8.2f}  {b['best_baseline']}")
+    print("horizon bins (method / best baseline):")
+    for w, b in block["windows"].items():
+        print(f"  {w + ' s':8s}" + "  ".join(
+            f"{k} s: {v['method']:.2f}/{v['best_baseline']:.2f} ({v['best_baseline_name']})"
+            for k, v in b["horizons"].items()))
+    print("phase error at 2 s (ms, mean |shift| / mean signed):")
+    for w, b in block["windows"].items():
+        print(f"  {w + ' s':8s}" + "  ".join(f"{p} {v['mean_abs']:.0f}/{v['mean_signed']:+.0f}"
+                                             for p, v in b["phase_error_at_2s_ms"].items()))
+    print("per subject (method / hold / mean / nearest / last cycle):")
+    for s, v in block["per_subject"].items():
+        cells = []
+        for w in block["windows"]:
+            d = v.get(w, {})
+            cells.append(f"{w} s " + "/".join("—" if d.get(k) is None else f"{d[k]:.2f}"
+                                              for k in ("method",) + bases))
+        print(f"  {s:4s} ({v['cases']:2d} cases)  " + "   ".join(cells))
+    on = block["online"]
+    print("online streams (walk → run → walk), adapt_s per segment:")
+    for s, rows in on["streams"].items():
+        print(f"  {s:4s} " + "  ".join(f"{r['segment']} {r['rms_deg']:.2f}°/{r['adapt_s']:.2f}s"
+                                      for r in rows))
+    print(f"  step median {on['step_us_median']:.1f} us")
+
+
 def plot_online(online, path):
     import matplotlib
 
@@ -411,7 +481,13 @@ def main(argv=None):
                                                     + ONLINE_TEST))}
     offline = run_offline(data)
     online, speed = run_online(data)
+    reference = [gait_lowo.reference_workload_us() for _ in range(3)]
+    speed["reference_workload_us"] = float(np.median(reference))
+    speed["online_step_per_reference"] = speed["online_step_us_median"] \
+        / speed["reference_workload_us"]
+    lowo = run_lowo()
     report = {"offline": offline, "online": online, "speed": speed, "goals": GOALS,
+              "leave_one_walker_out": lowo,
               "machine": {"python": platform.python_version(), "numpy": np.__version__,
                           "platform": platform.platform(), "processor": platform.processor()},
               "benchmark_s": None}
@@ -420,6 +496,9 @@ def main(argv=None):
     report["benchmark_s"] = time.perf_counter() - t_start
     output.write_text(json.dumps(report, indent=1, allow_nan=False))
     print_table(report)
+    print_lowo(lowo)
+    print(f"reference workload {speed['reference_workload_us']:.1f} us; online step = "
+          f"{speed['online_step_per_reference']:.2f} x reference")
     print(f"\nwrote {output} and {png} in {report['benchmark_s']:.1f} s")
 
 
