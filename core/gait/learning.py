@@ -43,7 +43,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                 energy=DEFAULT_ENERGY, n_phase=33, alignment="mean", refinement="map",
                 root_travel=True, model_fps=60.0, lag_range=(0.5, 2.0), gp_beta=None,
                 root_frame=None, q_omega_rel=DEFAULT_Q_OMEGA_REL, q_phi=DEFAULT_Q_PHI,
-                obs_noise=None):
+                obs_noise=None, walkers=None, offset=True):
     """Learn a :class:`GaitModel` from periodic training motions.
 
     Parameters
@@ -84,6 +84,13 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     obs_noise : float, optional
         Observation noise variance r (scaled units²). Default: leave-one-out residual of the
         factorisation plus the within-sequence cycle-to-cycle variance.
+    walkers : sequence of str, optional
+        Who walks in each sequence (pieces of one capture, or several captures of one person,
+        share a label). Default: every sequence is a walker of its own.
+    offset : bool
+        Learn the prior of a walker's posture offset (``GaitModel.offset_var``, the variance of
+        the walkers' mean poses; ``docs/gait.md``, *Posture offset*). Needs two walkers or more;
+        False (or a single walker) gives a model without offset.
 
     Returns
     -------
@@ -142,6 +149,9 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     units = ["rad"] * n_angles + (list(ROOT_FEATURE_UNITS) if root_travel else [])
     scale = _channel_scale(stacked, units, n_angles)
     scaled = [obs / scale for obs in observed]
+    if walkers is not None and len(walkers) != count:
+        raise ValueError(f"expected one walker label per sequence ({count}), got {len(walkers)}")
+    offset_var = _offset_variance(scaled, walkers) if offset else np.zeros(len(channel))
 
     try:
         aligned = align_sequences(scaled, model_fps, n_phase, alignment, lag_range)
@@ -177,7 +187,20 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                      dof_names=[str(c) for c in name_lists[0]], root_travel=root_travel,
                      root_rest=frame.rest, root_order=frame.order,
                      forward_axis=frame.forward_axis, singular_values=singular,
-                     alignment=alignment, refinement=refinement)
+                     alignment=alignment, refinement=refinement, offset_var=offset_var)
+
+
+def _offset_variance(scaled, walkers):
+    """Between-walker variance (D,) of the walkers' mean poses in scaled units (ddof 1): the
+    prior of a new walker's posture offset. Zeros with fewer than two walkers."""
+    groups = list(range(len(scaled))) if walkers is None else [str(g) for g in walkers]
+    frames = {}
+    for g, obs in zip(groups, scaled):
+        frames.setdefault(g, []).append(obs)
+    if len(frames) < 2:
+        return np.zeros(scaled[0].shape[1])
+    means = np.array([np.vstack(v).mean(axis=0) for v in frames.values()])
+    return means.var(axis=0, ddof=1)
 
 
 def _channel_scale(stacked, units, n_angles):
