@@ -117,6 +117,8 @@ class FilterContext:
         set_(self, "w_prior_aug", np.concatenate((self.w_prec, self.w_prior_term[:, None]),
                                                  axis=1))                   # [Λ | Λ w̄]
         set_(self, "q_floats", (float(self.Q[0, 0]), float(self.Q[0, 1]), float(self.Q[1, 1])))
+        set_(self, "is_angle", self.model.is_angle[self.channels])
+        set_(self, "turns", np.where(self.is_angle, TWO_PI, 0.0))      # 2π on angle channels
         set_(self, "_cache", {})
 
     def steps(self, n):
@@ -124,6 +126,15 @@ class FilterContext:
         key = ("steps", n)
         if key not in self._cache:
             arr = np.arange(1.0, n + 1.0)
+            arr.setflags(write=False)
+            self._cache[key] = arr
+        return self._cache[key]
+
+    def decay(self, n, blend_s):
+        """``exp(-k / (blend_s · fps))`` for k = 1 … n as a column (n, 1) (cached; read-only)."""
+        key = ("decay", n, blend_s)
+        if key not in self._cache:
+            arr = np.exp(-np.arange(1.0, n + 1.0) / (blend_s * self.fps))[:, None]
             arr.setflags(write=False)
             self._cache[key] = arr
         return self._cache[key]
