@@ -28,6 +28,7 @@ root_rest, root_order, forward_axis    the :class:`.root_travel.RootFrame`
 offset_var       (D,)         between-walker variance of a walker's posture offset (scaled
                               units²; the prior of the offset estimated when adapting); zeros:
                               no offset (version 1 files)
+notes            str          free text: where the model comes from (credits, build recipe)
 ================ ============ ===============================================================
 
 The model is saved as one ``.npz`` (no pickle; strings as fixed-width unicode arrays) with a
@@ -67,9 +68,9 @@ _STR_FIELDS = ("channel_names", "units", "style_names", "dof_names")
 _ARRAY_FIELDS = ("angle_centre", "channel_scale", "bases", "styles", "beta", "A", "Q",
                  "style_mean", "style_cov", "periods", "lag_range", "root_rest",
                  "singular_values", "offset_var")
-_NEW_IN_2 = ("offset_var",)         # absent from version 1 files (defaults apply)
+_NEW_IN_2 = ("offset_var", "notes")   # absent from version 1 files (defaults apply)
 _SCALAR_FIELDS = ("fps", "r")
-_TEXT_FIELDS = ("root_order", "alignment", "refinement")
+_TEXT_FIELDS = ("root_order", "alignment", "refinement", "notes")
 _INT_FIELDS = ("forward_axis", "root_travel")
 
 # Plausible ranges checked at load (docs/gait.md, *Errors*). A model learned from real motion
@@ -144,6 +145,7 @@ class GaitModel:
     alignment: str = "mean"
     refinement: str = "map"
     offset_var: np.ndarray = None
+    notes: str = ""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self):
@@ -423,7 +425,8 @@ class GaitModel:
             for name in _SCALAR_FIELDS:
                 kwargs[name] = float(arrays[name])
             for name in _TEXT_FIELDS:
-                kwargs[name] = str(arrays[name])
+                if name in arrays:               # "notes": absent from version 1 files
+                    kwargs[name] = str(arrays[name])
             for name in _INT_FIELDS:
                 kwargs[name] = int(arrays[name])
             return cls(**kwargs)

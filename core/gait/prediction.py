@@ -28,7 +28,7 @@ from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
 __all__ = ["DEFAULT_BLEND_S", "interpolate_styles", "mix_styles", "predict", "predict_dofs",
-           "predicted_phases"]
+           "predicted_phases", "restyle"]
 
 DEFAULT_BLEND_S = 0.15     # seconds: decay of the continuation from the last observed frame
 
@@ -230,6 +230,40 @@ def interpolate_styles(model, a, b, t):
     if not np.isfinite(t):
         raise ValueError(f"t must be finite, got {t}")
     return (1.0 - float(t)) * wa + float(t) * wb
+
+
+def restyle(model, w, source, target, amount=1.0):
+    """Move a walker's style from one learned style towards another, keeping what is its own.
+
+    ``w' = w + amount (w_target - w_source)`` and the cadence factor
+    ``(T_source / T_target) ** amount`` (T: the styles' learned periods): an adapted walker
+    restyled from ``'normal'`` to ``'careful'`` by 0.5 keeps its own build and posture and moves
+    half-way in the direction that separates the two learned styles, cadence included. Multiply
+    the state's ω (or ``omega_scale``) by the factor.
+
+    Parameters
+    ----------
+    model : GaitModel
+    w : array_like, shape (J,)
+        The walker's style (``adapt(...).w``).
+    source, target : str
+        Learned style names.
+    amount : float
+        0 = unchanged, 1 = the full difference (values outside extrapolate).
+
+    Returns
+    -------
+    w : ndarray, shape (J,)
+    cadence : float
+        Factor for ω (> 0).
+    """
+    w = _check_style(model, w)
+    if not np.isfinite(amount):
+        raise ValueError(f"amount must be finite, got {amount}")
+    ws, wt = model.style(source), model.style(target)
+    ts = model.periods[model.style_names.index(source)]
+    tt = model.periods[model.style_names.index(target)]
+    return w + float(amount) * (wt - ws), float(np.exp(float(amount) * np.log(ts / tt)))
 
 
 def _unknown_style(model, name):
