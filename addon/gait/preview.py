@@ -16,7 +16,8 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ...core.armature import dofs_to_channels
-from ...core.gait import LookaheadPredictor
+from ...core.gait import LookaheadPredictor, observations_from_dofs
+from ...core.gait.checks import check_gait
 from ..mocap.acclaim_bridge import scene_fps
 from .bridge import active_model, frame_range, gait_settings
 from .rigs import GaitError, _bvh_channels, gait_rig, read_dofs
@@ -35,9 +36,11 @@ class PreviewSession:
     predictor: LookaheadPredictor
     columns: np.ndarray
     last_row: np.ndarray = None
+    updates: int = 0
 
 
 _SESSION = None
+_LAST_STOP = ""       # why the last preview ended (shown in the panel)
 
 
 def session():
@@ -108,12 +111,20 @@ def start_preview(context, obj):
     missing = [n for n in model.dof_names if n not in lookup]
     if missing:
         raise GaitError(f"{obj.name} lacks joints the gait model knows: {', '.join(missing[:8])}")
-    first, _ = frame_range(grig, scene, "ACTION")
-    read_dofs(grig, [first])                       # fails early without an action
+    first, last = frame_range(grig, scene, "ACTION")
+    fps = scene_fps(scene)
+    # The same refusals as Predict (core.gait.checks) on the keyed range: no ghost for what is
+    # not a walk.
+    columns = np.array([lookup[n] for n in model.dof_names], dtype=int)
+    dofs = read_dofs(grig, np.arange(first, last + 1))[:, columns]
+    if len(dofs) >= 2:
+        check = check_gait(model, observations_from_dofs(model, dofs, model.dof_names, fps), fps,
+                           what=f"the keyed frames {first}–{last} of {obj.name}")
+        if check.refusal:
+            raise GaitError(check.refusal)
     stop_preview()
     _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)
-    fps = scene_fps(scene)
     predictor = LookaheadPredictor(model, model.dof_names, fps,
                                    ahead=max(1, round(settings.preview_ahead * fps)),
                                    replay=max(2, round(settings.preview_replay * fps)),
@@ -123,8 +134,7 @@ def start_preview(context, obj):
     try:
         ghost = _make_ghost(context, obj)
         ghost_name = ghost.name
-        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor,
-                                  np.array([lookup[n] for n in model.dof_names], dtype=int))
+        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns)
         if not bpy.app.background and not handler_registered():
             bpy.app.handlers.frame_change_post.append(_on_frame_change)
         update_preview(scene)
@@ -141,17 +151,35 @@ def start_preview(context, obj):
     return _SESSION
 
 
-def stop_preview():
-    """Remove the handler, the ghost and its armature data (safe to call any time)."""
-    global _SESSION
+def stop_preview(reason=""):
+    """Remove the handler, the ghost and its armature data (safe to call any time).
+
+    Returns
+    -------
+    str
+        What was stopped (empty when no preview ran); kept with ``reason`` for the panel.
+    """
+    global _SESSION, _LAST_STOP
     while _on_frame_change in bpy.app.handlers.frame_change_post:
         bpy.app.handlers.frame_change_post.remove(_on_frame_change)
     s, _SESSION = _SESSION, None
     if s is None:
-        return
+        return ""
     ghost = bpy.data.objects.get(s.ghost_name)
-    if ghost is not None and ghost.get(PROP_GHOST) == s.source_name:
+    removed = ghost is not None and ghost.get(PROP_GHOST) == s.source_name
+    if removed:
         _remove_ghost(ghost)
+    summary = (f"Stopped the live preview of {s.source_name}"
+               f"{' and removed its ghost' if removed else ''}"
+               f" after {s.updates} frame update{'s' * (s.updates != 1)}"
+               f"{f' ({reason})' if reason else ''}")
+    _LAST_STOP = summary
+    return summary
+
+
+def last_stop():
+    """Why the last live preview ended ('' if none ended in this session)."""
+    return _LAST_STOP
 
 
 def _pose_ghost(s, ghost, row):
@@ -193,6 +221,7 @@ def update_preview(scene):
         return rows[:, s.columns]
 
     predicted = s.predictor.update(scene.frame_current, read)
+    s.updates += 1
     row = s.last_row.copy()
     row[s.columns] = predicted
     _pose_ghost(s, ghost, row)
@@ -204,8 +233,7 @@ def _on_frame_change(scene, *args):
     try:
         update_preview(scene)
     except (GaitError, ValueError) as exc:     # e.g. the action was deleted meanwhile
-        print(f"Track & Stride: gait preview stopped: {exc}")
-        stop_preview()
+        print(f"Track & Stride: {stop_preview(str(exc))}")
 
 
 @persistent
@@ -214,8 +242,10 @@ def _on_load_pre(*args):
 
 
 class TS_OT_gait_preview_start(bpy.types.Operator):
-    """Show a ghost of the active armature walking ahead of it, predicted frame by frame by
-    online EM while you scrub or play"""
+    """Show a ghost walking ahead of the active armature"""
+
+    bl_description = ("Show a ghost of the active armature walking ahead of it, predicted frame "
+                      "by frame (online EM) while you scrub or play")
 
     bl_idname = "track_and_stride.gait_preview_start"
     bl_label = "Start Live Preview"
@@ -229,9 +259,6 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
             return False
         if obj.mode == "EDIT":
             cls.poll_message_set("Leave Edit Mode first")
-            return False
-        if len(gait_settings(context.scene).models) == 0:
-            cls.poll_message_set("Learn a gait model first")
             return False
         return True
 
@@ -262,7 +289,7 @@ class TS_OT_gait_preview_stop(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        stop_preview()
+        self.report({"INFO"}, stop_preview())
         return {"FINISHED"}
 
 
