@@ -16,13 +16,14 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ...core.armature import dofs_to_channels
-from ...core.gait import LookaheadPredictor, observations_from_dofs
+from ...core.gait import LookaheadPredictor, adapt, observations_from_dofs
 from ...core.gait.checks import check_gait
 from ..mocap.acclaim_bridge import scene_fps
 from .bridge import active_model, frame_range, gait_settings
 from .rigs import GaitError, _bvh_channels, gait_rig, read_dofs
 
 PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
+PREVIEW_CHECK_S = 4.0                   # seconds of the keyed range checked at start
 
 
 @dataclass(eq=False)
@@ -37,6 +38,7 @@ class PreviewSession:
     columns: np.ndarray
     last_row: np.ndarray = None
     updates: int = 0
+    warning: str = None
 
 
 _SESSION = None
@@ -116,12 +118,18 @@ def start_preview(context, obj):
     # The same refusals as Predict (core.gait.checks) on the keyed range: no ghost for what is
     # not a walk.
     columns = np.array([lookup[n] for n in model.dof_names], dtype=int)
-    dofs = read_dofs(grig, np.arange(first, last + 1))[:, columns]
+    # The last (at most) 4 s of the keyed range: enough for the checks and the fit score.
+    first_checked = max(first, last - int(round(PREVIEW_CHECK_S * fps)) + 1)
+    dofs = read_dofs(grig, np.arange(first_checked, last + 1))[:, columns]
+    warning = None
     if len(dofs) >= 2:
-        check = check_gait(model, observations_from_dofs(model, dofs, model.dof_names, fps), fps,
-                           what=f"the keyed frames {first}–{last} of {obj.name}")
+        what = f"the keyed frames {first_checked}–{last} of {obj.name}"
+        obs = observations_from_dofs(model, dofs, model.dof_names, fps)
+        check = check_gait(model, obs, fps, what=what)
         if check.refusal:
             raise GaitError(check.refusal)
+        if len(dofs) >= round(0.5 * fps):
+            warning = check_gait(model, obs, fps, adapt(model, obs, fps=fps), what=what).warning
     stop_preview()
     _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)
@@ -134,7 +142,8 @@ def start_preview(context, obj):
     try:
         ghost = _make_ghost(context, obj)
         ghost_name = ghost.name
-        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns)
+        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns,
+                                  warning=warning)
         if not bpy.app.background and not handler_registered():
             bpy.app.handlers.frame_change_post.append(_on_frame_change)
         update_preview(scene)
@@ -270,6 +279,8 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
             return {"CANCELLED"}
         extra = " (background mode: the ghost does not follow the timeline)" \
             if bpy.app.background else ""
+        if s.warning:
+            self.report({"WARNING"}, s.warning[0].upper() + s.warning[1:])
         self.report({"INFO"}, f"Previewing {s.source_name} as {s.ghost_name}{extra}")
         return {"FINISHED"}
 

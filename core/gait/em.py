@@ -195,7 +195,7 @@ def m_step_offset(ctx, stats, style=None):
 def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
           init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
           residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO,
-          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True):
+          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True, n_starts=1):
     """Batch EM: estimate phase state and style of a new walker from an observed window.
 
     Parameters
@@ -230,6 +230,9 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     offset : bool
         Estimate the walker's posture offset jointly with the style (module docstring; models
         without an offset prior ignore it). False: the plain model of the paper.
+    n_starts : int
+        EM runs from the best local minima of the start grid; the run with the highest
+        likelihood is kept (1: the grid's best only).
 
     Returns
     -------
@@ -239,15 +242,41 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
     grid = grid_search(ctx, ys[:k])
-    x0 = np.array([grid.omega, grid.phi0])
-    p0 = np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2])
     fixed = style is not None
     if fixed:
         w = np.asarray(style, dtype=float)
         if w.shape != (model.n_bases,) or not np.all(np.isfinite(w)):
             raise ValueError(f"style must be {model.n_bases} finite values, got {w.shape}")
-    else:
-        w = grid.w
+    starts = [(grid.omega, grid.phi0, grid.w)] if n_starts <= 1 \
+        else grid.local_minima(int(n_starts))
+    runs = []
+    for omega0, phi0, w0 in starts:
+        x0 = np.array([omega0, phi0])
+        p0 = np.diag([(INIT_OMEGA_REL_SD * omega0) ** 2, INIT_PHI_SD**2])
+        runs.append(_em(ctx, ys, w if fixed else w0, x0, p0, fixed, max_iter, tol) + (x0, p0))
+    best, history, n_iter, converged, x0, p0 = max(runs, key=lambda run: run[0][0])
+    loglik, w, b, res = best
+    with_offset = ctx.offset_prec is not None
+    table = None
+    if residual:
+        table, res = _refine_with_residual(ctx, ys - b, w, res, x0, p0, residual_ratio)
+    full_offset = None
+    if with_offset:
+        full_offset = np.zeros(model.n_channels)
+        full_offset[ctx.channels] = b
+    last = np.full(model.n_channels, np.nan)
+    last[ctx.channels] = ys[-1] * ctx.scale
+    return AdaptResult(state=res.states[-1].copy(), covariance=res.covariances[-1].copy(),
+                       w=np.array(w, dtype=float), states=res.states,
+                       covariances=res.covariances, loglik=float(loglik),
+                       loglik_history=np.array(history), n_iter=n_iter, converged=converged,
+                       fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels),
+                       residual=table, offset=full_offset, last_observation=last)
+
+
+def _em(ctx, ys, w, x0, p0, fixed, max_iter, tol):
+    """EM from one start: ((loglik, w, b, filter result) of the best iterate, the likelihood
+    history, iterations, converged)."""
     with_offset = ctx.offset_prec is not None
     b = np.zeros(ctx.n_channels)
     res = ekf_filter(ctx, ys, w, x0, p0)
@@ -269,22 +298,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
             if abs(history[-1] - history[-2]) <= tol * max(abs(history[-1]), 1.0):
                 converged = True
                 break
-    loglik, w, b, res = best
-    table = None
-    if residual:
-        table, res = _refine_with_residual(ctx, ys - b, w, res, x0, p0, residual_ratio)
-    full_offset = None
-    if with_offset:
-        full_offset = np.zeros(model.n_channels)
-        full_offset[ctx.channels] = b
-    last = np.full(model.n_channels, np.nan)
-    last[ctx.channels] = ys[-1] * ctx.scale
-    return AdaptResult(state=res.states[-1].copy(), covariance=res.covariances[-1].copy(),
-                       w=np.array(w, dtype=float), states=res.states,
-                       covariances=res.covariances, loglik=float(loglik),
-                       loglik_history=np.array(history), n_iter=n_iter, converged=converged,
-                       fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels),
-                       residual=table, offset=full_offset, last_observation=last)
+    return best, history, n_iter, converged
 
 
 def _refine_with_residual(ctx, ys, w, res, x0, p0, ratio):

@@ -70,6 +70,24 @@ class GridResult:
     a_sum: np.ndarray
     b_sum: np.ndarray
     n_frames: int
+    styles: np.ndarray = None
+    phis: np.ndarray = None
+
+    def local_minima(self, count):
+        """Up to ``count`` candidates ``(ω, φ₀, w)`` at local minima of the cost grid (8
+        neighbours, periodic in φ₀), best first; the first is the grid's best."""
+        cost = self.costs
+        padded = np.pad(cost, ((1, 1), (0, 0)), constant_values=np.inf)
+        is_min = np.ones(cost.shape, dtype=bool)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di or dj:
+                    shifted = np.roll(padded, (-di, -dj), axis=(0, 1))[1:-1]
+                    is_min &= cost <= shifted
+        idx = np.argwhere(is_min)
+        order = np.argsort(cost[is_min])[:count]
+        return [(float(self.omegas[i]), float(self.phis[j]), self.styles[i, j].copy())
+                for i, j in idx[order]]
 
 
 def phase_tables(ctx):
@@ -141,4 +159,5 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
                       phi_last=float((phi0 + omega * (k_frames - 1)) % (2.0 * np.pi)),
                       w=w[i, j].copy(), cost=float(cost[i, j]),
                       residual=float(max(resid[i, j], 0.0)), costs=cost, omegas=omegas,
-                      a_sum=a_sum[i, j].copy(), b_sum=b_sum[i, j].copy(), n_frames=k_frames)
+                      a_sum=a_sum[i, j].copy(), b_sum=b_sum[i, j].copy(), n_frames=k_frames,
+                      styles=w, phis=phis)

@@ -307,6 +307,29 @@ def test_an_exported_model_imported_into_a_new_file_predicts_the_same_keys(scene
     assert [m.name for m in bridge("gait.storage").find_store().models] == [STOCK_NAME, "walks"]
 
 
+def test_plain_argument_functions_for_scripts_return_summaries(scene, tmp_path):
+    """The bridge functions a command line calls: names and numbers in, a dict out, GaitError
+    (nothing changed) when they cannot run."""
+    gait = bridge("gait.bridge")
+    obj = import_observed(tmp_path)
+    out = gait.predict(obj.name, model=STOCK_NAME, frames=(1, N_OBS), horizon=0.5,
+                       style_mode="RESTYLE", restyle_from="normal", restyle_to="careful",
+                       restyle_amount=0.5)
+    assert out["status"] in ("ok", "warning") and out["observed"] == [1, N_OBS]
+    assert out["predicted"] == [N_OBS + 1, N_OBS + 30] and out["keys"] == 66 * 30
+    assert out["model"] == STOCK_NAME and 0.5 < out["fit"] <= 1.0 and out["message"]
+    saved = gait.export_model(tmp_path / "stock", model=STOCK_NAME)
+    assert saved["path"].endswith("stock.npz") and saved["styles"][0] == "normal"
+    loaded = gait.import_model(saved["path"], name="Copy")
+    assert loaded["model"] == "Copy" and loaded["styles"] == saved["styles"]
+    with pytest.raises(gait.GaitError, match="No object named 'nobody'"):
+        gait.predict("nobody")
+    with pytest.raises(gait.GaitError, match="Unknown predict options: speed"):
+        gait.predict(obj.name, speed=2.0)
+    learned = gait.learn(files=[cmu_path("35_01.amc"), cmu_path("35_02.amc")], name="Two")
+    assert learned["model"] == "Two" and learned["styles"] == ["35_01", "35_02"]
+
+
 def test_a_second_predict_replaces_its_own_prediction(scene, tmp_path):
     """Predict twice with the keyed range: the second observes frames 1-100 again (not the
     first prediction) and writes over the first prediction, so the cadence cannot compound."""
@@ -373,6 +396,9 @@ def test_refusals_explain_and_change_nothing(scene, tmp_path):
     jumper = import_jump(tmp_path / "jump")
     counts, keys, obj = datablock_counts(), snapshot(jumper), jumper
     refused(r"Both legs move together in frames 1–120 of jump \(correlation 1.00\): that is a jump")
+    with pytest.raises(RuntimeError, match="Both legs move together"):   # no ghost either
+        bpy.ops.track_and_stride.gait_preview_start()
+    assert datablock_counts() == counts and bridge("gait.preview").session() is None
     learn_from_files()
     counts = datablock_counts()
     refused("Both legs move together")          # with a learned model too
