@@ -324,6 +324,14 @@ def _record(action, obj):
     return _records(action).get(obj.name)
 
 
+def _co(fcurve):
+    """(K, 2) float32 frames and values of an F-curve's keys (one ``foreach_get``)."""
+    points = fcurve.keyframe_points
+    co = np.empty(2 * len(points), dtype=np.float32)
+    points.foreach_get("co", co)
+    return co.reshape(-1, 2)
+
+
 def _keys_digest(bag, targets, first, last):
     """SHA-1 of the keys (frame, value) in [first, last] of the target F-curves."""
     digest = hashlib.sha1()
@@ -331,7 +339,7 @@ def _keys_digest(bag, targets, first, last):
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is None:
             continue
-        co = keyframe_state(fcurve)["co"]
+        co = _co(fcurve)
         inside = (co[:, 0] >= first - 1e-4) & (co[:, 0] <= last + 1e-4)
         digest.update(f"{path}[{index}]".encode())
         digest.update(np.ascontiguousarray(co[inside]).tobytes())
@@ -390,7 +398,7 @@ def _conflicts(bag, targets, first, last, ignore=None):
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is None or len(fcurve.keyframe_points) == 0:
             continue
-        co = keyframe_state(fcurve)["co"][:, 0]
+        co = _co(fcurve)[:, 0]
         hit = (co >= first - 1e-4) & (co <= last + 1e-4)
         if ignore is not None:
             hit &= ~((co >= ignore[0] - 1e-4) & (co <= ignore[1] + 1e-4))
@@ -403,7 +411,7 @@ def _count_keys(bag, targets, first, last):
     for path, index, _ in targets:
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is not None and len(fcurve.keyframe_points):
-            co = keyframe_state(fcurve)["co"][:, 0]
+            co = _co(fcurve)[:, 0]
             total += int(np.sum((co >= first - 1e-4) & (co <= last + 1e-4)))
     return total
 

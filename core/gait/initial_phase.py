@@ -29,6 +29,7 @@ N_TABLE = 360
 OMEGA_LOG_SD = 0.1
 DEFAULT_N_PHI = 36
 DEFAULT_N_OMEGA = 24
+_BLOCK = 16          # frames gathered at once when summing the tables
 
 
 @dataclass(frozen=True)
@@ -136,9 +137,15 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
     t = np.arange(k_frames)
     phase = phis[None, :, None] + omegas[:, None, None] * t[None, None, :]
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE  # (nω, nφ, K)
-    a_sum = mtm[idx].sum(axis=2)                                         # (nω, nφ, J, J)
     proj = (ys @ mu.reshape(N_TABLE * n_bases, -1).T).reshape(k_frames, N_TABLE, n_bases)
-    b_sum = proj[t, idx].sum(axis=2)                                     # (nω, nφ, J)
+    # Σ over frames of the table rows, in blocks of frames (a window of 100 frames would
+    # otherwise gather an (nω, nφ, 100, J, J) array at once).
+    a_sum = np.zeros((n_omega, n_phi, n_bases, n_bases))                 # (nω, nφ, J, J)
+    b_sum = np.zeros((n_omega, n_phi, n_bases))                          # (nω, nφ, J)
+    for k in range(0, k_frames, _BLOCK):
+        block = idx[:, :, k:k + _BLOCK]
+        a_sum += mtm[block].sum(axis=2)
+        b_sum += proj[t[k:k + _BLOCK], block].sum(axis=2)
     yy = float(np.sum(ys * ys))
     r = ctx.r
     prec = ctx.w_prec
