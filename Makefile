@@ -30,7 +30,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real stock-gaits clean
 
 venv: $(STAMP)
 
@@ -65,6 +65,10 @@ bench-import: extension
 
 bench-gait: $(STAMP)
 	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json
+
+# Rebuild the stock gait library shipped in core/gait/data (about 10 s; docs/gait.md).
+stock-gaits: $(STAMP)
+	$(PY) tools/build_stock_gaits.py --output core/gait/data/stock_gaits.npz
 
 bench-gait-blender: extension
 	$(PY) benchmarks/bench_gait_blender.py --extension $(ZIP) --output build/bench/gait_blender.json

@@ -18,6 +18,14 @@ Never loads a test trial of ``bench_gait`` (asserted). Splits:
   J = 4 model of the fold's remaining training trials; per segment the benchmark's ``rms_deg``
   and ``adapt_s`` (same formulas, imported from ``bench_gait``).
 
+* **leave one walker out, nested** (``--lowo``; issue 12) -- for every outer fold (a held-out
+  subject of ``gait_lowo``), inner folds over its five training subjects: each in turn is held
+  out from a model of the other four (the stock recipe without both), and its test cases are
+  predicted from 0.5, 1.0 and 1.67 s. A candidate's inner score for an outer fold is the mean
+  over the inner subjects of their mean error; each outer fold picks the candidate with the
+  lowest mean over the three windows. The held-out subject of an outer fold is never seen by its
+  choice. Prints the inner scores per candidate and outer fold and the picks.
+
 The script prints the candidates compared for each default and writes the JSON. Candidate
 settings are passed as keyword arguments, so a new mechanism is compared against the default on
 exactly these splits.
@@ -41,6 +49,7 @@ from bench_gait import ADAPT_S, FPS, HORIZON_S, N_ANGLES, OFFLINE_J, OFFLINE_TES
     OFFLINE_TRAIN, ONLINE_J, ONLINE_TEST, ONLINE_TRAIN, PREDICT_END_S, SKIP_S, _settle_time, \
     angle_rms_deg, last_cycle_baseline, load, train  # noqa: E402
 import core.gait.em as em_module  # noqa: E402
+import gait_lowo  # noqa: E402
 from core.gait import OnlineEM, adapt, observations_from_dofs, predict  # noqa: E402
 from core.gait.online import OnlineConfig  # noqa: E402
 
@@ -405,13 +414,65 @@ def residual_passes(n):
         em_module.RESIDUAL_REFINE = old
 
 
+# ------------------------------------------------------------------ leave one walker out
+# The candidates behind the method's settings (docs/gait.md, "How defaults were chosen");
+# "default" is what ships. Keys of gait_lowo.Method.variant: learn / adapt / predict kwargs.
+LOWO_CANDIDATES = {
+    "before (no offset, no continuation, grid 0.5 s)": {
+        "adapt": {"offset": False, "init_window": 0.5}, "predict": {"blend_s": 0.0}},
+    "+ posture offset": {"adapt": {"init_window": 0.5}, "predict": {"blend_s": 0.0}},
+    "+ continuation 0.15 s": {"adapt": {"init_window": 0.5}},
+    "default (+ grid on the window up to 1.7 s)": {},
+    "default, continuation 0.3 s": {"predict": {"blend_s": 0.3}},
+    "default, no residual table": {"residual": False},
+    "default, residual kappa 1": {"adapt": {"residual_ratio": 1.0}},
+    "default, residual kappa 10": {"adapt": {"residual_ratio": 10.0}},
+    "default, 3 EM starts": {"adapt": {"n_starts": 3}},
+    "default, J = 4": {"learn": {"n_styles": 4}},
+    "default, omega noise x3": {"learn": {"q_omega_rel": 0.003}},
+}
+
+
+def nested_lowo(candidates=LOWO_CANDIDATES):
+    """{candidate: {outer subject: {window: inner score}}} and the per-outer-fold picks."""
+    base = gait_lowo.Method("default")
+    scores = {}
+    for label, changes in candidates.items():
+        method = base.variant(label, **changes)
+        t0 = time.perf_counter()
+        scores[label] = {}
+        for outer in gait_lowo.SUBJECTS:
+            cases = gait_lowo.nested_scores(method, outer)
+            scores[label][outer] = {f"{w:g}": gait_lowo.headline(cases, "method", w)
+                                    for w in gait_lowo.WINDOWS}
+        mean = {w: float(np.mean([scores[label][o][w] for o in gait_lowo.SUBJECTS]))
+                for w in scores[label][gait_lowo.SUBJECTS[0]]}
+        print(f"  {label:48s} " + "  ".join(f"{w} s {v:.2f}" for w, v in mean.items())
+              + f"   ({time.perf_counter() - t0:.0f} s)", flush=True)
+    picks = {o: min(scores, key=lambda c: np.mean(list(scores[c][o].values())))
+             for o in gait_lowo.SUBJECTS}
+    print("  picked per outer fold: " + ", ".join(f"{o}: {c}" for o, c in picks.items()))
+    return {"inner_scores": scores, "picks": picks}
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="build/bench/gait_validation.json")
     parser.add_argument("--quick", action="store_true",
                         help="defaults only (no sweeps)")
+    parser.add_argument("--lowo", action="store_true",
+                        help="only the nested leave-one-walker-out comparison (about 15 min)")
     args = parser.parse_args(argv)
     t_start = time.perf_counter()
+    if args.lowo:
+        print("Leave one walker out, nested (inner folds of each outer fold; RMS deg)")
+        report = {"leave_one_walker_out_nested": nested_lowo(),
+                  "validation_s": time.perf_counter() - t_start}
+        out = Path(args.output).with_name("gait_validation_lowo.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(report, indent=1, allow_nan=False))
+        print(f"\nwrote {out} in {report['validation_s']:.0f} s")
+        return
     data = load_data()
     report = {"offline": {}, "online": {}}
 

@@ -4,7 +4,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 CMU_DIR = ROOT / "sample_scenes" / "data" / "cmu"
-TRIALS = sorted(p.stem for p in CMU_DIR.glob("*.amc"))
+# Trials with their subject's own .asf (07, 91, 132 and 139 come without one: read them with
+# core.mocap.bvh.cmu_template_asf(), see the data folder's README).
+TRIALS = sorted(p.stem for p in CMU_DIR.glob("*.amc")
+                if (CMU_DIR / (p.stem.split("_")[0] + ".asf")).exists())
 
 
 def cmu_path(name):

@@ -1,98 +1,50 @@
-"""Gait models inside the .blend, learning from armatures and Acclaim files, and predicting a
-walk onto an armature (the bridge behind the Gait panel's operators).
+"""Learning, predicting and model files behind the Gait panel, and the plain-argument functions
+a script or a command line can call (``learn``, ``predict``, ``export_model``, ``import_model``:
+names and numbers in, a summary dict out, :class:`~.rigs.GaitError` when they cannot run).
 
-Models are stored on the scene (``scene.track_and_stride_gait.models``): name, the model's
-``.npz`` bytes as base64 text (``GaitModel.to_bytes``), and a one-line summary, so they are
-saved with the file. Decoded models are cached by content.
+Models live in the file (``storage.py``); the stock library is always available.
 
 Nothing is changed before every check has passed: a request that cannot be carried out raises
-:class:`~.rigs.GaitError` first.
+:class:`~.rigs.GaitError` first. Predict refuses what is not a gait (``core.gait.checks``) and
+replaces its own earlier prediction instead of observing it: every prediction is recorded on
+its action (``PROP_PREDICTION``: observed and predicted frames, a digest of the keys written);
+while those keys are unchanged, a new Predict observes the frames before them and writes over
+them.
 """
 
-import base64
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import bpy
 import numpy as np
 
-from ...core.gait import (GaitModelFileError, GaitModel, ObservationStream, OnlineEM, adapt,
-                          interpolate_styles, learn_model, mix_styles, observations_from_dofs,
-                          predict_dofs)
+from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
+                          observations_from_dofs, predict_dofs, restyle)
+from ...core.gait.checks import check_gait
 from ...core.gait.foot_slide import planted_stride
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from ..mocap.acclaim_bridge import find_asf_beside, scene_fps
 from ..common.fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
                               modified_channels, not_editable)
-from .rigs import (GaitError, channel_values, gait_rig, key_values, keyed_conflicts,
-                   keyed_range, read_dofs)
+from . import storage
+from .rigs import (GaitError, _action_bag, channel_values, gait_rig, key_values, keyed_range,
+                   read_dofs)
 
-SETTINGS = "track_and_stride_gait"   # Scene pointer property (addon/gait/props.py)
-MAX_STYLES = 16                      # learned styles the redo panel's weight vector can address
-_CACHE = {}
+SETTINGS = storage.SETTINGS
+PROP_PREDICTION = "track_and_stride_predictions"   # on an action: {object name: record}
+MIN_OBSERVED_S = 0.5     # seconds the model needs to pick up a walker (the benchmark's shortest)
 
 
 def gait_settings(scene):
-    """The scene's gait settings (models, active index, preview settings)."""
+    """The scene's live-preview settings."""
     return getattr(scene, SETTINGS)
 
 
-# ------------------------------------------------------------------------------ model storage
-def encode_model(model):
-    """A model as base64 text (stored in a StringProperty)."""
-    return base64.b64encode(model.to_bytes()).decode("ascii")
-
-
-def decode_model(text, name="model"):
-    """The :class:`GaitModel` of stored text (cached by content); :class:`GaitError` if invalid."""
-    key = hashlib.sha1(text.encode("ascii", "replace")).hexdigest()
-    model = _CACHE.get(key)
-    if model is None:
-        try:
-            model = GaitModel.from_bytes(base64.b64decode(text.encode("ascii"), validate=True),
-                                         source=f"gait model {name!r}")
-        except (ValueError, GaitModelFileError) as exc:
-            raise GaitError(f"The stored gait model {name!r} cannot be read: {exc}") from None
-        if len(_CACHE) > 8:
-            _CACHE.clear()
-        _CACHE[key] = model
-    return model
-
-
-def model_summary(model):
-    """One line describing a model (J, styles, cadences)."""
-    hz = model.fps / model.periods
-    styles = ", ".join(model.style_names[:4]) + (" …" if len(model.style_names) > 4 else "")
-    return (f"J={model.n_bases} from {len(model.style_names)} ({styles}); "
-            f"cadence {hz.min():.2f}–{hz.max():.2f} cycles/s"
-            f"{'; root travel' if model.root_travel else ''}")
-
-
-def store_model(scene, model, name):
-    """Add a model to the scene's list under a unique name and make it active."""
-    settings = gait_settings(scene)
-    taken = {item.name for item in settings.models}
-    unique, k = name, 1
-    while unique in taken:
-        k += 1
-        unique = f"{name}.{k:03d}"
-    item = settings.models.add()
-    item.name = unique
-    item.data = encode_model(model)
-    item.summary = model_summary(model)
-    settings.active_model = len(settings.models) - 1
-    return item
-
-
-def active_model(scene):
-    """(item, model) of the active list entry; :class:`GaitError` when there is none."""
-    settings = gait_settings(scene)
-    if len(settings.models) == 0:
-        raise GaitError("No gait model in this file: learn one first (Gait › Learn)")
-    index = min(max(settings.active_model, 0), len(settings.models) - 1)
-    item = settings.models[index]
-    return item, decode_model(item.data, item.name)
+def active_model(scene=None):
+    """(name, model) that Predict and the live preview use (``scene`` is not needed: models
+    are file-wide; kept for callers that pass it)."""
+    return storage.active_entry()
 
 
 # ------------------------------------------------------------------------------ learning
@@ -128,16 +80,18 @@ def _file_sequence(path, source_fps):
 
 def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, range_mode="ACTION",
                source_fps=120.0):
-    """Learn a model from armatures' actions and Acclaim files and store it in the scene.
+    """Learn a model from armatures' actions and Acclaim files and store it in the file.
 
     Parameters
     ----------
     objects : sequence of bpy.types.Object
-        Armatures (Acclaim imports or CMU BVH conversions) with walking actions.
+        Armatures (Acclaim imports or CMU BVH conversions) with walking actions, one walker
+        each.
     files : sequence of str
-        ``.amc`` paths (their ``.asf`` beside them).
+        ``.amc`` paths (their ``.asf`` beside them); the files of one subject (``08_01``,
+        ``08_04``: the part before ``_``) count as one walker.
     n_styles : int
-        J; 0 picks it from the singular-value spectrum.
+        Style dimensions (the paper's J); 0 picks them from the singular-value spectrum.
     range_mode : {'ACTION', 'SCENE'}
         Frames read from each armature.
     source_fps : float
@@ -145,10 +99,11 @@ def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, ran
 
     Returns
     -------
-    item, summary : the stored list entry and a report line
+    dict
+        ``model`` (the stored name), ``styles``, ``style_count`` (J), ``sequences``, ``message``.
     """
     scene = context.scene
-    sequences, names, rates, styles = [], [], [], []
+    sequences, names, rates, styles, walkers = [], [], [], [], []
     for obj in objects:
         grig = gait_rig(obj)
         first, last = frame_range(grig, scene, range_mode)
@@ -156,43 +111,86 @@ def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, ran
         names.append(grig.dof_names)
         rates.append(scene_fps(scene))
         styles.append(obj.name)
+        walkers.append(f"object {obj.name}")
     for path in files:
         values, dof_names, style = _file_sequence(path, source_fps)
         sequences.append(values)
         names.append(dof_names)
         rates.append(float(source_fps))
         styles.append(style)
+        walkers.append(f"file {style.split('_')[0]}")
     if not sequences:
         raise GaitError("Nothing to learn from: select walking armatures or choose .amc files")
     try:
-        model = learn_model(sequences, names, rates, styles, n_styles=n_styles or None)
+        model = learn_model(sequences, names, rates, styles, n_styles=n_styles or None,
+                            walkers=walkers)
     except ValueError as exc:
         raise GaitError(f"Cannot learn a gait model: {exc}") from None
-    item = store_model(scene, model, name)
-    return item, f"Learned {item.name}: {item.summary}"
+    item = storage.add_model(model, name)
+    return {"status": "ok", "model": item.name, "styles": list(model.style_names),
+            "style_count": model.n_bases, "sequences": len(sequences),
+            "message": f"Learned {item.name}: {item.summary}"}
+
+
+def learn(files=(), objects=(), name="Gait Model", n_styles=0, range_mode="ACTION",
+          source_fps=120.0):
+    """:func:`learn_gait` with plain arguments (object names, file paths) on the current scene;
+    returns its summary dict."""
+    objs = [_object(n) for n in objects]
+    return learn_gait(bpy.context, objs, [str(f) for f in files], name, int(n_styles),
+                      range_mode, float(source_fps))
+
+
+def _object(name):
+    obj = bpy.data.objects.get(str(name)) if isinstance(name, str) else name
+    if obj is None:
+        raise GaitError(f"No object named {name!r} in this file")
+    return obj
 
 
 # ------------------------------------------------------------------------------ prediction
 @dataclass
 class PredictOptions:
-    """What the predict operator asks for (see its properties for meanings and units)."""
+    """What the predict operator asks for (see its properties for meanings and units).
+
+    ``style_mode``: ``'OBSERVED'`` (the walker as adapted), ``'RESTYLE'`` (moved from
+    ``restyle_from`` towards ``restyle_to`` by ``restyle_amount``, ``core.gait.restyle``) or
+    ``'LIBRARY'`` (exactly the learned style ``library_style``, at its own cadence).
+    ``model``: a model name of the file ('' = the active one) or the path of a model file."""
 
     range_mode: str = "ACTION"
     frame_start: int = 1
     frame_end: int = 100
     horizon: float = 2.0
     cadence: float = 1.0
-    style_mode: str = "ADAPTED"
-    style_a: str = ""
-    style_b: str = ""
-    blend: float = 0.5
-    weights: tuple = field(default_factory=tuple)
+    style_mode: str = "OBSERVED"
+    restyle_from: str = ""
+    restyle_to: str = ""
+    restyle_amount: float = 1.0
+    library_style: str = ""
     stride: float = 1.0
     root_travel: bool = True
     plant_feet: bool = True
-    walker_detail: bool = True
+    mannerisms: bool = True
     adaptation: str = "BATCH"
     target: str = "AFTER"
+    model: str = ""
+
+
+def resolve_model(name):
+    """(name, model) for a Predict request: '' = the active model, a file's model name, the
+    stock library's name, or the path of a model file (``.npz``)."""
+    if not name:
+        return storage.active_entry()
+    if str(name).lower().endswith(".npz") or Path(name).is_file():
+        from ...core.gait import GaitModel, GaitModelFileError
+        try:
+            return Path(name).name, GaitModel.load(name)
+        except OSError as exc:
+            raise GaitError(f"Cannot read {name}: {exc.strerror or exc}") from None
+        except GaitModelFileError as exc:
+            raise GaitError(str(exc)) from None
+    return name, storage.model_by_name(name)
 
 
 def _model_columns(model, grig):
@@ -204,36 +202,57 @@ def _model_columns(model, grig):
     return np.array([lookup[n] for n in model.dof_names], dtype=int)
 
 
-def resolve_style(model, options, adapted):
-    """The style vector (J,) the options ask for."""
-    if options.style_mode == "BLEND":
-        for name in (options.style_a, options.style_b):
-            if name not in model.style_names:
-                raise GaitError(f"Unknown style {name!r}; the model has "
-                                f"{', '.join(model.style_names)}")
-        return interpolate_styles(model, options.style_a, options.style_b, options.blend)
-    if options.style_mode == "WEIGHTS":
-        weights = np.zeros(len(model.style_names))
-        given = np.asarray(options.weights, dtype=float)[:len(weights)]
-        weights[:len(given)] = given
-        try:
-            return mix_styles(model, weights)
-        except ValueError as exc:
-            raise GaitError(f"Style weights: {exc}") from None
-    return adapted
+def _known_style(model, name, what):
+    if name not in model.style_names:
+        raise GaitError(f"{what}: the model has no style {name!r} (its styles: "
+                        f"{', '.join(model.style_names)})")
+
+
+@dataclass
+class Adapted:
+    """The observed walker: state at the last observed frame, style, posture offset, residual
+    table ("mannerisms", batch only), the last observed frame, the adaptation result."""
+
+    state: np.ndarray
+    w: np.ndarray
+    offset: np.ndarray
+    residual: np.ndarray
+    last: np.ndarray
+    result: object = None
 
 
 def _adapt(model, obs, fps, mode, dofs):
-    """(state [ω, φ] at the last frame, style, walker residual table or None) from the observed
-    window; only batch EM estimates the residual table (``core.gait.residual``)."""
+    """The observed walker (:class:`Adapted`); only batch EM estimates the residual table
+    (``core.gait.residual``)."""
     if mode == "ONLINE":
         stream = ObservationStream(model, model.dof_names, fps)
         online = OnlineEM(model, fps=fps)
         for row in dofs:
-            online.step(stream.push(row))
-        return np.array([online.omega, online.phase]), online.w, None
+            last = stream.push(row)
+            online.step(last)
+        return Adapted(np.array([online.omega, online.phase]), online.w, online.state.b, None,
+                       last)
     res = adapt(model, obs, fps=fps)
-    return res.state, res.w, res.residual
+    return Adapted(res.state, res.w, res.offset, res.residual, res.last_observation, res)
+
+
+def resolve_style(model, options, walker, fps):
+    """(state, style, offset, residual table) of the walk the options ask for."""
+    state, w = walker.state.copy(), walker.w
+    offset, residual = walker.offset, walker.residual if options.mannerisms else None
+    if options.style_mode == "RESTYLE":
+        _known_style(model, options.restyle_from, "Restyle from")
+        _known_style(model, options.restyle_to, "Restyle to")
+        w, factor = restyle(model, w, options.restyle_from, options.restyle_to,
+                            options.restyle_amount)
+        state[0] *= factor
+    elif options.style_mode == "LIBRARY":
+        _known_style(model, options.library_style, "Library style")
+        w = model.style(options.library_style)
+        period = model.periods[model.style_names.index(options.library_style)] / model.fps
+        state[0] = 2.0 * np.pi / (period * fps)
+        offset, residual = None, None
+    return state, w, offset, residual
 
 
 def _new_action_from_range(obj, bag, first, last):
@@ -269,45 +288,176 @@ def _new_action_from_range(obj, bag, first, last):
     return new_bag
 
 
-def planted_factor(grig, model, state, w, n, last_dofs, cols, fps, options, residual=None):
+def planted_factor(grig, model, walk, n, last_dofs, cols, fps, options):
     """Stride factor that keeps the stance foot planted (``core.gait.planted_stride``) for
     the prediction as the model makes it; 1 when disabled or without root travel."""
     feet = ("ltoes", "rtoes")
     if not (options.plant_feet and options.root_travel and model.root_travel) \
             or any(f not in grig.skeleton.names for f in feet):
         return 1.0
-    raw = predict_dofs(model, state, w, n, last_dofs[cols], fps, omega_scale=options.cadence,
-                       residual=residual)
+    raw = _predict(model, walk, n, last_dofs[cols], fps, options, stride=1.0)
     rows = np.tile(last_dofs, (n + 1, 1))
     rows[1:, cols] = raw
     return planted_stride(grig.skeleton, rows, feet)
 
 
-def _observe(grig, model, scene, options):
-    """(first, last, DOF rows of [first, last]) after the shortest-cycle check."""
+def _predict(model, walk, n, last_dofs, fps, options, stride):
+    state, w, offset, residual, start = walk
+    return predict_dofs(model, state, w, n, last_dofs, fps, omega_scale=options.cadence,
+                        stride=stride, travel=options.root_travel, residual=residual,
+                        offset=offset, start=start)
+
+
+# ------------------------------------------------------------------------------ records
+def _records(action):
+    """{object name: record} of the predictions recorded on ``action``."""
+    group = action.get(PROP_PREDICTION)
+    if group is None:
+        return {}
+    return {str(name): {"observed": [int(v) for v in rec["observed"]],
+                        "frames": [int(v) for v in rec["frames"]], "digest": str(rec["digest"])}
+            for name, rec in group.items()}
+
+
+def _record(action, obj):
+    """The record of ``obj``'s last prediction on ``action`` (dict) or None."""
+    return _records(action).get(obj.name)
+
+
+def _co(fcurve):
+    """(K, 2) float32 frames and values of an F-curve's keys (one ``foreach_get``)."""
+    points = fcurve.keyframe_points
+    co = np.empty(2 * len(points), dtype=np.float32)
+    points.foreach_get("co", co)
+    return co.reshape(-1, 2)
+
+
+def _keys_digest(bag, targets, first, last):
+    """SHA-1 of the keys (frame, value) in [first, last] of the target F-curves."""
+    digest = hashlib.sha1()
+    for path, index, _ in targets:
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None:
+            continue
+        co = _co(fcurve)
+        inside = (co[:, 0] >= first - 1e-4) & (co[:, 0] <= last + 1e-4)
+        digest.update(f"{path}[{index}]".encode())
+        digest.update(np.ascontiguousarray(co[inside]).tobytes())
+    return digest.hexdigest()
+
+
+def intact_prediction(bag, grig, action):
+    """The record of the object's earlier prediction on ``action`` when its keys are still as
+    written (the animator has not changed them), else None."""
+    rec = _record(action, grig.obj)
+    if rec is None:
+        return None
+    first, last = rec["frames"]
+    return rec if _keys_digest(bag, grig.targets(), first, last) == rec["digest"] else None
+
+
+def _store_record(action, obj, observed, frames, digest):
+    records = _records(action)
+    records[obj.name] = {"observed": [int(v) for v in observed],
+                         "frames": [int(v) for v in frames], "digest": digest}
+    action[PROP_PREDICTION] = records
+
+
+def _remove_keys(bag, targets, first, last):
+    """Delete the keys in [first, last] of the target F-curves; every other key keeps its exact
+    state (co, handles, interpolation, handle types, easing, type, easing parameters)."""
+    extra = (("type", np.int32), ("back", np.float32), ("amplitude", np.float32),
+             ("period", np.float32))
+    for path, index, _ in targets:
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None or len(fcurve.keyframe_points) == 0:
+            continue
+        points = fcurve.keyframe_points
+        state = keyframe_state(fcurve)
+        inside = (state["co"][:, 0] >= first - 1e-4) & (state["co"][:, 0] <= last + 1e-4)
+        if not inside.any():
+            continue
+        more = {}
+        for prop, dtype in extra:
+            array = np.empty(len(points), dtype=dtype)
+            points.foreach_get(prop, array)
+            more[prop] = array
+        keep = ~inside
+        points.clear()
+        points.add(int(keep.sum()))
+        for prop, array in list(state.items()) + list(more.items()):
+            points.foreach_set(prop, np.ascontiguousarray(array[keep]).reshape(-1))
+        fcurve.update()
+
+
+def _conflicts(bag, targets, first, last, ignore=None):
+    """Number of target F-curves with keys in [first, last] (keys in ``ignore`` = (a, b), an
+    earlier prediction about to be replaced, do not count)."""
+    count = 0
+    for path, index, _ in targets:
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None or len(fcurve.keyframe_points) == 0:
+            continue
+        co = _co(fcurve)[:, 0]
+        hit = (co >= first - 1e-4) & (co <= last + 1e-4)
+        if ignore is not None:
+            hit &= ~((co >= ignore[0] - 1e-4) & (co <= ignore[1] + 1e-4))
+        count += bool(hit.any())
+    return count
+
+
+def _count_keys(bag, targets, first, last):
+    total = 0
+    for path, index, _ in targets:
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is not None and len(fcurve.keyframe_points):
+            co = _co(fcurve)[:, 0]
+            total += int(np.sum((co >= first - 1e-4) & (co <= last + 1e-4)))
+    return total
+
+
+# ------------------------------------------------------------------------------ predict
+def _observed_range(grig, scene, options, bag, record):
+    """(first, last) frames to observe: the keyed range up to an intact earlier prediction
+    (which is replaced, not observed), the scene's, or the custom one."""
+    obj = grig.obj
+    if options.range_mode == "ACTION":
+        lo, _ = keyed_range(grig)
+        first = int(np.ceil(lo - 1e-4))
+        last = record["observed"][1] if record is not None else \
+            int(np.floor(keyed_range(grig)[1] + 1e-4))
+    else:
+        first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
+                                  options.frame_end)
+        if record is not None and first <= record["frames"][1] and last >= record["frames"][0]:
+            a, b = record["frames"]
+            raise GaitError(f"Frames {a}–{b} of {obj.animation_data.action.name} are an earlier "
+                            f"prediction: observe frames before {a}, or use Reference Frames › "
+                            f"Keyed Range to replace that prediction")
+    if last <= first:
+        raise GaitError(f"The frame range {first}–{last} of {obj.name} is empty")
+    if _count_keys(bag, grig.targets(), first, last) == 0:
+        raise GaitError(f"Frames {first}–{last} of {obj.name} hold no keys on the bones the gait "
+                        f"model reads: key or import a few steps of the walk there first")
     fps = scene_fps(scene)
-    first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
-                              options.frame_end)
     n_obs = last - first + 1
-    shortest = float(np.min(model.periods)) / model.fps
-    if n_obs / fps < shortest:
-        raise GaitError(f"Observed {n_obs} frames ({n_obs / fps:.2f} s) is shorter than one gait "
-                        f"cycle (the quickest learned walker needs {shortest:.2f} s): observe "
-                        f"at least one full cycle")
-    return first, last, read_dofs(grig, np.arange(first, last + 1))
+    if n_obs / fps < MIN_OBSERVED_S - 1e-9:
+        raise GaitError(f"Observed {n_obs} frames ({n_obs / fps:.2f} s) is too short: the model "
+                        f"needs at least {MIN_OBSERVED_S:g} s of the walk to pick up its step")
+    return first, last
 
 
-def _target_bag(obj, grig, options, first, last, frames):
-    """The channelbag to key into: the action's own (after a conflict check) or a new one."""
+def _check_target(obj, grig, options, bag, frames, record):
+    """Refusals about the keys the prediction would write (After Observed)."""
     anim = obj.animation_data
-    bag = channelbag(anim.action, anim.action_slot)
     if options.target != "AFTER":
-        return _new_action_from_range(obj, bag, first, last)
-    clash = keyed_conflicts(bag, grig.targets(), frames[0], frames[-1])
+        return
+    ignore = tuple(record["frames"]) if record is not None else None
+    clash = _conflicts(bag, grig.targets(), frames[0], frames[-1], ignore)
     if clash:
         raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
                         f"F-curves of {anim.action.name}: choose Target › New Action, a shorter "
-                        f"horizon, or an earlier observed range")
+                        f"length, or an earlier reference range")
     locked = locked_channels(bag, grig.targets())
     if locked:
         raise GaitError(f"{len(locked)} F-curve{'s' * (len(locked) != 1)} of "
@@ -326,20 +476,22 @@ def _target_bag(obj, grig, options, first, last, frames):
                         f"written under a modifier would apply it twice; mute or remove "
                         f"{'it' if one else 'them'} (Graph Editor › Sidebar › Modifiers) or choose "
                         "Target › New Action")
-    return bag
 
 
 def predict_gait(context, obj, options):
-    """Observe, adapt, predict and key the prediction on ``obj`` (module docstring).
+    """Observe, check, adapt, predict and key the prediction on ``obj`` (module docstring).
 
     Returns
     -------
-    str
-        Report line.
+    dict
+        ``status`` ('ok' or 'warning'), ``object``, ``action``, ``model``, ``observed`` and
+        ``predicted`` frame ranges, ``keys`` written, ``strides_per_s``, ``fit`` (fit score),
+        ``period_s`` (observed, None when too short to test), ``replaced`` (an earlier
+        prediction's frames or None), ``warnings`` and ``message`` (the report line).
     """
     scene = context.scene
     fps = scene_fps(scene)
-    item, model = active_model(scene)
+    model_name, model = resolve_model(options.model)
     grig = gait_rig(obj)
     anim = obj.animation_data
     message = not_editable(obj, anim.action if anim is not None and options.target == "AFTER"
@@ -347,37 +499,125 @@ def predict_gait(context, obj, options):
     if message:
         raise GaitError(message)
     cols = _model_columns(model, grig)
-    first, last, dofs = _observe(grig, model, scene, options)
+    bag = _action_bag(obj)                               # refuses an armature without action
+    action = obj.animation_data.action
+    record = intact_prediction(bag, grig, action)
+    first, last = _observed_range(grig, scene, options, bag, record)
+    dofs = read_dofs(grig, np.arange(first, last + 1))
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
-    state, w_adapted, residual = _adapt(model, obs, fps, options.adaptation, model_dofs)
-    period = 2.0 * np.pi / state[0]
-    if len(dofs) < period:
-        raise GaitError(f"Observed {len(dofs)} frames ({len(dofs) / fps:.2f} s) is shorter than "
-                        f"one gait cycle of this walker (about {period / fps:.2f} s): observe "
-                        f"more frames")
-    w = resolve_style(model, options, w_adapted)
-    # The walker's own details belong to the adapted style only: restyled gaits use the
-    # learned templates as they are.
-    if not (options.walker_detail and options.style_mode == "ADAPTED"):
-        residual = None
+    what = f"frames {first}–{last} of {obj.name}"
+    check = check_gait(model, obs, fps, what=what)
+    if check.refusal:
+        raise GaitError(check.refusal)
+    walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
+    if walker.result is not None:
+        check = check_gait(model, obs, fps, walker.result, what=what)
+    state, w, offset, residual = resolve_style(model, options, walker, fps)
     n = int(round(options.horizon * fps))
     if n < 1:
-        raise GaitError("The horizon is shorter than one frame")
-    k = planted_factor(grig, model, state, w, n, dofs[-1], cols, fps, options, residual)
+        raise GaitError("The length is shorter than one frame")
+    frames = last + np.arange(1, n + 1)
+    if options.target == "AFTER":
+        _check_target(obj, grig, options, bag, frames, record)
+    walk = (state, w, offset, residual, walker.last)
+    k = planted_factor(grig, model, walk, n, dofs[-1], cols, fps, options)
     try:
-        pred = predict_dofs(model, state, w, n, model_dofs[-1], fps, omega_scale=options.cadence,
-                            stride=k * options.stride, travel=options.root_travel,
-                            residual=residual)
+        pred = _predict(model, walk, n, model_dofs[-1], fps, options, k * options.stride)
     except ValueError as exc:
         raise GaitError(str(exc)) from None
     full = np.tile(dofs[-1], (n, 1))
     full[:, cols] = pred
-    frames = last + np.arange(1, n + 1)
-    anim = obj.animation_data
-    values = channel_values(grig, channelbag(anim.action, anim.action_slot), full, last, dofs[-1])
-    written = key_values(grig, _target_bag(obj, grig, options, first, last, frames), frames, values)
-    return (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {item.name}: "
-            f"{fps / period * options.cadence:.2f} cycles/s, style "
-            f"{options.style_mode.lower()}, stride ×{k:.2f}{' (planted)' if k != 1.0 else ''}; "
-            f"{written} keys in {obj.animation_data.action.name}")
+    values = channel_values(grig, bag, full, last, dofs[-1])
+    # Every check has passed: change the scene.
+    replaced = None
+    if options.target == "AFTER":
+        if record is not None:
+            replaced = tuple(record["frames"])
+            _remove_keys(bag, grig.targets(), *replaced)
+        target_bag = bag
+    else:
+        target_bag = _new_action_from_range(obj, bag, first, last)
+    written = key_values(grig, target_bag, frames, values)
+    new_action = obj.animation_data.action
+    _store_record(new_action, obj, (first, last), (frames[0], frames[-1]),
+                  _keys_digest(target_bag, grig.targets(), frames[0], frames[-1]))
+    hz = fps * state[0] / (2.0 * np.pi) * options.cadence
+    warnings = [check.warning] if check.warning else []
+    style = {"OBSERVED": "as observed", "LIBRARY": f"library style {options.library_style}",
+             "RESTYLE": f"restyled {options.restyle_from} → {options.restyle_to} "
+                        f"×{options.restyle_amount:g}"}[options.style_mode]
+    text = (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {model_name}: "
+            f"{hz:.2f} strides/s, {style}, stride ×{k:.2f}{' (feet planted)' if k != 1.0 else ''}"
+            f"; {written} keys in {new_action.name}"
+            + (f", replacing the earlier prediction of frames {replaced[0]}–{replaced[1]}"
+               if replaced else "")
+            + (f"; fit score {check.fit:.2f}" if check.fit is not None else "")
+            + ("" if check.period_s is not None else
+               "; the reference range is shorter than a step cycle, its rhythm was not tested"))
+    return {"status": "warning" if warnings else "ok", "object": obj.name,
+            "action": new_action.name, "model": model_name, "observed": [first, last],
+            "predicted": [int(frames[0]), int(frames[-1])], "keys": int(written),
+            "strides_per_s": float(hz), "fit": check.fit, "period_s": check.period_s,
+            "replaced": list(replaced) if replaced else None, "warnings": warnings,
+            "message": text}
+
+
+def predict(obj, model="", frames=None, horizon=2.0, **options):
+    """:func:`predict_gait` with plain arguments on the current scene.
+
+    Parameters
+    ----------
+    obj : str
+        The armature's name.
+    model : str
+        A model of the file by name, the stock library's name, a model file's path, or ''
+        (the active model).
+    frames : (int, int), optional
+        The reference frames; default: the keyed range.
+    horizon : float
+        Seconds to predict.
+    **options
+        Other :class:`PredictOptions` fields (``cadence``, ``style_mode``, ``restyle_from`` …).
+
+    Returns
+    -------
+    dict
+        :func:`predict_gait`'s summary.
+    """
+    kwargs = dict(options, model=str(model or ""), horizon=float(horizon))
+    if frames is not None:
+        kwargs.update(range_mode="CUSTOM", frame_start=int(frames[0]), frame_end=int(frames[1]))
+    unknown = set(kwargs) - set(PredictOptions.__dataclass_fields__)
+    if unknown:
+        raise GaitError(f"Unknown predict options: {', '.join(sorted(unknown))}")
+    return predict_gait(bpy.context, _object(obj), PredictOptions(**kwargs))
+
+
+# ------------------------------------------------------------------------------ model files
+def export_model(path, model=""):
+    """Write a model of the file (by name; '' = the active one) to a model file.
+
+    Returns
+    -------
+    dict
+        ``model``, ``path``, ``styles``, ``message``.
+    """
+    name, found, written = storage.export_model(path, model or None)
+    return {"status": "ok", "model": name, "path": str(written),
+            "styles": list(found.style_names),
+            "message": f"Exported {name} to {written.name}"}
+
+
+def import_model(path, name=""):
+    """Read a model file into the file's models (made active).
+
+    Returns
+    -------
+    dict
+        ``model`` (the stored name), ``path``, ``styles``, ``message``.
+    """
+    item, model = storage.import_model(path, name or None)
+    return {"status": "ok", "model": item.name, "path": str(path),
+            "styles": list(model.style_names),
+            "message": f"Imported {item.name}: {item.summary}"}

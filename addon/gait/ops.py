@@ -1,18 +1,20 @@
-"""Gait operators: learn a model, remove one, predict a walk (thin adapters over
-:mod:`.bridge`)."""
+"""Gait operators: learn a model, remove one, export/import model files, predict a walk (thin
+adapters over :mod:`.bridge`). Labels use an animator's words; the paper's terms are in the
+tooltips and ``docs/gait_blender.md``."""
 
 import os
 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
-                       FloatVectorProperty, IntProperty, StringProperty)
+                       IntProperty, StringProperty)
+from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from .bridge import (MAX_STYLES, PredictOptions, active_model, gait_settings, learn_gait,
-                     predict_gait)
+from . import storage
+from .bridge import PredictOptions, export_model, import_model, learn_gait, predict_gait
 from .rigs import GaitError
-from ..common.reporting import report_outcome
 
 _MODES = ("OBJECT", "POSE")
+MAX_STYLE_COUNT = 16
 
 
 def _poll_armature(cls, context):
@@ -26,10 +28,24 @@ def _poll_armature(cls, context):
     return True
 
 
-class TS_OT_learn_gait(bpy.types.Operator):
-    """Learn a gait model from the selected armatures' walks and/or Acclaim files and store it
-    in this file"""
+def _report(operator, action):
+    """Run a bridge call returning a summary dict; report its message and warnings."""
+    try:
+        summary = action()
+    except GaitError as exc:
+        operator.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    for warning in summary.get("warnings", ()):
+        operator.report({"WARNING"}, warning[0].upper() + warning[1:])
+    operator.report({"INFO"}, summary["message"])
+    return {"FINISHED"}
 
+
+class TS_OT_learn_gait(bpy.types.Operator):
+    """Learn a gait model from walks and keep it in this file"""
+
+    bl_description = ("Learn a gait model from the selected armatures' walks and/or Acclaim "
+                      "files and keep it in this file")
     bl_idname = "track_and_stride.learn_gait"
     bl_label = "Learn Gait Model"
     bl_options = {"REGISTER", "UNDO"}
@@ -42,12 +58,13 @@ class TS_OT_learn_gait(bpy.types.Operator):
                     "conversions), one walker each", default=True)
     range_mode: EnumProperty(
         name="Frames", description="Frames read from each selected armature",
-        items=(("ACTION", "Action Range", "Every keyed frame of the armature's action"),
+        items=(("ACTION", "Keyed Range", "Every keyed frame of the armature's action"),
                ("SCENE", "Scene Range", "The scene's start to end frame")),
         default="ACTION")
     n_styles: IntProperty(
-        name="Styles (J)", description="Number of style dimensions; 0 = from the singular-value "
-        "spectrum (99 % of its energy)", default=0, min=0, max=MAX_STYLES)
+        name="Style Count", description="How many independent ways of walking the model can "
+        "mix (the paper's style dimension J); 0 = automatic (99 % of the singular-value "
+        "spectrum)", default=0, min=0, max=MAX_STYLE_COUNT)
     source_fps: FloatProperty(
         name="Capture Rate", description="Samples per second of the .amc files (CMU: 120)",
         default=120.0, min=1.0, max=1000.0)
@@ -75,12 +92,13 @@ class TS_OT_learn_gait(bpy.types.Operator):
         objects = [o for o in context.selected_objects if o.type == "ARMATURE"] \
             if self.use_selected else []
         files = [os.path.join(self.directory, f.name) for f in self.files if f.name]
-        return report_outcome(self, GaitError, lambda: learn_gait(
-            context, objects, files, self.name, self.n_styles, self.range_mode, self.source_fps)[1])
+        return _report(self, lambda: learn_gait(context, objects, files, self.name,
+                                                self.n_styles, self.range_mode,
+                                                self.source_fps))
 
 
 class TS_OT_remove_gait_model(bpy.types.Operator):
-    """Remove the active gait model from this file"""
+    """Remove the active gait model from this file (the built-in stock library stays)"""
 
     bl_idname = "track_and_stride.remove_gait_model"
     bl_label = "Remove Gait Model"
@@ -88,120 +106,163 @@ class TS_OT_remove_gait_model(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if len(gait_settings(context.scene).models) == 0:
-            cls.poll_message_set("No gait model to remove")
+        store = storage.find_store()
+        if store is None or len(store.models) == 0:
+            cls.poll_message_set("No gait model of this file to remove")
+            return False
+        if store.models[min(store.active_model, len(store.models) - 1)].builtin:
+            cls.poll_message_set("The built-in stock library cannot be removed")
             return False
         return True
 
     def execute(self, context):
-        settings = gait_settings(context.scene)
-        index = min(settings.active_model, len(settings.models) - 1)
-        name = settings.models[index].name
-        settings.models.remove(index)
-        settings.active_model = max(0, min(index, len(settings.models) - 1))
+        try:
+            name = storage.remove_active()
+        except GaitError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
         self.report({"INFO"}, f"Removed {name}")
         return {"FINISHED"}
+
+
+class TS_OT_export_gait_model(bpy.types.Operator, ExportHelper):
+    """Save the active gait model as a model file"""
+
+    bl_description = ("Save the active gait model as a model file (.npz) to share it or use "
+                      "it in other files")
+    bl_idname = "track_and_stride.export_gait_model"
+    bl_label = "Export Gait Model"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".npz"
+    filter_glob: StringProperty(default="*.npz", options={"HIDDEN"})
+
+    def invoke(self, context, event):
+        name, _ = storage.active_entry()
+        self.filepath = bpy.path.clean_name(name) + self.filename_ext
+        return ExportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        return _report(self, lambda: export_model(self.filepath))
+
+
+class TS_OT_import_gait_model(bpy.types.Operator, ImportHelper):
+    """Add a gait model file (.npz, exported by Track & Stride) to this file's models"""
+
+
+    bl_idname = "track_and_stride.import_gait_model"
+    bl_label = "Import Gait Model"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filename_ext = ".npz"
+    filter_glob: StringProperty(default="*.npz", options={"HIDDEN"})
+
+    def execute(self, context):
+        return _report(self, lambda: import_model(self.filepath))
 
 
 _STYLE_ITEMS = []   # keep the strings alive (Blender does not copy dynamic enum items)
 
 
 def _style_items(self, context):
-    names = ()
-    if context is not None and context.scene is not None:
-        try:
-            names = active_model(context.scene)[1].style_names
-        except GaitError:
-            names = ()
-    _STYLE_ITEMS[:] = [(n, n, f"Learned style {n}") for n in names] or \
-        [("NONE", "(no model)", "Learn a gait model first")]
+    try:
+        names = storage.active_entry()[1].style_names
+    except GaitError:
+        names = ()
+    _STYLE_ITEMS[:] = [(n, n, f"The learned style {n!r}") for n in names] or \
+        [("NONE", "(no model)", "No gait model can be read")]
     return _STYLE_ITEMS
 
 
 class TS_OT_predict_gait(bpy.types.Operator):
-    """Observe the active armature's walk, adapt the gait model to it and key the predicted
-    continuation after the observed frames"""
+    """Continue the active armature's walk"""
 
+    bl_description = ("Continue the active armature's walk: the gait model picks up its rhythm "
+                      "and style from the reference frames and keys the next steps")
     bl_idname = "track_and_stride.predict_gait"
     bl_label = "Predict Gait"
     bl_options = {"REGISTER", "UNDO"}
 
     range_mode: EnumProperty(
-        name="Observe", description="Frames of the action the model adapts to",
-        items=(("ACTION", "Action Range", "Every keyed frame of the action"),
+        name="Reference Frames", description="The frames the model watches to pick up the "
+        "walker's rhythm and style (the observation window the model adapts to)",
+        items=(("ACTION", "Keyed Range", "Every keyed frame of the action, up to an earlier "
+                "prediction (which is replaced)"),
                ("SCENE", "Scene Range", "The scene's start to end frame"),
-               ("CUSTOM", "Custom", "The frames set below")),
+               ("CUSTOM", "Custom Range", "The frames set below")),
         default="ACTION")
-    frame_start: IntProperty(name="Start", description="First observed frame (Custom)", default=1)
-    frame_end: IntProperty(name="End", description="Last observed frame (Custom); the prediction "
-                           "starts on the frame after it", default=100)
+    frame_start: IntProperty(name="Start", description="First reference frame (Custom Range)",
+                             default=1)
+    frame_end: IntProperty(name="End", description="Last reference frame (Custom Range); the "
+                           "prediction starts on the frame after it", default=100)
     horizon: FloatProperty(
-        name="Horizon", description="Length of the prediction in seconds (frames = seconds × "
-        "scene fps)", default=2.0, min=0.05, max=60.0, unit="TIME_ABSOLUTE")
+        name="Length", description="How long the prediction runs, in seconds (frames = seconds "
+        "× scene fps; the prediction horizon)", default=2.0, min=0.05, max=60.0,
+        unit="TIME_ABSOLUTE")
     cadence: FloatProperty(
-        name="Cadence", description="Retiming: multiplies the walker's cadence (1.2 = steps 20 % "
-        "quicker, each cycle 1/1.2 as long, same distance per cycle)",
+        name="Cadence", description="Retiming: multiplies the walker's steps per second (1.2 = "
+        "steps 20 % quicker, each cycle 1/1.2 as long, same distance per cycle)",
         default=1.0, min=0.25, max=4.0, soft_min=0.5, soft_max=2.0)
     style_mode: EnumProperty(
-        name="Style", description="Which style the prediction walks in",
-        items=(("ADAPTED", "Adapted", "The observed walker's own style"),
-               ("BLEND", "Blend", "A blend between two learned styles"),
-               ("WEIGHTS", "Weights", "A weighted mix of all learned styles")),
-        default="ADAPTED")
-    style_a: EnumProperty(name="From", description="Learned style at blend 0", items=_style_items)
-    style_b: EnumProperty(name="To", description="Learned style at blend 1", items=_style_items)
-    blend: FloatProperty(name="Blend", description="0 = the first style, 1 = the second (values "
-                         "outside extrapolate)", default=0.5, soft_min=0.0, soft_max=1.0)
-    weights: FloatVectorProperty(
-        name="Weights", description="Weight of each learned style, in list order (normalised "
-        "to sum to 1)", size=MAX_STYLES, default=(1.0,) + (0.0,) * (MAX_STYLES - 1),
-        soft_min=0.0, soft_max=1.0)
+        name="Style", description="How the predicted walk looks",
+        items=(("OBSERVED", "As Observed", "The walker's own style, as picked up from the "
+                "reference frames"),
+               ("RESTYLE", "Restyle", "The walker's own style moved from one named style "
+                "towards another (keeps the walker's build and posture)"),
+               ("LIBRARY", "Library Style", "Exactly one of the model's named styles, at its "
+                "own cadence")),
+        default="OBSERVED")
+    restyle_from: EnumProperty(name="From", description="Named style to move away from",
+                               items=_style_items)
+    restyle_to: EnumProperty(name="To", description="Named style to move towards",
+                             items=_style_items)
+    restyle_amount: FloatProperty(
+        name="Amount", description="How far to move: 0 = as observed, 1 = the whole difference "
+        "between the two styles (values outside extrapolate)", default=1.0, soft_min=0.0,
+        soft_max=1.0)
+    library_style: EnumProperty(name="Library Style", description="The named style to walk in",
+                                items=_style_items)
     stride: FloatProperty(
-        name="Stride", description="Scale of the root's horizontal speed (1 = as predicted; other "
-        "values make the feet slide — blend in a longer-striding style instead)",
+        name="Stride Scale", description="Scale of the root's forward speed (1 = as predicted; "
+        "other values make the feet slide: restyle to a longer-striding style instead)",
         default=1.0, min=0.0, max=4.0)
     root_travel: BoolProperty(
-        name="Root Travel", description="Move along the current heading; off: walk on the spot",
-        default=True)
+        name="Walk Forward", description="Move along the current heading (root travel); off: "
+        "walk on the spot", default=True)
     plant_feet: BoolProperty(
-        name="Planted Stride", description="Scale the predicted root speed so that the stance "
-        "foot stays planted (least squares over the prediction; Stride multiplies on top)",
-        default=True)
-    walker_detail: BoolProperty(
-        name="Walker Detail", description="Add the observed walker's own details (a smooth "
-        "per-phase correction learned from the observed cycles) to the adapted style; batch EM "
-        "only, ignored when restyling", default=True)
+        name="Keep Feet Planted", description="Scale the predicted forward speed so that the "
+        "standing foot does not slide (least squares over the prediction; Stride Scale "
+        "multiplies on top)", default=True)
+    mannerisms: BoolProperty(
+        name="Keep Mannerisms", description="Add the walker's own details that the learned "
+        "styles cannot express (a smooth per-phase correction learned from the reference "
+        "frames: the walker's residual table); Whole Range fit only", default=True)
     adaptation: EnumProperty(
-        name="Adaptation", description="How the model adapts to the observed frames",
-        items=(("BATCH", "Batch EM", "EKF + EM over the whole window (best estimate)"),
-               ("ONLINE", "Online EM", "Frame-by-frame online EM over the window, as the "
-                "live preview does")),
+        name="Fit", description="How the model fits the reference frames",
+        items=(("BATCH", "Whole Range", "Fit all reference frames together (batch EM: the best "
+                "estimate)"),
+               ("ONLINE", "Frame by Frame", "Fit frame by frame as the live preview does "
+                "(online EM)")),
         default="BATCH")
     target: EnumProperty(
         name="Target", description="Where the predicted keys go",
-        items=(("AFTER", "After Observed", "Into the same action after the observed range "
-                "(refused if those frames already hold keys)"),
-               ("NEW_ACTION", "New Action", "Into a new action holding a copy of the observed "
+        items=(("AFTER", "After Reference", "Into the same action after the reference frames "
+                "(refused if those frames already hold keys; an earlier prediction there is "
+                "replaced)"),
+               ("NEW_ACTION", "New Action", "Into a new action holding a copy of the reference "
                 "keys; the original action is kept unchanged")),
         default="AFTER")
 
     @classmethod
     def poll(cls, context):
-        if not _poll_armature(cls, context):
-            return False
-        if len(gait_settings(context.scene).models) == 0:
-            cls.poll_message_set("Learn a gait model first (Learn from Selected / Files)")
-            return False
-        return True
+        return _poll_armature(cls, context)
 
     def execute(self, context):
         options = PredictOptions(**{k: getattr(self, k) for k in (
             "range_mode", "frame_start", "frame_end", "horizon", "cadence", "style_mode",
-            "style_a", "style_b", "blend", "stride", "root_travel", "plant_feet", "walker_detail",
-            "adaptation", "target")},
-            weights=tuple(self.weights))
-        return report_outcome(self, GaitError,
-                              lambda: predict_gait(context, context.active_object, options))
+            "restyle_from", "restyle_to", "restyle_amount", "library_style", "stride",
+            "root_travel", "plant_feet", "mannerisms", "adaptation", "target")})
+        return _report(self, lambda: predict_gait(context, context.active_object, options))
 
     def draw(self, context):
         layout = self.layout
@@ -215,19 +276,17 @@ class TS_OT_predict_gait(bpy.types.Operator):
         layout.prop(self, "horizon")
         layout.prop(self, "cadence")
         layout.prop(self, "style_mode")
-        if self.style_mode == "ADAPTED":
+        if self.style_mode == "RESTYLE":
+            col = layout.column(align=True)
+            col.prop(self, "restyle_from")
+            col.prop(self, "restyle_to")
+            col.prop(self, "restyle_amount", slider=True)
+        elif self.style_mode == "LIBRARY":
+            layout.prop(self, "library_style")
+        if self.style_mode != "LIBRARY":
             row = layout.row()
             row.active = self.adaptation == "BATCH"
-            row.prop(self, "walker_detail")
-        if self.style_mode == "BLEND":
-            layout.prop(self, "style_a")
-            layout.prop(self, "style_b")
-            layout.prop(self, "blend", slider=True)
-        elif self.style_mode == "WEIGHTS":
-            names = [item[0] for item in _style_items(self, context)]
-            col = layout.column(align=True)
-            for i, name in enumerate(names[:MAX_STYLES]):
-                col.prop(self, "weights", index=i, text=name)
+            row.prop(self, "mannerisms")
         layout.prop(self, "root_travel")
         row = layout.row()
         row.active = self.root_travel
@@ -238,7 +297,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
         layout.prop(self, "target")
 
 
-CLASSES = (TS_OT_learn_gait, TS_OT_remove_gait_model, TS_OT_predict_gait)
+CLASSES = (TS_OT_learn_gait, TS_OT_remove_gait_model, TS_OT_export_gait_model,
+           TS_OT_import_gait_model, TS_OT_predict_gait)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -16,12 +16,14 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ...core.armature import dofs_to_channels
-from ...core.gait import LookaheadPredictor
+from ...core.gait import LookaheadPredictor, adapt, observations_from_dofs
+from ...core.gait.checks import check_gait
 from ..mocap.acclaim_bridge import scene_fps
 from .bridge import active_model, frame_range, gait_settings
 from .rigs import GaitError, _bvh_channels, gait_rig, read_dofs
 
 PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
+PREVIEW_CHECK_S = 4.0                   # seconds of the keyed range checked at start
 
 
 @dataclass(eq=False)
@@ -35,9 +37,12 @@ class PreviewSession:
     predictor: LookaheadPredictor
     columns: np.ndarray
     last_row: np.ndarray = None
+    updates: int = 0
+    warning: str = None
 
 
 _SESSION = None
+_LAST_STOP = ""       # why the last preview ended (shown in the panel)
 
 
 def session():
@@ -108,12 +113,26 @@ def start_preview(context, obj):
     missing = [n for n in model.dof_names if n not in lookup]
     if missing:
         raise GaitError(f"{obj.name} lacks joints the gait model knows: {', '.join(missing[:8])}")
-    first, _ = frame_range(grig, scene, "ACTION")
-    read_dofs(grig, [first])                       # fails early without an action
+    first, last = frame_range(grig, scene, "ACTION")
+    fps = scene_fps(scene)
+    # The same refusals as Predict (core.gait.checks) on the keyed range: no ghost for what is
+    # not a walk.
+    columns = np.array([lookup[n] for n in model.dof_names], dtype=int)
+    # The last (at most) 4 s of the keyed range: enough for the checks and the fit score.
+    first_checked = max(first, last - int(round(PREVIEW_CHECK_S * fps)) + 1)
+    dofs = read_dofs(grig, np.arange(first_checked, last + 1))[:, columns]
+    warning = None
+    if len(dofs) >= 2:
+        what = f"the keyed frames {first_checked}–{last} of {obj.name}"
+        obs = observations_from_dofs(model, dofs, model.dof_names, fps)
+        check = check_gait(model, obs, fps, what=what)
+        if check.refusal:
+            raise GaitError(check.refusal)
+        if len(dofs) >= round(0.5 * fps):
+            warning = check_gait(model, obs, fps, adapt(model, obs, fps=fps), what=what).warning
     stop_preview()
     _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)
-    fps = scene_fps(scene)
     predictor = LookaheadPredictor(model, model.dof_names, fps,
                                    ahead=max(1, round(settings.preview_ahead * fps)),
                                    replay=max(2, round(settings.preview_replay * fps)),
@@ -123,8 +142,8 @@ def start_preview(context, obj):
     try:
         ghost = _make_ghost(context, obj)
         ghost_name = ghost.name
-        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor,
-                                  np.array([lookup[n] for n in model.dof_names], dtype=int))
+        _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns,
+                                  warning=warning)
         if not bpy.app.background and not handler_registered():
             bpy.app.handlers.frame_change_post.append(_on_frame_change)
         update_preview(scene)
@@ -141,17 +160,35 @@ def start_preview(context, obj):
     return _SESSION
 
 
-def stop_preview():
-    """Remove the handler, the ghost and its armature data (safe to call any time)."""
-    global _SESSION
+def stop_preview(reason=""):
+    """Remove the handler, the ghost and its armature data (safe to call any time).
+
+    Returns
+    -------
+    str
+        What was stopped (empty when no preview ran); kept with ``reason`` for the panel.
+    """
+    global _SESSION, _LAST_STOP
     while _on_frame_change in bpy.app.handlers.frame_change_post:
         bpy.app.handlers.frame_change_post.remove(_on_frame_change)
     s, _SESSION = _SESSION, None
     if s is None:
-        return
+        return ""
     ghost = bpy.data.objects.get(s.ghost_name)
-    if ghost is not None and ghost.get(PROP_GHOST) == s.source_name:
+    removed = ghost is not None and ghost.get(PROP_GHOST) == s.source_name
+    if removed:
         _remove_ghost(ghost)
+    summary = (f"Stopped the live preview of {s.source_name}"
+               f"{' and removed its ghost' if removed else ''}"
+               f" after {s.updates} frame update{'s' * (s.updates != 1)}"
+               f"{f' ({reason})' if reason else ''}")
+    _LAST_STOP = summary
+    return summary
+
+
+def last_stop():
+    """Why the last live preview ended ('' if none ended in this session)."""
+    return _LAST_STOP
 
 
 def _pose_ghost(s, ghost, row):
@@ -193,6 +230,7 @@ def update_preview(scene):
         return rows[:, s.columns]
 
     predicted = s.predictor.update(scene.frame_current, read)
+    s.updates += 1
     row = s.last_row.copy()
     row[s.columns] = predicted
     _pose_ghost(s, ghost, row)
@@ -204,8 +242,7 @@ def _on_frame_change(scene, *args):
     try:
         update_preview(scene)
     except (GaitError, ValueError) as exc:     # e.g. the action was deleted meanwhile
-        print(f"Track & Stride: gait preview stopped: {exc}")
-        stop_preview()
+        print(f"Track & Stride: {stop_preview(str(exc))}")
 
 
 @persistent
@@ -214,8 +251,10 @@ def _on_load_pre(*args):
 
 
 class TS_OT_gait_preview_start(bpy.types.Operator):
-    """Show a ghost of the active armature walking ahead of it, predicted frame by frame by
-    online EM while you scrub or play"""
+    """Show a ghost walking ahead of the active armature"""
+
+    bl_description = ("Show a ghost of the active armature walking ahead of it, predicted frame "
+                      "by frame (online EM) while you scrub or play")
 
     bl_idname = "track_and_stride.gait_preview_start"
     bl_label = "Start Live Preview"
@@ -230,9 +269,6 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
         if obj.mode == "EDIT":
             cls.poll_message_set("Leave Edit Mode first")
             return False
-        if len(gait_settings(context.scene).models) == 0:
-            cls.poll_message_set("Learn a gait model first")
-            return False
         return True
 
     def execute(self, context):
@@ -243,6 +279,8 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
             return {"CANCELLED"}
         extra = " (background mode: the ghost does not follow the timeline)" \
             if bpy.app.background else ""
+        if s.warning:
+            self.report({"WARNING"}, s.warning[0].upper() + s.warning[1:])
         self.report({"INFO"}, f"Previewing {s.source_name} as {s.ghost_name}{extra}")
         return {"FINISHED"}
 
@@ -262,7 +300,7 @@ class TS_OT_gait_preview_stop(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        stop_preview()
+        self.report({"INFO"}, stop_preview())
         return {"FINISHED"}
 
 

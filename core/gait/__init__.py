@@ -11,6 +11,8 @@ Prediction      :func:`predict`, :func:`predict_dofs`, :func:`mix_styles`,
 Root travel     :func:`root_features`, :func:`integrate_root`, :class:`RootFrame`,
                 :func:`foot_slide` (stance-foot sliding metric)
 Live preview    :class:`LookaheadPredictor` (online EM kept in step with the timeline)
+Stock library   :func:`load_stock_library` (named styles, shipped; :func:`restyle`)
+Long captures   :func:`steady_segments` (what learning keeps of a trial with stops and turns)
 Building blocks alignment, factorisation, MAP refinement, GP, EKF, grid initialisation, L-BFGS
 """
 
@@ -31,9 +33,12 @@ from .model import FORMAT_VERSION, GaitModel, GaitModelFileError
 from .online import OnlineConfig, OnlineEM, OnlineState, online_forecast, online_init, \
     online_step
 from .optimize import minimize_lbfgs
-from .prediction import interpolate_styles, mix_styles, predict, predict_dofs
+from .prediction import interpolate_styles, mix_styles, predict, predict_dofs, restyle
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, RootFrame, integrate_root, \
     root_features
+from .alignment import periodicity
+from .segments import split_segments, steady_segments
+from .stock import STOCK_NAME, STOCK_RECIPE, load_stock_library
 
 __all__ = [
     "AdaptResult",
@@ -80,9 +85,16 @@ __all__ = [
     "online_init",
     "online_step",
     "phase_shift",
+    "periodicity",
     "predict",
     "predict_dofs",
     "refine_map",
+    "restyle",
     "root_features",
+    "split_segments",
     "stance_speeds",
+    "steady_segments",
+    "load_stock_library",
+    "STOCK_NAME",
+    "STOCK_RECIPE",
 ]

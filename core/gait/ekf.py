@@ -40,6 +40,7 @@ omega_train  (S,)          training ω (cadence prior of the initial grid)
 w_mean       (J,)          style prior mean (M-step ridge)
 w_prec       (J, J)        style prior precision
 rate_mask    (Dc,) bool    channels that are time derivatives (scaled by retiming)
+offset_prec  (Dc,) or None precision of the posture-offset prior (None: no offset estimated)
 outlier_ratio float        ρ of the outlier-channel test (inf: off)
 outlier_gate float         the test runs only when eᵀe / (n r) exceeds this
 ============ ============= ========================================================
@@ -91,6 +92,7 @@ class FilterContext:
     rate_mask: np.ndarray = field(default=None, repr=False)
     outlier_ratio: float = DEFAULT_OUTLIER_RATIO
     outlier_gate: float = OUTLIER_GATE
+    offset_prec: np.ndarray = field(default=None, repr=False)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -115,6 +117,8 @@ class FilterContext:
         set_(self, "w_prior_aug", np.concatenate((self.w_prec, self.w_prior_term[:, None]),
                                                  axis=1))                   # [Λ | Λ w̄]
         set_(self, "q_floats", (float(self.Q[0, 0]), float(self.Q[0, 1]), float(self.Q[1, 1])))
+        set_(self, "is_angle", self.model.is_angle[self.channels])
+        set_(self, "turns", np.where(self.is_angle, TWO_PI, 0.0))      # 2π on angle channels
         set_(self, "_cache", {})
 
     def steps(self, n):
@@ -122,6 +126,15 @@ class FilterContext:
         key = ("steps", n)
         if key not in self._cache:
             arr = np.arange(1.0, n + 1.0)
+            arr.setflags(write=False)
+            self._cache[key] = arr
+        return self._cache[key]
+
+    def decay(self, n, blend_s):
+        """``exp(-k / (blend_s · fps))`` for k = 1 … n as a column (n, 1) (cached; read-only)."""
+        key = ("decay", n, blend_s)
+        if key not in self._cache:
+            arr = np.exp(-np.arange(1.0, n + 1.0) / (blend_s * self.fps))[:, None]
             arr.setflags(write=False)
             self._cache[key] = arr
         return self._cache[key]
@@ -186,7 +199,7 @@ class FilterContext:
 
 
 def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
-                 outlier_ratio=DEFAULT_OUTLIER_RATIO):
+                 outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True):
     """Precompute the filter quantities for ``model`` at frame rate ``fps``.
 
     Parameters
@@ -201,6 +214,9 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
         Widening of the training-style covariance used as the M-step prior.
     outlier_ratio : float
         ρ of the outlier-channel test (module docstring); ``inf`` turns it off.
+    offset : bool
+        Estimate the walker's posture offset (when the model has an offset prior,
+        ``GaitModel.offset_var``); False: the plain model.
 
     Returns
     -------
@@ -226,6 +242,11 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
     omega_min, omega_max = model.omega_range(fps)
     omega_train = model.training_omegas(fps)
     w_prec = np.linalg.inv(style_prior_scale * model.style_cov)
+    offset_prec = None
+    if offset and model.has_offset:
+        # A channel without between-walker spread gets a prior that holds its offset at 0.
+        var = model.offset_var[index]
+        offset_prec = 1.0 / np.maximum(var, 1e-12 * max(float(var.max()), 1e-300))
     return FilterContext(model=model, fps=fps, channels=index, phases=gp.phases, beta=gp.beta,
                          alpha_w=alpha_w, alpha_flat=alpha_flat,
                          scale=model.channel_scale[index], Q=model.process_noise(fps),
@@ -233,7 +254,8 @@ def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE
                          omega_mean=float(np.exp(np.mean(np.log(omega_train)))),
                          omega_train=omega_train,
                          w_mean=model.style_mean.copy(), w_prec=0.5 * (w_prec + w_prec.T),
-                         rate_mask=model.rate_mask[index], outlier_ratio=float(outlier_ratio))
+                         rate_mask=model.rate_mask[index], outlier_ratio=float(outlier_ratio),
+                         offset_prec=offset_prec)
 
 
 def observation_mean(ctx, phi, w):

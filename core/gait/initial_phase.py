@@ -29,6 +29,7 @@ N_TABLE = 360
 OMEGA_LOG_SD = 0.1
 DEFAULT_N_PHI = 36
 DEFAULT_N_OMEGA = 24
+_BLOCK = 16          # frames gathered at once when summing the tables
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,24 @@ class GridResult:
     a_sum: np.ndarray
     b_sum: np.ndarray
     n_frames: int
+    styles: np.ndarray = None
+    phis: np.ndarray = None
+
+    def local_minima(self, count):
+        """Up to ``count`` candidates ``(ω, φ₀, w)`` at local minima of the cost grid (8
+        neighbours, periodic in φ₀), best first; the first is the grid's best."""
+        cost = self.costs
+        padded = np.pad(cost, ((1, 1), (0, 0)), constant_values=np.inf)
+        is_min = np.ones(cost.shape, dtype=bool)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di or dj:
+                    shifted = np.roll(padded, (-di, -dj), axis=(0, 1))[1:-1]
+                    is_min &= cost <= shifted
+        idx = np.argwhere(is_min)
+        order = np.argsort(cost[is_min])[:count]
+        return [(float(self.omegas[i]), float(self.phis[j]), self.styles[i, j].copy())
+                for i, j in idx[order]]
 
 
 def phase_tables(ctx):
@@ -118,9 +137,15 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
     t = np.arange(k_frames)
     phase = phis[None, :, None] + omegas[:, None, None] * t[None, None, :]
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE  # (nω, nφ, K)
-    a_sum = mtm[idx].sum(axis=2)                                         # (nω, nφ, J, J)
     proj = (ys @ mu.reshape(N_TABLE * n_bases, -1).T).reshape(k_frames, N_TABLE, n_bases)
-    b_sum = proj[t, idx].sum(axis=2)                                     # (nω, nφ, J)
+    # Σ over frames of the table rows, in blocks of frames (a window of 100 frames would
+    # otherwise gather an (nω, nφ, 100, J, J) array at once).
+    a_sum = np.zeros((n_omega, n_phi, n_bases, n_bases))                 # (nω, nφ, J, J)
+    b_sum = np.zeros((n_omega, n_phi, n_bases))                          # (nω, nφ, J)
+    for k in range(0, k_frames, _BLOCK):
+        block = idx[:, :, k:k + _BLOCK]
+        a_sum += mtm[block].sum(axis=2)
+        b_sum += proj[t[k:k + _BLOCK], block].sum(axis=2)
     yy = float(np.sum(ys * ys))
     r = ctx.r
     prec = ctx.w_prec
@@ -141,4 +166,5 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
                       phi_last=float((phi0 + omega * (k_frames - 1)) % (2.0 * np.pi)),
                       w=w[i, j].copy(), cost=float(cost[i, j]),
                       residual=float(max(resid[i, j], 0.0)), costs=cost, omegas=omegas,
-                      a_sum=a_sum[i, j].copy(), b_sum=b_sum[i, j].copy(), n_frames=k_frames)
+                      a_sum=a_sum[i, j].copy(), b_sum=b_sum[i, j].copy(), n_frames=k_frames,
+                      styles=w, phis=phis)

@@ -43,7 +43,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                 energy=DEFAULT_ENERGY, n_phase=33, alignment="mean", refinement="map",
                 root_travel=True, model_fps=60.0, lag_range=(0.5, 2.0), gp_beta=None,
                 root_frame=None, q_omega_rel=DEFAULT_Q_OMEGA_REL, q_phi=DEFAULT_Q_PHI,
-                obs_noise=None):
+                obs_noise=None, walkers=None, offset=True, notes=""):
     """Learn a :class:`GaitModel` from periodic training motions.
 
     Parameters
@@ -57,7 +57,9 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     fps : float or list of float
         Frame rate(s) of the sequences.
     names : sequence of str, optional
-        Style names (default ``'style0'``, …).
+        Style names (default ``'style0'``, …). Sequences that share a name become one learned
+        style: the mean of their styles and the geometric mean of their periods (the style
+        prior and the offset prior still see every sequence).
     n_styles : int, optional
         J. Default: the smallest J holding ``energy`` of the singular-value spectrum.
     energy : float
@@ -84,6 +86,15 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     obs_noise : float, optional
         Observation noise variance r (scaled units²). Default: leave-one-out residual of the
         factorisation plus the within-sequence cycle-to-cycle variance.
+    walkers : sequence of str, optional
+        Who walks in each sequence (pieces of one capture, or several captures of one person,
+        share a label). Default: every sequence is a walker of its own.
+    offset : bool
+        Learn the prior of a walker's posture offset (``GaitModel.offset_var``, the variance of
+        the walkers' mean poses; ``docs/gait.md``, *Posture offset*). Needs two walkers or more;
+        False (or a single walker) gives a model without offset.
+    notes : str
+        Free text stored with the model (where it comes from).
 
     Returns
     -------
@@ -142,6 +153,9 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     units = ["rad"] * n_angles + (list(ROOT_FEATURE_UNITS) if root_travel else [])
     scale = _channel_scale(stacked, units, n_angles)
     scaled = [obs / scale for obs in observed]
+    if walkers is not None and len(walkers) != count:
+        raise ValueError(f"expected one walker label per sequence ({count}), got {len(walkers)}")
+    offset_var = _offset_variance(scaled, walkers) if offset else np.zeros(len(channel))
 
     try:
         aligned = align_sequences(scaled, model_fps, n_phase, alignment, lag_range)
@@ -169,15 +183,42 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         else np.zeros((styles.shape[1],) * 2)
     cov = cov + 1e-6 * max(float(np.trace(cov)), float(np.sum(styles**2)) / count) \
         * np.eye(len(cov))
+    named, named_styles, named_periods = _merge_named(names, styles, aligned.periods)
     return GaitModel(channel_names=channel, units=units, angle_centre=centre,
-                     channel_scale=scale, fps=model_fps, bases=bases, styles=styles,
-                     style_names=names, beta=gp.beta, Q=q, r=float(obs_noise),
-                     style_mean=styles.mean(axis=0), style_cov=cov, periods=aligned.periods,
+                     channel_scale=scale, fps=model_fps, bases=bases, styles=named_styles,
+                     style_names=named, beta=gp.beta, Q=q, r=float(obs_noise),
+                     style_mean=styles.mean(axis=0), style_cov=cov, periods=named_periods,
                      lag_range=np.asarray(lag_range, dtype=float),
                      dof_names=[str(c) for c in name_lists[0]], root_travel=root_travel,
                      root_rest=frame.rest, root_order=frame.order,
                      forward_axis=frame.forward_axis, singular_values=singular,
-                     alignment=alignment, refinement=refinement)
+                     alignment=alignment, refinement=refinement, offset_var=offset_var,
+                     notes=str(notes))
+
+
+def _merge_named(names, styles, periods):
+    """One style per distinct name (first-appearance order): mean style, geometric-mean
+    period."""
+    order = list(dict.fromkeys(names))
+    if len(order) == len(names):
+        return names, styles, periods
+    index = np.array([order.index(n) for n in names])
+    merged = np.array([styles[index == k].mean(axis=0) for k in range(len(order))])
+    cycle = np.array([np.exp(np.log(periods[index == k]).mean()) for k in range(len(order))])
+    return order, merged, cycle
+
+
+def _offset_variance(scaled, walkers):
+    """Between-walker variance (D,) of the walkers' mean poses in scaled units (ddof 1): the
+    prior of a new walker's posture offset. Zeros with fewer than two walkers."""
+    groups = list(range(len(scaled))) if walkers is None else [str(g) for g in walkers]
+    frames = {}
+    for g, obs in zip(groups, scaled):
+        frames.setdefault(g, []).append(obs)
+    if len(frames) < 2:
+        return np.zeros(scaled[0].shape[1])
+    means = np.array([np.vstack(v).mean(axis=0) for v in frames.values()])
+    return means.var(axis=0, ddof=1)
 
 
 def _channel_scale(stacked, units, n_angles):

@@ -64,7 +64,8 @@ class LookaheadPredictor:
         return self._online
 
     def _push(self, row):
-        self._online.step(self._stream.push(row))
+        self._last_obs = self._stream.push(row)
+        self._online.step(self._last_obs)
         self._last_row = row
 
     def update(self, frame, read_dofs):
@@ -96,6 +97,8 @@ class LookaheadPredictor:
             self._push(row)
         self._last_frame = frame
         online = self._online
+        # The online forecast's offset and continuation (OnlineEM.predict) in DOF form.
         self._prediction = predict_dofs(self.model, [online.omega, online.phase], online.w,
-                                        self.ahead, self._last_row, self.fps)[-1]
+                                        self.ahead, self._last_row, self.fps,
+                                        offset=online.state.b, start=self._last_obs)[-1]
         return self._prediction

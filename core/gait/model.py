@@ -25,14 +25,21 @@ lag_range        (2,)         period search range, seconds
 dof_names        (n_dofs,)    the training DOF layout (used to write predicted DOF frames)
 root_travel      bool         whether the seven root features are modelled
 root_rest, root_order, forward_axis    the :class:`.root_travel.RootFrame`
+offset_var       (D,)         between-walker variance of a walker's posture offset (scaled
+                              units²; the prior of the offset estimated when adapting); zeros:
+                              no offset (version 1 files)
+notes            str          free text: where the model comes from (credits, build recipe)
 ================ ============ ===============================================================
 
 The model is saved as one ``.npz`` (no pickle; strings as fixed-width unicode arrays) with a
-``format_version``; :meth:`GaitModel.load` / :meth:`GaitModel.from_bytes` raise
-:class:`GaitModelFileError` for anything that is not a complete, consistent, finite model of a
-known version.
+``format_version`` and, from version 2, a ``checksum``: the SHA-256 of every other entry's name,
+dtype, shape and bytes (:func:`checksum`), checked at load so that a damaged or hand-edited file
+is refused before its values are used. Version 1 files (no checksum, no offset) still load.
+:meth:`GaitModel.load` / :meth:`GaitModel.from_bytes` raise :class:`GaitModelFileError` for
+anything that is not a complete, consistent, finite model of a known version.
 """
 
+import hashlib
 import io
 import zipfile
 from dataclasses import dataclass, field
@@ -43,9 +50,10 @@ from .gp import build_phase_gp
 from .root_travel import RATE_FEATURES, ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, ROOT_FEATURE_UNITS, \
     RootFrame
 
-__all__ = ["FORMAT_VERSION", "GaitModel", "GaitModelFileError", "TRANSITION"]
+__all__ = ["FORMAT_VERSION", "GaitModel", "GaitModelFileError", "TRANSITION", "checksum"]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 # Matsubara §2.3: x_t = A x_{t-1} + v with x = [ω, φ]; the printed A = [0 1; 1 1] is a typo
 # (DESIGN.md §2): ω stays constant and φ advances by ω.
 TRANSITION = np.array([[1.0, 0.0], [1.0, 1.0]])
@@ -59,9 +67,10 @@ class GaitModelFileError(ValueError):
 _STR_FIELDS = ("channel_names", "units", "style_names", "dof_names")
 _ARRAY_FIELDS = ("angle_centre", "channel_scale", "bases", "styles", "beta", "A", "Q",
                  "style_mean", "style_cov", "periods", "lag_range", "root_rest",
-                 "singular_values")
+                 "singular_values", "offset_var")
+_NEW_IN_2 = ("offset_var", "notes")   # absent from version 1 files (defaults apply)
 _SCALAR_FIELDS = ("fps", "r")
-_TEXT_FIELDS = ("root_order", "alignment", "refinement")
+_TEXT_FIELDS = ("root_order", "alignment", "refinement", "notes")
 _INT_FIELDS = ("forward_axis", "root_travel")
 
 # Plausible ranges checked at load (docs/gait.md, *Errors*). A model learned from real motion
@@ -135,10 +144,14 @@ class GaitModel:
     singular_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     alignment: str = "mean"
     refinement: str = "map"
+    offset_var: np.ndarray = None
+    notes: str = ""
     format_version: int = FORMAT_VERSION
 
     def __post_init__(self):
         set_ = object.__setattr__
+        if self.offset_var is None:
+            set_(self, "offset_var", np.zeros(len(self.channel_names)))
         for name in _STR_FIELDS:
             set_(self, name, tuple(str(v) for v in getattr(self, name)))
         for name in _ARRAY_FIELDS:
@@ -199,6 +212,8 @@ class GaitModel:
             (self.lag_range.shape == (2,) and 0 < self.lag_range[0] < self.lag_range[1],
              "lag_range must be (min, max) seconds"),
             (self.fps > 0 and np.isfinite(self.fps), "fps must be positive"),
+            (self.offset_var.shape == (d,) and np.all(self.offset_var >= 0),
+             f"offset_var must be ({d},) non-negative"),
         ]
         for ok, message in checks:
             if not ok:
@@ -228,6 +243,8 @@ class GaitModel:
             (np.all(np.abs(self.angle_centre) <= MAX_ANGLE_CENTRE),
              f"angle_centre must lie within ±{MAX_ANGLE_CENTRE:g} rad"),
             (np.all(np.abs(self.bases) <= MAX_BASIS), f"bases must lie within ±{MAX_BASIS:g}"),
+            (np.all(self.offset_var <= MAX_SCALED_VALUE**2),
+             f"offset_var must lie within {MAX_SCALED_VALUE**2:g} scaled units²"),
             (np.all(np.abs(self.styles) <= MAX_STYLE)
              and np.all(np.abs(self.style_mean) <= MAX_STYLE),
              f"styles and style_mean must lie within ±{MAX_STYLE:g}"),
@@ -259,6 +276,11 @@ class GaitModel:
     def n_phase(self):
         """C, phase samples per cycle including the closing one."""
         return self.bases.shape[1]
+
+    @property
+    def has_offset(self):
+        """Whether adapting estimates a walker's posture offset (``offset_var`` not all zero)."""
+        return bool(np.any(self.offset_var > 0))
 
     @property
     def n_angles(self):
@@ -332,6 +354,7 @@ class GaitModel:
             out[name] = np.array(str(getattr(self, name)))
         for name in _INT_FIELDS:
             out[name] = np.array(int(getattr(self, name)))
+        out["checksum"] = np.array(checksum(out))
         return out
 
     def to_bytes(self):
@@ -370,10 +393,20 @@ class GaitModel:
             version = int(arrays["format_version"])
         except (TypeError, ValueError):
             raise GaitModelFileError(f"{source}: unreadable format_version") from None
-        if version != FORMAT_VERSION:
+        if version not in READABLE_VERSIONS:
             raise GaitModelFileError(f"{source}: gait model format version {version} is not "
-                                     f"supported (this build reads version {FORMAT_VERSION})")
+                                     f"supported (this build reads versions "
+                                     f"{', '.join(map(str, READABLE_VERSIONS))})")
+        if version >= 2:
+            stored = arrays.get("checksum")
+            if stored is None or stored.dtype.kind != "U" or stored.shape != ():
+                raise GaitModelFileError(f"{source}: gait model without its checksum")
+            if str(stored) != checksum(arrays):
+                raise GaitModelFileError(f"{source}: checksum mismatch: the gait model file was "
+                                         "changed or damaged")
         required = _STR_FIELDS + _ARRAY_FIELDS + _SCALAR_FIELDS + _TEXT_FIELDS + _INT_FIELDS
+        if version < 2:
+            required = tuple(k for k in required if k not in _NEW_IN_2)
         missing = [k for k in required if k not in arrays]
         if missing:
             raise GaitModelFileError(f"{source}: incomplete gait model, missing {missing}")
@@ -384,15 +417,34 @@ class GaitModel:
                     raise ValueError(f"{name} must be text")
                 kwargs[name] = tuple(arrays[name].tolist())
             for name in _ARRAY_FIELDS:
+                if name not in arrays:           # a version 1 file: the default applies
+                    continue
                 if arrays[name].dtype.kind not in "fiu":
                     raise ValueError(f"{name} must be numeric")
                 kwargs[name] = arrays[name]
             for name in _SCALAR_FIELDS:
                 kwargs[name] = float(arrays[name])
             for name in _TEXT_FIELDS:
-                kwargs[name] = str(arrays[name])
+                if name in arrays:               # "notes": absent from version 1 files
+                    kwargs[name] = str(arrays[name])
             for name in _INT_FIELDS:
                 kwargs[name] = int(arrays[name])
             return cls(**kwargs)
         except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
             raise GaitModelFileError(f"{source}: invalid gait model ({exc})") from None
+
+
+def checksum(arrays):
+    """SHA-256 (hex) of a model file's entries other than ``checksum``: name, dtype, shape and
+    C-order bytes of each, in name order.
+
+    Parameters
+    ----------
+    arrays : dict {name: ndarray}
+    """
+    digest = hashlib.sha256()
+    for name in sorted(k for k in arrays if k != "checksum"):
+        value = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}|{value.dtype.str}|{value.shape}|".encode())
+        digest.update(value.tobytes())
+    return digest.hexdigest()

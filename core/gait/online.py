@@ -13,6 +13,12 @@ The ridge is the style prior of the batch M-step expressed in the normalised ave
 (the un-normalised sums are the averages divided by η). λ < 1 forgets old frames so the style
 follows a change of walker or of gait (walk → run).
 
+**Posture offset** (models with an offset prior, :mod:`.em`): the averages also hold ``⟪μ⟫``
+(J, Dc) and ``⟪y⟫`` (Dc,), and the M-step is the batch joint (style, offset) solve in averaged
+form, ``b = D⁻¹ (⟪y⟫ - ⟪μ⟫ᵀ w)`` with ``D = 1 + η r λ_b`` and ``(⟪μᵀμ⟫ + η r Λ - ⟪μ⟫ D⁻¹ ⟪μ⟫ᵀ) w =
+⟪μᵀy⟫ + η r Λ w̄ - ⟪μ⟫ D⁻¹ ⟪y⟫``; the E-step filters ``y - b``. The forecast adds ``b`` and
+continues from the last frame like :func:`.predict` with ``start=``.
+
 **Acquisition and re-acquisition** (the EKF alone can lock onto a wrong phase):
 
 * *Acquisition*: for the first ``acquire_frames`` frames of a window the filter is "unlocked":
@@ -53,9 +59,12 @@ from .ekf import DEFAULT_OUTLIER_RATIO, DEFAULT_STYLE_PRIOR_SCALE, _update, ekf_
     make_context
 from .em import INIT_OMEGA_REL_SD, INIT_PHI_SD
 from .initial_phase import grid_search
+from .prediction import DEFAULT_BLEND_S
 
 __all__ = ["OnlineConfig", "OnlineEM", "OnlineState", "online_forecast", "online_init",
            "online_step"]
+
+_INV_TWO_PI = 1.0 / (2.0 * math.pi)
 
 
 
@@ -131,10 +140,8 @@ class OnlineState(NamedTuple):
         ``[ω, φ]`` at the last frame.
     P : ndarray, shape (2, 2)
     w : ndarray, shape (J,)
-    s_mm : ndarray, shape (J, J)
-        ⟪μᵀμ⟫.
-    s_my : ndarray, shape (J,)
-        ⟪μᵀy⟫.
+    stats : ndarray, shape (J, J + 1)
+        ``[⟪μᵀμ⟫ | ⟪μᵀy⟫]`` (:attr:`s_mm` and :attr:`s_my` are its parts).
     eta : float
         η of the discounted averages.
     comb : ndarray, shape (P, Dc)
@@ -158,13 +165,17 @@ class OnlineState(NamedTuple):
         Number of re-acquisitions so far.
     baseline : float
         Slow average of ν since the last (re-)acquisition (the walker's own level; starts at 1).
+    s_aug : ndarray, shape (J + 1, Dc), or None
+        ``[⟪μ⟫; ⟪y⟫]`` (models with a posture offset; None otherwise); :attr:`s_m` and
+        :attr:`s_y` are its parts.
+    b : ndarray, shape (Dc,)
+        The walker's posture offset (scaled units; zeros without offset).
     """
 
     x: np.ndarray
     P: np.ndarray
     w: np.ndarray
-    s_mm: np.ndarray
-    s_my: np.ndarray
+    stats: np.ndarray
     eta: float
     comb: np.ndarray
     recent: tuple
@@ -176,16 +187,56 @@ class OnlineState(NamedTuple):
     cooldown: int
     relocks: int
     baseline: float = 1.0
+    s_aug: np.ndarray = None
+    b: np.ndarray = None
+
+    @property
+    def s_mm(self):
+        """⟪μᵀμ⟫ (J, J)."""
+        return self.stats[:, :-1]
+
+    @property
+    def s_my(self):
+        """⟪μᵀy⟫ (J,)."""
+        return self.stats[:, -1]
+
+    @property
+    def s_m(self):
+        """⟪μ⟫ (J, Dc) or None."""
+        return None if self.s_aug is None else self.s_aug[:-1]
+
+    @property
+    def s_y(self):
+        """⟪y⟫ (Dc,) or None."""
+        return None if self.s_aug is None else self.s_aug[-1]
 
 
 def online_init(ctx, config):
     """Initial (unlocked) state: mean training cadence, phase 0, mean training style."""
     w = ctx.w_mean.copy()
+    offset = ctx.offset_prec is not None
     return OnlineState(x=np.array([ctx.omega_mean, 0.0]),
                        P=np.diag([(INIT_OMEGA_REL_SD * ctx.omega_mean) ** 2, np.pi**2]),
-                       w=w, s_mm=np.zeros((len(w), len(w))), s_my=np.zeros(len(w)), eta=1.0,
+                       w=w, stats=np.zeros((len(w), len(w) + 1)), eta=1.0,
                        comb=ctx.combine(w), recent=(), recent_nu=(), frames=0, window=0,
-                       locked=False, level=1.0, cooldown=0, relocks=0)
+                       locked=False, level=1.0, cooldown=0, relocks=0,
+                       s_aug=np.zeros((len(w) + 1, ctx.n_channels)) if offset else None,
+                       b=np.zeros(ctx.n_channels))
+
+
+def _offset_solve(ctx, stats, s_aug, eta):
+    """Joint (style, offset) M-step on discounted averages (module docstring); (w, b).
+
+    ``stats`` = [⟪μᵀμ⟫ | ⟪μᵀy⟫] (J, J+1), ``s_aug`` = [⟪μ⟫; ⟪y⟫] (J+1, Dc)."""
+    ridge = eta * ctx.r
+    diag = ridge * ctx.offset_prec
+    diag += 1.0                                                        # D
+    n_bases = len(stats)
+    md = s_aug[:n_bases] / diag
+    # [lhs | rhs] = [⟪μᵀμ⟫ + ηrΛ - ⟪μ⟫D⁻¹⟪μ⟫ᵀ | ⟪μᵀy⟫ + ηrΛw̄ - ⟪μ⟫D⁻¹⟪y⟫] in one (J, J+1) array
+    lhs = stats + ridge * ctx.w_prior_aug - md @ s_aug.T
+    w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])
+    return w, (s_aug[n_bases] - w @ s_aug[:n_bases]) / diag
 
 
 def _recent(state, n):
@@ -193,14 +244,24 @@ def _recent(state, n):
     return np.array(state.recent[-n:]), np.array(state.recent_nu[-n:])
 
 
-def _from_grid(ctx, grid, state):
+def _from_grid(ctx, grid, state, frames=None):
     """State restarted at a grid candidate: its state at the last frame, its style and its
-    sufficient statistics as plain averages (η = 1/n, as if λ = 1 over those frames)."""
+    sufficient statistics as plain averages (η = 1/n, as if λ = 1 over those frames). With a
+    posture offset, ``frames`` (n, Dc) give ``⟪μ⟫`` and ``⟪y⟫`` and (w, b) are solved jointly."""
     n = grid.n_frames
+    w, stats = grid.w, np.column_stack([grid.a_sum, grid.b_sum]) / n
+    s_aug = None
+    b = np.zeros(ctx.n_channels)
+    if ctx.offset_prec is not None and frames is not None:
+        phis = grid.phi0 + grid.omega * np.arange(n)
+        ok = np.isfinite(frames).all(axis=0)
+        s_aug = np.where(ok, np.vstack([ctx.means(phis).mean(axis=0),
+                                        np.nan_to_num(frames).mean(axis=0)]), 0.0)
+        w, b = _offset_solve(ctx, stats, s_aug, 1.0 / n)
     return state._replace(x=np.array([grid.omega, grid.phi_last]),
                           P=np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2]),
-                          w=grid.w, s_mm=grid.a_sum / n, s_my=grid.b_sum / n, eta=1.0 / n,
-                          comb=ctx.combine(grid.w), level=1.0, baseline=1.0)
+                          w=w, stats=stats, eta=1.0 / n,
+                          comb=ctx.combine(w), level=1.0, baseline=1.0, s_aug=s_aug, b=b)
 
 
 def online_step(ctx, config, state, y):
@@ -218,10 +279,10 @@ def online_step(ctx, config, state, y):
                              cooldown=max(state.cooldown - 1, 0),
                              recent_nu=state.recent_nu[1 - size:] + (0.0,))
         frames = _recent(new, min(new.window, len(recent)))[0]
-        new = _from_grid(ctx, grid_search(ctx, frames), new)
+        new = _from_grid(ctx, grid_search(ctx, frames), new, frames)
         # Refine the grid state (coarse in ω and φ) by the EKF over the window's frames.
-        res = ekf_filter(ctx, frames, new.w, [new.x[0], new.x[1] - new.x[0] * (len(frames) - 1)],
-                         new.P)
+        res = ekf_filter(ctx, frames - new.b,
+                         new.w, [new.x[0], new.x[1] - new.x[0] * (len(frames) - 1)], new.P)
         return new._replace(x=res.states[-1], P=res.covariances[-1],
                             locked=new.window >= acquire)
 
@@ -230,8 +291,10 @@ def online_step(ctx, config, state, y):
     omega, phi = state.x.tolist()
     (a, b), (_, c) = state.P.tolist()
     a, b, c = a + q00, a + b + q01, a + 2.0 * b + c + q11
+    offset = state.s_aug is not None
     omega, phi, pa, pb, pc, _, ee, n_obs, outlier = _update(ctx, omega, phi + omega, a, b, c,
-                                                            y, state.comb)
+                                                            y - state.b if offset else y,
+                                                            state.comb)
     r = ctx.r
     nu = ee / (max(n_obs, 1) * r)
     level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
@@ -240,24 +303,33 @@ def online_step(ctx, config, state, y):
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
     n_bases = len(state.w)
     mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(n_bases, -1)      # (J, Dc)
+    eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
+    s_aug, b = state.s_aug, state.b
+    muy = np.concatenate((mu, y[None]))                                       # [μ; y] (J+1, Dc)
     if n_obs < len(y):                   # missing channels and the outlier channel
         ok = np.isfinite(y)
         if outlier >= 0:
             ok[outlier] = False
-        mu, y = mu[:, ok], y[ok]
-    eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
+        if offset:                       # ⟪μ⟫, ⟪y⟫ of the observed channels only
+            s_aug = s_aug.copy()
+            s_aug[:, ok] += eta * (muy[:, ok] - s_aug[:, ok])
+        mu, muy = mu[:, ok], muy[:, ok]
+    elif offset:
+        s_aug = s_aug + eta * (muy - s_aug)
     # [⟪μᵀμ⟫ | ⟪μᵀy⟫] as one (J, J+1) array: (1 - η) ⟪f⟫ + η f = ⟪f⟫ + η (f - ⟪f⟫)
-    stats = np.concatenate((state.s_mm, state.s_my[:, None]), axis=1)
-    stats += eta * (mu @ np.concatenate((mu, y[None])).T - stats)             # eqs. 25-26
-    lhs = stats + (eta * r) * ctx.w_prior_aug          # + η r [Λ | Λ w̄]: the prior ridge
-    w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])                    # eq. 24
+    stats = state.stats + eta * (mu @ muy.T - state.stats)                   # eqs. 25-26
+    if offset:
+        w, b = _offset_solve(ctx, stats, s_aug, eta)
+    else:
+        lhs = stats + (eta * r) * ctx.w_prior_aug      # + η r [Λ | Λ w̄]: the prior ridge
+        w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])                # eq. 24
     new = OnlineState(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
-                      s_mm=stats[:, :n_bases], s_my=stats[:, n_bases], eta=eta,
+                      stats=stats, eta=eta,
                       comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), recent=recent,
                       recent_nu=state.recent_nu[1 - size:] + (nu,), frames=state.frames + 1,
                       window=state.window + 1, locked=True, level=level,
                       cooldown=max(state.cooldown - 1, 0), relocks=state.relocks,
-                      baseline=baseline)
+                      baseline=baseline, s_aug=s_aug, b=b)
     trigger = config.trigger(state.baseline)
     if level > trigger and new.cooldown == 0:
         new = _try_relock(ctx, config, new, relock, trigger)
@@ -277,23 +349,34 @@ def _try_relock(ctx, config, state, relock, trigger):
         grid = grid_search(ctx, frames)
         tracked = float(recent_nu[-n:].sum()) * ctx.r * ctx.n_channels
         if grid.residual < config.relock_gain * tracked:
-            return _from_grid(ctx, grid, state)._replace(
+            return _from_grid(ctx, grid, state, frames)._replace(
                 locked=False, window=n, relocks=state.relocks + 1)
     return state._replace(cooldown=max(2, relock // 3))
 
 
-def online_forecast(ctx, state, n_frames, omega_scale=1.0):
+def online_forecast(ctx, state, n_frames, omega_scale=1.0, blend_s=DEFAULT_BLEND_S):
     """Mean propagation from an online state (§3.3): (n_frames, Dc) physical units.
 
     Same as :func:`core.gait.predict` for the context's channels (rate channels scaled by
-    ``omega_scale``), computed from the cached ``Σ_j w_j α_j``.
+    ``omega_scale``, the walker's offset added, continuing from the last observed frame over
+    ``blend_s`` seconds), computed from the cached ``Σ_j w_j α_j``.
     """
     omega, phi = state.x.tolist()
-    phis = ctx.steps(n_frames) * (omega * omega_scale) + phi
-    out = (ctx.kernel_rows(phis) @ state.comb) * ctx.scale
+    step = omega * omega_scale
+    phis = ctx.steps(n_frames + 1) * step + (phi - step)        # φ, φ + ω s, …
+    out = ctx.kernel_rows(phis) @ state.comb                     # scaled units
+    if state.s_aug is not None:
+        out += state.b
     if omega_scale != 1.0:
         out[:, ctx.rate_mask] *= omega_scale
-    return out
+    if state.recent and blend_s > 0:
+        # Continue from the last frame (angles wrapped; scaled angles are radians).
+        diff = state.recent[-1] - out[0]
+        diff -= ctx.turns * np.rint(diff * _INV_TWO_PI)
+        if not math.isfinite(diff @ diff):
+            diff = np.where(np.isfinite(diff), diff, 0.0)
+        out[1:] += ctx.decay(n_frames, blend_s) * diff
+    return out[1:] * ctx.scale
 
 
 class OnlineEM:
@@ -341,11 +424,17 @@ class OnlineEM:
         self.state = online_step(self.context, self.config, self.state, y / self.context.scale)
         return self.state
 
-    def predict(self, n_frames, omega_scale=1.0):
+    def predict(self, n_frames, omega_scale=1.0, blend_s=DEFAULT_BLEND_S):
         """Forecast of the next ``n_frames`` frames (n_frames, Dc), physical units."""
         if not (math.isfinite(omega_scale) and omega_scale > 0):
             raise ValueError(f"omega_scale must be positive, got {omega_scale}")
-        return online_forecast(self.context, self.state, int(n_frames), float(omega_scale))
+        return online_forecast(self.context, self.state, int(n_frames), float(omega_scale),
+                               float(blend_s))
+
+    @property
+    def offset(self):
+        """The walker's posture offset (Dc,), physical units (zeros without offset)."""
+        return self.state.b * self.context.scale
 
     @property
     def omega(self):

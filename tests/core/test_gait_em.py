@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from core.gait import adapt, estimate_period, m_step
+from core.gait import adapt, estimate_period, m_step, predict
 from core.gait.ekf import make_context
-from core.gait.em import sufficient_statistics
+from core.gait.em import m_step_offset, offset_statistics, sufficient_statistics
 from core.gait.initial_phase import N_TABLE, grid_search
 from tests.gait_data import observations, small_model
 
@@ -46,6 +46,57 @@ def test_m_step_is_the_ridge_least_squares_solution():
     target = np.concatenate([ys.ravel() / np.sqrt(ctx.r), chol.T @ ctx.w_mean])
     ref = np.linalg.lstsq(stacked, target, rcond=None)[0]
     np.testing.assert_allclose(m_step(ctx, a_sum, b_sum), ref, rtol=1e-9)
+
+
+def test_offset_m_step_is_the_joint_ridge_least_squares_solution():
+    """The Schur-complement solve equals the stacked least squares over (w, b) with both
+    priors, also with a missing entry."""
+    model = small_model()
+    ctx = make_context(model)
+    assert ctx.offset_prec is not None and np.all(ctx.offset_prec > 0)
+    ys = observations("35_03")[:40] / ctx.scale
+    ys[7, 4] = np.nan
+    phis = np.linspace(0.3, 3.0, 40)
+    w, b = m_step_offset(ctx, offset_statistics(ctx, phis, ys))
+    n, d, j = ys.shape[0], ys.shape[1], model.n_bases
+    mu = ctx.means(phis)                                              # (N, J, D)
+    rows, target = [], []
+    for t in range(n):
+        for k in range(d):
+            if np.isfinite(ys[t, k]):
+                row = np.zeros(j + d)
+                row[:j], row[j + k] = mu[t, :, k], 1.0
+                rows.append(row / np.sqrt(ctx.r))
+                target.append(ys[t, k] / np.sqrt(ctx.r))
+    chol = np.linalg.cholesky(ctx.w_prec)
+    prior_w = np.hstack([chol.T, np.zeros((j, d))])
+    prior_b = np.hstack([np.zeros((d, j)), np.diag(np.sqrt(ctx.offset_prec))])
+    stacked = np.vstack([np.array(rows), prior_w, prior_b])
+    target = np.concatenate([target, chol.T @ ctx.w_mean, np.zeros(d)])
+    ref = np.linalg.lstsq(stacked, target, rcond=None)[0]
+    np.testing.assert_allclose(w, ref[:j], rtol=1e-8)
+    np.testing.assert_allclose(b, ref[j:], rtol=1e-8, atol=1e-10)
+
+
+def test_batch_em_recovers_a_walkers_posture_offset():
+    """A synthetic walker whose mean pose is shifted (knee, hip, arm) by what the style space
+    cannot express: the offset comes back and the plain model's error does not."""
+    model = small_model()
+    w = 0.5 * model.styles[1] + 0.5 * model.styles[3]
+    obs, phis = synthetic(model, 0.09, 0.4, w, 160, noise=0.005)
+    shift = np.zeros(model.n_channels)
+    for name, deg in (("ltibia.rx", 8.0), ("rfemur.rx", -6.0), ("lhumerus.rz", 10.0)):
+        shift[model.channel_names.index(name)] = np.radians(deg)
+    res = adapt(model, obs[:100] + shift, residual=False)
+    found = res.offset * model.channel_scale
+    for name in ("ltibia.rx", "rfemur.rx", "lhumerus.rz"):
+        k = model.channel_names.index(name)
+        assert abs(found[k] - shift[k]) < np.radians(1.5), name
+    truth = obs[100:] + shift
+    plain = adapt(model, obs[:100] + shift, residual=False, offset=False)
+    err = [np.sqrt(np.mean((predict(model, r.state, r.w, 60, offset=r.offset) - truth) ** 2))
+           for r in (res, plain)]
+    assert err[0] < 0.5 * err[1]
 
 
 def test_statistics_skip_missing_values():
@@ -90,9 +141,12 @@ def test_batch_em_on_a_cmu_walk_finds_its_cadence():
 def test_fixed_style_and_frame_rate():
     model = small_model()
     obs = observations("35_06")[:100]
-    fixed = adapt(model, obs, style=model.styles[3])
+    fixed = adapt(model, obs, style=model.styles[3], offset=False)
     np.testing.assert_array_equal(fixed.w, model.styles[3])
-    assert fixed.n_iter == 0
+    assert fixed.n_iter == 0 and fixed.offset is None
+    with_offset = adapt(model, obs, style=model.styles[3])    # the offset is still estimated
+    np.testing.assert_array_equal(with_offset.w, model.styles[3])
+    assert with_offset.n_iter > 0 and np.any(with_offset.offset != 0)
     fast = np.repeat(obs, 2, axis=0)[:-1]                       # the same walk, twice the rate
     res120 = adapt(model, fast, fps=120.0)
     res60 = adapt(model, obs)

@@ -21,9 +21,10 @@ def reference(model, values, names, frames, ahead, fps=60.0):
     stream = ObservationStream(model, names, fps)
     online = OnlineEM(model, fps=fps)
     for row in values[frames]:
-        online.step(stream.push(row))
+        last = stream.push(row)
+        online.step(last)
     return predict_dofs(model, [online.omega, online.phase], online.w, ahead, values[frames[-1]],
-                        fps)[-1]
+                        fps, offset=online.state.b, start=last)[-1]
 
 
 def test_playback_steps_once_per_frame_and_equals_online_em():

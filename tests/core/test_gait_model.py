@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from core.gait import GaitModel, GaitModelFileError, learn_model, predict
-from core.gait.model import FORMAT_VERSION
+from core.gait.model import FORMAT_VERSION, checksum
 from tests.gait_data import SMALL_TRAIN, small_model, trial
 
 
@@ -92,6 +92,9 @@ def _arrays(model):
 
 
 def _bytes(arrays):
+    """A model file of ``arrays``, re-signed (a new checksum) so that the checks behind the
+    checksum are what the mutation meets."""
+    arrays = dict(arrays, checksum=np.array(checksum(arrays)))
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return buf.getvalue()
@@ -136,6 +139,30 @@ def test_corrupt_and_incompatible_files_raise(tmp_path):
         GaitModel.load(path)
     with pytest.raises(GaitModelFileError, match="no format_version"):
         GaitModel.from_bytes(_bytes({"bases": np.zeros(3)}))
+
+
+def test_checksum_refuses_a_changed_file_and_version_1_files_still_load():
+    model = small_model()
+    arrays = _arrays(model)
+    assert str(arrays["checksum"]) == checksum(arrays) and model.has_offset
+    changed = dict(arrays, r=np.array(float(arrays["r"]) * 1.001))       # not re-signed
+    buf = io.BytesIO()
+    np.savez(buf, **changed)
+    with pytest.raises(GaitModelFileError, match="checksum mismatch"):
+        GaitModel.from_bytes(buf.getvalue(), source="edited.npz")
+    unsigned = {k: v for k, v in arrays.items() if k != "checksum"}
+    buf = io.BytesIO()
+    np.savez(buf, **unsigned)
+    with pytest.raises(GaitModelFileError, match="without its checksum"):
+        GaitModel.from_bytes(buf.getvalue())
+    # A version 1 file (before the checksum and the offset prior) loads, without offset.
+    old = {k: v for k, v in unsigned.items() if k != "offset_var"}
+    old["format_version"] = np.array(1)
+    buf = io.BytesIO()
+    np.savez(buf, **old)
+    loaded = GaitModel.from_bytes(buf.getvalue())
+    assert not loaded.has_offset and np.array_equal(loaded.bases, model.bases)
+    assert GaitModel.from_bytes(loaded.to_bytes()).format_version == FORMAT_VERSION
 
 
 def test_learning_errors():

@@ -41,19 +41,27 @@ def test_locked_step_is_ekf_plus_online_m_step():
     assert prev.locked and new.locked and new.relocks == prev.relocks
     y = obs[30] / ctx.scale
     x_pred, p_pred = ekf_predict(prev.x, prev.P, ctx.Q)                   # eqs. 17-18
-    x, p, _ = ekf_update(ctx, x_pred, p_pred, y, prev.w)                  # eqs. 19-22
+    x, p, _ = ekf_update(ctx, x_pred, p_pred, y - prev.b, prev.w)         # eqs. 19-22 on y - b
     np.testing.assert_allclose(new.x, x, rtol=1e-12)
     np.testing.assert_allclose(new.P, p, rtol=1e-12)
     eta = 1.0 / (1.0 + config.forgetting / prev.eta)                     # eq. 27
     mu = ctx.means(np.array([x[1]]))[0]                                   # μ(x̂_t), eq. 29
     s_mm = (1 - eta) * prev.s_mm + eta * mu @ mu.T                        # eq. 25
     s_my = (1 - eta) * prev.s_my + eta * mu @ y                           # eq. 26
-    ridge = eta * ctx.r * ctx.w_prec
-    w = np.linalg.solve(s_mm + ridge, s_my + ridge @ ctx.w_mean)          # eq. 24 + prior
+    s_m = (1 - eta) * prev.s_m + eta * mu                                 # ⟪μ⟫
+    s_y = (1 - eta) * prev.s_y + eta * y                                  # ⟪y⟫
+    # eq. 24 + priors with the posture offset: the full (J + Dc) normal equations.
+    j, d = model.n_bases, ctx.n_channels
+    ridge = eta * ctx.r
+    lhs = np.block([[s_mm + ridge * ctx.w_prec, s_m],
+                    [s_m.T, np.diag(1.0 + ridge * ctx.offset_prec)]])
+    sol = np.linalg.solve(lhs, np.concatenate([s_my + ridge * ctx.w_prec @ ctx.w_mean, s_y]))
     np.testing.assert_allclose(new.eta, eta, rtol=1e-14)
     np.testing.assert_allclose(new.s_mm, s_mm, rtol=1e-12)
     np.testing.assert_allclose(new.s_my, s_my, rtol=1e-12)
-    np.testing.assert_allclose(new.w, w, rtol=1e-10)
+    np.testing.assert_allclose(new.s_m, s_m, rtol=1e-12)
+    np.testing.assert_allclose(new.w, sol[:j], rtol=1e-9)
+    np.testing.assert_allclose(new.b, sol[j:j + d], rtol=1e-8, atol=1e-12)
 
 
 def test_discounted_average_is_eq14():
@@ -84,11 +92,16 @@ def test_online_tracks_a_cmu_walk():
         online.step(y)
     period = estimate_period(obs[:, :56], 60.0)
     np.testing.assert_allclose(online.omega, 2 * np.pi / period, rtol=0.05)
-    # The online forecast is the §3.3 prediction from the current state and style.
-    np.testing.assert_allclose(online.predict(30), predict(model, online.state.x, online.w, 30),
-                               rtol=1e-10, atol=1e-12)
+    # The online forecast is the §3.3 prediction from the current state, style and offset,
+    # continuing from the last frame.
+    kw = dict(offset=online.state.b, start=obs[89], fps=60.0)
+    np.testing.assert_allclose(online.predict(30), predict(model, online.state.x, online.w, 30,
+                                                           **kw), rtol=1e-10, atol=1e-12)
     retimed = online.predict(30, omega_scale=1.2)
-    np.testing.assert_allclose(retimed, predict(model, online.state.x, online.w, 30, 1.2),
+    np.testing.assert_allclose(retimed, predict(model, online.state.x, online.w, 30, 1.2, **kw),
+                               rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(online.predict(30, blend_s=0.0),
+                               predict(model, online.state.x, online.w, 30, offset=kw["offset"]),
                                rtol=1e-10, atol=1e-12)
 
 

@@ -101,13 +101,14 @@ def test_adapt_without_residual_is_the_plain_em_and_with_it_refines():
     np.testing.assert_array_equal(res.w, plain.w)
     assert res.loglik == plain.loglik
     ctx = make_context(model)
-    ys = obs / ctx.scale
+    ys = obs / ctx.scale - res.offset                   # the walker's posture offset removed
     phis = res.states[:, 1]
     expected = residual_table(model, phis, ys - model.gp.observation_mean(phis, res.w))
     np.testing.assert_allclose(res.residual, expected, rtol=1e-9, atol=1e-12)
     # The corrected template fits the observed window better than the plain model.
     fit = ys - model.gp.observation_mean(phis, res.w) - model.gp.kernel(phis) @ \
         residual_weights(model, res.residual)
+    ys = ys + res.offset
     plain_fit = ys - model.gp.observation_mean(plain.states[:, 1], plain.w)
     assert np.mean(fit**2) < np.mean(plain_fit**2)
     # The states are those of an EKF pass with the corrected template from the grid start.
@@ -128,7 +129,8 @@ def test_refinement_pass_is_the_ekf_with_the_corrected_template(monkeypatch):
     one = adapt(model, obs)
     ctx = make_context(model)
     ys = obs / ctx.scale
-    grid = grid_search(ctx, ys[:30])                        # adapt's start: grid on 0.5 s
+    grid = grid_search(ctx, ys)                      # adapt's start: the grid on the window
+    ys = ys - plain.offset                           # the E-step filters y - b
     x0 = np.array([grid.omega, grid.phi0])
     p0 = np.diag([(em.INIT_OMEGA_REL_SD * grid.omega) ** 2, em.INIT_PHI_SD**2])
     weights = residual_weights(model, zero.residual)
@@ -143,7 +145,7 @@ def test_predict_adds_the_table():
     corrected = predict(model, res.state, res.w, 40, residual=res.residual)
     phis = res.state[1] + res.state[0] * np.arange(1, 41)
     add = residual_values(model.gp.beta, res.states[:, 1],
-                          observations("35_06")[:100] / model.channel_scale
+                          observations("35_06")[:100] / model.channel_scale - res.offset
                           - model.gp.observation_mean(res.states[:, 1], res.w), phis)
     np.testing.assert_allclose(corrected - base, add * model.channel_scale,
                                atol=1e-3 * np.abs(add * model.channel_scale).max())

@@ -1,0 +1,91 @@
+"""Build the stock gait library shipped with the extension (``core/gait/data/stock_gaits.npz``).
+
+    python tools/build_stock_gaits.py [--output core/gait/data/stock_gaits.npz]
+
+(``make stock-gaits``.) Reads the CMU trials of ``core.gait.stock.STOCK_RECIPE`` from
+``sample_scenes/data/cmu`` (subjects without an .asf through the CMU template skeleton),
+resamples them to 60 Hz, cuts each into steady pieces (``core.gait.segments``), and learns one
+model with the default settings: every piece is a training sequence named after its style (the
+pieces of a style become one named style), the CMU subject is the walker (posture-offset prior).
+The same recipe, without the held-out subject, is what ``make bench-gait`` evaluates leave one
+walker out. Deterministic: the same data give the same model up to floating-point rounding
+(the file's checksum covers its exact bytes, so a rebuild on another machine may differ in the
+last digits and in the checksum). Takes about 10 s.
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from core.gait import learn_model  # noqa: E402
+from core.gait.segments import steady_segments  # noqa: E402
+from core.gait.stock import STOCK_PATH, STOCK_RECIPE, STOCK_VERSION  # noqa: E402
+from core.mocap import asf_to_skeleton, read_amc, read_asf, resample  # noqa: E402
+from core.mocap.bvh import cmu_template_asf  # noqa: E402
+
+CMU = ROOT / "sample_scenes" / "data" / "cmu"
+FPS = 60.0
+NOTES = (f"Track & Stride stock gaits v{STOCK_VERSION}: learned by tools/build_stock_gaits.py "
+         "from CMU motion capture (mocap.cs.cmu.edu; the database was created with funding "
+         "from NSF EIA-0196217), subjects 07, 08, 35, 91, 132, 139.")
+
+
+def load_trial(name, folder=CMU):
+    """(DOFs at 60 Hz (N, 62), DOF names) of a CMU trial; the template skeleton for subjects
+    without an .asf."""
+    subject = name.split("_")[0]
+    path = Path(folder) / f"{subject}.asf"
+    asf = read_asf(path) if path.exists() else cmu_template_asf()
+    values = read_amc(Path(folder) / f"{name}.amc", asf).values
+    values = resample(values, 120.0, FPS, np.arange(3, values.shape[1]))
+    return values, tuple(asf_to_skeleton(asf).dof_names())
+
+
+def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=()):
+    """(sequences, DOF names, style names, walker names) of the recipe's steady pieces."""
+    seqs, styles, walkers = [], [], []
+    names = None
+    for style, trials in recipe.items():
+        for trial in trials:
+            subject = trial.split("_")[0]
+            if subject in exclude_subjects or trial in exclude_trials:
+                continue
+            values, names = load_trial(trial, folder)
+            for start, stop in steady_segments(values, names, FPS):
+                seqs.append(values[start:stop])
+                styles.append(style)
+                walkers.append(subject)
+    return seqs, names, styles, walkers
+
+
+def build_stock(recipe=STOCK_RECIPE, folder=CMU, exclude_subjects=(), exclude_trials=(),
+                **learn_kw):
+    """The stock model of ``recipe`` (optionally without some subjects or trials: the
+    benchmark's folds); ``learn_kw`` go to ``learn_model``."""
+    seqs, names, styles, walkers = training_pieces(recipe, folder, exclude_subjects,
+                                                   exclude_trials)
+    return learn_model(seqs, names, FPS, styles, walkers=walkers, notes=NOTES, **learn_kw)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output", default=str(STOCK_PATH))
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    model = build_stock()
+    output = Path(args.output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    model.save(output)
+    size = output.stat().st_size
+    print(f"wrote {output} ({size / 1024:.0f} KiB) in {time.perf_counter() - t0:.1f} s: "
+          f"J={model.n_bases}, styles {', '.join(model.style_names)}")
+
+
+if __name__ == "__main__":
+    main()
