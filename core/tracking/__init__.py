@@ -19,26 +19,28 @@ from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyram
                     sample_with_gradient, to_grayscale)
 from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_between, motion_layout,
                         point_jacobians)
-from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_decompositions,
-                     solve_with_prediction)
-from .parallel import SequenceResult, track_keyframes
+from .motion import (FrameMotions, MotionView, estimate_motions, estimate_view_motions,
+                     rank_decomposition, rank_decompositions, solve_with_prediction, view_weights)
+from .parallel import SequenceResult, track_keyframes, view_frames
 from .presets import CMU_PARTS, RIG_PARTS, TABLE1, find_table1_parts, table1_dof_mask
 from .problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
 from .suggest import KeySuggestion, robust_z_scores, suggest_keyframes
-from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_error,
+from .trajectory import (IntervalResult, Pose, ViewInterval, eq4_view_weights, interpolate_poses,
+                         interpolated_interval, photometric_error, prepare_views,
                          track_accumulated, track_interval)
 
 __all__ = [
     "BodyModel", "CMU_PARTS", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
-    "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
-    "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
-    "apply_motion", "bilinear", "body_model_from_skeleton", "camera_from_blender",
-    "central_derivatives", "correct_root_positions", "estimate_motions", "find_table1_parts",
-    "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
+    "MotionView", "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult",
+    "SilhouetteSamples", "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions",
+    "TrackingProblem", "ViewInterval", "apply_motion", "bilinear", "body_model_from_skeleton",
+    "camera_from_blender", "central_derivatives", "correct_root_positions", "eq4_view_weights",
+    "estimate_motions", "estimate_view_motions", "find_table1_parts", "gaussian_blur",
+    "gaussian_pyramid", "image_jacobian", "interpolate_poses", "interpolated_interval",
     "joint_frames_in_camera", "motion_between", "motion_layout", "orientation_correction",
-    "photometric_error", "point_jacobians", "pyr_down", "rank_decomposition",
+    "photometric_error", "point_jacobians", "prepare_views", "pyr_down", "rank_decomposition",
     "rank_decompositions", "ray_cast", "robust_z_scores", "sample_silhouette",
     "sample_with_gradient", "solve_with_prediction", "suggest_keyframes", "table1_dof_mask",
-    "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
-    "world2camera_from_blender",
+    "to_grayscale", "track_accumulated", "track_interval", "track_keyframes", "view_frames",
+    "view_weights", "world2camera_from_blender",
 ]

@@ -253,20 +253,20 @@ def image_gradient_rows(camera, points, e_u, e_v):
     Parameters
     ----------
     camera : PinholeCamera
-    points : array_like, shape (M, 3), camera frame, metres
-    e_u, e_v : array_like, shape (M,)
+    points : array_like, shape (..., 3), camera frame, metres
+    e_u, e_v : array_like, shape (...)
         Image derivatives at the points' projections (intensity per pixel).
 
     Returns
     -------
-    ndarray, shape (M, 3)
+    ndarray, shape (..., 3)
     """
     p = np.asarray(points, dtype=float)
-    inv_z = 1.0 / p[:, 2]
-    x_c = camera.fx * p[:, 0] * inv_z
-    y_c = camera.fy * p[:, 1] * inv_z
-    return np.stack([camera.fx * e_u, camera.fy * e_v, -(x_c * e_u + y_c * e_v)], axis=1) \
-        * inv_z[:, None]
+    inv_z = 1.0 / p[..., 2]
+    x_c = camera.fx * p[..., 0] * inv_z
+    y_c = camera.fy * p[..., 1] * inv_z
+    return np.stack([camera.fx * e_u, camera.fy * e_v, -(x_c * e_u + y_c * e_v)], axis=-1) \
+        * inv_z[..., None]
 
 
 def image_jacobian(layout, ancestors, joints, points, rotations, origins, g, translation_basis=None):

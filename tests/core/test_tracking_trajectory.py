@@ -126,13 +126,13 @@ def test_non_finite_estimates_diverge_and_fall_back(seq, monkeypatch):
     import core.tracking.trajectory as trajectory
     sk, body, cam, roots, local, frames = seq
     problem = TrackingProblem(sk, body, cam)
-    real = trajectory.estimate_motions
+    real = trajectory.estimate_view_motions
 
     def broken(*args, **kwargs):
         fm = real(*args, **kwargs)
         fm.rotvecs[3] = np.nan                      # a numerical failure at frame 3
         return fm
-    monkeypatch.setattr(trajectory, "estimate_motions", broken)
+    monkeypatch.setattr(trajectory, "estimate_view_motions", broken)
     start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
     res = track_interval(problem, frames, start, end,
                          TrackingOptions(seed="interpolation", max_iterations=2))
