@@ -36,6 +36,15 @@ Numerical choices (each also commented where it is made):
 * Motion along the optical axis is not estimated unless ``estimate_depth`` (see
   :func:`translation_columns`): a monocular view hardly measures it (the paper, §5.3: the rank
   is at most 22 for its 23 DOFs).
+
+Several cameras (:func:`estimate_view_motions`, one :class:`MotionView` per camera): the
+parameters ``x`` are the body's, shared by every view; each view contributes its own rows of
+eq. 5 (its camera's joint frames in the Jacobian, its own model points, occlusion and pyramid),
+weighted per view (``TrackingOptions.view_weighting``, :func:`view_weights`) and stacked under
+each other into one ``A x = b`` per frame pair; rank, eq. 10 and the update are those of the
+stacked system. Where two or more views measure a frame, the root's depth is estimated
+(``depth_from_views``): the views' lines of sight differ. One camera is exactly the
+single-camera estimate (no weighting, nothing stacked).
 """
 
 from dataclasses import dataclass
@@ -88,8 +97,9 @@ def rank_decompositions(a, tau):
     Parameters
     ----------
     a : array_like, shape (n, M, P)
-    tau : float
-        Singular values ``sigma_i < tau * sigma_1`` count as zero.
+    tau : float or array_like, shape (n,)
+        Singular values ``sigma_i < tau * sigma_1`` count as zero (one threshold, or one per
+        system).
 
     Returns
     -------
@@ -107,6 +117,9 @@ def rank_decompositions(a, tau):
     sigma = np.sqrt(np.maximum(eig[:, ::-1], 0.0))
     v = vec[:, :, ::-1]
     top = sigma[:, :1]
+    tau = np.asarray(tau, dtype=float)
+    if tau.ndim:
+        tau = tau[:, None]                                   # one threshold per system
     rank = np.where(top[:, 0] > 0, np.sum(sigma >= tau * top, axis=1), 0)
     return RankedSystems(a=a, v=v, sigma=sigma, rank=rank.astype(int))
 
@@ -413,8 +426,12 @@ def estimate_view_motions(problem, options, views, poses, predictions):
     scales = problem.scales
     weak = np.concatenate([np.zeros((n, n_t), dtype=bool), ~measurable[:, rj]], axis=1)
     column_factor = (~weak / scales)[:, None, :]
+    tau = options.tau
+    if len(views) > 1 and options.view_tau is not None:
+        stacked = (view_samples >= options.min_samples).sum(axis=0) >= 2
+        tau = np.where(stacked, options.view_tau, options.tau)
     x_s, ranks, rms = _coarse_to_fine(problem, options, views, points, (roots, local), y * scales,
-                                      measured, cols, column_factor, full_motion)
+                                      measured, cols, column_factor, full_motion, tau)
     t, r = full_motion(x_s / scales)
     return FrameMotions(translations=t, rotvecs=r, ranks=np.where(measured, ranks, 0),
                         n_samples=view_samples.sum(axis=0) * measured, residuals=rms,
@@ -638,7 +655,7 @@ def view_weights(kind, templates, scales):
 
 
 def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols, column_factor,
-                    full_motion):
+                    full_motion, tau):
     """Step 4: Lucas-Kanade from the prediction, coarse to fine, all views in one system.
 
     Each view walks its own pyramid from its top level down to its finest (views with fewer
@@ -651,7 +668,7 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     Returns
     -------
     x_s : ndarray, shape (n, P)
-        Motion parameters in scaled units.
+        Motion parameters in scaled units (``tau``: rank threshold, scalar or per frame).
     ranks : ndarray, shape (n,), int
         Rank of the stacked system on the finest levels.
     rms : ndarray, shape (n,)
@@ -686,7 +703,7 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                                            np.stack([c[1] for c in clipped]))
                     a = np.concatenate([w[:, None, None] * t.a
                                         for w, t in zip(weights, templates)], axis=1)
-                system = rank_decompositions(a, options.tau)
+                system = rank_decompositions(a, tau)
                 ranks = system.rank
             b = clipped[0][0] if single else np.concatenate(
                 [w[:, None] * c[0] for w, c in zip(weights, clipped)], axis=1)

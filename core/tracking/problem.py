@@ -192,17 +192,30 @@ class TrackingOptions:
         decrease counts (default; see docs/tracking.md, *Validation*).
     view_weighting : {'none', 'equal', 'noise'}
         Several cameras: how each view's rows of eq. 5 are weighted before they are stacked
-        (``motion.view_weights``). ``'none'``: as they come (intensity units; a view counts by
-        its number of points, its image contrast and the body's size in pixels);
-        ``'equal'``: each view's rows scaled to the same RMS row norm (every view counts the
-        same, whatever the body's size or contrast in it); ``'noise'``: each view's rows
-        divided by its robust residual scale (intensity noise plus model misfit, estimated per
-        frame and pyramid level), i.e. weighted least squares. One camera: no weighting at all.
-        Chosen on the validation clips (docs/tracking.md, *Several cameras*).
+        (``motion.view_weights``). ``'none'`` (default): as they come. Every view gives at
+        most ``sample_budget`` points whatever the body's size in its pixels, and a row is the
+        image gradient times the view's pixels per metre: a view counts by how precisely its
+        image measures the motion in metres (least squares with the same intensity noise in
+        every view). ``'equal'``: each view's rows scaled to the same RMS row norm (every view
+        counts the same, however coarsely it sees the body); ``'noise'``: each view's rows
+        divided by its robust residual scale (noise plus model misfit, per frame and pyramid
+        level). One camera: no weighting at all. Chosen on the validation clips
+        (docs/tracking.md, *Several cameras*).
     depth_from_views : bool
         Several cameras: estimate the root's motion along every axis in frames that two or
         more views measure (their lines of sight differ, so together they measure depth);
         otherwise depth follows ``estimate_depth`` like one camera.
+    view_tau : float or None
+        Rank threshold (as ``tau``) of a frame's stacked system when two or more views measure
+        it; None: ``tau``. Several views condition ``A`` better than one: the validation clips
+        gain from a lower threshold there (0.01; docs/tracking.md *Several cameras*).
+    limit_action : {'reject', 'clamp'} or None
+        A tracked trajectory with an estimated joint outside its limits (widened to the keys,
+        plus ``limit_margin``): ``'reject'`` -- it is not used (the seed is dropped, the loop
+        stops as diverged); ``'clamp'`` -- the joint's angles are clamped into the limits and
+        the trajectory is scored like any other. None: ``'reject'`` with one camera (the
+        single-camera tracker as it was), ``'clamp'`` with several (chosen on the validation
+        clips, docs/tracking.md *Several cameras*).
     """
 
     tau: float = 0.02
@@ -229,8 +242,10 @@ class TrackingOptions:
     estimate_depth: bool = False
     roi_margin: float = 0.25
     min_improvement: float = 0.0
-    view_weighting: str = "noise"
+    view_weighting: str = "none"
     depth_from_views: bool = True
+    view_tau: float = 0.01
+    limit_action: str = None
 
     def __post_init__(self):
         if self.seed not in ("interpolation", "forward", "bidirectional"):
@@ -249,6 +264,11 @@ class TrackingOptions:
             raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")
         if not 0.0 < self.tau < 1.0:
             raise ValueError(f"tau must be in (0, 1), got {self.tau}")
+        if self.view_tau is not None and not 0.0 < self.view_tau < 1.0:
+            raise ValueError(f"view_tau must be in (0, 1) or None, got {self.view_tau}")
+        if self.limit_action not in (None, "reject", "clamp"):
+            raise ValueError(f"limit_action must be 'reject', 'clamp' or None, got "
+                             f"{self.limit_action!r}")
         for name in ("sample_budget", "candidate_budget", "levels", "warp_iterations",
                      "max_iterations", "patience", "min_samples"):
             if int(getattr(self, name)) < 1:
@@ -257,3 +277,9 @@ class TrackingOptions:
     def replace(self, **changes):
         """A copy with some fields changed."""
         return replace(self, **changes)
+
+    def resolved_limit_action(self, problem):
+        """``limit_action`` for a problem (None: by its number of cameras)."""
+        if self.limit_action is not None:
+            return self.limit_action
+        return "reject" if problem.n_views == 1 else "clamp"

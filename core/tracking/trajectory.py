@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kinematics import exp_so3, log_so3, matrix_to_euler
+from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
 from .body_model import joint_frames_in_camera, part_bounds, part_geometry, sample_silhouette
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
@@ -273,6 +273,43 @@ def limit_violation(problem, local_rotations, start, end, margin):
                         f" deg outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at "
                         f"frame {f}")
     return None
+
+
+def clamp_to_limits(problem, local_rotations, start, end, margin):
+    """Joint rotations with every estimated axis clamped into its limits.
+
+    The same decomposition and allowed range as :func:`limit_violation` (the skeleton's limits
+    widened to include both keyed values, plus ``margin``); only the frames and joints outside
+    it are recomposed (the others are returned bit for bit).
+
+    Returns
+    -------
+    local : ndarray, shape (n + 1, B, 3, 3)
+    clamped : str or None
+        The first violation (as :func:`limit_violation` words it), or None.
+    """
+    sk = problem.skeleton
+    mask = problem.dof_mask
+    local = np.array(local_rotations, dtype=float)
+    first = limit_violation(problem, local, start, end, margin)
+    if first is None:
+        return local, None
+    for j in range(sk.n_joints):
+        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
+        if not axes:
+            continue
+        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
+        mode = "".join(_AXES[a] for a in order)
+        angles = matrix_to_euler(local[:, j], mode)
+        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
+        lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
+        for a in axes:
+            lo[a] = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
+            hi[a] = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
+        out = np.nonzero(np.any((angles < lo) | (angles > hi), axis=1))[0]
+        if len(out):
+            local[out, j] = euler_to_matrix(np.clip(angles[out], lo, hi), mode)
+    return local, first
 
 
 def correct_trajectory(problem, start, end, translations, rotvecs, options, measured_on=None):
@@ -764,7 +801,7 @@ def _add_seed(problem, options, views, start, end, scores, timings):
     from the interpolation."""
     tic = time.perf_counter()
     roots, local = seed_trajectory(problem, options, views, start, end, options.seed)
-    found = _trajectory_problem(problem, options, start, end, roots, local)
+    local, found = _checked_trajectory(problem, options, start, end, roots, local)
     if found is None:
         seed = _Trajectory(problem, options, views, roots, local)
         found = _lost(seed, options, scores.initial_counts)
@@ -842,7 +879,7 @@ def _track_and_correct(problem, options, views, start, end, traj, initial_counts
     roots, local = correct_trajectory(
         problem, start, end, fm.translations, fm.rotvecs, options,
         measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
-    found = _trajectory_problem(problem, options, start, end, roots, local)
+    local, found = _checked_trajectory(problem, options, start, end, roots, local)
     if found is not None:
         return None, fm, found
     new = _Trajectory(problem, options, views, roots, local)
@@ -854,6 +891,24 @@ def _trajectory_problem(problem, options, start, end, roots, local):
     if not (np.all(np.isfinite(roots)) and np.all(np.isfinite(local))):
         return "non-finite corrected trajectory"
     return limit_violation(problem, local, start, end, options.limit_margin)
+
+
+def _checked_trajectory(problem, options, start, end, roots, local):
+    """A tracked trajectory as used, or why it cannot be (``TrackingOptions.limit_action``).
+
+    Returns
+    -------
+    local : ndarray, shape (n + 1, B, 3, 3)
+        ``local``, or with joints clamped into their limits (``'clamp'``).
+    found : str or None
+        Why the trajectory must not be used (non-finite, a joint beyond its limits with
+        ``'reject'``), or None.
+    """
+    if options.resolved_limit_action(problem) == "reject":
+        return local, _trajectory_problem(problem, options, start, end, roots, local)
+    if not (np.all(np.isfinite(roots)) and np.all(np.isfinite(local))):
+        return local, "non-finite corrected trajectory"
+    return clamp_to_limits(problem, local, start, end, options.limit_margin)[0], None
 
 
 
