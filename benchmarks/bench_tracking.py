@@ -376,7 +376,7 @@ def main(argv=None):
     steps = tuple(int(k) for k in args.keys.split(","))
     result = {"walk": bench_walk(walk, options, args.processes, steps, dof=args.dof)}
     for name, views in MULTI_VIEWS.items():
-        clip = load_views(ensure_views("walk", views, 640, 360, 61, python=py))
+        clip = load_views(ensure_views("walk", views, 640, 360, 61, python=py), names=views)
         result[f"walk_{name}"] = bench_walk(clip, options, args.processes, steps, variants=False)
     if args.quick:
         for clip in result:
@@ -388,7 +388,7 @@ def main(argv=None):
     run = load_footage(ensure_footage("run", 640, 360, 61, python=py))
     result["run"] = bench_walk(run, options, args.processes, steps, variants=False)
     for name, views in MULTI_VIEWS.items():
-        clip = load_views(ensure_views("run", views, 640, 360, 61, python=py))
+        clip = load_views(ensure_views("run", views, 640, 360, 61, python=py), names=views)
         result[f"run_{name}"] = bench_walk(clip, options, args.processes, steps, variants=False)
     result["box"] = bench_box(load_footage(ensure_footage("box", 640, 360, 41, python=py)), options)
     speed = {}

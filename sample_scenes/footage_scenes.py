@@ -348,7 +348,7 @@ def ensure_views(motion, views, width, height, frames, step=1, start=0, root=Non
             for view in views]
 
 
-def load_views(folders, color=False):
+def load_views(folders, color=False, names=None):
     """Several cameras' footage of one scene (:func:`ensure_views`) as one multi-view clip.
 
     Returns
@@ -357,7 +357,8 @@ def load_views(folders, color=False):
         As :func:`load_footage`, with ``frames`` a list of (N, H_v, W_v) stacks and ``camera``
         a list of PinholeCamera (one per view, in order: ``TrackingProblem(sk, body,
         clip.camera)`` and ``track_keyframes(problem, clip.frames, ...)`` take them as they
-        are), ``views`` the per-view namespaces and ``view_names``.
+        are), ``views`` the per-view namespaces and ``view_names`` (``names``, default the
+        views' names, ``'default'`` for a scene's usual camera).
     """
     views = [load_footage(f, color) for f in folders]
     first = views[0]
@@ -370,7 +371,8 @@ def load_views(folders, color=False):
                            root_translation=first.root_translation,
                            local_rotations=first.local_rotations, fps=first.fps,
                            motion=first.motion, folder=first.folder, views=views,
-                           view_names=[v.view or "default" for v in views])
+                           view_names=list(names) if names is not None
+                           else [v.view or "default" for v in views])
 
 
 def load_footage(folder, color=False):
