@@ -116,9 +116,12 @@ def _check_frames(problem, frames, frame_offsets):
     if problem.n_views == 1 and not (isinstance(frames, (list, tuple)) and len(frames) == 1
                                      and np.ndim(frames[0]) == 3):
         frames = [frames]
+    elif isinstance(frames, np.ndarray) and frames.ndim == 4 and len(frames) == problem.n_views:
+        frames = list(frames)                      # cameras of one size, stacked (V, N, H, W)
     elif isinstance(frames, np.ndarray) or len(frames) != problem.n_views:
-        raise TrackingError(f"Expected one frame stack per camera ({problem.n_views}), got "
-                            f"{len(frames) if not isinstance(frames, np.ndarray) else 'an array'}")
+        got = (f"an array of shape {frames.shape}" if isinstance(frames, np.ndarray)
+               else f"{len(frames)}")
+        raise TrackingError(f"Expected one frame stack per camera ({problem.n_views}), got {got}")
     stacks = []
     for v, (stack, cam) in enumerate(zip(frames, problem.cameras)):
         stack = np.asarray(stack)

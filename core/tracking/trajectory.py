@@ -431,6 +431,8 @@ def _per_view(problem, value, name, is_single):
     """A per-camera sequence from ``value`` (one camera: the value itself is accepted)."""
     if problem.n_views == 1 and is_single(value):
         return [value]
+    if isinstance(value, np.ndarray) and value.ndim == 4 and len(value) == problem.n_views:
+        return list(value)                         # cameras of one size, stacked (V, n + 1, H, W)
     if isinstance(value, np.ndarray) or not hasattr(value, "__len__"):
         raise TrackingError(f"{name}: expected one entry per camera ({problem.n_views}), got "
                             f"{type(value).__name__}")
