@@ -16,6 +16,7 @@ Coordinates: the core works in the armature's space (``pose_bridge``); the camer
 into it (``world2camera @ armature2world``).
 """
 
+import dataclasses
 import threading
 import time
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ import numpy as np
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
+from .cameras import CameraListError, camera_image, listed_cameras, uses_camera_list
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
@@ -54,6 +56,7 @@ class TrackRequest:
     options : TrackingOptions
     processes : int or None
     footage : Footage
+        The (first) camera's footage.
     key_frames : ndarray, shape (K,), int
         Scene frames of the keyframes (K >= 2).
     tracked_before : list of int
@@ -64,6 +67,11 @@ class TrackRequest:
     tracked_bones : list of str
     state : str
         Digest of the rig's keys when the request was made.
+    footages : list of Footage
+        Every camera's footage in the problem's camera order (``[footage]`` with one camera;
+        a camera's frame offset is folded into its ``scene_start``).
+    view_names : list of str
+        The cameras' names, same order.
     """
 
     obj_name: str
@@ -81,6 +89,16 @@ class TrackRequest:
     tracked_bones: list
     state: str
     timings: dict = field(default_factory=dict)
+    footages: list = field(default_factory=list)
+    view_names: list = field(default_factory=list)
+
+    @property
+    def n_views(self):
+        return max(1, len(self.footages))
+
+    def view_footage(self, view=0):
+        """The footage of camera ``view`` (problem order)."""
+        return self.footages[view] if self.footages else self.footage
 
     @property
     def first(self):
@@ -151,14 +169,15 @@ def _transform_animated(obj):
     return bag is not None and any(f.data_path in _TRANSFORM_PATHS for f in bag.fcurves)
 
 
-def _camera_in_armature_space(scene, camera_obj, rig, clip=None):
+def _camera_in_armature_space(scene, camera_obj, rig, clip=None, size=None, pixel_aspect=None):
     if _transform_animated(camera_obj):
         raise TrackError(f"Camera {camera_obj.name} is animated: the tracker needs the camera "
                          "that filmed the footage to stand still")
     if _transform_animated(rig.obj):
         raise TrackError(f"{rig.obj.name} moves as an object: animate its root bone instead")
     try:
-        camera = pinhole_from_blender(scene, camera_obj, clip)   # clip: its lens distortion
+        camera = pinhole_from_blender(scene, camera_obj, clip,   # clip: its lens distortion
+                                      size, pixel_aspect)
     except CameraError as exc:
         raise TrackError(str(exc)) from None
     armature2world = rig.armature2world
@@ -238,30 +257,27 @@ def prepare_tracking(context, settings):
     obj = resolve_editable_armature(context, settings)
     if obj.mode == "EDIT":
         raise TrackError("Leave Edit Mode first")
-    camera_obj = resolve_camera(scene, settings)
+    several = uses_camera_list(settings)
+    camera_obj = None if several else resolve_camera(scene, settings)
     try:
         rig = rig_from_armature(obj)
     except RigError as exc:
         raise TrackError(str(exc)) from None
     first, last = frame_range(scene, settings)
     key_frames, tracked_before = _keyframes(obj, rig, first, last)
-    footage = resolve_footage(settings)
-    width, height = render_size(scene)
-    if (footage.width, footage.height) != (width, height):
-        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
-                         f"is {width}×{height}: set Output › Format to the footage size "
-                         "(Match Render Size) so that the camera sees what was filmed")
-    outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
-    if outside:
-        raise TrackError(f"The footage ({footage.n_frames} frames from scene frame "
-                         f"{footage.scene_start - footage.offset}) does not cover frame "
-                         f"{outside[0]}: move the clip's Start Frame or the keyframes")
-    camera = _camera_in_armature_space(scene, camera_obj, rig,
-                                       settings.clip if settings.source == "CLIP" else None)
+    if several:
+        footages, cameras, names = _listed_views(scene, settings, rig, key_frames)
+    else:
+        footage = resolve_footage(settings)
+        _check_footage(footage, render_size(scene), key_frames)
+        cameras = [_camera_in_armature_space(
+            scene, camera_obj, rig, settings.clip if settings.source == "CLIP" else None)]
+        footages, names = [footage], [camera_obj.name]
     mask = rig.dof_mask
     translation = np.full(3, bool(rig.root_location_mask.any()))
     try:
-        problem = TrackingProblem(rig.skeleton, _body(rig), camera, mask, translation)
+        problem = TrackingProblem(rig.skeleton, _body(rig),
+                                  cameras[0] if len(cameras) == 1 else cameras, mask, translation)
     except TrackingError as exc:
         raise TrackError(str(exc)) from None
     layout = problem.layout
@@ -278,23 +294,71 @@ def prepare_tracking(context, settings):
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
-        options=options, processes=settings.processes or None, footage=footage,
-        key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
+        options=options, processes=settings.processes or None, footage=footages[0],
+        footages=footages, view_names=names, key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
 
-def read_footage(request, start, stop, reader=None, out=None):
-    """Grayscale frames (n, H, W) of the request's scene frames ``[start:stop]``.
+def _check_footage(footage, size, key_frames, camera_name=None):
+    """:class:`TrackError` unless ``footage`` has ``size`` (the camera's image: the render
+    size, or a calibrated camera's) and covers the first and last keyframe."""
+    width, height = size
+    who = "" if camera_name is None else f"Camera {camera_name}: "
+    if (footage.width, footage.height) != (width, height):
+        if camera_name is None:
+            raise TrackError(f"The footage is {footage.width}×{footage.height} but the render "
+                             f"size is {width}×{height}: set Output › Format to the footage "
+                             "size (Match Render Size) so that the camera sees what was filmed")
+        raise TrackError(f"{who}its footage is {footage.width}×{footage.height} but the camera "
+                         f"makes {width}×{height} images (the render size, or its calibration's): "
+                         "give it footage of its own size, or switch it off")
+    outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
+    if outside:
+        fix = "move the clip's Start Frame or the keyframes" if camera_name is None else \
+            "change its Offset, the clip's Start Frame or the keyframes, or switch it off"
+        raise TrackError(f"{who}{'The' if camera_name is None else 'its'} footage "
+                         f"({footage.n_frames} frames from scene frame "
+                         f"{footage.scene_start - footage.offset}) does not cover frame "
+                         f"{outside[0]}: {fix}")
 
-    ``reader``: a :class:`FootageReader` of ``request.footage`` kept open by the caller between
+
+def _listed_views(scene, settings, rig, key_frames):
+    """Footage, camera (armature space) and name of every switched-on camera of the Cameras
+    list (``cameras.py``), each checked like the single camera (size, range, lens)."""
+    try:
+        listed = listed_cameras(scene, settings)
+    except CameraListError as exc:
+        raise TrackError(str(exc)) from None
+    footages, cameras, names = [], [], []
+    for view in listed:
+        try:
+            footage = footage_from_clip(view.clip)
+        except FootageError as exc:
+            raise TrackError(f"Camera {view.name}: {exc}") from None
+        # The offset moves the footage later on the timeline (cameras.py).
+        footage = dataclasses.replace(footage, scene_start=footage.scene_start + view.offset)
+        size, aspect = camera_image(scene, view.camera)
+        _check_footage(footage, size, key_frames, view.name)
+        cameras.append(_camera_in_armature_space(scene, view.camera, rig, view.clip, size,
+                                                 aspect))
+        footages.append(footage)
+        names.append(view.name)
+    return footages, cameras, names
+
+
+def read_footage(request, start, stop, reader=None, out=None, view=0):
+    """Grayscale frames (n, H, W) of the request's scene frames ``[start:stop]`` from camera
+    ``view``'s footage (problem order; 0 with one camera).
+
+    ``reader``: a :class:`FootageReader` of that footage kept open by the caller between
     chunks (the modal operator); without it the frames are read by a reader opened and closed
     here. ``out``: where to write them (float32, (n, H, W)), returned.
     """
     frames = request.scene_frames[start:stop].tolist()
     try:
         if reader is None:
-            with FootageReader(request.footage) as own:
+            with FootageReader(request.view_footage(view)) as own:
                 return own.read(frames, out)
         return reader.read(frames, out)
     except FootageError as exc:
@@ -303,6 +367,8 @@ def read_footage(request, start, stop, reader=None, out=None):
 
 def run_core(request, frames, progress=None, cancel=None):
     """The core's ``track_keyframes`` on a request (no bpy: safe in a worker thread).
+
+    ``frames``: (F, H, W), or with several cameras one such stack per camera (problem order).
 
     Raises ``TrackingCancelled`` when ``cancel`` is set, :class:`TrackError` on invalid input.
     """
@@ -351,7 +417,8 @@ def apply_result(context, request, result):
         raise TrackError("The tracker returned non-finite values; nothing was written")
     layout = request.problem.layout
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
-                                     and not request.options.estimate_depth)
+                                     and not request.options.estimate_depth
+                                     and request.n_views == 1)    # views measure depth
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
                              request.tracked_bones, frames, result.root_translations,
@@ -362,9 +429,12 @@ def apply_result(context, request, result):
                 "trajectory (more keyframes help)"
                 for i, r in enumerate(result.intervals) if r.diverged]
     n_int = len(result.intervals)
+    views = (f", {request.n_views} cameras: {', '.join(request.view_names)}"
+             if request.n_views > 1 else "")
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
-               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual and rank "
+               f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; residual "
+               "and rank "
                "curves in the Graph Editor")
     return summary, warnings
 
@@ -372,8 +442,9 @@ def apply_result(context, request, result):
 def track_now(context, settings):
     """The whole run synchronously (background mode, scripts): returns (summary, warnings)."""
     request = prepare_tracking(context, settings)
-    frames = read_footage(request, 0, len(request.scene_frames))
-    result = run_core(request, frames)
+    frames = [read_footage(request, 0, len(request.scene_frames), view=v)
+              for v in range(request.n_views)]
+    result = run_core(request, frames[0] if request.n_views == 1 else frames)
     return apply_result(context, request, result)
 
 
