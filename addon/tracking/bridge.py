@@ -295,7 +295,8 @@ def prepare_tracking(context, settings):
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
         options=options, processes=settings.processes or None, footage=footages[0],
-        footages=footages, view_names=names, key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
+        footages=footages, view_names=names, key_frames=key_frames,
+        tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
@@ -434,8 +435,7 @@ def apply_result(context, request, result):
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
                f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; residual "
-               "and rank "
-               "curves in the Graph Editor")
+               "and rank curves in the Graph Editor")
     return summary, warnings
 
 
