@@ -25,12 +25,13 @@ import numpy as np
 
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
+from ...core.tracking.key_choice import choose_poses
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
-                   read_residuals, unwritable_channels, write_tracking)
+                   read_residuals, selected_frames, unwritable_channels, write_tracking)
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -55,9 +56,13 @@ class TrackRequest:
     processes : int or None
     footage : Footage
     key_frames : ndarray, shape (K,), int
-        Scene frames of the keyframes (K >= 2).
+        Scene frames of the poses tracked between (K >= 2; the keyframes, or those chosen by
+        *Track Between*).
     tracked_before : list of int
         Frames in the span holding earlier tracked keys (replaced).
+    replaced : list of int
+        Keyed frames in the span that *Track Between* left out (their estimated channels'
+        keys are replaced).
     key_roots, key_locals : ndarray, shape (K, 3) and (K, B, 3, 3)
     key_values : dict
         Every pose channel's value at the keyframes, (path, index) -> (K,).
@@ -75,6 +80,7 @@ class TrackRequest:
     footage: object
     key_frames: np.ndarray
     tracked_before: list
+    replaced: list
     key_roots: np.ndarray
     key_locals: np.ndarray
     key_values: dict
@@ -184,7 +190,27 @@ def _body(rig):
                          "limbs") from None
 
 
-def _keyframes(obj, rig, first, last):
+def marker_frames(scene, first, last):
+    """Frames of the scene's timeline markers in ``[first, last]``."""
+    return sorted({int(m.frame) for m in scene.timeline_markers if first <= m.frame <= last})
+
+
+def choose_keyframes(scene, obj, rig, settings, first, last):
+    """The poses to track between (*Track Between*, ``core.tracking.choose_poses``).
+
+    Returns
+    -------
+    choice : PoseChoice
+        ``poses`` (the chosen keyed frames) and ``replaced`` (keyed frames between them that
+        tracking replaces).
+    tracked : list of int
+        Frames strictly inside the chosen span holding earlier tracked keys.
+
+    Raises
+    ------
+    TrackError
+        With a message that says what to do.
+    """
     if last < first:
         raise TrackError(f"The frame range {first}–{last} is empty")
     hint = "pose the armature over the footage and key it (I) at two frames or more"
@@ -196,11 +222,16 @@ def _keyframes(obj, rig, first, last):
     if len(keys) == 1:
         raise TrackError(f"Only one keyframe of {obj.name} (frame {keys[0]}) in frames "
                          f"{first}–{last}: key the pose at one more frame")
-    if np.all(np.diff(keys) < 2):
-        raise TrackError(f"Nothing to track: keyframes {keys[0]}–{keys[-1]} leave no frame "
-                         "between them")
-    tracked = [f for f in tracked if keys[0] < f < keys[-1]]
-    return np.array(keys), tracked
+    mode = getattr(settings, "track_between", "ALL")
+    try:
+        choice = choose_poses(
+            keys, mode, every=getattr(settings, "key_step", 10),
+            selected=selected_frames(obj, rig, first, last) if mode == "SELECTED" else (),
+            markers=marker_frames(scene, first, last) if mode == "MARKERS" else ())
+    except TrackingError as exc:
+        raise TrackError(f"{obj.name}, frames {first}–{last}: {exc}") from None
+    poses = choice.poses
+    return choice, [f for f in tracked if poses[0] < f < poses[-1]]
 
 
 def _listed(names):
@@ -244,7 +275,8 @@ def prepare_tracking(context, settings):
     except RigError as exc:
         raise TrackError(str(exc)) from None
     first, last = frame_range(scene, settings)
-    key_frames, tracked_before = _keyframes(obj, rig, first, last)
+    choice, tracked_before = choose_keyframes(scene, obj, rig, settings, first, last)
+    key_frames, replaced = choice.poses, choice.replaced.tolist()
     footage = resolve_footage(settings)
     width, height = render_size(scene)
     if (footage.width, footage.height) != (width, height):
@@ -279,7 +311,8 @@ def prepare_tracking(context, settings):
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
         options=options, processes=settings.processes or None, footage=footage,
-        key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
+        key_frames=key_frames, tracked_before=tracked_before, replaced=replaced,
+        key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig))
 
@@ -356,7 +389,7 @@ def apply_result(context, request, result):
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
                              request.tracked_bones, frames, result.root_translations,
                              result.local_rotations, request.key_values, frames[1:], residuals,
-                             ranks, max_rank)
+                             ranks, max_rank, replaced=request.replaced)
     request.timings["write"] = time.perf_counter() - tic
     warnings = [f"Interval {_interval_name(request, i)} {r.reason}; it keeps that fallback "
                 "trajectory (more keyframes help)"
@@ -366,6 +399,9 @@ def apply_result(context, request, result):
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
                f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual and rank "
                "curves in the Graph Editor")
+    if request.replaced:
+        summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
+                    f"{len(request.replaced)} keyed frames between them replaced")
     return summary, warnings
 
 

@@ -108,6 +108,45 @@ def classify_frames(obj, rig, first, last):
     return keyframes, tracked
 
 
+def selected_frames(obj, rig, first, last):
+    """Frames in ``[first, last]`` where a key of the rig's pose channels is selected (the
+    *Selected Keys* choice of *Track Between*; a key at a fractional frame counts for the
+    nearest frame)."""
+    bag = object_channelbag(obj)
+    found = set()
+    if bag is None:
+        return []
+    for path, index, _ in rig_channels(rig):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None or not len(fcurve.keyframe_points):
+            continue
+        points = fcurve.keyframe_points
+        selected = np.zeros(len(points), dtype=bool)
+        points.foreach_get("select_control_point", selected)
+        frames = np.rint(key_frames_and_types(fcurve)[0][selected]).astype(int)
+        found.update(int(f) for f in frames if first <= f <= last)
+    return sorted(found)
+
+
+def estimated_channels(rig, tracked_bones):
+    """``(path, index)`` of the channels tracking estimates and writes: every rotation channel
+    of the tracked bones (a locked Euler axis excepted: not estimated) and the root's unlocked
+    location axes. The *replaced* keys of a Track Between choice are removed from these only."""
+    bones = set(tracked_bones)
+    out = []
+    for k, (name, mode) in enumerate(zip(rig.bone_names, rig.rotation_modes)):
+        if name not in bones:
+            continue
+        prop, count = channel_property(mode)
+        out += [(pose_bone_path(name, prop), i) for i in range(count)
+                if prop != "rotation_euler" or rig.dof_mask[k, i]]
+    root = rig.bone_names[0]
+    if root in bones:
+        out += [(pose_bone_path(root, "location"), int(i))
+                for i in np.nonzero(rig.root_location_mask)[0]]
+    return out
+
+
 def channel_state(obj, rig):
     """A digest of every key on the rig's pose channels (detects edits during a modal run)."""
     channels = rig_channels(rig)
@@ -168,7 +207,7 @@ def evaluate_channels_at(obj, rig, frames):
 
 
 def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots, local,
-                   key_values, residual_frames, residuals, ranks, max_rank):
+                   key_values, residual_frames, residuals, ranks, max_rank, replaced=()):
     """Write a tracking result into the armature's action (see the module docstring).
 
     Parameters
@@ -190,6 +229,10 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
     residuals : ndarray, shape (F - 1,)
     ranks : ndarray, shape (F - 1,), int
     max_rank : int
+    replaced : sequence of int
+        Keyed frames between the poses that the animator's *Track Between* choice left out:
+        their keys on the estimated channels (:func:`estimated_channels`) are replaced by
+        tracked ones; their other keys stay.
 
     Returns
     -------
@@ -207,6 +250,11 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
             remove_keys_at(fcurve, tracked_before)
     for frame in tracked_before:
         record.pop(str(frame), None)
+    if len(replaced):
+        for path, index in estimated_channels(rig, tracked_bones):
+            fcurve = bag.fcurves.find(path, index=index)
+            if fcurve is not None:
+                remove_keys_at(fcurve, replaced)
     before, kept = {}, {}
     for path, index, _ in channels:
         fcurve = bag.fcurves.find(path, index=index)
