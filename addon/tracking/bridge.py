@@ -26,7 +26,7 @@ import numpy as np
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ...core.tracking.key_choice import choose_poses
-from .camera_bridge import CameraError, pinhole_from_blender, render_size
+from .camera_bridge import CameraError, pinhole_from_blender, render_size_mismatch
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
@@ -278,11 +278,9 @@ def prepare_tracking(context, settings):
     choice, tracked_before = choose_keyframes(scene, obj, rig, settings, first, last)
     key_frames, replaced = choice.poses, choice.replaced.tolist()
     footage = resolve_footage(settings)
-    width, height = render_size(scene)
-    if (footage.width, footage.height) != (width, height):
-        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
-                         f"is {width}×{height}: set Output › Format to the footage size "
-                         "(Match Render Size) so that the camera sees what was filmed")
+    mismatch = render_size_mismatch(scene, footage.width, footage.height)
+    if mismatch:
+        raise TrackError(mismatch)
     outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
     if outside:
         raise TrackError(f"The footage ({footage.n_frames} frames from scene frame "
@@ -299,7 +297,7 @@ def prepare_tracking(context, settings):
     layout = problem.layout
     if layout.n_params == 0:
         raise TrackError(f"Every rotation of {obj.name}'s bodied bones is locked: unlock the axes "
-                         "to estimate (Table 1 DOF sets the paper's)")
+                         "to estimate (the padlocks in the Bone properties › Transform)")
     key_roots, key_locals = read_pose(rig, key_frames)
     bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
     if len(layout.translation_axes):
@@ -413,7 +411,16 @@ def track_now(context, settings):
     return apply_result(context, request, result)
 
 
-SUGGESTION_PREFIX = "Key? "
+SUGGESTION_PREFIX = "Key here? "
+#: The prefix of suggestion markers before issue 14 (replaced like the current ones).
+_OLD_SUGGESTION_PREFIX = "Key? "
+
+
+def suggestion_name(residual, usual):
+    """A suggestion marker's name: how many times the usual mismatch this frame shows
+    (``Key here? (mismatch 4.2× usual)``; usual = the median residual of the tracked frames)."""
+    ratio = residual / usual if usual > 0 else float("inf")
+    return f"{SUGGESTION_PREFIX}(mismatch {ratio:.1f}× usual)"
 
 
 def suggest_markers(context, settings):
@@ -440,18 +447,20 @@ def suggest_markers(context, settings):
     keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
     found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)
     markers = scene.timeline_markers
-    for marker in [m for m in markers if m.name.startswith(SUGGESTION_PREFIX)
+    for marker in [m for m in markers
+                   if m.name.startswith((SUGGESTION_PREFIX, _OLD_SUGGESTION_PREFIX))
                    and first <= m.frame <= last]:
         markers.remove(marker)
+    usual = float(np.median(residuals))
     for s in found:
-        markers.new(f"{SUGGESTION_PREFIX}z {s.z:.1f}", frame=s.frame)
+        markers.new(suggestion_name(s.residual, usual), frame=s.frame)
     if not found:
-        return (f"No residual spike above z {settings.suggest_threshold:g} in frames "
-                f"{first}–{last}: the keyframes suffice"), []
+        return (f"No frame stands out (spike threshold {settings.suggest_threshold:g}) in "
+                f"frames {first}–{last}: the keyframes suffice"), []
     listed = ", ".join(str(s.frame) for s in found)
     return (f"Suggested {len(found)} keyframe{'s' * (len(found) != 1)} at frame"
-            f"{'s' * (len(found) != 1)} {listed} (residual spikes, markers '{SUGGESTION_PREFIX}…')"
-            ), [s.frame for s in found]
+            f"{'s' * (len(found) != 1)} {listed}, where the footage matches the body worst "
+            f"(markers '{SUGGESTION_PREFIX}…')"), [s.frame for s in found]
 
 
 class TrackJob:

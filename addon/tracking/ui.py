@@ -55,7 +55,6 @@ def _draw_armature(layout, context, settings):
     axes = int(np.count_nonzero(rig.dof_mask))
     col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
               icon="CON_ROTLIMIT")
-    col.operator("track_and_stride.table1_dof", icon="LOCKED")
     return obj
 
 
@@ -76,7 +75,11 @@ def _draw_footage(layout, context, settings, in_clip_editor):
                            f"{clip.frame_start}–{end}")
             if (width, height) != render_size(scene):
                 rw, rh = render_size(scene)
-                col.label(text=f"Render size is {rw}×{rh}", icon="ERROR")
+                percent = scene.render.resolution_percentage
+                col.label(text=f"Render size is {rw}×{rh}"
+                               + (f" ({percent} % of {scene.render.resolution_x}×"
+                                  f"{scene.render.resolution_y})" if percent != 100 else ""),
+                          icon="ERROR")
                 col.operator("track_and_stride.match_render_size", icon="FULLSCREEN_ENTER")
     else:
         col.prop(settings, "filepath", text="")
@@ -174,6 +177,11 @@ def draw_advanced(layout, context):
     layout.prop(settings, "processes")
     layout.prop(settings, "rank_threshold")
     layout.prop(settings, "estimate_depth")
+    # Yamamoto's Table 1 preset: off the main panel since it tracked worse than all axes free
+    # on the walk benchmark (docs/track_blender.md, Simplified Joints); it warns when applied.
+    col = layout.column(align=True)
+    col.label(text="Fewer axes (can track worse):", icon="CON_ROTLIMIT")
+    col.operator("track_and_stride.table1_dof", icon="LOCKED")
 
 
 class VIEW3D_PT_track_and_stride_track(bpy.types.Panel):
