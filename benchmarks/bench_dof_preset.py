@@ -8,11 +8,14 @@ rendered CMU 08_01 walk and 35_17 run (640x360, 61 frames, ``render_footage.py``
 * ``all_axes``: the full method with every rotation axis of the skeleton free (the default);
 * ``preset``: the full method with the preset's 23 DOFs (``table1_dof_mask``);
 
-and what the preset's locked axes do in the truth and in the keys: ``true_locked_deg`` = the
-path length (deg) of every body bone's rotation on the axes the preset locks, summed over the
-clip's frames, for the bone that moves most there; ``keyed_locked_deg`` = the same seen from
-the keys alone (key to key) -- what the add-on can see before tracking
-(``core.tracking.locked_axis_motion``).
+and what the preset's locked axes do in the truth and in the keys
+(``core.tracking.dof_check.locked_axis_motion``: path length, degrees, of a bone's rotation on
+the axes the preset locks): ``true_locked_deg`` / ``keyed_locked_deg`` over every frame / over
+the keys only, for the body bone that moves most there (feet, toes and hands, which the preset
+locks whole, included); ``warn_true_deg`` / ``warn_keyed_deg`` the same over the bones the
+preset keeps with some axes free (thighs, upper arms, head: their twists) -- the measure of
+the add-on's warning (``addon/tracking/setup.py``: ``PRESET_WARN_DEGREES``), on a capture
+keyed at every frame and on the keys every 10/20/30 frames.
 """
 
 import argparse
@@ -62,11 +65,13 @@ def bench_clip(fp, steps, processes):
                                                    seq.local_rotations, frames, keys)[0]
         row["preset_over_all_axes"] = row["preset_mpjpe_cm"] / row["all_axes_mpjpe_cm"]
         row["preset_over_interp"] = row["preset_mpjpe_cm"] / row["interp_mpjpe_cm"]
+        kept = np.array([j for j in bodied if mask[j].any()])
         for name, sel in (("true", frames), ("keyed", keys)):
-            motion = locked_axis_motion(fp.local_rotations[sel], mask)[bodied]
-            j = int(bodied[np.argmax(motion)])
-            row[f"{name}_locked_deg"] = float(motion.max())
-            row[f"{name}_locked_bone"] = fp.skeleton.names[j]
+            motion = locked_axis_motion(fp.local_rotations[sel], mask)
+            for prefix, bones in ((f"{name}_locked", bodied), (f"warn_{name}", kept)):
+                j = int(bones[np.argmax(motion[bones])])
+                row[f"{prefix}_deg"] = float(motion[j])
+                row[f"{prefix}_bone"] = fp.skeleton.names[j]
         out[f"keys_every_{step}"] = row
         print(step, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()},
               flush=True)
