@@ -16,6 +16,7 @@ from ..common.pose_bridge import RigError, rig_from_armature
 from .bridge import TrackError, choose_keyframes, envelope_radii, frame_range
 from .keys import PROP_RESIDUAL, classify_frames
 from .ops import track_poll_message
+from . import preview
 from .props import track_settings
 
 
@@ -239,4 +240,14 @@ CLASSES = (VIEW3D_PT_track_and_stride_track, VIEW3D_PT_track_and_stride_track_ad
            CLIP_PT_track_and_stride_track, CLIP_PT_track_and_stride_track_advanced)
 
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
+def register():
+    register_classes()
+    preview.register()           # Track Between's lines in the Dope Sheet and Timeline
+
+
+def unregister():
+    preview.unregister()
+    unregister_classes()

@@ -143,3 +143,63 @@ def test_a_choice_that_leaves_nothing_to_track_says_what_to_do_and_changes_nothi
     assert "track_and_stride_residual" not in obj.keys()
     # The panel says the same, in lines short enough for the sidebar.
     assert re.search(message, " ".join(_drawn_labels(obj)))
+
+
+def test_the_dope_sheet_preview_marks_the_chosen_poses(walk_folder):
+    """The lines drawn in the Dope Sheet and Timeline are at the poses Track Keyframes uses."""
+    obj = build_walk_scene(walk_folder, step=1)
+    preview = bridge("tracking.preview")
+    assert preview.preview_frames(bpy.context) == []                  # All Keys: no lines
+    settings().track_between, settings().key_step = "NTH", 10
+    assert preview.preview_frames(bpy.context) == [1, 11, 21, 31, 41]
+    _select_keys_at(obj, [21])
+    settings().track_between = "SELECTED"
+    assert preview.preview_frames(bpy.context) == []                  # cannot track: no lines
+
+
+_DRAW_SCRIPT = """
+import importlib.util, sys
+import bpy, gpu
+import numpy as np
+from mathutils import Matrix
+try:
+    gpu.init()
+    offscreen = gpu.types.GPUOffScreen(64, 16)
+except Exception as exc:                    # no GPU context on this machine
+    print("NO-GPU", type(exc).__name__, exc)
+    sys.exit(0)
+spec = importlib.util.spec_from_file_location("drawing", sys.argv[1])
+drawing = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(drawing)
+with offscreen.bind():
+    fb = gpu.state.active_framebuffer_get()
+    fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+    with gpu.matrix.push_pop():
+        gpu.matrix.load_matrix(Matrix.Identity(4))
+        # view x in [0, 64] -> pixel columns, y in [0, 16] -> rows
+        gpu.matrix.load_projection_matrix(Matrix(((2 / 64, 0, 0, -1), (0, 2 / 16, 0, -1),
+                                                  (0, 0, 1, 0), (0, 0, 0, 1))))
+        drawing.draw_vertical_lines([10.5, 40.5], 0.0, 16.0, (1.0, 0.6, 0.1, 1.0))
+    pixels = np.array(fb.read_color(0, 0, 64, 16, 4, 0, "FLOAT").to_list())
+offscreen.free()
+lit = sorted(set(np.nonzero(pixels[..., 3].max(axis=0) > 0.5)[0].tolist()))
+print("LIT", lit, "ROWS", int((pixels[:, 10, 3] > 0.5).sum()))
+"""
+
+
+def test_the_preview_lines_are_drawn_at_their_frames(tmp_path):
+    """The drawing itself, in a process that initialises the GPU module (offscreen, EGL):
+    lines at x = 10.5 and 40.5 light pixel columns 10 and 40 over the whole height."""
+    import subprocess
+    import sys
+
+    from blender_support import ROOT
+
+    script = tmp_path / "draw.py"
+    script.write_text(_DRAW_SCRIPT)
+    done = subprocess.run([sys.executable, str(script), str(ROOT / "addon/common/drawing.py")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    if "NO-GPU" in done.stdout:
+        pytest.skip(done.stdout.strip())
+    assert "LIT [10, 40] ROWS 16" in done.stdout, done.stdout + done.stderr[-2000:]
