@@ -7,9 +7,10 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...core.mocap import MocapParseError
+from ..common.reporting import one_line
 from .acclaim_bridge import AcclaimError, export_acclaim
 from .acclaim_import import AcclaimImport
-from ..common.reporting import one_line, report_outcome
+from ..common.reporting import report_outcome
 
 # What an import or export reports as "cannot run" (nothing else is caught).
 _ERRORS = (MocapParseError, AcclaimError)

@@ -25,13 +25,13 @@ import numpy as np
 
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
-from ...core.tracking.key_choice import choose_poses
-from .camera_bridge import CameraError, pinhole_from_blender, render_size_mismatch
+from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
                    read_residuals, selected_frames, unwritable_channels, write_tracking)
+from ...core.tracking.key_choice import choose_poses
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -135,6 +135,28 @@ def frame_range(scene, settings):
     if settings.range_mode == "CUSTOM":
         return int(settings.frame_start), int(settings.frame_end)
     return int(scene.frame_start), int(scene.frame_end)
+
+
+def render_size_mismatch(scene, width, height):
+    """What to change so that the render size equals the footage's ``width`` × ``height``, in
+    plain words, or ``None`` when it does. The render size is Output › Format's resolution
+    times its percentage: when the resolution is right and only the percentage is not, the
+    message says so (the usual culprit after a preview render at 50 %)."""
+    render = scene.render
+    actual = render_size(scene)
+    if actual == (width, height):
+        return None
+    percent = render.resolution_percentage
+    if (render.resolution_x, render.resolution_y) == (width, height):
+        return (f"The footage is {width}×{height} and so is Output › Format › Resolution, but "
+                f"its % is {percent} %, so the render size is {actual[0]}×{actual[1]}: set the "
+                "Resolution % to 100 (Match Render Size) so that the camera sees what was "
+                "filmed")
+    fix = "set Output › Format › Resolution to the footage size"
+    if percent != 100:
+        fix += f" and its % ({percent} %) to 100"
+    return (f"The footage is {width}×{height} but the render size is {actual[0]}×{actual[1]}: "
+            f"{fix} (Match Render Size) so that the camera sees what was filmed")
 
 
 def resolve_footage(settings):
@@ -309,10 +331,9 @@ def prepare_tracking(context, settings):
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
         options=options, processes=settings.processes or None, footage=footage,
-        key_frames=key_frames, tracked_before=tracked_before, replaced=replaced,
-        key_roots=key_roots,
+        key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
-        tracked_bones=tracked_bones, state=channel_state(obj, rig))
+        tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced)
 
 
 def read_footage(request, start, stop, reader=None, out=None):

@@ -29,28 +29,6 @@ def render_size(scene):
     return int(scene.render.resolution_x * scale), int(scene.render.resolution_y * scale)
 
 
-def render_size_mismatch(scene, width, height):
-    """What to change so that the render size equals the footage's ``width`` × ``height``, in
-    plain words, or ``None`` when it does. The render size is Output › Format's resolution
-    times its percentage: when the resolution is right and only the percentage is not, the
-    message says so (it is the usual culprit after a preview render at 50 %)."""
-    render = scene.render
-    actual = render_size(scene)
-    if actual == (width, height):
-        return None
-    percent = render.resolution_percentage
-    if (render.resolution_x, render.resolution_y) == (width, height):
-        return (f"The footage is {width}×{height} and so is Output › Format › Resolution, but "
-                f"its % is {percent} %, so the render size is {actual[0]}×{actual[1]}: set the "
-                "Resolution % to 100 (Match Render Size) so that the camera sees what was "
-                "filmed")
-    fix = "set Output › Format › Resolution to the footage size"
-    if percent != 100:
-        fix += f" and its % ({percent} %) to 100"
-    return (f"The footage is {width}×{height} but the render size is {actual[0]}×{actual[1]}: "
-            f"{fix} (Match Render Size) so that the camera sees what was filmed")
-
-
 def clip_distortion(clip, camera):
     """OpenCV distortion coefficients (5,) of a movie clip's tracking camera, or None.
 
