@@ -30,7 +30,8 @@ from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
-                   read_residuals, selected_frames, unwritable_channels, write_tracking)
+                   read_residuals, remove_replaced_keys, selected_frames, unwritable_channels,
+                   write_tracking)
 from ...core.tracking.key_choice import choose_poses
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
@@ -404,11 +405,12 @@ def apply_result(context, request, result):
     layout = request.problem.layout
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
                                      and not request.options.estimate_depth)
+    remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
                              request.tracked_bones, frames, result.root_translations,
                              result.local_rotations, request.key_values, frames[1:], residuals,
-                             ranks, max_rank, replaced=request.replaced)
+                             ranks, max_rank)
     request.timings["write"] = time.perf_counter() - tic
     warnings = [f"Interval {_interval_name(request, i)} {r.reason}; it keeps that fallback "
                 "trajectory (more keyframes help)"

@@ -19,7 +19,9 @@ Writing
 Per interval the in-between frames are keyed in bulk (``pose_bridge.write_pose_keys``, Euler
 continuity from the keyframe before), on the bones whose rotation was estimated (and the root
 location). A tracked channel without a key at a keyframe gets one holding its value from before
-(so the keyed pose stays the pose). Existing keys keep their exact state. Confidence curves
+(so the keyed pose stays the pose). Existing keys keep their exact state. With *Track Between* the keyed frames left out between
+the chosen poses are *replaced*: :func:`remove_replaced_keys` first removes their keys on the
+estimated channels only, then they are written like any in-between frame. Confidence curves
 (custom properties of the armature object, visible in the Graph Editor):
 ``track_and_stride_residual`` (eq. 4 residual of the frame pair ``f-1 -> f``, linear) and
 ``track_and_stride_rank`` (rank of ``A`` for that pair, constant; the paper's Fig. 10).
@@ -206,8 +208,30 @@ def evaluate_channels_at(obj, rig, frames):
     return out
 
 
+def remove_replaced_keys(rig, tracked_bones, replaced):
+    """Remove the keys at ``replaced`` frames from the estimated channels
+    (:func:`estimated_channels`), before :func:`write_tracking` keys those frames with tracked
+    poses: the keyed frames between the poses that the animator's *Track Between* choice left
+    out. Their keys on other channels stay, exactly.
+
+    Returns
+    -------
+    int
+        Keys removed.
+    """
+    bag = object_channelbag(rig.obj)
+    if bag is None or not len(replaced):
+        return 0
+    removed = 0
+    for path, index in estimated_channels(rig, tracked_bones):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is not None:
+            removed += remove_keys_at(fcurve, replaced)
+    return removed
+
+
 def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots, local,
-                   key_values, residual_frames, residuals, ranks, max_rank, replaced=()):
+                   key_values, residual_frames, residuals, ranks, max_rank):
     """Write a tracking result into the armature's action (see the module docstring).
 
     Parameters
@@ -229,10 +253,6 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
     residuals : ndarray, shape (F - 1,)
     ranks : ndarray, shape (F - 1,), int
     max_rank : int
-    replaced : sequence of int
-        Keyed frames between the poses that the animator's *Track Between* choice left out:
-        their keys on the estimated channels (:func:`estimated_channels`) are replaced by
-        tracked ones; their other keys stay.
 
     Returns
     -------
@@ -250,11 +270,6 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
             remove_keys_at(fcurve, tracked_before)
     for frame in tracked_before:
         record.pop(str(frame), None)
-    if len(replaced):
-        for path, index in estimated_channels(rig, tracked_bones):
-            fcurve = bag.fcurves.find(path, index=index)
-            if fcurve is not None:
-                remove_keys_at(fcurve, replaced)
     before, kept = {}, {}
     for path, index, _ in channels:
         fcurve = bag.fcurves.find(path, index=index)
