@@ -10,12 +10,14 @@ from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from .footage import MOVIE_EXTENSIONS, FootageReader
-from ..common.reporting import one_line, report_outcome
-from .bridge import (TrackError, TrackJob, apply_result, frame_range, prepare_tracking,
-                     read_footage, resolve_editable_armature, suggest_markers, track_now)
+from ..common.reporting import report_outcome
+from .bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
+                     resolve_editable_armature, suggest_markers, track_now)
 from .props import track_settings
 from .setup import (apply_table1_dof, match_render_size, open_footage,
                     show_footage_behind_camera)
+from ..common.reporting import one_line          # one-line tooltips (issue 14)
+from .bridge import frame_range
 
 # The running tracking operator (one at a time).
 _RUNNING = []

@@ -13,9 +13,10 @@ import numpy as np
 
 from .camera_bridge import render_size
 from ..common.pose_bridge import RigError, rig_from_armature
-from .bridge import TrackError, choose_keyframes, envelope_radii, frame_range
+from .bridge import envelope_radii, frame_range
 from .keys import PROP_RESIDUAL, classify_frames
 from .ops import track_poll_message
+from .bridge import TrackError, choose_keyframes          # Track Between's preview
 from . import preview
 from .props import track_settings
 
