@@ -12,9 +12,14 @@ renders the footage it needs once (``sample_scenes/render_footage.py``, cached u
 * the rigid box (paper §5.1): keys at 0 and 40, pose error at the middle frames 10..30;
 * speed: median ms per frame-iteration at 360x240, 640x360 and 1280x720;
 * throughput: output frames per second of the full method (all iterations, pyramids, process
-  pool) on a 1080x1920 portrait clip of the walk with keys every 20 frames.
+  pool) on a 1080x1920 portrait clip of the walk with keys every 20 frames;
+* several cameras (issue 11): the walk and the run tracked from 2 and 3 cameras at once
+  (:data:`MULTI_VIEWS`, rendered from ``footage_scenes.VIEWS``), keys every 10, 20 and 30
+  (``walk_2_views``, ``walk_3_views``, ``run_2_views``, ``run_3_views``, shaped like
+  ``walk``), and the cost per view: ms per frame-iteration with 1, 2 and 3 views at 640x360
+  and with 1 and 2 views at 1080x1920, and the 2-view output frames/s at 1080x1920.
 
-Prints a table and writes the JSON (shape in issue 4).
+Prints a table and writes the JSON (shape in issues 4 and 11).
 """
 
 import argparse
@@ -33,14 +38,26 @@ sys.path.insert(0, str(ROOT))
 from core.kinematics import forward_kinematics, log_so3  # noqa: E402
 from core.tracking import (Pose, TrackingOptions, TrackingProblem, interpolate_poses,  # noqa: E402
                            track_accumulated, track_interval, track_keyframes)
-from sample_scenes.footage_scenes import ensure_footage, load_footage  # noqa: E402
+from sample_scenes.footage_scenes import (ensure_footage, ensure_views, load_footage,  # noqa: E402
+                                          load_views)
 
 #: Human3.6M-style 17 joints on a CMU skeleton (joint origins = bone heads).
 H36M_JOINTS = ("root", "lfemur", "ltibia", "lfoot", "rfemur", "rtibia", "rfoot", "lowerback",
                "thorax", "lowerneck", "head", "lhumerus", "lradius", "lwrist", "rhumerus",
                "rradius", "rwrist")
 GOALS = {"full_cm_at_20": 2.0, "ratio_interp": 0.3, "ratio_accum": 0.5, "ms_360x240": 5.0,
-         "ms_1280x720": 25.0, "fps_1080x1920": 40.0}
+         "ms_1280x720": 25.0, "fps_1080x1920": 40.0, "walk_2_views_cm_at_20": 1.5,
+         "walk_3_views_cm_at_20": 1.0}
+#: Cameras tracked together (``footage_scenes.VIEWS``): the benchmark's own oblique camera,
+#: then one high on the other diagonal (line of sight at right angles), then one in front.
+MULTI_VIEWS = {"2_views": ("oblique", "above"), "3_views": ("oblique", "above", "front")}
+
+
+def clip_frames(fp, a, b):
+    """Frames ``a .. b`` of a clip: one stack, or one per camera (``load_views``)."""
+    if isinstance(fp.frames, list):
+        return [f[a:b + 1] for f in fp.frames]
+    return fp.frames[a:b + 1]
 
 
 def walk_metrics(fp, roots, local, frames, keys):
@@ -73,8 +90,9 @@ def bench_walk(fp, options, processes, key_steps=(10, 20, 30), dof="skeleton", v
     """
     from benchmarks.validate_tracking import (VISIBLE_SHARE, joint_errors, joint_visibility,
                                               split_scores)
+    from benchmarks.validate_tracking import root_errors
     problem = problem_for(fp, dof)
-    n = len(fp.frames) - 1
+    n = len(fp.root_translation) - 1
     visible = joint_visibility(fp) >= VISIBLE_SHARE
     out = {}
     for step in key_steps:
@@ -86,7 +104,7 @@ def bench_walk(fp, options, processes, key_steps=(10, 20, 30), dof="skeleton", v
             end = Pose(fp.root_translation[b], fp.local_rotations[b])
             t, r = interpolate_poses(fp.skeleton, start, end, b - a)
             roots_i.append(t[:-1]), local_i.append(r[:-1])
-            t, r = track_accumulated(problem, fp.frames[a:b + 1], start, end, options)
+            t, r = track_accumulated(problem, clip_frames(fp, a, b), start, end, options)
             roots_a.append(t[:-1]), local_a.append(r[:-1])
         last = keys[-1]
         for lst, arr in ((roots_i, fp.root_translation), (local_i, fp.local_rotations),
@@ -122,6 +140,9 @@ def bench_walk(fp, options, processes, key_steps=(10, 20, 30), dof="skeleton", v
             "full_visible_cm": split["visible_cm"], "full_hidden_cm": split["hidden_cm"],
             "full_oracle_hidden_exact_cm": split["oracle_hidden_exact_cm"],
             "full_per_joint_cm": dict(zip(H36M_JOINTS, np.round(err.mean(0), 2).tolist()))}
+        res["full_root_cm"] = float(root_errors(fp, seq.root_translations, frames)[interior].mean())
+        res["interp_root_cm"] = float(root_errors(fp, np.concatenate(roots_i), frames)[interior]
+                                      .mean())
         res["full_over_interp"] = res["full_mpjpe_cm"] / res["interp_mpjpe_cm"]
         res["full_over_accum"] = res["full_mpjpe_cm"] / res["accum_mpjpe_cm"]
         res["kept_iterations"] = [int(r.kept_iteration) for r in seq.intervals]
@@ -129,6 +150,8 @@ def bench_walk(fp, options, processes, key_steps=(10, 20, 30), dof="skeleton", v
         res["mean_rank"] = float(np.mean(np.concatenate([r.ranks for r in seq.intervals])))
         res["n_params"] = int(problem.layout.n_params)
         res["wall_s"] = wall
+        if isinstance(fp.frames, list):
+            res["views"] = list(fp.view_names)
         out[f"keys_every_{step}"] = res
     return out
 
@@ -164,11 +187,13 @@ def bench_box(fp, options):
     return res
 
 
-def bench_speed(fp, options, repeats=3, iterations=4):
+def bench_speed(fp, options, repeats=3, iterations=4, n=None):
     """Median ms per frame-iteration (all levels and warps of one frame, its eq. 4 scoring and
-    its share of accumulation + correction), fixed iteration count, serial."""
+    its share of accumulation + correction), fixed iteration count, serial; frames ``0..n``
+    (default all). Several cameras: the whole step (all views); ``ms_per_view_frame_iter`` is
+    that over the number of views."""
     problem = problem_for(fp)
-    n = len(fp.frames) - 1
+    n = len(fp.root_translation) - 1 if n is None else n
     start = Pose(fp.root_translation[0], fp.local_rotations[0])
     end = Pose(fp.root_translation[n], fp.local_rotations[n])
     opts = options.replace(max_iterations=iterations, patience=iterations + 1,
@@ -176,11 +201,13 @@ def bench_speed(fp, options, repeats=3, iterations=4):
                            limit_margin=1e9)
     per, pyr, seed = [], [], []
     for _ in range(repeats):
-        r = track_interval(problem, fp.frames, start, end, opts)
+        r = track_interval(problem, clip_frames(fp, 0, n), start, end, opts)
         per.append(1000 * np.median(r.timings["iterations"]) / n)
         pyr.append(1000 * r.timings["pyramid"] / (n + 1))
         seed.append(1000 * r.timings.get("seed", 0.0) / n)
     return {"ms_per_frame_iter": float(np.median(per)),
+            "ms_per_view_frame_iter": float(np.median(per)) / problem.n_views,
+            "n_views": problem.n_views,
             "pyramid_ms_per_frame": float(np.median(pyr)),
             "seed_ms_per_frame": float(np.median(seed)), "finest_level": int(r.finest_level),
             "top_level": int(r.top_level), "frames": int(n + 1)}
@@ -191,18 +218,22 @@ def bench_throughput(folder, options, processes, step=20):
 
     Counted: the in-between frames (keys are given, not produced), over the wall time of
     ``track_keyframes`` from grayscale frames in memory (pyramids, seed, all iterations, the
-    process pool start-up). PNG decoding is measured separately.
+    process pool start-up). PNG decoding is measured separately. ``folder``: one footage
+    folder, or a list of them (several cameras, ``load_views``; decoding not measured).
     """
     from PIL import Image
 
     from core.tracking.image import to_grayscale
-    tic = time.perf_counter()
-    files = sorted(Path(folder).glob("frame_*.png"))
-    to_grayscale(np.stack([np.asarray(Image.open(f).convert("RGB")) for f in files]))
-    decode = time.perf_counter() - tic
-    fp = load_footage(folder)
+    if isinstance(folder, (list, tuple)):
+        fp, decode, files = load_views(folder), float("nan"), []
+    else:
+        tic = time.perf_counter()
+        files = sorted(Path(folder).glob("frame_*.png"))
+        to_grayscale(np.stack([np.asarray(Image.open(f).convert("RGB")) for f in files]))
+        decode = time.perf_counter() - tic
+        fp = load_footage(folder)
     problem = problem_for(fp)
-    n = len(fp.frames) - 1
+    n = len(fp.root_translation) - 1
     keys = np.arange(0, n + 1, step)
     in_between = int(keys[-1] - keys[0] + 1 - len(keys))
     walls = {}
@@ -217,9 +248,29 @@ def bench_throughput(folder, options, processes, step=20):
     return {"output_fps": in_between / walls[best], "serial_fps": in_between / walls[1],
             "pool_fps": in_between / walls[processes], "in_between_frames": in_between,
             "wall_s": walls[best], "processes": best,
-            "decode_fps": len(files) / decode, "finest_level": int(seq.intervals[0].finest_level),
+            "decode_fps": len(files) / decode if files else None,
+            "n_views": problem.n_views, "finest_level": int(seq.intervals[0].finest_level),
             "top_level": int(seq.intervals[0].top_level), "full_mpjpe_cm": mpjpe,
             "full_angle_deg": angle, "iterations": [len(r.errors) - 1 for r in seq.intervals]}
+
+
+def bench_multi_view_speed(options, processes, python=None):
+    """Cost per view: ms per frame-iteration (serial, 21 frames of the walk) with 1, 2 and 3
+    cameras at 640x360 and 1 and 2 at 1080x1920 (portrait: its usual camera in front of the
+    walker, then ``above``), and the 2-view output frames/s at 1080x1920 (keys every 20)."""
+    py = python or sys.executable
+    out = {"ms_per_frame_iter": {"640x360": {}, "1080x1920": {}}}
+    sets = {"640x360": [("1_view", ("oblique",))] + list(MULTI_VIEWS.items()),
+            "1080x1920": [("1_view", (None,)), ("2_views", (None, "above"))]}
+    for res, rows in sets.items():
+        w, h = (int(x) for x in res.split("x"))
+        frames = 61 if w < h else 21
+        for name, views in rows:
+            clip = load_views(ensure_views("walk", views, w, h, frames, python=py))
+            out["ms_per_frame_iter"][res][name] = bench_speed(clip, options, n=20)
+    folders = ensure_views("walk", (None, "above"), 1080, 1920, 61, python=py)
+    out["throughput_1080x1920_2_views"] = bench_throughput(folders, options, processes)
+    return out
 
 
 def table(result):
@@ -271,8 +322,43 @@ def table(result):
                  f"frames/s (serial {t['serial_fps']:.1f}, 2-process pool {t['pool_fps']:.1f}), "
                  f"levels {t['finest_level']}..{t['top_level']}, MPJPE {t['full_mpjpe_cm']:.2f} "
                  f"cm; PNG decode alone {t['decode_fps']:.1f} frames/s")
+    lines += multi_view_table(result)
+    mv = s.get("multi_view")
+    if mv:
+        lines += ["", "Cost per view (serial, ms per frame-iteration of all views / per view)"]
+        for res, rows in mv["ms_per_frame_iter"].items():
+            lines.append(f"  {res:>9}: " + ", ".join(
+                f"{k.replace('_', ' ')} {d['ms_per_frame_iter']:.2f} / "
+                f"{d['ms_per_view_frame_iter']:.2f}" for k, d in rows.items()))
+        t = mv["throughput_1080x1920_2_views"]
+        lines.append(f"  1080x1920 portrait, 2 views, keys every 20: {t['output_fps']:.1f} output "
+                     f"frames/s (serial {t['serial_fps']:.1f}, pool {t['pool_fps']:.1f}), MPJPE "
+                     f"{t['full_mpjpe_cm']:.2f} cm")
     lines += ["", "Goals: " + ", ".join(f"{k} {v}" for k, v in GOALS.items())]
     return "\n".join(lines)
+
+
+def multi_view_table(result):
+    """Lines: full-method MPJPE (root position error) per clip and number of cameras."""
+    lines = ["", "Several cameras (issue 11): full method, MPJPE cm (root position cm), "
+             "interior frames; interpolation for comparison"]
+    for clip in ("walk", "run"):
+        if clip not in result:
+            continue
+        keys = list(result[clip])
+        lines.append(f"  {clip:5s} {'cameras':>24} | " + " | ".join(
+            f"keys every {k.split('_')[-1]:>2}" for k in keys))
+        r = result[clip]
+        lines.append(f"  {'':5s} {'interpolation':>24} | " + " | ".join(
+            f"{r[k]['interp_mpjpe_cm']:5.2f} ({r[k]['interp_root_cm']:5.2f})" for k in keys))
+        for name in ("", "_2_views", "_3_views"):
+            r = result.get(clip + name)
+            if r is None:
+                continue
+            views = ",".join(r[keys[0]].get("views", ["oblique"]))
+            lines.append(f"  {'':5s} {views:>24} | " + " | ".join(
+                f"{r[k]['full_mpjpe_cm']:5.2f} ({r[k]['full_root_cm']:5.2f})" for k in keys))
+    return lines
 
 
 def main(argv=None):
@@ -289,12 +375,21 @@ def main(argv=None):
     walk = load_footage(ensure_footage("walk", 640, 360, 61, python=py))
     steps = tuple(int(k) for k in args.keys.split(","))
     result = {"walk": bench_walk(walk, options, args.processes, steps, dof=args.dof)}
+    for name, views in MULTI_VIEWS.items():
+        clip = load_views(ensure_views("walk", views, 640, 360, 61, python=py), names=views)
+        result[f"walk_{name}"] = bench_walk(clip, options, args.processes, steps, variants=False)
     if args.quick:
-        for k, r in result["walk"].items():
-            print(k, {x: (round(y, 3) if isinstance(y, float) else y) for x, y in r.items()})
+        for clip in result:
+            for k, r in result[clip].items():
+                print(clip, k, {x: (round(y, 3) if isinstance(y, float) else y)
+                                for x, y in r.items() if x != "diagnostics"})
+        print("\n".join(multi_view_table(result)))
         return
     run = load_footage(ensure_footage("run", 640, 360, 61, python=py))
     result["run"] = bench_walk(run, options, args.processes, steps, variants=False)
+    for name, views in MULTI_VIEWS.items():
+        clip = load_views(ensure_views("run", views, 640, 360, 61, python=py), names=views)
+        result[f"run_{name}"] = bench_walk(clip, options, args.processes, steps, variants=False)
     result["box"] = bench_box(load_footage(ensure_footage("box", 640, 360, 41, python=py)), options)
     speed = {}
     for w, h in ((360, 240), (640, 360), (1280, 720)):
@@ -304,6 +399,7 @@ def main(argv=None):
     t = bench_throughput(ensure_footage("walk", 1080, 1920, 61, python=py), options, args.processes)
     speed["output_fps_1080x1920"] = t["output_fps"]
     speed["detail_1080x1920"] = t
+    speed["multi_view"] = bench_multi_view_speed(options, args.processes)
     result["speed"] = speed
     result["goals"] = GOALS
     result["options"] = {k: getattr(options, k) for k in options.__dataclass_fields__}

@@ -15,6 +15,10 @@ shows). Predictions:
 Run on the validation clips (never the benchmark's 08_01)::
 
     .venv/bin/python benchmarks/diagnose_tracking_step.py --clips cmu_08_04,cmu_35_02
+    .venv/bin/python benchmarks/diagnose_tracking_step.py --views oblique,above
+
+With ``--views`` the step is estimated from several cameras at once (``footage_scenes.VIEWS``);
+depth and across are measured along and across the first camera's line of sight.
 
 Findings are summarised in docs/tracking.md (*What limits the accuracy*).
 """
@@ -30,14 +34,13 @@ sys.path.insert(0, str(ROOT))
 
 from core.kinematics import forward_kinematics  # noqa: E402
 from core.tracking import Pose, TrackingOptions  # noqa: E402
-from core.tracking.body_model import sample_silhouette  # noqa: E402
 from core.tracking.jacobians import apply_motion, motion_between, root_world_rotation  # noqa: E402
-from core.tracking.motion import estimate_motions  # noqa: E402
-from core.tracking.trajectory import (_forward_chain, _frames_in_camera,  # noqa: E402
-                                      _prepare)
-from benchmarks.bench_tracking import H36M_JOINTS, problem_for  # noqa: E402
+from core.tracking.motion import estimate_view_motions  # noqa: E402
+from core.tracking.trajectory import _forward_chain, _step_view, prepare_views  # noqa: E402
+from benchmarks.bench_tracking import H36M_JOINTS, clip_frames, problem_for  # noqa: E402
 from benchmarks.validate_tracking import CLIPS  # noqa: E402
-from sample_scenes.footage_scenes import ensure_footage, load_footage  # noqa: E402
+from sample_scenes.footage_scenes import (ensure_footage, ensure_views, load_footage,  # noqa: E402
+                                          load_views)
 
 
 def split_error(fp, world2camera, roots, local, frames):
@@ -56,8 +59,7 @@ def one_step(fp, problem, options, a, b, noise, rng):
     sk = problem.skeleton
     start = Pose(fp.root_translation[a], fp.local_rotations[a])
     end = Pose(fp.root_translation[b], fp.local_rotations[b])
-    prob, start, end, pyramid, (finest, top) = _prepare(problem, fp.frames[a:b + 1], start, end,
-                                                        options, None)
+    start, end, views = prepare_views(problem, clip_frames(fp, a, b), start, end, options)
     roots, local = fp.root_translation[a:b + 1], fp.local_rotations[a:b + 1]
     t0, l0 = roots[:-1], local[:-1]
     n = len(t0)
@@ -67,17 +69,12 @@ def one_step(fp, problem, options, a, b, noise, rng):
         "interp": (np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world), rotvecs),
         "truth+noise": (true_t, true_r + noise * rng.standard_normal(true_r.shape)),
     }
-    w2c = prob.camera.world2camera
+    w2c = problem.camera.world2camera
     out = {}
     for kind, (pt, pr) in predictions.items():
         t1, l1 = apply_motion(sk, t0, l0, pt, pr)
-        rot, org = _frames_in_camera(prob, np.concatenate([t0, t1]), np.concatenate([l0, l1]))
-        both = sample_silhouette(prob.body, prob.camera.at_level(finest), rot, org,
-                                 options.candidate_budget)
-        fm = estimate_motions(prob, options, pyramid, finest, pairs, (t0, l0),
-                              (rot[:n], org[:n]), both.poses(0, n), (pt, pr),
-                              next_cam=(rot[n:], org[n:]), next_samples=both.poses(n, 2 * n),
-                              top_level=top)
+        steps = [_step_view(problem, options, view, t0, l0, t1, l1, pairs) for view in views]
+        fm = estimate_view_motions(problem, options, steps, (t0, l0), (pt, pr))
         te, le = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
         frames = np.arange(a + 1, b + 1)
         out[kind] = split_error(fp, w2c, t1, l1, frames) + split_error(fp, w2c, te, le, frames)
@@ -89,19 +86,26 @@ def main(argv=None):
     parser.add_argument("--clips", default=",".join(CLIPS))
     parser.add_argument("--step", type=int, default=20, help="keyframe spacing (frames)")
     parser.add_argument("--noise", type=float, default=0.01, help="radians per rotation DOF")
+    parser.add_argument("--options", default="", help="TrackingOptions overrides, e.g. 'tau=0.03'")
+    parser.add_argument("--views", default="",
+                        help="cameras tracked together, e.g. oblique,above (default: one)")
     args = parser.parse_args(argv)
-    options = TrackingOptions()
+    options = TrackingOptions(**eval(f"dict({args.options})"))
     rng = np.random.default_rng(0)
     rows = {}
     for clip in args.clips.split(","):
-        fp = load_footage(ensure_footage(clip, 640, 360, 61, python=sys.executable))
+        if args.views:
+            fp = load_views(ensure_views(clip, args.views.split(","), 640, 360, 61,
+                                         python=sys.executable))
+        else:
+            fp = load_footage(ensure_footage(clip, 640, 360, 61, python=sys.executable))
         problem = problem_for(fp)
-        for a in range(0, len(fp.frames) - args.step, args.step):
+        for a in range(0, len(fp.root_translation) - args.step, args.step):
             for kind, v in one_step(fp, problem, options, a, a + args.step, args.noise,
                                     rng).items():
                 rows.setdefault(kind, []).append(v)
-    print(f"One motion step from the true pose ({args.clips}; keys every {args.step}), mean "
-          "joint error in cm:")
+    print(f"One motion step from the true pose ({args.clips}; keys every {args.step}; "
+          f"{args.views or 'one camera'}), mean joint error in cm:")
     print(f"{'prediction':14s}{'pred depth':>11s}{'pred across':>12s}{'est depth':>10s}"
           f"{'est across':>11s}")
     for kind, v in rows.items():

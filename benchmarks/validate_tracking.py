@@ -10,6 +10,9 @@ sets on them::
         --config base='' --config p1='patience=1' --keys 10,20,30
     .venv/bin/python benchmarks/validate_tracking.py --priors --keys 10,20,30 \
         --clips cmu_08_04,cmu_35_01,...      # slerp vs spline prior, ground truth only
+    .venv/bin/python benchmarks/validate_tracking.py --views 'oblique,above;oblique,above,front' \
+        --config none='view_weighting="none"' --config noise='view_weighting="noise"'
+                                             # several cameras (footage_scenes.VIEWS)
 
 Per clip, keyframe spacing and option set: MPJPE (cm, the benchmark's 17 joints, interior
 frames) of the keyframe interpolation and of the full method, split into joints the camera
@@ -32,7 +35,8 @@ from core.kinematics import forward_kinematics  # noqa: E402
 from core.tracking import (BodyModel, Pose, TrackingOptions, interpolate_poses,  # noqa: E402
                            joint_frames_in_camera, ray_cast, track_keyframes)
 from benchmarks.bench_tracking import H36M_JOINTS, problem_for  # noqa: E402
-from sample_scenes.footage_scenes import ensure_footage, load_footage  # noqa: E402
+from sample_scenes.footage_scenes import (ensure_footage, ensure_views, load_footage,  # noqa: E402
+                                          load_views)
 
 #: Validation clips (none of them is the benchmark's 08_01 walk).
 CLIPS = ("cmu_08_04", "cmu_35_02", "cmu_35_05", "cmu_35_08", "cmu_08_07_v20", "cmu_35_20")
@@ -59,8 +63,11 @@ def joint_visibility(fp, frames=None, stride=2.0, joint_names=H36M_JOINTS):
 
     Ray casting on a pixel grid (``stride`` pixels): pixels where the part is the front-most
     surface over pixels where the part alone would be hit. The root (carried by the whole
-    body) counts as fully visible.
+    body) counts as fully visible. Several cameras (``footage_scenes.load_views``): the best
+    view's share (a joint is hidden when no camera sees its part).
     """
+    if hasattr(fp, "views"):
+        return np.max([joint_visibility(v, frames, stride, joint_names) for v in fp.views], axis=0)
     frames = np.arange(len(fp.frames)) if frames is None else np.asarray(frames)
     body, cam = fp.body, fp.camera
     rot, org = joint_frames_in_camera(fp.skeleton, cam.world2camera,
@@ -89,6 +96,11 @@ def joint_errors(fp, roots, local, frames):
     _, p = forward_kinematics(sk, local, roots)
     _, q = forward_kinematics(sk, fp.local_rotations[frames], fp.root_translation[frames])
     return 100 * np.linalg.norm(p[:, joints] - q[:, joints], axis=-1)
+
+
+def root_errors(fp, roots, frames):
+    """Root position error (cm) per frame, (F,), against the ground truth."""
+    return 100 * np.linalg.norm(np.asarray(roots) - fp.root_translation[frames], axis=-1)
 
 
 def split_scores(err, visible):
@@ -169,8 +181,10 @@ def prior_comparison(trials, steps, frames=61):
 
 
 def validate_clip(fp, configs, steps, processes=1):
+    """Per keyframe spacing: interpolation and every option set on one clip (one camera, or
+    several from ``footage_scenes.load_views``)."""
     problem = problem_for(fp)
-    n = len(fp.frames) - 1
+    n = len(fp.root_translation) - 1
     vis_all = joint_visibility(fp) >= VISIBLE_SHARE
     out = {"hidden_share": float(1.0 - vis_all.mean())}
     for step in steps:
@@ -181,6 +195,7 @@ def validate_clip(fp, configs, steps, processes=1):
         res = {}
         t, r = interp_trajectory(fp, keys)
         res["interp"] = split_scores(joint_errors(fp, t, r, frames)[interior], vis)
+        res["interp"]["root_cm"] = float(root_errors(fp, t, frames)[interior].mean())
         for name, options in configs.items():
             tic = time.perf_counter()
             seq = track_keyframes(problem, fp.frames, keys, fp.root_translation[keys],
@@ -188,6 +203,8 @@ def validate_clip(fp, configs, steps, processes=1):
             wall = time.perf_counter() - tic
             err = joint_errors(fp, seq.root_translations, seq.local_rotations, frames)[interior]
             res[name] = split_scores(err, vis)
+            res[name]["root_cm"] = float(root_errors(fp, seq.root_translations,
+                                                     frames)[interior].mean())
             res[name]["wall_s"] = wall
             res[name]["per_joint_cm"] = dict(zip(H36M_JOINTS, np.round(err.mean(0), 2).tolist()))
             res[name]["iterations"] = [len(i.errors) - 1 for i in seq.intervals]
@@ -204,6 +221,9 @@ def main(argv=None):
     ap.add_argument("--keys", default="20")
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--processes", type=int, default=1)
+    ap.add_argument("--views", default="",
+                    help="cameras of footage_scenes.VIEWS tracked together, e.g. oblique,above "
+                         "(default: the clip's one camera); several sets separated by ';'")
     ap.add_argument("--output", default=str(ROOT / "build" / "bench" / "validate_tracking.json"))
     ap.add_argument("--priors", action="store_true",
                     help="only compare slerp and spline priors on the ground truth of --clips")
@@ -226,26 +246,39 @@ def main(argv=None):
     w, h = (int(x) for x in args.size.split("x"))
     steps = [int(k) for k in args.keys.split(",")]
     result = {}
+    view_sets = [v for v in args.views.split(";") if v] or [""]
     for clip in args.clips.split(","):
-        fp = load_footage(ensure_footage(clip, w, h, 61, python=sys.executable))
-        result[clip] = validate_clip(fp, configs, steps, args.processes)
+        for views in view_sets:
+            if views:
+                fp = load_views(ensure_views(clip, views.split(","), w, h, 61,
+                                             python=sys.executable))
+            else:
+                fp = load_footage(ensure_footage(clip, w, h, 61, python=sys.executable))
+            key = f"{clip}[{views}]" if views else clip
+            result[key] = validate_clip(fp, configs, steps, args.processes)
+            for step in steps:
+                r = result[key][f"keys_every_{step}"]
+                print(f"{key:>14} k{step:<2} hidden {result[key]['hidden_share']:.2f} | "
+                      + " | ".join(f"{name} {v['mpjpe_cm']:5.2f} (vis {v['visible_cm']:5.2f} hid "
+                                   f"{v['hidden_cm']:5.2f} root {v['root_cm']:5.2f}"
+                                   + (f" {v['wall_s']:4.1f}s" if "wall_s" in v else "") + ")"
+                                   for name, v in r.items()), flush=True)
+    for views in view_sets:
+        keys = [c for c in result if c.endswith(f"[{views}]")] if views else \
+            [c for c in result if "[" not in c]
+        print(f"\nmean over clips ({views or 'one camera'})")
         for step in steps:
-            r = result[clip][f"keys_every_{step}"]
-            print(f"{clip:>14} k{step:<2} hidden {result[clip]['hidden_share']:.2f} | " + " | ".join(
-                f"{name} {v['mpjpe_cm']:5.2f} (vis {v['visible_cm']:5.2f} hid {v['hidden_cm']:5.2f}"
-                + (f" {v['wall_s']:4.1f}s" if "wall_s" in v else "") + ")"
-                for name, v in r.items()), flush=True)
-    print("\nmean over clips")
-    for step in steps:
-        names = list(result[next(iter(result))][f"keys_every_{step}"])
-        for name in names:
-            rows = [result[c][f"keys_every_{step}"][name] for c in result]
-            mean = {k: float(np.mean([r[k] for r in rows])) for k in
-                    ("mpjpe_cm", "visible_cm", "hidden_cm", "oracle_hidden_exact_cm")}
-            wall = np.sum([r.get("wall_s", 0.0) for r in rows])
-            print(f"  keys {step:>2} {name:>12}: MPJPE {mean['mpjpe_cm']:5.2f}  visible "
-                  f"{mean['visible_cm']:5.2f}  hidden {mean['hidden_cm']:5.2f}  oracle "
-                  f"{mean['oracle_hidden_exact_cm']:5.2f}  wall {wall:5.1f} s")
+            names = list(result[keys[0]][f"keys_every_{step}"])
+            for name in names:
+                rows = [result[c][f"keys_every_{step}"][name] for c in keys]
+                mean = {k: float(np.nanmean([r[k] for r in rows])) for k in
+                        ("mpjpe_cm", "visible_cm", "hidden_cm", "oracle_hidden_exact_cm",
+                         "root_cm")}
+                wall = np.sum([r.get("wall_s", 0.0) for r in rows])
+                print(f"  keys {step:>2} {name:>12}: MPJPE {mean['mpjpe_cm']:5.2f}  visible "
+                      f"{mean['visible_cm']:5.2f}  hidden {mean['hidden_cm']:5.2f}  oracle "
+                      f"{mean['oracle_hidden_exact_cm']:5.2f}  root {mean['root_cm']:5.2f}  "
+                      f"wall {wall:5.1f} s")
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"configs": {k: repr(v) for k, v in configs.items()},

@@ -15,6 +15,12 @@ Scenes
           of the tracker (``benchmarks/validate_tracking.py``), so that its settings are chosen
           on other footage than the benchmark's 08_01 walk.
 
+Several cameras (multi-view ground truth): a CMU scene can be rendered from other cameras of
+:data:`VIEWS` (``ensure_footage(..., view='front')``), the same motion and body from another
+place; each view is its own folder (``<clip>_<view>``) with its own camera in
+``ground_truth.npz``. ``view=None`` (and ``'oblique'`` in landscape) is the scene's usual
+camera. Every view has its own textured wall behind the action (from its side) and the floor.
+
 The body is one tapered cylinder per CMU bone (radii from
 :func:`core.armature.plausible_envelope_radii`, bones shorter than 4 cm skipped: fingers,
 thumbs, hands), i.e. exactly the tracker's :class:`~core.tracking.BodyModel`.
@@ -39,6 +45,16 @@ MOTIONS = {"walk": ("08_01", 30.0), "run": ("35_17", 60.0)}
 MIN_PART_LENGTH = 0.04
 # Landscape walk/run camera: degrees off the perpendicular to the walking direction.
 VIEW_ANGLE = 45.0
+#: Cameras of the multi-view ground truth, around the walked path: (degrees off the
+#: perpendicular to the walking direction towards where the walker goes, elevation in degrees,
+#: distance from the path's centre in metres). ``'oblique'`` is the usual landscape camera
+#: (``VIEW_ANGLE`` = 45 degrees, built as before: the benchmark's single view). ``'above'``
+#: stands high on the other diagonal (behind the start of the path): its line of sight is
+#: perpendicular to the oblique camera's. ``'front'``: ahead of the walker, who walks towards
+#: it. The others are framed automatically: the lens keeps the whole body on every frame
+#: inside 85 % of the image.
+VIEWS = {"oblique": None, "side": (0.0, 5.0, 4.5), "front": (90.0, 5.0, 5.5),
+         "above": (-45.0, 45.0, 4.5)}
 TEXTURE_SIZE = 128
 
 
@@ -109,8 +125,55 @@ def motion_spec(motion):
     return f"{m[1]}_{m[2]}", fps, float(m[3]) if m[3] else VIEW_ANGLE
 
 
-def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
-    """Skeleton, body and poses of a CMU trial (see the module docstring)."""
+def view_camera(view, path, points, aspect):
+    """Blender camera dict of a :data:`VIEWS` camera around a walked path.
+
+    Parameters
+    ----------
+    view : str
+    path : ndarray, shape (N, 2)
+        The root's ground projection per frame.
+    points : ndarray, shape (M, 3)
+        World points the image must hold (the body over the clip, widened by its radii).
+    aspect : float
+        Width over height of the image.
+    """
+    angle, elevation, dist = VIEWS[view]
+    heading = path[-1] - path[0]
+    heading /= np.linalg.norm(heading)
+    side = np.array([-heading[1], heading[0]])
+    centre = np.r_[path.mean(axis=0), 0.95]
+    a, e = np.radians(angle), np.radians(elevation)
+    direction = np.cos(a) * side + np.sin(a) * heading
+    eye = centre + np.r_[dist * np.cos(e) * direction, 0.35 + dist * np.sin(e)]
+    matrix = look_at(eye, centre)
+    # Lens: the points' largest normalised image coordinates, 85 % of the frame. AUTO sensor
+    # fit: the sensor width spans the larger side, fx = lens * larger side / sensor.
+    local = (points - eye) @ matrix[:3, :3]                 # Blender camera axes: -Z forward
+    depth = -local[:, 2]
+    x_max, y_max = np.abs(local[:, 0] / depth).max(), np.abs(local[:, 1] / depth).max()
+    sensor = 36.0
+    lens = 0.85 * sensor / (2.0 * max(aspect, 1.0)) * min(aspect / x_max, 1.0 / y_max)
+    return dict(lens=float(lens), sensor_width=sensor, sensor_height=24.0, sensor_fit="AUTO",
+                shift_x=0.0, shift_y=0.0, matrix_world=matrix)
+
+
+def _body_points(sk, body, root_translation, local):
+    """World points (M, 3) bounding the body over a clip: part axis ends, padded by radii along
+    every world axis (conservative enough to frame a camera)."""
+    from core.kinematics import forward_kinematics
+    rot, pos = forward_kinematics(sk, local, root_translation)
+    j = body.joints
+    ends = np.concatenate([pos[:, j] + np.einsum("fpij,pj->fpi", rot[:, j], body.starts),
+                           pos[:, j] + np.einsum("fpij,pj->fpi", rot[:, j], body.ends)], axis=1)
+    radius = np.concatenate([body.radii[:, 0], body.radii[:, 1]])
+    pad = np.stack(np.meshgrid(*[[-1.0, 1.0]] * 3, indexing="ij"), -1).reshape(-1, 3)
+    return (ends[:, :, None, :] + radius[None, :, None, None] * pad).reshape(-1, 3)
+
+
+def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
+    """Skeleton, body and poses of a CMU trial (see the module docstring); ``view``: a camera of
+    :data:`VIEWS` (None: the scene's usual camera)."""
     trial, fps, view_angle = motion_spec(motion)
     asf = read_asf(CMU / f"{trial.split('_')[0]}.asf")
     sk = asf_to_skeleton(asf)
@@ -131,7 +194,11 @@ def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9):
     heading = path[-1] - path[0]
     heading /= np.linalg.norm(heading)
     side = np.array([-heading[1], heading[0]])
-    if aspect < 1.0:
+    if view is not None and view not in VIEWS:
+        raise ValueError(f"unknown view {view!r}: one of {', '.join(VIEWS)}")
+    if view is not None and VIEWS[view] is not None:
+        cam = view_camera(view, path, _body_points(sk, body, root_translation, local), aspect)
+    elif aspect < 1.0:
         # In front of the walker, a little to the side: the body approaches the camera.
         end = np.r_[path[-1], 0.95]
         eye = end + np.r_[2.6 * heading + 0.9 * side, 0.35]
@@ -200,63 +267,112 @@ def calib_scene():
     return sk, body, root, local, cam, 30.0
 
 
-def build_scene(motion, frames, step=1, start=0, aspect=16 / 9):
+def build_scene(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
     """(skeleton, body, root_translation (N, 3), local (N, B, 3, 3), camera dict, fps)."""
+    if view is not None and motion in ("box", "calib"):
+        raise ValueError(f"the {motion} scene has one camera (no view {view!r})")
     if motion == "box":
         if step != 1 or start != 0:
             raise ValueError("the box motion has no step/start")
         return box_scene(frames)
     if motion == "calib":
         return calib_scene()
-    return cmu_scene(motion, frames, step, start, aspect)
+    return cmu_scene(motion, frames, step, start, aspect, view)
 
 
-def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9):
+def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
     """Everything ``ground_truth.npz`` stores except the camera intrinsics (set by the renderer)."""
-    sk, body, root, local, cam, fps = build_scene(motion, frames, step, start, aspect)
+    sk, body, root, local, cam, fps = build_scene(motion, frames, step, start, aspect, view)
     out = {f"skeleton_{k}": v for k, v in _skeleton_arrays(sk).items()}
     out.update(body_joints=body.joints, body_starts=body.starts, body_ends=body.ends,
                body_radii=body.radii, body_box_joints=body.box_joints,
                body_box_centres=body.box_centres, body_box_half_sizes=body.box_half_sizes,
                body_names=np.array(body.names), root_translation=root, local_rotations=local,
-               fps=np.array(fps), motion=np.array(motion))
+               fps=np.array(fps), motion=np.array(motion), view=np.array(view or ""))
     out.update({f"camera_{k}": np.array(v) for k, v in cam.items()})
     return out, sk, body, cam
 
 
-def render_params(motion, width, height, frames, step=1, start=0):
-    return dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
-                step=int(step), start=int(start), version=10)
+def _view_name(view, width, height):
+    """None for the scene's usual camera (``'oblique'`` in landscape is that camera)."""
+    return None if view is None or (view == "oblique" and width >= height) else view
 
 
-def footage_dir(motion, width, height, frames, step=1, start=0, root=None):
-    """Default output folder under ``build/footage``."""
+def render_params(motion, width, height, frames, step=1, start=0, view=None):
+    params = dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
+                  step=int(step), start=int(start), version=10)
+    view = _view_name(view, width, height)
+    if view is not None:
+        params["view"] = view
+    return params
+
+
+def footage_dir(motion, width, height, frames, step=1, start=0, root=None, view=None):
+    """Default output folder under ``build/footage`` (``_<view>`` appended for another camera)."""
     root = Path(root) if root is not None else ROOT / "build" / "footage"
-    return root / f"{motion}_{width}x{height}_n{frames}_s{step}_o{start}"
+    view = _view_name(view, width, height)
+    suffix = f"_{view}" if view is not None else ""
+    return root / f"{motion}_{width}x{height}_n{frames}_s{step}_o{start}{suffix}"
 
 
-def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, python=None):
+def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, python=None,
+                   view=None):
     """Render the footage in a subprocess (bpy) unless an up-to-date copy is cached.
 
-    Returns the output folder.
+    ``view``: a camera of :data:`VIEWS` (None: the scene's usual camera). Returns the output
+    folder.
     """
     import subprocess
     import sys
 
-    out = footage_dir(motion, width, height, frames, step, start, root)
-    params = render_params(motion, width, height, frames, step, start)
+    view = _view_name(view, width, height)
+    out = footage_dir(motion, width, height, frames, step, start, root, view)
+    params = render_params(motion, width, height, frames, step, start, view)
     stamp = out / "params.json"
     if stamp.exists() and json.loads(stamp.read_text()) == params and (out / "ground_truth.npz").exists():
         return out
     cmd = [python or sys.executable, str(ROOT / "sample_scenes" / "render_footage.py"),
            "--motion", motion, "--width", str(width), "--height", str(height),
            "--frames", str(frames), "--step", str(step), "--start", str(start),
-           "--output", str(out)]
+           "--output", str(out)] + (["--view", view] if view is not None else [])
     result = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
     if result.returncode != 0:
         raise RuntimeError(f"rendering failed ({' '.join(cmd)}):\n{result.stdout[-3000:]}\n"
                            f"{result.stderr[-3000:]}")
     return out
+
+
+def ensure_views(motion, views, width, height, frames, step=1, start=0, root=None, python=None):
+    """:func:`ensure_footage` of every camera in ``views`` (names of :data:`VIEWS`); folders."""
+    return [ensure_footage(motion, width, height, frames, step, start, root, python, view)
+            for view in views]
+
+
+def load_views(folders, color=False, names=None):
+    """Several cameras' footage of one scene (:func:`ensure_views`) as one multi-view clip.
+
+    Returns
+    -------
+    SimpleNamespace
+        As :func:`load_footage`, with ``frames`` a list of (N, H_v, W_v) stacks and ``camera``
+        a list of PinholeCamera (one per view, in order: ``TrackingProblem(sk, body,
+        clip.camera)`` and ``track_keyframes(problem, clip.frames, ...)`` take them as they
+        are), ``views`` the per-view namespaces and ``view_names`` (``names``, default the
+        views' names, ``'default'`` for a scene's usual camera).
+    """
+    views = [load_footage(f, color) for f in folders]
+    first = views[0]
+    for v in views[1:]:
+        if not (np.array_equal(v.root_translation, first.root_translation)
+                and np.array_equal(v.local_rotations, first.local_rotations)):
+            raise ValueError(f"{v.folder} does not show the motion of {first.folder}")
+    return SimpleNamespace(frames=[v.frames for v in views], camera=[v.camera for v in views],
+                           skeleton=first.skeleton, body=first.body,
+                           root_translation=first.root_translation,
+                           local_rotations=first.local_rotations, fps=first.fps,
+                           motion=first.motion, folder=first.folder, views=views,
+                           view_names=list(names) if names is not None
+                           else [v.view or "default" for v in views])
 
 
 def load_footage(folder, color=False):
@@ -290,7 +406,8 @@ def load_footage(folder, color=False):
     out = SimpleNamespace(frames=to_grayscale(rgb), skeleton=sk, body=body, camera=camera,
                           root_translation=d["root_translation"],
                           local_rotations=d["local_rotations"], fps=float(d["fps"]),
-                          motion=str(d["motion"]), folder=folder)
+                          motion=str(d["motion"]), folder=folder,
+                          view=str(d["view"]) if "view" in d else "")
     if color:
         out.rgb = rgb
     return out

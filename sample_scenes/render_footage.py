@@ -14,7 +14,9 @@ NumPy noise texture; every frame each part's ``matrix_world`` is set from forwar
 (parts are rigid, so this equals parenting them to posed bones). A textured wall and floor form
 the background. Workbench with flat lighting and texture colour: a pixel's colour is its
 texture colour (brightness constancy holds), anti-aliasing off (deterministic, no jitter).
-Portrait resolutions (height > width) use a camera in front of the walker.
+Portrait resolutions (height > width) use a camera in front of the walker. ``--view`` renders
+the same motion from another camera of ``footage_scenes.VIEWS`` (side, front, oblique, above):
+multi-view ground truth, one folder per camera.
 """
 
 import argparse
@@ -159,6 +161,8 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=21)
     ap.add_argument("--step", type=int, default=1, help="take every step-th resampled frame")
     ap.add_argument("--start", type=int, default=0, help="first resampled frame")
+    ap.add_argument("--view", default=None,
+                    help="another camera of footage_scenes.VIEWS (side, front, oblique, above)")
     ap.add_argument("--output", required=True)
     args = ap.parse_args(argv)
     out_dir = Path(args.output)
@@ -167,7 +171,7 @@ def main(argv=None):
         old.unlink()
 
     arrays, sk, body, cam = scene_arrays(args.motion, args.frames, args.step, args.start,
-                                         aspect=args.width / args.height)
+                                         aspect=args.width / args.height, view=args.view)
     root, local = arrays["root_translation"], arrays["local_rotations"]
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -231,7 +235,8 @@ def main(argv=None):
 
     arrays.update(width=np.array(args.width), height=np.array(args.height))
     np.savez_compressed(out_dir / "ground_truth.npz", **arrays)
-    params = render_params(args.motion, args.width, args.height, args.frames, args.step, args.start)
+    params = render_params(args.motion, args.width, args.height, args.frames, args.step, args.start,
+                           args.view)
     (out_dir / "params.json").write_text(json.dumps(params))
     print(f"rendered {len(root)} frames to {out_dir}")
 

@@ -4,12 +4,13 @@ Between two keyed poses of an articulated body, estimate every in-between frame 
 and remove the drift that accumulates (``docs/tracking.md``, ``DESIGN.md`` §1).
 
 Modules: ``camera`` (pinhole + Blender contract), ``distortion`` (Brown–Conrady lens
-distortion), ``calibration`` (calibration files: Pose2Sim TOML, Qualisys QCA), ``body_model`` (tapered cylinders / boxes, ray
-casting with occlusion), ``image`` (grayscale, derivatives, pyramid, sampling), ``jacobians``
-(eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10, coarse-to-fine), ``drift`` (eqs. 11-24),
-``trajectory`` (the §2.2 loop), ``parallel`` (several intervals), ``presets`` (Table 1),
-``problem`` (inputs and options), ``suggest`` (where one more keyframe pays off), ``overlay``
-(the body model drawn over frames, contact sheets).
+distortion), ``calibration`` (calibration files: Pose2Sim TOML, Qualisys QCA), ``body_model``
+(tapered cylinders / boxes, ray casting with occlusion), ``image`` (grayscale, derivatives,
+pyramid, sampling), ``jacobians`` (eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10,
+coarse-to-fine, one or several cameras), ``drift`` (eqs. 11-24), ``trajectory`` (the §2.2
+loop), ``parallel`` (several intervals), ``presets`` (Table 1), ``problem`` (inputs and
+options), ``suggest`` (where one more keyframe pays off), ``overlay`` (the body model drawn over
+frames, contact sheets).
 """
 
 from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
@@ -24,26 +25,30 @@ from .image import (bilinear, central_derivatives, gaussian_blur, gaussian_pyram
                     sample_with_gradient, to_grayscale)
 from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_between, motion_layout,
                         point_jacobians)
-from .motion import (FrameMotions, estimate_motions, rank_decomposition, rank_decompositions,
-                     solve_with_prediction)
-from .parallel import SequenceResult, track_keyframes
+from .motion import (FrameMotions, MotionView, estimate_motions, estimate_view_motions,
+                     rank_decomposition, rank_decompositions, solve_with_prediction, view_weights)
+from .parallel import SequenceResult, track_keyframes, view_frames
 from .presets import CMU_PARTS, RIG_PARTS, TABLE1, find_table1_parts, table1_dof_mask
 from .problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
 from .suggest import KeySuggestion, robust_z_scores, suggest_keyframes
-from .trajectory import (IntervalResult, Pose, interpolate_poses, photometric_error,
+from .trajectory import (IntervalResult, Pose, ViewInterval, eq4_view_weights, interpolate_poses,
+                         interpolated_interval, photometric_error, prepare_views,
                          track_accumulated, track_interval)
 
 __all__ = [
-    "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "LensDistortion", "FrameMotions", "IntervalResult", "KeySuggestion", "MotionLayout",
+    "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "FrameMotions",
+    "IntervalResult", "KeySuggestion", "LensDistortion", "MotionLayout", "MotionView",
     "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
     "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
-    "apply_motion", "bilinear", "blender_from_camera", "body_model_from_skeleton", "camera_from_blender",
-    "central_derivatives", "correct_root_positions", "distortion_from_movie_clip", "estimate_motions", "find_table1_parts", "fit_to_footage",
-    "gaussian_blur", "gaussian_pyramid", "image_jacobian", "interpolate_poses",
-    "joint_frames_in_camera", "motion_between", "motion_layout", "movie_clip_intrinsics", "orientation_correction",
-    "photometric_error", "point_jacobians", "pyr_down", "qca_binning_factor", "rank_decomposition",
+    "ViewInterval", "apply_motion", "bilinear", "blender_from_camera", "body_model_from_skeleton",
+    "camera_from_blender", "central_derivatives", "correct_root_positions",
+    "distortion_from_movie_clip", "eq4_view_weights", "estimate_motions", "estimate_view_motions",
+    "find_table1_parts", "fit_to_footage", "gaussian_blur", "gaussian_pyramid", "image_jacobian",
+    "interpolate_poses", "interpolated_interval", "joint_frames_in_camera", "motion_between",
+    "motion_layout", "movie_clip_intrinsics", "orientation_correction", "photometric_error",
+    "point_jacobians", "prepare_views", "pyr_down", "qca_binning_factor", "rank_decomposition",
     "rank_decompositions", "ray_cast", "read_calibration", "robust_z_scores", "sample_silhouette",
     "sample_with_gradient", "solve_with_prediction", "suggest_keyframes", "table1_dof_mask",
-    "to_grayscale", "track_accumulated", "track_interval", "track_keyframes",
-    "world2camera_from_blender",
+    "to_grayscale", "track_accumulated", "track_interval", "track_keyframes", "view_frames",
+    "view_weights", "world2camera_from_blender",
 ]

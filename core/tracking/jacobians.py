@@ -254,13 +254,13 @@ def image_gradient_rows(camera, points, e_u, e_v):
     Parameters
     ----------
     camera : PinholeCamera
-    points : array_like, shape (M, 3), camera frame, metres
-    e_u, e_v : array_like, shape (M,)
+    points : array_like, shape (..., 3), camera frame, metres
+    e_u, e_v : array_like, shape (...)
         Image derivatives at the points' projections (intensity per pixel).
 
     Returns
     -------
-    ndarray, shape (M, 3)
+    ndarray, shape (..., 3)
     """
     return camera.gradient_rows(points, e_u, e_v)
 

@@ -36,6 +36,15 @@ Numerical choices (each also commented where it is made):
 * Motion along the optical axis is not estimated unless ``estimate_depth`` (see
   :func:`translation_columns`): a monocular view hardly measures it (the paper, §5.3: the rank
   is at most 22 for its 23 DOFs).
+
+Several cameras (:func:`estimate_view_motions`, one :class:`MotionView` per camera): the
+parameters ``x`` are the body's, shared by every view; each view contributes its own rows of
+eq. 5 (its camera's joint frames in the Jacobian, its own model points, occlusion and pyramid),
+weighted per view (``TrackingOptions.view_weighting``, :func:`view_weights`) and stacked under
+each other into one ``A x = b`` per frame pair; rank, eq. 10 and the update are those of the
+stacked system. Where two or more views measure a frame, the root's depth is estimated
+(``depth_from_views``): the views' lines of sight differ. One camera is exactly the
+single-camera estimate (no weighting, nothing stacked).
 """
 
 from dataclasses import dataclass
@@ -44,7 +53,7 @@ import numpy as np
 
 from .body_model import joint_frames_in_camera
 from .image import bilinear, sample_with_gradient
-from .jacobians import apply_motion
+from .jacobians import apply_motion, image_gradient_rows
 
 @dataclass(frozen=True, eq=False)
 class RankedSystems:
@@ -88,8 +97,9 @@ def rank_decompositions(a, tau):
     Parameters
     ----------
     a : array_like, shape (n, M, P)
-    tau : float
-        Singular values ``sigma_i < tau * sigma_1`` count as zero.
+    tau : float or array_like, shape (n,)
+        Singular values ``sigma_i < tau * sigma_1`` count as zero (one threshold, or one per
+        system).
 
     Returns
     -------
@@ -107,6 +117,9 @@ def rank_decompositions(a, tau):
     sigma = np.sqrt(np.maximum(eig[:, ::-1], 0.0))
     v = vec[:, :, ::-1]
     top = sigma[:, :1]
+    tau = np.asarray(tau, dtype=float)
+    if tau.ndim:
+        tau = tau[:, None]                                   # one threshold per system
     rank = np.where(top[:, 0] > 0, np.sum(sigma >= tau * top, axis=1), 0)
     return RankedSystems(a=a, v=v, sigma=sigma, rank=rank.astype(int))
 
@@ -156,6 +169,8 @@ class FrameMotions:
         Model points used.
     residuals : ndarray, shape (n,)
         RMS photometric residual after the last update (intensity units; NaN: no measurement).
+    view_samples : ndarray, shape (V, n), int
+        Model points used per view (they add up to ``n_samples``).
     """
 
     translations: np.ndarray
@@ -163,6 +178,7 @@ class FrameMotions:
     ranks: np.ndarray
     n_samples: np.ndarray
     residuals: np.ndarray
+    view_samples: np.ndarray = None
 
 
 def still_visible(samples, frames_cam, next_cam, next_samples, camera, tolerance=0.02):
@@ -239,28 +255,91 @@ def select_samples(samples, stack, image_index, budget, usable=None):
 def translation_columns(layout, root_rotations, estimate_depth):
     """Root-frame directions (n, 3, T) of the translation parameters.
 
-    The layout's root-frame axes ``E``; without ``estimate_depth`` the camera's optical axis
-    ``d`` is projected out: ``(I - d d^T) E``. The T columns then span a plane, so ``A`` has one
-    exact null direction (the depth motion), which takes the prediction (eq. 10).
+    The layout's root-frame axes ``E``; where depth is not estimated the camera's optical
+    axis ``d`` is projected out: ``(I - d d^T) E``. The T columns then span a plane, so ``A``
+    has one exact null direction (the depth motion), which takes the prediction (eq. 10).
 
     Parameters
     ----------
     layout : MotionLayout
     root_rotations : ndarray, shape (n, 3, 3)
-        Root joint frame -> camera.
-    estimate_depth : bool
+        Root joint frame -> camera (the camera whose optical axis is meant by "depth").
+    estimate_depth : bool or array_like, shape (n,), bool
+        Per frame (or for all): keep the motion along the optical axis.
     """
     e = np.eye(3)[:, layout.translation_axes]
     cols = np.broadcast_to(e, (len(root_rotations),) + e.shape).copy()
-    if not estimate_depth and e.shape[1]:
-        d = root_rotations[:, 2, :]                 # camera z axis in root-frame coordinates
-        cols -= d[:, :, None] * np.einsum("fi,ij->fj", d, e)[:, None, :]
+    if not e.shape[1]:
+        return cols
+    if np.ndim(estimate_depth) == 0:
+        if not estimate_depth:
+            d = root_rotations[:, 2, :]             # camera z axis in root-frame coordinates
+            cols -= d[:, :, None] * np.einsum("fi,ij->fj", d, e)[:, None, :]
+        return cols
+    flat = ~np.asarray(estimate_depth, dtype=bool)
+    d = root_rotations[flat, 2, :]
+    cols[flat] -= d[:, :, None] * np.einsum("fi,ij->fj", d, e)[:, None, :]
     return cols
+
+
+@dataclass(frozen=True, eq=False)
+class MotionView:
+    """One camera's share of the motion estimate of n frame pairs (:func:`estimate_view_motions`).
+
+    Attributes
+    ----------
+    camera : PinholeCamera
+        The view's camera on pyramid level 0 (of the window its frames were cut to).
+    pyramid : list of ndarray
+        Gaussian pyramid of the view's image stack: level ``l`` of shape (F, H_l, W_l).
+    finest_level : int
+        Finest level used in this view; ``options.levels`` levels from there up (clipped to the
+        pyramid and to ``top_level``).
+    image_pairs : ndarray, shape (n, 2), int
+        Pair ``f`` is image ``image_pairs[f, 0]`` -> ``image_pairs[f, 1]`` of the stack
+        (``j -> j + 1`` forwards, ``j + 1 -> j`` when tracking backwards).
+    frames_cam : tuple (rotations (n, B, 3, 3), origins (n, B, 3))
+        Joint frames in this camera at the poses the motions start from.
+    samples : SilhouetteSamples
+        Visible model points at those poses on the grid of ``finest_level`` of this view.
+    next_cam : tuple (rotations (n, B, 3, 3), origins (n, B, 3)), optional
+        Joint frames in this camera at the next trajectory poses: points hidden there (in
+        this view) are not used.
+    next_samples : SilhouetteSamples, optional
+        This view's silhouette grids of the next trajectory poses (with ``next_cam``).
+    top_level : int, optional
+        Coarsest level used (default ``finest_level + options.levels - 1``, clipped).
+    available : ndarray, shape (F,), bool, optional
+        Images of the stack the camera filmed (False: a frame outside its footage, e.g. an
+        unsynchronised start); a pair with a missing image gives no rows in this view.
+    """
+
+    camera: object
+    pyramid: list
+    finest_level: int
+    image_pairs: np.ndarray
+    frames_cam: tuple
+    samples: object
+    next_cam: tuple = None
+    next_samples: object = None
+    top_level: int = None
+    available: np.ndarray = None
+
+    def levels(self, options):
+        """(finest, top): the pyramid levels this view is tracked on."""
+        finest = self.finest_level
+        top = min(len(self.pyramid) - 1, finest + options.levels - 1)
+        if self.top_level is not None:
+            top = min(top, max(int(self.top_level), finest))
+        return finest, top
 
 
 def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses, frames_cam,
                      samples, predictions, next_cam=None, next_samples=None, top_level=None):
-    """Motions of n frame pairs, the model at the given poses in the first image of each pair.
+    """Motions of n frame pairs seen by the problem's (first) camera.
+
+    The one-camera form of :func:`estimate_view_motions` (same arguments as one
+    :class:`MotionView` with ``problem.camera``).
 
     Parameters
     ----------
@@ -271,8 +350,7 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
     finest_level : int
         Finest level used; ``options.levels`` levels from there up (clipped to the pyramid).
     image_pairs : array_like, shape (n, 2), int
-        Pair ``f`` is image ``image_pairs[f, 0]`` -> ``image_pairs[f, 1]`` of the stack
-        (``j -> j + 1`` forwards, ``j + 1 -> j`` when tracking backwards).
+        Pair ``f`` is image ``image_pairs[f, 0]`` -> ``image_pairs[f, 1]`` of the stack.
     poses : tuple (roots (n, 3), local (n, B, 3, 3))
         Model poses in the first images.
     frames_cam : tuple (rotations (n, B, 3, 3), origins (n, B, 3))
@@ -280,145 +358,381 @@ def estimate_motions(problem, options, pyramid, finest_level, image_pairs, poses
     samples : SilhouetteSamples
         Visible model points at those poses on the grid of ``finest_level``.
     predictions : tuple (translations (n, 3), rotvecs (n, B, 3))
-        Predicted full motions ``y``: start of the search, null-space filling (eq. 10) and the
-        value of every component not estimated (DOF mask, depth, hidden parts).
-    next_cam : tuple (rotations (n, B, 3, 3), origins (n, B, 3)), optional
-        Joint frames at the next trajectory poses: points hidden there are not used.
-    next_samples : SilhouetteSamples, optional
-        Silhouette grids of the next trajectory poses (with ``next_cam``).
-    top_level : int, optional
-        Coarsest level used (default ``finest_level + options.levels - 1``, clipped).
+        Predicted full motions ``y`` (see :func:`estimate_view_motions`).
+    next_cam, next_samples, top_level
+        See :class:`MotionView`.
 
     Returns
     -------
     FrameMotions
     """
-    sk, layout = problem.skeleton, problem.layout
+    view = MotionView(camera=problem.camera, pyramid=pyramid, finest_level=finest_level,
+                      image_pairs=np.asarray(image_pairs, dtype=int).reshape(-1, 2),
+                      frames_cam=frames_cam, samples=samples, next_cam=next_cam,
+                      next_samples=next_samples, top_level=top_level)
+    return estimate_view_motions(problem, options, [view], poses, predictions)
+
+
+def estimate_view_motions(problem, options, views, poses, predictions):
+    """Motions of n frame pairs, the model at the given poses, seen by one or more cameras.
+
+    Steps (each a function below): the model points of every view
+    (:func:`_candidate_points`: visible, still visible at the next pose, strongest gradients);
+    which joints and frames the views measure together (:func:`_measured_points`); the
+    translation parameters (depth with two or more views, :func:`_depth_columns`); then
+    coarse to fine (:func:`_coarse_to_fine`), eq. 5 rows of every view stacked into one
+    system per frame pair, solved with eq. 10.
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    options : TrackingOptions
+    views : sequence of MotionView
+        The cameras' images and model points (all for the same n poses).
+    poses : tuple (roots (n, 3), local (n, B, 3, 3))
+        Model poses in the first images.
+    predictions : tuple (translations (n, 3), rotvecs (n, B, 3))
+        Predicted full motions ``y``: start of the search, null-space filling (eq. 10) and the
+        value of every component not estimated (DOF mask, depth, hidden parts).
+
+    Returns
+    -------
+    FrameMotions
+        ``ranks``: rank of the stacked ``A`` over all views on the finest levels.
+    """
     roots, local = (np.asarray(a, dtype=float) for a in poses)
-    rot, org = frames_cam
     pred_t, pred_r = (np.array(a, dtype=float) for a in predictions)
-    image_pairs = np.asarray(image_pairs, dtype=int).reshape(-1, 2)
-    image_index = image_pairs[:, 0]
-    n, b = len(roots), sk.n_joints
+    n = len(roots)
+    candidates = [_candidate_points(problem, options, view, n) for view in views]
+    measurable, measured, points, view_samples = _measured_points(problem, options, views,
+                                                                 candidates, n)
+    cols = _depth_columns(problem, options, views, view_samples)
+    layout = problem.layout
     n_t = len(layout.translation_axes)
     rj, ra = layout.rotation_joints, layout.rotation_axes
-    cam0 = problem.camera.at_level(finest_level)
-
-    usable = None
-    if next_cam is not None and samples.count:
-        usable = np.zeros(samples.count, dtype=bool)
-        inner = np.nonzero(samples.interior)[0]
-        usable[inner] = still_visible(samples.subset(inner), frames_cam, next_cam, next_samples,
-                                      cam0)
-    slots = select_samples(samples, pyramid[finest_level], image_index, options.sample_budget,
-                           usable)
-    valid = slots >= 0
-    safe = np.where(valid, slots, 0)
-    joints = np.where(valid, samples.joints[safe], 0) if samples.count else np.zeros_like(slots)
-    # Joints whose subtree shows too few points are not measured: their columns are dropped
-    # (they take the prediction, eq. 10) and so are their own points, whose predicted (not
-    # measured) motion would only bias the other parameters.
-    flat = (np.arange(n)[:, None] * b + joints)[valid]
-    counts = np.bincount(flat, minlength=n * b).reshape(n, b).astype(float)
-    seen = counts @ problem.ancestors                       # seen[f, j]: points below joint j
-    measurable = seen >= options.min_part_samples
-    valid &= np.take_along_axis(measurable, joints, axis=1)
-    n_samples = valid.sum(axis=1)
-    measured = n_samples >= options.min_samples
-    valid &= measured[:, None]
-    # No samples at all (the body is out of view): (n, S, 3) dummy points, none valid.
-    points = np.where(valid[..., None],
-                      samples.points[safe] if samples.count else np.zeros(slots.shape + (3,)), 0.0)
-    points[..., 2] = np.where(valid, points[..., 2], 1.0)
-    fr = np.arange(n)[:, None]
-    local_points = np.einsum("fsji,fsj->fsi", rot[fr, joints], points - org[fr, joints])
-    # Translation parameters: coordinates along the layout's root axes; their motion is
-    # pred_t + C (x_t - E^T pred_t) with C = translation_columns (depth projected out).
-    cols = translation_columns(layout, rot[:, 0], options.estimate_depth)
     e = np.eye(3)[:, layout.translation_axes]
     y = np.concatenate([pred_t @ e, pred_r[:, rj, ra]], axis=1)
 
     def full_motion(x):
+        # Translation parameters: coordinates along the layout's root axes; their motion is
+        # pred_t + C (x_t - E^T pred_t) with C = translation_columns (depth projected out).
         t = pred_t + np.einsum("fij,fj->fi", cols, x[:, :n_t] - pred_t @ e)
         r = pred_r.copy()
         r[:, rj, ra] = x[:, n_t:]
         return t, r
 
-    # Unknowns in metres of surface motion (TrackingProblem.scales).
+    # Unknowns in metres of surface motion (TrackingProblem.scales); columns of joints not
+    # measured in a frame are dropped (they take the prediction, eq. 10).
     scales = problem.scales
     weak = np.concatenate([np.zeros((n, n_t), dtype=bool), ~measurable[:, rj]], axis=1)
-    # Column factors: unmeasured columns dropped, the rest in scaled units.
     column_factor = (~weak / scales)[:, None, :]
-    anc = problem.ancestors[joints][..., rj]                               # (n, S, C)
-    y_s = y * scales
+    tau = options.tau
+    if len(views) > 1 and options.view_tau is not None:
+        stacked = (view_samples >= options.min_samples).sum(axis=0) >= 2
+        tau = np.where(stacked, options.view_tau, options.tau)
+    x_s, ranks, rms = _coarse_to_fine(problem, options, views, points, (roots, local), y * scales,
+                                      measured, cols, column_factor, full_motion, tau)
+    t, r = full_motion(x_s / scales)
+    return FrameMotions(translations=t, rotvecs=r, ranks=np.where(measured, ranks, 0),
+                        n_samples=view_samples.sum(axis=0) * measured, residuals=rms,
+                        view_samples=view_samples * measured)
+
+
+@dataclass(frozen=True, eq=False)
+class _ViewPoints:
+    """One view's model points for n poses (slots by decreasing image gradient).
+
+    ``valid``, ``joints``: (n, S); ``points`` (n, S, 3), camera frame (invalid slots: a dummy
+    point at z = 1); ``local_points`` (n, S, 3) in their joint's frame; ``counts`` (n, B)
+    valid points per joint.
+    """
+
+    valid: np.ndarray
+    safe: np.ndarray
+    joints: np.ndarray
+    counts: np.ndarray = None
+    points: np.ndarray = None
+    local_points: np.ndarray = None
+
+
+def _candidate_points(problem, options, view, n):
+    """Step 1, per view: the ``sample_budget`` interior points with the strongest gradients
+    that stay visible at the next trajectory pose (in this view), and their count per joint."""
+    samples = view.samples
+    b = problem.skeleton.n_joints
+    usable = None
+    if view.next_cam is not None and samples.count:
+        usable = np.zeros(samples.count, dtype=bool)
+        inner = np.nonzero(samples.interior)[0]
+        usable[inner] = still_visible(samples.subset(inner), view.frames_cam, view.next_cam,
+                                      view.next_samples, view.camera.at_level(view.finest_level))
+    slots = select_samples(samples, view.pyramid[view.finest_level], view.image_pairs[:, 0],
+                           options.sample_budget, usable)
+    valid = slots >= 0
+    if view.available is not None:
+        valid &= (view.available[view.image_pairs[:, 0]]
+                  & view.available[view.image_pairs[:, 1]])[:, None]
+    safe = np.where(valid, slots, 0)
+    joints = np.where(valid, samples.joints[safe], 0) if samples.count else np.zeros_like(slots)
+    flat = (np.arange(n)[:, None] * b + joints)[valid]
+    counts = np.bincount(flat, minlength=n * b).reshape(n, b).astype(float)
+    return _ViewPoints(valid=valid, safe=safe, joints=joints, counts=counts)
+
+
+def _measured_points(problem, options, views, candidates, n):
+    """Step 2, all views together: which joints and frames are measured, and the points used.
+
+    Joints whose subtree shows fewer than ``min_part_samples`` points (over all views) are not
+    measured: their columns are dropped and so are their own points, whose predicted (not
+    measured) motion would only bias the other parameters. A frame with fewer than
+    ``min_samples`` points (over all views) is not measured at all.
+
+    Returns
+    -------
+    measurable : ndarray, shape (n, B), bool
+    measured : ndarray, shape (n,), bool
+    points : list of _ViewPoints
+        With ``points`` and ``local_points`` filled in.
+    view_samples : ndarray, shape (V, n), int
+        Points used per view and frame (before the ``measured`` test).
+    """
+    counts = candidates[0].counts
+    for c in candidates[1:]:
+        counts = counts + c.counts
+    seen = counts @ problem.ancestors                       # seen[f, j]: points below joint j
+    measurable = seen >= options.min_part_samples
+    valid = []
+    for c in candidates:
+        valid.append(c.valid & np.take_along_axis(measurable, c.joints, axis=1))
+    view_samples = np.stack([v.sum(axis=1) for v in valid])
+    measured = view_samples.sum(axis=0) >= options.min_samples
+    fr = np.arange(n)[:, None]
+    out = []
+    for view, c, ok in zip(views, candidates, valid):
+        ok &= measured[:, None]
+        samples = view.samples
+        rot, org = view.frames_cam
+        # No samples at all (the body is out of view): (n, S, 3) dummy points, none valid.
+        found = samples.points[c.safe] if samples.count else np.zeros(c.safe.shape + (3,))
+        points = np.where(ok[..., None], found, 0.0)
+        points[..., 2] = np.where(ok, points[..., 2], 1.0)
+        local_points = np.einsum("fsji,fsj->fsi", rot[fr, c.joints], points - org[fr, c.joints])
+        out.append(_ViewPoints(valid=ok, safe=c.safe, joints=c.joints, points=points,
+                               local_points=local_points))
+    return measurable, measured, out, view_samples
+
+
+def _depth_columns(problem, options, views, view_samples):
+    """Step 3: translation columns (n, 3, T) (:func:`translation_columns`).
+
+    One camera: depth (its optical axis) follows ``estimate_depth``. Several: in a frame that
+    two or more views measure (``min_samples`` points each) the root moves along every axis
+    (``depth_from_views``); otherwise the optical axis of the one view that measures it (the
+    first view when none does) is left to the prediction unless ``estimate_depth``.
+    """
+    if len(views) == 1:
+        return translation_columns(problem.layout, views[0].frames_cam[0][:, 0],
+                                   options.estimate_depth)
+    seeing = view_samples >= options.min_samples                             # (V, n)
+    depth = np.full(seeing.shape[1], bool(options.estimate_depth))
+    if options.depth_from_views:
+        depth |= seeing.sum(axis=0) >= 2
+    reference = np.argmax(seeing, axis=0)                   # first view that sees, else 0
+    roots = np.stack([view.frames_cam[0][:, 0] for view in views])           # (V, n, 3, 3)
+    return translation_columns(problem.layout, roots[reference, np.arange(len(reference))],
+                               depth)
+
+
+@dataclass(frozen=True, eq=False)
+class _LevelTemplate:
+    """One view's linearisation on one pyramid level: rows ``a`` (n, S_l, P) of eq. 5 (A.9),
+    template intensities ``value`` (n, S_l) and the data to warp its points."""
+
+    camera: object
+    level: int
+    a: np.ndarray
+    value: np.ndarray
+    ok: np.ndarray
+    joints: np.ndarray
+    local_points: np.ndarray
+    next_images: np.ndarray
+
+
+def _level_template(problem, view, points, level, cols, column_factor):
+    """``A`` of one view on one level, built once from the gradients of image ``j`` at the
+    model points (the template does not move); coarser levels use half the points per level
+    up (the strongest gradients come first in the slots)."""
+    camera = view.camera.at_level(level)
+    n = len(view.image_pairs)
+    rot, org = view.frames_cam
+    s_l = max(1, -(-points.valid.shape[1] // 2 ** (level - view.finest_level)))
+    pts, jts, ok_l = points.points[:, :s_l], points.joints[:, :s_l], points.valid[:, :s_l]
+    img_a = np.repeat(view.image_pairs[:, 0], s_l)
+    uv = camera.project(pts).reshape(-1, 2)
+    value, e_u, e_v = sample_with_gradient(view.pyramid[level], uv[:, 0], uv[:, 1], frames=img_a)
+    value = value.reshape(n, s_l)
+    # Non-finite pixels (e.g. masked out by the caller) give no equation.
+    ok_l = ok_l & np.isfinite(value) & np.isfinite(e_u + e_v).reshape(n, s_l)
+    value = np.where(ok_l, value, 0.0)
+    # Invalid slots get zero gradients: all-zero rows of A.
+    g = np.where(ok_l[..., None], image_gradient_rows(camera, pts, e_u.reshape(n, s_l),
+                                                      e_v.reshape(n, s_l)), 0.0)
+    anc = problem.ancestors[jts][..., problem.layout.rotation_joints]      # (n, S_l, C)
+    a = _jacobian(problem.layout, rot, org, pts, g, cols, anc)
+    a *= column_factor
+    return _LevelTemplate(camera=camera, level=level, a=a, value=value, ok=ok_l, joints=jts,
+                          local_points=points.local_points[:, :s_l],
+                          next_images=np.repeat(view.image_pairs[:, 1], s_l))
+
+
+def _warped_residuals(skeleton, view, template, moved_pose):
+    """``b = -E_t`` of one view: template intensity minus image ``j+1`` where the model
+    points go under the current estimate (moved exactly through the kinematic chain).
+
+    Returns
+    -------
+    residual : ndarray, shape (n, S_l)
+        Zero where the point left the image, is invalid or meets a non-finite pixel.
+    inside : ndarray, shape (n, S_l), bool
+    """
+    camera, n = template.camera, len(template.value)
+    fr = np.arange(n)[:, None]
+    jts = template.joints
+    moved_rot, moved_org = joint_frames_in_camera(skeleton, view.camera.world2camera,
+                                                  *moved_pose)
+    moved = np.einsum("fsij,fsj->fsi", moved_rot[fr, jts], template.local_points) \
+        + moved_org[fr, jts]
+    uv_b = camera.project(moved)
+    sampled = bilinear(view.pyramid[template.level], uv_b[..., 0].ravel(), uv_b[..., 1].ravel(),
+                       frames=template.next_images).reshape(template.value.shape)
+    inside = ((moved[..., 2] > 0) & (uv_b[..., 0] >= 0) & (uv_b[..., 0] <= camera.width - 1)
+              & (uv_b[..., 1] >= 0) & (uv_b[..., 1] <= camera.height - 1) & template.ok
+              & np.isfinite(sampled))
+    return np.where(inside, template.value - sampled, 0.0), inside
+
+
+def _robust_clip(residual, inside, robust_clip):
+    """Residuals clipped at ``robust_clip`` standard deviations per frame, the scale estimated
+    from the mean absolute residual (sqrt(pi/2) E|r| = sigma for Gaussian noise; cheaper than
+    a median and as robust to the few gross outliers). Returns the clipped residuals and the
+    scale (n,) with its floor (1e-3 intensity units)."""
+    count = np.maximum(inside.sum(axis=1), 1)
+    scale = 1.2533 * np.abs(residual).sum(axis=1) / count + 1e-3
+    clip = robust_clip * scale
+    return np.clip(residual, -clip[:, None], clip[:, None]), scale
+
+
+def view_weights(kind, templates, scales):
+    """Weights (V, n) of the views' rows of eq. 5 (``TrackingOptions.view_weighting``).
+
+    Parameters
+    ----------
+    kind : {'none', 'equal', 'noise'}
+    templates : list of _LevelTemplate
+        Each view's rows ``a`` (n, S, P) on the current level.
+    scales : ndarray, shape (V, n)
+        Each view's robust residual scale (:func:`_robust_clip`) at the start of the level.
+
+    Returns
+    -------
+    ndarray, shape (V, n)
+        ``'none'``: 1. ``'equal'``: 1 / RMS row norm of the view's valid rows, so that every
+        view's rows have the same RMS norm. ``'noise'``: 1 / the residual scale (weighted
+        least squares with each view's own noise level). Frames a view does not measure get 0.
+    """
+    counts = np.stack([t.ok.sum(axis=1) for t in templates])                  # (V, n)
+    if kind == "none":
+        w = np.ones(counts.shape)
+    elif kind == "equal":
+        energy = np.stack([np.einsum("fsp,fsp->f", t.a, t.a) for t in templates])
+        rms = np.sqrt(energy / np.maximum(counts, 1))
+        w = 1.0 / np.where(rms > 0, rms, 1.0)
+    elif kind == "noise":
+        w = 1.0 / scales
+    else:
+        raise ValueError(f"unknown view weighting {kind!r}")
+    return np.where(counts > 0, w, 0.0)
+
+
+def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols, column_factor,
+                    full_motion, tau):
+    """Step 4: Lucas-Kanade from the prediction, coarse to fine, all views in one system.
+
+    Each view walks its own pyramid from its top level down to its finest (views with fewer
+    levels stay on their top level at the first steps). Per level: every view's rows (built
+    once, :func:`_level_template`); per re-linearisation: every view's residuals at the
+    current estimate, robustly clipped per view, weighted (:func:`view_weights`) and stacked
+    under each other, one rank-revealing solve per frame pair (eqs. 6-7) with eq. 10 for the
+    update. One view: exactly the single-camera tracker (no weighting, nothing stacked).
+
+    Returns
+    -------
+    x_s : ndarray, shape (n, P)
+        Motion parameters in scaled units (``tau``: rank threshold, scalar or per frame).
+    ranks : ndarray, shape (n,), int
+        Rank of the stacked system on the finest levels.
+    rms : ndarray, shape (n,)
+        RMS residual over all views after the last update (NaN: no measurement).
+    """
+    sk = problem.skeleton
+    roots, local = poses
+    scales = problem.scales
+    n = len(roots)
+    levels = [view.levels(options) for view in views]
+    steps = max(top - finest for finest, top in levels)
+    single = len(views) == 1
     x_s = y_s.copy()
-    top = min(len(pyramid) - 1, finest_level + options.levels - 1)
-    if top_level is not None:
-        top = min(top, max(int(top_level), finest_level))
     ranks = np.zeros(n, dtype=int)
     rms = np.full(n, np.nan)
-    for level in range(top, finest_level - 1, -1):
-        camera = problem.camera.at_level(level)
-        # Coarser levels have fewer pixels: half the samples per level up (the strongest
-        # gradients come first in the slots).
-        s_l = max(1, -(-slots.shape[1] // 2 ** (level - finest_level)))
-        pts, jts, ok_l = points[:, :s_l], joints[:, :s_l], valid[:, :s_l]
-        lp = local_points[:, :s_l]
-        img_a = np.repeat(image_index, s_l)
-        img_b = np.repeat(image_pairs[:, 1], s_l)
-        uv = camera.project(pts).reshape(-1, 2)
-        value, e_u, e_v = sample_with_gradient(pyramid[level], uv[:, 0], uv[:, 1], frames=img_a)
-        value = value.reshape(n, s_l)
-        # Non-finite pixels (e.g. masked out by the caller) give no equation.
-        ok_l = ok_l & np.isfinite(value) & np.isfinite(e_u + e_v).reshape(n, s_l)
-        value = np.where(ok_l, value, 0.0)
-        # Invalid slots get zero gradients: all-zero rows of A.
-        g = np.where(ok_l[..., None], _gradient_rows(camera, pts, e_u.reshape(n, s_l),
-                                                     e_v.reshape(n, s_l)), 0.0)
-        a = _jacobian(layout, rot, org, pts, g, cols, anc[:, :s_l])
-        a *= column_factor
-        system = rank_decompositions(a, options.tau)
-        ranks = system.rank
+    for step_index in range(steps, -1, -1):
+        templates = [_level_template(problem, view, pts, min(finest + step_index, top), cols,
+                                     column_factor)
+                     for view, pts, (finest, top) in zip(views, points, levels)]
+        system, weights = None, None
         for _ in range(options.warp_iterations):
-            moved_rot, moved_org = joint_frames_in_camera(
-                sk, problem.camera.world2camera,
-                *apply_motion(sk, roots, local, *full_motion(x_s / scales)))
-            moved = np.einsum("fsij,fsj->fsi", moved_rot[fr, jts], lp) + moved_org[fr, jts]
-            uv_b = camera.project(moved)
-            sampled = bilinear(pyramid[level], uv_b[..., 0].ravel(), uv_b[..., 1].ravel(),
-                               frames=img_b).reshape(n, s_l)
-            inside = ((moved[..., 2] > 0) & (uv_b[..., 0] >= 0) & (uv_b[..., 0] <= camera.width - 1)
-                      & (uv_b[..., 1] >= 0) & (uv_b[..., 1] <= camera.height - 1) & ok_l
-                      & np.isfinite(sampled))
-            # b = -E_t: template intensity minus the intensity where the point moved to.
-            residual = np.where(inside, value - sampled, 0.0)
-            count = np.maximum(inside.sum(axis=1), 1)
-            rms = np.where(measured, np.sqrt((residual ** 2).sum(axis=1) / count), np.nan)
-            # Robust: clip residuals at robust_clip standard deviations per frame, the scale
-            # estimated from the mean absolute residual (sqrt(pi/2) E|r| = sigma for Gaussian
-            # noise; cheaper than a median and as robust to the few gross outliers).
-            scale = 1.2533 * np.abs(residual).sum(axis=1) / count
-            clip = options.robust_clip * (scale + 1e-3)
-            residual = np.clip(residual, -clip[:, None], clip[:, None])
-            particular = system.pseudo_inverse_solve(residual)
+            moved_pose = apply_motion(sk, roots, local, *full_motion(x_s / scales))
+            warped = [_warped_residuals(sk, view, t, moved_pose)
+                      for view, t in zip(views, templates)]
+            rms = _rms(warped, measured)
+            clipped = [_robust_clip(r, inside, options.robust_clip) for r, inside in warped]
+            if system is None:
+                if single:
+                    a = templates[0].a
+                else:
+                    weights = view_weights(options.view_weighting, templates,
+                                           np.stack([c[1] for c in clipped]))
+                    a = np.concatenate([w[:, None, None] * t.a
+                                        for w, t in zip(weights, templates)], axis=1)
+                system = rank_decompositions(a, tau)
+                ranks = system.rank
+            b = clipped[0][0] if single else np.concatenate(
+                [w[:, None] * c[0] for w, c in zip(weights, clipped)], axis=1)
+            particular = system.pseudo_inverse_solve(b)
             # eq. 10 for the update: the null-space part of x is pulled to the prediction.
             step = particular + system.null_projection(y_s - x_s)
             step[~measured] = (y_s - x_s)[~measured]
             x_s = x_s + step
             if not np.all(np.isfinite(x_s)) or np.max(np.abs(step)) < options.step_tol:
                 break
-    t, r = full_motion(x_s / scales)
-    return FrameMotions(translations=t, rotvecs=r, ranks=np.where(measured, ranks, 0),
-                        n_samples=n_samples * measured, residuals=rms)
+    return x_s, ranks, rms
 
 
-def _gradient_rows(camera, points, e_u, e_v):
-    """Eq. A.8 rows g (n, S, 3) (see :func:`~.jacobians.image_gradient_rows`)."""
-    return camera.gradient_rows(points, e_u, e_v)   # lens distortion included
+def _rms(warped, measured):
+    """RMS residual per frame over the views' points inside the images (NaN: not measured)."""
+    if len(warped) == 1:
+        residual, inside = warped[0]
+        count = np.maximum(inside.sum(axis=1), 1)
+        return np.where(measured, np.sqrt((residual ** 2).sum(axis=1) / count), np.nan)
+    total = sum((r ** 2).sum(axis=1) for r, _ in warped)
+    count = np.maximum(sum(inside.sum(axis=1) for _, inside in warped), 1)
+    return np.where(measured, np.sqrt(total / count), np.nan)
 
 
 def _jacobian(layout, rot, org, points, g, cols, anc):
-    """Batched :func:`~.jacobians.image_jacobian`: A (n, S, T + C)."""
+    """Batched :func:`~.jacobians.image_jacobian` of one view: A (n, S, T + C).
+
+    ``rot``, ``org``: joint frames in this view's camera; ``cols``: root-frame translation
+    directions (shared by all views, the parameters are the body's)."""
     rj, ra = layout.rotation_joints, layout.rotation_axes
     axes = np.swapaxes(rot[:, rj, :, ra], 0, 1)                 # (n, C, 3): R_j e_a
     w_x_o = np.cross(axes, org[:, rj])                          # (n, C, 3)

@@ -2,9 +2,13 @@
 
 Keyframes split a clip into independent intervals (Yamamoto §2.2: each interval is tracked
 between its two keyed poses). :func:`track_keyframes` runs them one after the other or in a
-process pool; the frames are shared with the workers through one shared-memory block (no copy
-per interval), and every worker runs exactly the serial code on exactly the same data, so the
-results are bit-identical (checked in ``tests/core/test_tracking_parallel.py``).
+process pool; the frames are shared with the workers through memory-mapped files, one per
+camera (no copy per interval), and every worker runs exactly the serial code on exactly the
+same data, so the results are bit-identical (checked in ``tests/core/test_tracking_parallel.py``).
+
+Several cameras: ``frames`` holds one stack per camera of the problem, each with its frame
+offset (unsynchronised starts); every interval cuts each camera's frames of its clip frames
+(:func:`view_frames`).
 
 Worker processes and Blender
 ----------------------------
@@ -24,10 +28,10 @@ parent packages of the core (``bl_ext``, ``bl_ext.<repo>``, ``bl_ext.<repo>.trac
 their ``__path__`` is the matching folder), imports the core by its full name -- the core only
 uses relative imports inside itself, so no ``bpy`` and no add-on code runs -- and only then
 unpickles the work. With the core imported as a top-level ``core`` (tests, benchmarks) there is
-nothing to stand in for. The frames go to the workers as one temporary ``.npy`` file, memory
-mapped by each (no copy per interval). A worker whose parent dies sees its stdin close and
-exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and its copy
-of the frames.
+nothing to stand in for. The frames go to the workers as temporary ``.npy`` files, one per
+camera, memory mapped by each (no copy per interval). A worker whose parent dies sees its stdin
+close and exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and
+its copy of the frames.
 
 Progress and cancelling
 -----------------------
@@ -53,7 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
-from .trajectory import Pose, track_interval
+from .trajectory import Pose, interpolated_interval, track_interval
 
 #: Full module name of the core package this module belongs to ('core', or
 #: 'bl_ext.<repo>.track_and_stride.core' inside Blender) and its folder.
@@ -107,44 +111,96 @@ class SequenceResult:
         return [i for i, r in enumerate(self.intervals) if r.diverged]
 
 
-def _check_keys(problem, frames, key_frames, key_roots, key_locals):
-    frames = np.asarray(frames)
-    cam = problem.camera
-    if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
-        raise TrackingError(f"Expected frames of shape (N, {cam.height}, {cam.width}), got "
-                            f"{frames.shape}")
+def _check_frames(problem, frames, frame_offsets):
+    """One (N_v, H_v, W_v) stack per camera and the integer offset of each."""
+    if problem.n_views == 1 and not (isinstance(frames, (list, tuple)) and len(frames) == 1
+                                     and np.ndim(frames[0]) == 3):
+        frames = [frames]
+    elif isinstance(frames, np.ndarray) and frames.ndim == 4 and len(frames) == problem.n_views:
+        frames = list(frames)                      # cameras of one size, stacked (V, N, H, W)
+    elif isinstance(frames, np.ndarray) or len(frames) != problem.n_views:
+        got = (f"an array of shape {frames.shape}" if isinstance(frames, np.ndarray)
+               else f"{len(frames)}")
+        raise TrackingError(f"Expected one frame stack per camera ({problem.n_views}), got {got}")
+    stacks = []
+    for v, (stack, cam) in enumerate(zip(frames, problem.cameras)):
+        stack = np.asarray(stack)
+        where = f"camera {v}: " if problem.n_views > 1 else ""
+        if stack.ndim != 3 or stack.shape[1:] != (cam.height, cam.width):
+            raise TrackingError(f"{where}Expected frames of shape (N, {cam.height}, {cam.width}), "
+                                f"got {stack.shape}")
+        stacks.append(stack)
+    offsets = np.zeros(problem.n_views, dtype=int) if frame_offsets is None else \
+        np.asarray(frame_offsets)
+    if offsets.shape != (problem.n_views,) or not np.all(np.asarray(offsets) == np.round(offsets)):
+        raise TrackingError(f"frame_offsets: expected {problem.n_views} integers (one per camera),"
+                            f" got {np.asarray(frame_offsets).tolist()}")
+    return stacks, offsets.astype(int)
+
+
+def _check_keys(problem, frames, key_frames, key_roots, key_locals, frame_offsets=None):
+    frames, offsets = _check_frames(problem, frames, frame_offsets)
     keys = np.asarray(key_frames, dtype=int)
     b = problem.skeleton.n_joints
     roots = np.asarray(key_roots, dtype=float)
     local = np.asarray(key_locals, dtype=float)
+    first = int(min(offsets))
+    last = int(max(o + len(f) for o, f in zip(offsets, frames))) - 1
     if keys.ndim != 1 or len(keys) < 2:
         raise TrackingError("need at least two key frames")
-    if np.any(np.diff(keys) < 1) or keys[0] < 0 or keys[-1] >= len(frames):
-        raise TrackingError(f"key frames must increase strictly within 0..{len(frames) - 1}, "
+    if np.any(np.diff(keys) < 1) or keys[0] < first or keys[-1] > last:
+        raise TrackingError(f"key frames must increase strictly within {first}..{last}, "
                             f"got {keys.tolist()}")
     if roots.shape != (len(keys), 3) or local.shape != (len(keys), b, 3, 3):
         raise TrackingError(f"Expected key poses of shapes ({len(keys)}, 3) and "
                             f"({len(keys)}, {b}, 3, 3), got {roots.shape} and {local.shape}")
-    return frames, keys, roots, local
+    return frames, offsets, keys, roots, local
 
 
-def _interval(problem, options, frames, keys, roots, local, i, progress=None):
+def view_frames(stack, offset, a, b):
+    """Clip frames ``a .. b`` of one camera's stack whose first frame is clip frame ``offset``:
+    a view of the stack when it covers them all, None when it covers none, else a copy with
+    NaN frames (not filmed) where it does not."""
+    lo, hi = a - offset, b + 1 - offset
+    if lo >= 0 and hi <= len(stack):
+        return stack[lo:hi]
+    if hi <= 0 or lo >= len(stack):
+        return None
+    dtype = stack.dtype if stack.dtype in (np.float32, np.float64) else np.float32
+    out = np.full((hi - lo,) + stack.shape[1:], np.nan, dtype=dtype)
+    out[max(lo, 0) - lo:min(hi, len(stack)) - lo] = stack[max(lo, 0):min(hi, len(stack))]
+    return out
+
+
+def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None):
     a, b = keys[i], keys[i + 1]
-    return track_interval(problem, frames[a:b + 1], Pose(roots[i], local[i]),
-                          Pose(roots[i + 1], local[i + 1]), options, progress=progress)
+    start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
+    stacks = [view_frames(f, o, a, b) for f, o in zip(frames, offsets)]
+    if problem.n_views == 1:
+        return track_interval(problem, stacks[0], start, end, options, progress=progress)
+    if all(s is None for s in stacks):
+        if progress is not None:
+            progress(1.0)
+        return interpolated_interval(problem, start, end, int(b - a),
+                                     f"no camera filmed frames {a}..{b}: the interpolation is kept")
+    return track_interval(problem, stacks, start, end, options, progress=progress)
 
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
-                    processes=None, progress=None, cancel=None):
+                    processes=None, progress=None, cancel=None, frame_offsets=None):
     """Track every interval between consecutive keyframes.
 
     Parameters
     ----------
     problem : TrackingProblem
-    frames : array_like, shape (N, H, W)
-        Grayscale frames of the clip (float32 preferred; shared, not copied, per worker).
+    frames : array_like, shape (N, H, W), or a sequence of them (one per camera)
+        Grayscale frames of the clip (float32 preferred; shared, not copied, per worker). With
+        several cameras (``problem.cameras``), one stack (N_v, H_v, W_v) per camera, in the
+        same order; each camera has its own size and length.
     key_frames : array_like, shape (K,), int
-        Strictly increasing frame indices of the keyed poses, K >= 2.
+        Strictly increasing frame indices of the keyed poses, K >= 2, in clip frames (one
+        camera with no offset: indices into ``frames``). Keys must lie within the frames some
+        camera filmed.
     key_roots : array_like, shape (K, 3), metres (world)
     key_locals : array_like, shape (K, B, 3, 3)
     options : TrackingOptions, optional
@@ -156,6 +212,12 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         ``progress(fraction)``: done share of the job in [0, 1] (see the module docstring).
     cancel : object with ``is_set()``, optional
         Set it (from another thread) to stop; the call then raises ``TrackingCancelled``.
+    frame_offsets : array_like, shape (V,), int, optional
+        Per camera, the clip frame of its first frame (unsynchronised starts; Blender: the
+        movie clip's start frame relative to the others): clip frame ``f`` is frame
+        ``f - frame_offsets[v]`` of camera ``v``'s stack. Default all 0. Frames a camera did
+        not film give no measurement in that view; an interval no camera filmed keeps the
+        interpolation (its ``reason`` says so).
 
     Returns
     -------
@@ -169,7 +231,8 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         ``cancel`` was set.
     """
     options = options or TrackingOptions()
-    frames, keys, roots, local = _check_keys(problem, frames, key_frames, key_roots, key_locals)
+    frames, offsets, keys, roots, local = _check_keys(problem, frames, key_frames, key_roots,
+                                                      key_locals, frame_offsets)
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
     weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])
@@ -188,10 +251,11 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                     raise TrackingCancelled("tracking cancelled")
                 report(min(1.0, done + weight * fraction))
 
-            results.append(_interval(problem, options, frames, keys, roots, local, i, hook))
+            results.append(_interval(problem, options, frames, offsets, keys, roots, local, i,
+                                     hook))
     else:
-        results = _run_pool((problem, options, keys, roots, local), frames, workers, weights,
-                            report, stop_requested)
+        results = _run_pool((problem, options, offsets, keys, roots, local), frames, workers,
+                            weights, report, stop_requested)
     return _assemble(keys, results)
 
 
@@ -224,14 +288,14 @@ def serve(channel_in, channel_out):
     setup = _receive(channel_in)
     if setup is None:
         return
-    frames_path, (problem, options, keys, roots, local) = setup
-    frames = np.load(frames_path, mmap_mode="r")
+    frames_paths, (problem, options, offsets, keys, roots, local) = setup
+    frames = [np.load(path, mmap_mode="r") for path in frames_paths]
     while True:
         i = _receive(channel_in)
         if i is None or i == "stop":
             return
         try:
-            result = _interval(problem, options, frames, keys, roots, local, i,
+            result = _interval(problem, options, frames, offsets, keys, roots, local, i,
                                lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)))
         except Exception as exc:  # reported to the parent, which re-raises it
             try:
@@ -266,7 +330,7 @@ def _start_worker():
 
 def _local_worker(work, frames, todo, lock, inbox, stop):
     """The calling process's share: a thread taking intervals from ``todo`` like a worker."""
-    problem, options, keys, roots, local = work
+    problem, options, offsets, keys, roots, local = work
     while not stop.is_set():
         with lock:
             if not todo:
@@ -279,7 +343,7 @@ def _local_worker(work, frames, todo, lock, inbox, stop):
             inbox.put((-1, ("progress", i, fraction)))
 
         try:
-            result = _interval(problem, options, frames, keys, roots, local, i, hook)
+            result = _interval(problem, options, frames, offsets, keys, roots, local, i, hook)
         except TrackingCancelled:
             return
         except Exception as exc:  # reported to the caller's loop, which re-raises it
@@ -295,7 +359,7 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
     messages, reports progress and watches ``stop_requested``.
     """
     n_int = len(weights)
-    keys = work[2]
+    keys = work[3]
     todo = sorted(range(n_int), key=lambda i: keys[i] - keys[i + 1])
     lock, stop = threading.Lock(), threading.Event()
     results, fractions = [None] * n_int, np.zeros(n_int)
@@ -308,18 +372,19 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
             return todo.pop(0) if todo else None
 
     with tempfile.TemporaryDirectory(prefix="ts-track-") as folder:
-        frames_path = os.path.join(folder, "frames.npy")
+        frames_paths = [os.path.join(folder, f"frames_{v}.npy") for v in range(len(frames))]
         procs, stopped = [], set()
         try:
-            # This process starts on its first interval while the frames file is written for
-            # the children (0.1 s for 61 frames at 1080x1920).
+            # This process starts on its first interval while the frames files (one per
+            # camera) are written for the children (0.1 s for 61 frames at 1080x1920).
             local.start()
-            np.save(frames_path, np.ascontiguousarray(frames))
+            for path, stack in zip(frames_paths, frames):
+                np.save(path, np.ascontiguousarray(stack))
             for k in range(workers - 1):
                 proc = _start_worker()
                 procs.append(proc)
                 threading.Thread(target=_reader, args=(k, proc.stdout, inbox), daemon=True).start()
-                _send(proc.stdin, (frames_path, work))
+                _send(proc.stdin, (frames_paths, work))
                 task = next_task()
                 _send(proc.stdin, "stop" if task is None else task)
                 if task is None:

@@ -20,7 +20,7 @@ class TrackingCancelled(Exception):
 
 @dataclass(frozen=True, eq=False)
 class TrackingProblem:
-    """Skeleton, body shapes, camera and the estimated degrees of freedom.
+    """Skeleton, body shapes, camera(s) and the estimated degrees of freedom.
 
     Parameters
     ----------
@@ -28,8 +28,11 @@ class TrackingProblem:
         Joint frames = the parts' frames (Blender: bone frames).
     body : BodyModel
         Shapes attached to the joints.
-    camera : PinholeCamera
-        Intrinsics and world -> camera pose (one camera for all frames).
+    camera : PinholeCamera or sequence of PinholeCamera
+        Intrinsics and world -> camera pose of each view (static cameras). One camera, or
+        several filming the same action (multi-view tracking, ``docs/tracking.md``): the
+        frames passed to :func:`~.parallel.track_keyframes` / :func:`~.trajectory.track_interval`
+        are then one stack per camera, in this order.
     dof_mask : array_like, shape (B, 3), bool, optional
         Rotation axes estimated per joint (Blender: not ``lock_rotation``); default the
         skeleton's ``dof_axes``. Joints whose subtree has no body part are never estimated.
@@ -38,6 +41,10 @@ class TrackingProblem:
 
     Attributes
     ----------
+    cameras : tuple of PinholeCamera
+        Every view's camera (one entry for a single camera).
+    camera : PinholeCamera
+        The first view's camera (``cameras[0]``: the single camera of a one-view problem).
     layout : MotionLayout
         The estimated parameters ``x`` (eq. 3).
     ancestors : ndarray, shape (B, B), bool
@@ -52,6 +59,7 @@ class TrackingProblem:
     camera: PinholeCamera
     dof_mask: np.ndarray = None
     translation_mask: np.ndarray = None
+    cameras: tuple = field(init=False)
     layout: object = field(init=False)
     ancestors: np.ndarray = field(init=False)
     scales: np.ndarray = field(init=False)
@@ -60,8 +68,15 @@ class TrackingProblem:
         if self.body.n_joints != self.skeleton.n_joints:
             raise TrackingError(f"body model has {self.body.n_joints} joints, skeleton "
                                 f"{self.skeleton.n_joints}")
-        if not isinstance(self.camera, PinholeCamera):
-            raise TrackingError("camera must be a PinholeCamera")
+        cameras = (self.camera,) if isinstance(self.camera, PinholeCamera) else self.camera
+        try:
+            cameras = tuple(cameras)
+        except TypeError:
+            raise TrackingError("camera must be a PinholeCamera or a sequence of them") from None
+        if not cameras or not all(isinstance(c, PinholeCamera) for c in cameras):
+            raise TrackingError("camera must be a PinholeCamera or a non-empty sequence of them")
+        object.__setattr__(self, "cameras", cameras)
+        object.__setattr__(self, "camera", cameras[0])
         layout = motion_layout(self.skeleton, self.dof_mask, self.translation_mask, self.body)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "dof_mask", layout.dof_mask)
@@ -70,6 +85,11 @@ class TrackingProblem:
         object.__setattr__(self, "ancestors", ancestor_matrix(self.skeleton))
         object.__setattr__(self, "scales", parameter_scales(self.skeleton, self.body, layout,
                                                             self.ancestors))
+
+    @property
+    def n_views(self):
+        """Number of cameras."""
+        return len(self.cameras)
 
 
 def parameter_scales(skeleton, body, layout, ancestors):
@@ -91,6 +111,10 @@ def parameter_scales(skeleton, body, layout, ancestors):
         reach = np.linalg.norm(ends[sub] - org[joint], axis=1) + radius[sub]
         scales[n_t + c] = max(float(reach.max()), 1e-3) if np.any(sub) else 1.0
     return scales
+
+
+#: Accepted ``TrackingOptions.view_weighting`` values.
+VIEW_WEIGHTINGS = ("none", "equal", "noise")
 
 
 @dataclass(frozen=True)
@@ -166,6 +190,32 @@ class TrackingOptions:
         An iteration counts as an improvement (for ``patience``) only when it lowers the best
         eq. 4 error by more than this fraction; the minimum is kept either way. 0: any
         decrease counts (default; see docs/tracking.md, *Validation*).
+    view_weighting : {'none', 'equal', 'noise'}
+        Several cameras: how each view's rows of eq. 5 are weighted before they are stacked
+        (``motion.view_weights``). ``'none'`` (default): as they come. Every view gives at
+        most ``sample_budget`` points whatever the body's size in its pixels, and a row is the
+        image gradient times the view's pixels per metre: a view counts by how precisely its
+        image measures the motion in metres (least squares with the same intensity noise in
+        every view). ``'equal'``: each view's rows scaled to the same RMS row norm (every view
+        counts the same, however coarsely it sees the body); ``'noise'``: each view's rows
+        divided by its robust residual scale (noise plus model misfit, per frame and pyramid
+        level). One camera: no weighting at all. Chosen on the validation clips
+        (docs/tracking.md, *Several cameras*).
+    depth_from_views : bool
+        Several cameras: estimate the root's motion along every axis in frames that two or
+        more views measure (their lines of sight differ, so together they measure depth);
+        otherwise depth follows ``estimate_depth`` like one camera.
+    view_tau : float or None
+        Rank threshold (as ``tau``) of a frame's stacked system when two or more views measure
+        it; None: ``tau``. Several views condition ``A`` better than one: the validation clips
+        gain from a lower threshold there (0.01; docs/tracking.md *Several cameras*).
+    limit_action : {'reject', 'clamp'} or None
+        A tracked trajectory with an estimated joint outside its limits (widened to the keys,
+        plus ``limit_margin``): ``'reject'`` -- it is not used (the seed is dropped, the loop
+        stops as diverged); ``'clamp'`` -- the joint's angles are clamped into the limits and
+        the trajectory is scored like any other. None: ``'reject'`` with one camera (the
+        single-camera tracker as it was), ``'clamp'`` with several (chosen on the validation
+        clips, docs/tracking.md *Several cameras*).
     """
 
     tau: float = 0.02
@@ -192,6 +242,10 @@ class TrackingOptions:
     estimate_depth: bool = False
     roi_margin: float = 0.25
     min_improvement: float = 0.0
+    view_weighting: str = "none"
+    depth_from_views: bool = True
+    view_tau: float = 0.01
+    limit_action: str = None
 
     def __post_init__(self):
         if self.seed not in ("interpolation", "forward", "bidirectional"):
@@ -202,10 +256,19 @@ class TrackingOptions:
                              f"{self.root_displacement!r}")
         if self.roi_margin is not None and not self.roi_margin >= 0.0:
             raise ValueError(f"roi_margin must be >= 0 or None, got {self.roi_margin}")
+        if self.view_weighting not in VIEW_WEIGHTINGS:
+            raise ValueError(f"view_weighting must be one of "
+                             f"{', '.join(map(repr, VIEW_WEIGHTINGS))}, got "
+                             f"{self.view_weighting!r}")
         if not 0.0 <= self.min_improvement < 1.0:
             raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")
         if not 0.0 < self.tau < 1.0:
             raise ValueError(f"tau must be in (0, 1), got {self.tau}")
+        if self.view_tau is not None and not 0.0 < self.view_tau < 1.0:
+            raise ValueError(f"view_tau must be in (0, 1) or None, got {self.view_tau}")
+        if self.limit_action not in (None, "reject", "clamp"):
+            raise ValueError(f"limit_action must be 'reject', 'clamp' or None, got "
+                             f"{self.limit_action!r}")
         for name in ("sample_budget", "candidate_budget", "levels", "warp_iterations",
                      "max_iterations", "patience", "min_samples"):
             if int(getattr(self, name)) < 1:
@@ -214,3 +277,9 @@ class TrackingOptions:
     def replace(self, **changes):
         """A copy with some fields changed."""
         return replace(self, **changes)
+
+    def resolved_limit_action(self, problem):
+        """``limit_action`` for a problem (None: by its number of cameras)."""
+        if self.limit_action is not None:
+            return self.limit_action
+        return "reject" if problem.n_views == 1 else "clamp"

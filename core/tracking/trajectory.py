@@ -3,8 +3,8 @@
 1. Initial trajectory: every joint turns from key 0 to key n about the single axis of
    ``T_0^-1 T_n`` in equal steps (slerp); the root position moves linearly.
 2. The model is placed at the trajectory pose of each frame ``j`` and the motion ``j -> j+1`` is
-   estimated (:func:`~.motion.estimate_motions`), predicted by the trajectory's own inter-frame
-   motion (eq. 10).
+   estimated (:func:`~.motion.estimate_view_motions`), predicted by the trajectory's own
+   inter-frame motion (eq. 10).
 3. The motions are accumulated from key 0 (this drifts), then corrected so that the trajectory
    ends on key n (§3.1 orientation per joint, §3.2 root position).
 4. The corrected trajectory is scored with the photometric error of eq. 4.
@@ -14,21 +14,26 @@
    (non-finite numbers, eq. 4 growing beyond ``divergence_factor`` x the best, the model losing
    most of its visible samples, a joint leaving its limits); the kept trajectory is then the best
    one before the divergence -- the interpolation if no iteration improved on it.
+
+Several cameras (``TrackingProblem(camera=[...])``): each camera's frames of the interval are
+prepared on their own (:class:`ViewInterval`: region of interest, pyramid levels, intensity
+scale); step 2 stacks the rows of every view (``motion.estimate_view_motions``); step 4 sums
+eq. 4 over the views, each view's term scaled to the same silhouette area
+(:func:`eq4_view_weights`). Steps 1, 3 and 5 work on the body's pose and do not change.
 """
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kinematics import exp_so3, log_so3, matrix_to_euler
+from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
 from .body_model import joint_frames_in_camera, part_bounds, part_geometry, sample_silhouette
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
-from .motion import estimate_motions
+from .motion import MotionView, estimate_view_motions
 from .problem import TrackingError, TrackingOptions
 
 _AXES = "XYZ"
@@ -52,15 +57,17 @@ class IntervalResult:
     local_rotations : ndarray, shape (n + 1, B, 3, 3)
         The kept trajectory; frames 0 and n are the keys.
     residuals : ndarray, shape (n,)
-        Eq. 4 term of each frame pair ``j -> j+1`` of the kept trajectory.
+        Eq. 4 term of each frame pair ``j -> j+1`` of the kept trajectory (summed over the
+        views, see :func:`eq4_view_weights`).
     ranks : ndarray, shape (n,), int
-        Rank of ``A`` (eq. 5) on the finest level for each frame pair, from the tracking pass
-        that produced the kept trajectory (the loop's first pass if the interpolation or the
-        tracked seed was kept).
+        Rank of ``A`` (eq. 5, every view's rows stacked) on the finest level for each frame
+        pair, from the tracking pass that produced the kept trajectory (the loop's first pass
+        if the interpolation or the tracked seed was kept).
         Without depth estimation the root translation contributes one null direction, so the
-        rank is at most (estimated DOFs - 1), as in the paper's Fig. 10.
+        rank is at most (estimated DOFs - 1), as in the paper's Fig. 10; with two or more views
+        measuring a frame, depth is estimated and the rank can reach the estimated DOFs.
     n_samples : ndarray, shape (n,), int
-        Model points used per frame pair in that pass.
+        Model points used per frame pair in that pass (all views).
     errors : ndarray, shape (iterations + 1,)
         Eq. 4 total per scored trajectory: index 0 the interpolation, then the tracked seed
         (``TrackingOptions.seed``, unless rejected) and one per loop iteration.
@@ -71,11 +78,18 @@ class IntervalResult:
         Why the loop stopped (``'iteration limit'``, ``'no improvement ...'``, or the
         divergence: what grew / went non-finite / left its limits, and where).
     finest_level, top_level : int
-        Finest and coarsest pyramid levels tracked.
+        Finest and coarsest pyramid levels tracked (of the first camera that filmed the
+        interval; -1 when none did).
     timings : dict
         Seconds: ``'pyramid'`` (once), ``'iterations'`` (list, one per iteration).
     history : list of (roots (n + 1, 3), local (n + 1, B, 3, 3))
         Every scored trajectory (index as ``errors``) when ``keep_history`` was set, else empty.
+    view_samples : ndarray, shape (V, n), int
+        ``n_samples`` split by camera (V = ``problem.n_views``; 0 for a camera that did not
+        film the frame pair).
+    view_levels : list of (int, int) or None
+        ``(finest_level, top_level)`` per camera; None for a camera that did not film the
+        interval.
     """
 
     root_translations: np.ndarray
@@ -91,6 +105,8 @@ class IntervalResult:
     top_level: int
     timings: dict = field(default_factory=dict)
     history: list = field(default_factory=list)
+    view_samples: np.ndarray = None
+    view_levels: list = field(default_factory=list)
 
     @property
     def n_frames(self):
@@ -122,7 +138,7 @@ def interpolate_poses(skeleton, start, end, n):
     return t0[None] + s[:, None] * (t1 - t0)[None], local
 
 
-def choose_levels(problem, options, start, end, n_levels):
+def choose_levels(problem, options, start, end, n_levels, camera=None):
     """Finest and coarsest pyramid levels tracked, from the body's projected height.
 
     The finest level is ``options.finest_level`` or, when that is None, the coarsest level on
@@ -131,19 +147,22 @@ def choose_levels(problem, options, start, end, n_levels):
     so coarse that the body is under ``options.min_body_pixels`` (a few-pixel-wide limb cannot be
     tracked, and its wrong estimate would start the finer levels off badly).
 
+    ``camera``: the view's camera (default ``problem.camera``); each view has its own levels.
+
     Returns
     -------
     finest, top : int
     """
-    rot, org = joint_frames_in_camera(problem.skeleton, problem.camera.world2camera,
+    camera = problem.camera if camera is None else camera
+    rot, org = joint_frames_in_camera(problem.skeleton, camera.world2camera,
                                       np.stack([start.root_translation, end.root_translation]),
                                       np.stack([start.local_rotations, end.local_rotations]))
-    bounds = part_bounds(problem.body, problem.camera, part_geometry(problem.body, rot, org))
+    bounds = part_bounds(problem.body, camera, part_geometry(problem.body, rot, org))
     height = 0.0
     for b in bounds:
         b = b[np.all(np.isfinite(b), axis=1)]
         if len(b):
-            height = max(height, min(b[:, 3].max(), problem.camera.height) - max(b[:, 2].min(), 0))
+            height = max(height, min(b[:, 3].max(), camera.height) - max(b[:, 2].min(), 0))
     if options.finest_level is not None:
         finest = int(min(options.finest_level, n_levels - 1))
     else:
@@ -156,19 +175,21 @@ def choose_levels(problem, options, start, end, n_levels):
     return finest, top
 
 
-def pyramid_levels(problem, options):
+def pyramid_levels(problem, options, camera=None):
     """Number of pyramid levels to build: enough for the coarsest level the options can use."""
-    size = min(problem.camera.width, problem.camera.height)
+    camera = problem.camera if camera is None else camera
+    size = min(camera.width, camera.height)
     top = int(np.floor(np.log2(max(size, 1) / 16.0)))       # keep levels >= 16 pixels
     wanted = (options.finest_level if options.finest_level is not None else 4) + options.levels
     return max(1, min(top + 1, wanted))
 
 
-def _frames_in_camera(problem, roots, local):
-    return joint_frames_in_camera(problem.skeleton, problem.camera.world2camera, roots, local)
+def _frames_in_camera(problem, roots, local, camera=None):
+    camera = problem.camera if camera is None else camera
+    return joint_frames_in_camera(problem.skeleton, camera.world2camera, roots, local)
 
 
-def photometric_error(problem, frames_level, level, frames_cam, samples):
+def photometric_error(problem, frames_level, level, frames_cam, samples, camera=None):
     """Eq. 4 per frame pair: model points seen at frame j, moved to j+1 by the trajectory.
 
     ``sum_{X,Y} (E(X', Y', j+1) - E(X, Y, j))^2`` over the silhouette of frame ``j``, sampled on
@@ -189,6 +210,8 @@ def photometric_error(problem, frames_level, level, frames_cam, samples):
         Joint frames in the camera along the trajectory.
     samples : SilhouetteSamples
         Silhouette samples of the n + 1 trajectory poses on that level's grid.
+    camera : PinholeCamera, optional
+        The camera (level 0) of these frames; default ``problem.camera``.
 
     Returns
     -------
@@ -196,7 +219,7 @@ def photometric_error(problem, frames_level, level, frames_cam, samples):
     """
     rot, org = frames_cam
     n = len(rot) - 1
-    camera = problem.camera.at_level(level)
+    camera = (problem.camera if camera is None else camera).at_level(level)
     sel = samples.frames < n
     total = np.bincount(samples.frames[sel], minlength=n).astype(float)
     sel &= samples.interior
@@ -250,6 +273,43 @@ def limit_violation(problem, local_rotations, start, end, margin):
                         f" deg outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at "
                         f"frame {f}")
     return None
+
+
+def clamp_to_limits(problem, local_rotations, start, end, margin):
+    """Joint rotations with every estimated axis clamped into its limits.
+
+    The same decomposition and allowed range as :func:`limit_violation` (the skeleton's limits
+    widened to include both keyed values, plus ``margin``); only the frames and joints outside
+    it are recomposed (the others are returned bit for bit).
+
+    Returns
+    -------
+    local : ndarray, shape (n + 1, B, 3, 3)
+    clamped : str or None
+        The first violation (as :func:`limit_violation` words it), or None.
+    """
+    sk = problem.skeleton
+    mask = problem.dof_mask
+    local = np.array(local_rotations, dtype=float)
+    first = limit_violation(problem, local, start, end, margin)
+    if first is None:
+        return local, None
+    for j in range(sk.n_joints):
+        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
+        if not axes:
+            continue
+        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
+        mode = "".join(_AXES[a] for a in order)
+        angles = matrix_to_euler(local[:, j], mode)
+        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
+        lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
+        for a in axes:
+            lo[a] = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
+            hi[a] = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
+        out = np.nonzero(np.any((angles < lo) | (angles > hi), axis=1))[0]
+        if len(out):
+            local[out, j] = euler_to_matrix(np.clip(angles[out], lo, hi), mode)
+    return local, first
 
 
 def correct_trajectory(problem, start, end, translations, rotvecs, options, measured_on=None):
@@ -332,46 +392,165 @@ def intensity_exponent(level0):
     return int(exponent) - 1 if mantissa == 0.5 else int(exponent)
 
 
-def _prepare(problem, frames, start, end, options, pyramid, initial=None):
-    """Checked keys, the problem (its camera cropped to the region of interest), the pyramid
-    (scaled by ``2**-k``, :func:`intensity_exponent`), the (finest, top) levels and ``k``."""
+@dataclass(frozen=True, eq=False)
+class ViewInterval:
+    """One camera's frames of an interval, prepared for tracking (:func:`prepare_views`).
+
+    Attributes
+    ----------
+    index : int
+        Position of the camera in ``problem.cameras``.
+    camera : PinholeCamera
+        The camera of the window the frames were cut to (``region_of_interest``), level 0.
+    pyramid : list of ndarray
+        Gaussian pyramid of the window (level ``l``: (n + 1, H_l, W_l)), intensities scaled by
+        ``2**-exponent``.
+    finest, top : int
+        Pyramid levels tracked in this view (:func:`choose_levels`).
+    exponent : int
+        :func:`intensity_exponent` of the view's frames.
+    available : ndarray, shape (n + 1,), bool, or None
+        Several cameras: frames this camera filmed (a frame without a finite pixel in the
+        window was not filmed, e.g. before an unsynchronised start); None: all (one camera).
+    """
+
+    index: int
+    camera: object
+    pyramid: list
+    finest: int
+    top: int
+    exponent: int
+    available: np.ndarray = None
+
+    @property
+    def levels(self):
+        return self.finest, self.top
+
+
+def _per_view(problem, value, name, is_single):
+    """A per-camera sequence from ``value`` (one camera: the value itself is accepted)."""
+    if problem.n_views == 1 and is_single(value):
+        return [value]
+    if isinstance(value, np.ndarray) and value.ndim == 4 and len(value) == problem.n_views:
+        return list(value)                         # cameras of one size, stacked (V, n + 1, H, W)
+    if isinstance(value, np.ndarray) or not hasattr(value, "__len__"):
+        raise TrackingError(f"{name}: expected one entry per camera ({problem.n_views}), got "
+                            f"{type(value).__name__}")
+    value = list(value)
+    if len(value) != problem.n_views:
+        raise TrackingError(f"{name}: expected one entry per camera ({problem.n_views}), got "
+                            f"{len(value)}")
+    return value
+
+
+def _one_stack(frames):
+    """``frames`` is one camera's stack (an array, or a list of 2-D images), not one per camera."""
+    if isinstance(frames, (list, tuple)) and len(frames) and (
+            frames[0] is None or np.ndim(frames[0]) == 3):
+        return False
+    return True
+
+
+def _one_pyramid(pyramid):
+    """``pyramid`` is one camera's pyramid (a list of level stacks), not one per camera."""
+    return bool(len(pyramid)) and isinstance(pyramid[0], np.ndarray) and pyramid[0].ndim == 3
+
+
+def prepare_views(problem, frames, start, end, options, pyramid=None, initial=None):
+    """Checked keys and every camera's :class:`ViewInterval` for one interval.
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    frames : array_like, shape (n + 1, H, W), or sequence of them (one per camera)
+        With several cameras, an entry may be None (that camera did not film the interval).
+    start, end : Pose
+    options : TrackingOptions
+    pyramid : list of ndarray, or sequence of them (one per camera), optional
+        Precomputed pyramids instead of ``frames`` (whole frames, no region of interest).
+    initial : tuple (roots, local), optional
+        Initial trajectory (it widens the region of interest).
+
+    Returns
+    -------
+    start, end : Pose
+    views : list of ViewInterval
+        The cameras that filmed the interval, in the problem's order.
+    """
     sk = problem.skeleton
     start = _check_pose("start", start, sk.n_joints)
     end = _check_pose("end", end, sk.n_joints)
     if pyramid is not None:
+        pyramids = _per_view(problem, pyramid, "pyramid", _one_pyramid)
+        stacks = [None] * problem.n_views
+    else:
+        stacks = _per_view(problem, frames, "frames", _one_stack)
+        pyramids = [None] * problem.n_views
+    views = []
+    lengths = set()
+    for index, (stack, pyr) in enumerate(zip(stacks, pyramids)):
+        if stack is None and pyr is None:
+            if problem.n_views == 1:
+                raise TrackingError("no frames given")
+            continue
+        view = _prepare_view(problem, index, stack, start, end, options, pyr, initial)
+        lengths.add(len(view.pyramid[0]))
+        views.append(view)
+    if not views:
+        raise TrackingError("no camera filmed this interval (every camera's frames are None)")
+    if len(lengths) > 1:
+        raise TrackingError(f"the cameras' frame stacks of an interval must have the same length, "
+                            f"got {sorted(lengths)}")
+    return start, end, views
+
+
+def _prepare_view(problem, index, frames, start, end, options, pyramid, initial):
+    """One camera's :class:`ViewInterval`: its window (region of interest), its pyramid (scaled by
+    ``2**-k``, :func:`intensity_exponent`) and its levels."""
+    cam = problem.cameras[index]
+    where = f"camera {index}: " if problem.n_views > 1 else ""
+    if pyramid is not None:
         if len(pyramid) == 0:
-            raise TrackingError("the pyramid has no levels")
+            raise TrackingError(f"{where}the pyramid has no levels")
         k = intensity_exponent(pyramid[0])
         if k:
             pyramid = [np.ldexp(level, -k) for level in pyramid]
-        return problem, start, end, pyramid, choose_levels(problem, options, start, end,
-                                                           len(pyramid)), k
+        finest, top = choose_levels(problem, options, start, end, len(pyramid), cam)
+        return ViewInterval(index, cam, pyramid, finest, top, k, _available(problem, pyramid[0]))
     frames = np.asarray(frames)
-    cam = problem.camera
     if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
-        raise TrackingError(f"Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
+        raise TrackingError(f"{where}Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
                             f"got {frames.shape}")
     if len(frames) < 2:
         raise TrackingError("an interval needs at least two frames")
     if frames.dtype not in (np.float32, np.float64):
         frames = frames.astype(np.float32)
-    levels = choose_levels(problem, options, start, end, pyramid_levels(problem, options))
-    roi = region_of_interest(problem, options, start, end, len(frames) - 1, levels[1], initial)
+    finest, top = choose_levels(problem, options, start, end,
+                                pyramid_levels(problem, options, cam), cam)
+    roi = region_of_interest(problem, options, start, end, len(frames) - 1, top, initial, cam)
     if roi is not None:
         u0, v0, w, h = roi
-        problem = dataclasses.replace(problem, camera=cam.cropped(u0, v0, w, h))
+        cam = cam.cropped(u0, v0, w, h)
         frames = frames[:, v0:v0 + h, u0:u0 + w]
-        if levels[0] == 0:
+        if finest == 0:
             # Level 0 is sampled (flat indices): a contiguous copy. Otherwise it is only
             # reduced, which works on the strided window directly.
             frames = np.ascontiguousarray(frames)
     k = intensity_exponent(frames)
     if k:
         frames = np.ldexp(frames, -k)
-    return problem, start, end, gaussian_pyramid(frames, levels[1] + 1), levels, k
+    return ViewInterval(index, cam, gaussian_pyramid(frames, top + 1), finest, top, k,
+                        _available(problem, frames))
 
 
-def region_of_interest(problem, options, start, end, n, top, initial=None):
+def _available(problem, frames):
+    """Several cameras: frames with a finite pixel (others were not filmed); one camera: None."""
+    if problem.n_views == 1:
+        return None
+    return np.isfinite(frames).any(axis=(1, 2))
+
+
+def region_of_interest(problem, options, start, end, n, top, initial=None, camera=None):
     """Window ``(u0, v0, width, height)`` of the frames that the tracker works in, or None for
     the whole frame (``TrackingOptions.roi_margin``).
 
@@ -380,18 +559,19 @@ def region_of_interest(problem, options, start, end, n, top, initial=None):
     the box's larger side plus ``4 * 2**top`` pixels (the pyramid filters' reach on the
     coarsest level), with its corners on multiples of ``2**top`` (every pyramid level of the
     window is then a window of the full frame's level). The whole frame when the window would
-    cover most of it (90 % of its area) or a part reaches the camera plane.
+    cover most of it (90 % of its area) or a part reaches the camera plane. ``camera``: the
+    view's camera (default ``problem.camera``); each view has its own window.
     """
     if options.roi_margin is None:
         return None
-    cam = problem.camera
+    cam = problem.camera if camera is None else camera
     roots, local = interpolate_poses(problem.skeleton, start, end, n)
     b = problem.skeleton.n_joints
     if initial is not None and np.shape(initial[0]) == (n + 1, 3) \
             and np.shape(initial[1]) == (n + 1, b, 3, 3):
         roots = np.concatenate([roots, np.asarray(initial[0], dtype=float)])
         local = np.concatenate([local, np.asarray(initial[1], dtype=float)])
-    rot, org = _frames_in_camera(problem, roots, local)
+    rot, org = _frames_in_camera(problem, roots, local, cam)
     bounds = part_bounds(problem.body, cam, part_geometry(problem.body, rot, org))
     if not np.all(np.isfinite(bounds)):
         return None
@@ -410,18 +590,60 @@ def region_of_interest(problem, options, start, end, n, top, initial=None):
 
 
 class _Trajectory:
-    """A trajectory with its camera frames and silhouette samples (computed once, reused)."""
+    """A trajectory with its joint frames and silhouette samples in every view (computed once,
+    reused): ``cams[v]`` (rotations, origins), ``samples[v]`` on the view's finest level."""
 
-    def __init__(self, problem, options, finest, roots, local):
+    def __init__(self, problem, options, views, roots, local):
         self.roots, self.local = roots, local
-        self.cam = _frames_in_camera(problem, roots, local)
-        self.samples = sample_silhouette(problem.body, problem.camera.at_level(finest),
-                                         *self.cam, options.candidate_budget)
+        self.cams, self.samples = [], []
+        for view in views:
+            cam = _frames_in_camera(problem, roots, local, view.camera)
+            self.cams.append(cam)
+            self.samples.append(sample_silhouette(problem.body, view.camera.at_level(view.finest),
+                                                  *cam, options.candidate_budget))
+
+    def motion_views(self, views):
+        """:class:`~.motion.MotionView` of every view for the frame pairs ``j -> j+1``."""
+        n = len(self.roots) - 1
+        pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+        return [MotionView(camera=view.camera, pyramid=view.pyramid, finest_level=view.finest,
+                           image_pairs=pairs, frames_cam=(cam[0][:-1], cam[1][:-1]),
+                           samples=samples.poses(0, n), next_cam=(cam[0][1:], cam[1][1:]),
+                           next_samples=samples.poses(1, n + 1), top_level=view.top,
+                           available=view.available)
+                for view, cam, samples in zip(views, self.cams, self.samples)]
+
+    def counts(self):
+        """(V, n + 1) silhouette samples per view and pose."""
+        return np.stack([s.counts() for s in self.samples])
+
+
+def eq4_view_weights(trajectory):
+    """Weight (V,) of each view's eq. 4 term: the views' mean silhouette area over the view's own.
+
+    A view's eq. 4 grows with the body's area in its pixels; scaled so, every view counts as if
+    the body covered the same area in it (its mean squared residual per silhouette pixel
+    counts). Areas are those of ``trajectory`` (the interval's initial one, kept fixed so that
+    trajectories are compared with the same weights). One view: weight 1 (exactly).
+    """
+    areas = np.array([float(np.sum(s.counts()[:-1] * s.strides[:-1] ** 2))
+                      for s in trajectory.samples])
+    mean = np.mean(areas)
+    return np.where(areas > 0, mean / np.where(areas > 0, areas, 1.0), 0.0)
+
+
+def _eq4(problem, views, trajectory, weights):
+    """Eq. 4 per frame pair (n,), summed over the views with ``weights``."""
+    terms = [photometric_error(problem, view.pyramid[view.finest], view.finest, cam, samples,
+                               view.camera)
+             for view, cam, samples in zip(views, trajectory.cams, trajectory.samples)]
+    if len(terms) == 1:
+        return terms[0]
+    return sum(w * t for w, t in zip(weights, terms))
 
 
 #: Share of an interval's work done after the pyramid and after the seed (progress reports).
 _PROGRESS_PYRAMID, _PROGRESS_SEED = 0.05, 0.35
-
 
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
                    initial=None, progress=None):
@@ -430,13 +652,16 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     Parameters
     ----------
     problem : TrackingProblem
-    frames : array_like, shape (n + 1, H, W)
+    frames : array_like, shape (n + 1, H, W), or a sequence of them (one per camera)
         Grayscale frames (float, any consistent intensity scale, e.g. [0, 1]) from the start key
-        to the end key, ``H, W`` = the camera's image size.
+        to the end key, ``H, W`` = the camera's image size. Several cameras: one stack per
+        camera of ``problem.cameras`` (each its own size), all with n + 1 frames (the same
+        instants); None for a camera that did not film the interval. Frames of a camera
+        without a finite pixel count as not filmed by it (partial coverage).
     start, end : Pose
         Keyed poses of frames 0 and n.
     options : TrackingOptions, optional
-    pyramid : list of ndarray, optional
+    pyramid : list of ndarray, or a sequence of them (one per camera), optional
         Precomputed ``gaussian_pyramid(frames, L)`` (levels of shape (n + 1, H_l, W_l)).
     keep_history : bool
         Keep every scored trajectory in ``IntervalResult.history`` (analysis, plots).
@@ -452,140 +677,215 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     Returns
     -------
     IntervalResult
+        Eq. 4 values (``residuals``, ``errors``) are in the caller's intensity units squared
+        (with several cameras: the first filming camera's units, see :func:`eq4_view_weights`).
     """
     options = options or TrackingOptions()
     report = progress if progress is not None else (lambda fraction: None)
-    sk = problem.skeleton
     tic = time.perf_counter()
-    problem, start, end, pyramid, levels, k = _prepare(problem, frames, start, end, options,
-                                                       pyramid, initial)
+    start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial)
     report(_PROGRESS_PYRAMID)
-    finest, top = levels
-    n = len(pyramid[0]) - 1
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
-    if initial is None:
-        roots, local = interpolate_poses(sk, start, end, n)
-    else:
-        roots = np.array(initial[0], dtype=float)
-        local = np.array(initial[1], dtype=float)
-        if roots.shape != (n + 1, 3) or local.shape != (n + 1, sk.n_joints, 3, 3):
-            raise TrackingError(f"initial trajectory: expected shapes ({n + 1}, 3) and "
-                                f"({n + 1}, {sk.n_joints}, 3, 3), got {roots.shape} and "
-                                f"{local.shape}")
-        roots[0], roots[-1] = start.root_translation, end.root_translation
-        local[0], local[-1] = start.local_rotations, end.local_rotations
-    traj = _Trajectory(problem, options, finest, roots, local)
-    per_frame = photometric_error(problem, pyramid[finest], finest, traj.cam, traj.samples)
-    initial_counts = traj.samples.counts().astype(float)
-    errors = [float(per_frame.sum())]
-    history = [(roots, local)] if keep_history else []
-    best = dict(traj=traj, residuals=per_frame, ranks=None, n_samples=None, iteration=0)
-    reason, diverged, since_best, first_pass = "iteration limit", False, 0, None
-    seed_index = None
+    roots, local = _initial_trajectory(problem, start, end, len(views[0].pyramid[0]) - 1,
+                                       initial)
+    traj = _Trajectory(problem, options, views, roots, local)
+    scores = _Scores(problem, views, traj, keep_history)
     if options.seed != "interpolation" and initial is None:
-        # A tracked start (see TrackingOptions.seed), scored as iteration 1 and checked like the
-        # loop's trajectories; a failed seed is dropped (the loop starts from the interpolation).
-        tic = time.perf_counter()
-        roots, local = seed_trajectory(problem, options, pyramid, levels, start, end,
-                                       options.seed)
-        problem_found = _trajectory_problem(problem, options, start, end, roots, local)
-        if problem_found is None:
-            seed = _Trajectory(problem, options, finest, roots, local)
-            problem_found = _lost(seed, options, initial_counts)
-        timings["seed"] = time.perf_counter() - tic
-        if problem_found is None:
-            per_frame = photometric_error(problem, pyramid[finest], finest, seed.cam,
-                                          seed.samples)
-            errors.append(float(per_frame.sum()))
-            seed_index = 1
-            if keep_history:
-                history.append((roots, local))
-            if errors[-1] < errors[0]:
-                best = dict(traj=seed, residuals=per_frame, ranks=None, n_samples=None,
-                            iteration=1)
-            traj = seed
-        else:
-            timings["seed_rejected"] = problem_found
+        traj = _add_seed(problem, options, views, start, end, scores, timings) or traj
     report(_PROGRESS_SEED)
-    image_pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
-    first_iteration = len(errors)
+    reason, diverged = _iterate(problem, options, views, start, end, traj, scores, timings,
+                                report)
+    report(1.0)
+    return scores.result(problem, views, reason, diverged, timings)
+
+
+def _initial_trajectory(problem, start, end, n, initial):
+    """Step 1: the interpolation of the keys (or ``initial``, its ends set to the keys)."""
+    sk = problem.skeleton
+    if initial is None:
+        return interpolate_poses(sk, start, end, n)
+    roots = np.array(initial[0], dtype=float)
+    local = np.array(initial[1], dtype=float)
+    if roots.shape != (n + 1, 3) or local.shape != (n + 1, sk.n_joints, 3, 3):
+        raise TrackingError(f"initial trajectory: expected shapes ({n + 1}, 3) and "
+                            f"({n + 1}, {sk.n_joints}, 3, 3), got {roots.shape} and "
+                            f"{local.shape}")
+    roots[0], roots[-1] = start.root_translation, end.root_translation
+    local[0], local[-1] = start.local_rotations, end.local_rotations
+    return roots, local
+
+
+class _Scores:
+    """Every scored trajectory of an interval (eq. 4 totals, ``errors[0]`` the initial one),
+    the kept minimum and the tracking pass that produced it."""
+
+    def __init__(self, problem, views, initial, keep_history):
+        self.weights = eq4_view_weights(initial)
+        self.keep_history = keep_history
+        per_frame = _eq4(problem, views, initial, self.weights)
+        self.initial_counts = initial.counts().astype(float)
+        self.errors = [float(per_frame.sum())]
+        self.history = [(initial.roots, initial.local)] if keep_history else []
+        self.best = dict(traj=initial, residuals=per_frame, motions=None, iteration=0)
+        self.seed_index = None
+        self.first_pass = None
+
+    def score(self, problem, views, traj):
+        """Eq. 4 of ``traj`` appended to ``errors``; returns (total, per frame)."""
+        per_frame = _eq4(problem, views, traj, self.weights)
+        self.errors.append(float(per_frame.sum()))
+        if self.keep_history:
+            self.history.append((traj.roots, traj.local))
+        return self.errors[-1], per_frame
+
+    def best_error(self):
+        return self.errors[self.best["iteration"]]
+
+    def keep(self, traj, per_frame, motions):
+        """The last scored trajectory becomes the kept one."""
+        self.best = dict(traj=traj, residuals=per_frame, motions=motions,
+                         iteration=len(self.errors) - 1)
+
+    def result(self, problem, views, reason, diverged, timings):
+        """The :class:`IntervalResult` of the kept trajectory."""
+        best = self.best
+        n = len(best["traj"].roots) - 1
+        motions = best["motions"] or self.first_pass
+        view_samples = np.zeros((problem.n_views, n), dtype=int)
+        if motions is None:
+            ranks, n_samples = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
+        else:
+            ranks, n_samples = motions.ranks, motions.n_samples
+            view_samples[[v.index for v in views]] = motions.view_samples
+        if diverged:
+            kept = {0: "interpolation", self.seed_index: "tracked seed"}.get(
+                best["iteration"], f"iteration {best['iteration']}")
+            reason = f"diverged: {reason}; kept {kept}"
+        k = views[0].exponent
+
+        # Eq. 4 sums back in the caller's intensity units² (exact: a power of two; saturated at
+        # the largest float where those units overflow, e.g. intensities near 1e200).
+        def to_caller(values):
+            with np.errstate(over="ignore"):
+                return np.minimum(np.ldexp(np.asarray(values, dtype=float), 2 * k),
+                                  np.finfo(float).max)
+
+        levels = [None] * problem.n_views
+        for view in views:
+            levels[view.index] = view.levels
+        return IntervalResult(root_translations=best["traj"].roots,
+                              local_rotations=best["traj"].local,
+                              residuals=to_caller(best["residuals"]), ranks=ranks,
+                              n_samples=n_samples, errors=to_caller(self.errors),
+                              kept_iteration=best["iteration"], diverged=diverged, reason=reason,
+                              finest_level=views[0].finest, top_level=views[0].top,
+                              timings=timings, history=self.history, view_samples=view_samples,
+                              view_levels=levels)
+
+
+def interpolated_interval(problem, start, end, n, reason):
+    """An :class:`IntervalResult` that keeps the keys' interpolation (``n`` frames after the
+    start key), e.g. for an interval that no camera filmed."""
+    roots, local = interpolate_poses(problem.skeleton, start, end, n)
+    zeros = np.zeros(n, dtype=int)
+    return IntervalResult(root_translations=roots, local_rotations=local, residuals=np.zeros(n),
+                          ranks=zeros, n_samples=zeros.copy(), errors=np.zeros(1),
+                          kept_iteration=0, diverged=False, reason=reason, finest_level=-1,
+                          top_level=-1, timings={"iterations": []},
+                          view_samples=np.zeros((problem.n_views, n), dtype=int),
+                          view_levels=[None] * problem.n_views)
+
+
+def _add_seed(problem, options, views, start, end, scores, timings):
+    """The tracked start (see ``TrackingOptions.seed``), scored as iteration 1 and checked like
+    the loop's trajectories. Returns it (the loop starts from it), or None when it failed
+    (non-finite, beyond the limits, the model lost): it is then dropped and the loop starts
+    from the interpolation."""
+    tic = time.perf_counter()
+    roots, local = seed_trajectory(problem, options, views, start, end, options.seed)
+    local, found = _checked_trajectory(problem, options, start, end, roots, local)
+    if found is None:
+        seed = _Trajectory(problem, options, views, roots, local)
+        found = _lost(seed, options, scores.initial_counts)
+    timings["seed"] = time.perf_counter() - tic
+    if found is not None:
+        timings["seed_rejected"] = found
+        return None
+    error, per_frame = scores.score(problem, views, seed)
+    scores.seed_index = len(scores.errors) - 1
+    if error < scores.errors[0]:
+        scores.keep(seed, per_frame, None)
+    return seed
+
+
+def _iterate(problem, options, views, start, end, traj, scores, timings, report):
+    """Steps 2-5, repeated: track along ``traj``, correct the drift, score, keep the minimum.
+
+    Returns
+    -------
+    reason : str
+        Why the loop stopped.
+    diverged : bool
+    """
+    first_iteration = len(scores.errors)
+    since_best = 0
     for iteration in range(first_iteration, first_iteration + options.max_iterations):
         if iteration > first_iteration:
             report(_PROGRESS_SEED + (1.0 - _PROGRESS_SEED) * (iteration - first_iteration)
                    / options.max_iterations)
         tic = time.perf_counter()
-        pred = motion_between(sk, traj.roots[:-1], traj.local[:-1], traj.roots[1:], traj.local[1:])
-        cam = traj.cam
-        fm = estimate_motions(problem, options, pyramid, finest, image_pairs,
-                              (traj.roots[:-1], traj.local[:-1]), (cam[0][:-1], cam[1][:-1]),
-                              traj.samples.poses(0, n), pred, next_cam=(cam[0][1:], cam[1][1:]),
-                              next_samples=traj.samples.poses(1, n + 1), top_level=top)
-        if first_pass is None:
-            first_pass = (fm.ranks, fm.n_samples)
-        finite = np.isfinite(fm.translations).all(1) & np.isfinite(fm.rotvecs).all((1, 2))
-        if not np.all(finite):
-            bad = int(np.nonzero(~finite)[0][0])
-            reason, diverged = f"non-finite motion estimate at frame {bad}, iteration {iteration}", True
-            break
-        new_roots, new_local = correct_trajectory(
-            problem, start, end, fm.translations, fm.rotvecs, options,
-            measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
-        found = _trajectory_problem(problem, options, start, end, new_roots, new_local)
-        new = None
-        if found is None:
-            new = _Trajectory(problem, options, finest, new_roots, new_local)
-            found = _lost(new, options, initial_counts)
+        new, motions, found = _track_and_correct(problem, options, views, start, end, traj,
+                                                 scores.initial_counts)
+        if scores.first_pass is None and motions is not None:
+            scores.first_pass = motions
         if found is not None:
-            reason, diverged = f"{found}, iteration {iteration}", True
-            break
-        per_frame = photometric_error(problem, pyramid[finest], finest, new.cam, new.samples)
-        error = float(per_frame.sum())
-        errors.append(error)
-        if keep_history:
-            history.append((new_roots, new_local))
+            return f"{found}, iteration {iteration}", True
+        error, per_frame = scores.score(problem, views, new)
         timings["iterations"].append(time.perf_counter() - tic)
-        best_error = errors[best["iteration"]]
+        best_error = scores.best_error()
         if not np.isfinite(error):
-            reason, diverged = f"non-finite eq. 4 error at iteration {iteration}", True
-            break
+            return f"non-finite eq. 4 error at iteration {iteration}", True
         if error > options.divergence_factor * best_error:
-            reason, diverged = (f"eq. 4 error grew to {error:.4g} (> {options.divergence_factor:g}"
-                                f" x best {best_error:.4g}) at iteration {iteration}"), True
-            break
+            return (f"eq. 4 error grew to {error:.4g} (> {options.divergence_factor:g} x best "
+                    f"{best_error:.4g}) at iteration {iteration}"), True
         if error < best_error:
-            best = dict(traj=new, residuals=per_frame, ranks=fm.ranks, n_samples=fm.n_samples,
-                        iteration=iteration)
+            scores.keep(new, per_frame, motions)
         if error < (1.0 - options.min_improvement) * best_error:
             since_best = 0
         else:
             since_best += 1
             if since_best >= options.patience:
-                reason = f"no improvement for {since_best} iterations"
-                break
+                return f"no improvement for {since_best} iterations", False
         traj = new
-    if best["ranks"] is None:
-        best["ranks"], best["n_samples"] = first_pass if first_pass else (
-            np.zeros(n, dtype=int), np.zeros(n, dtype=int))
-    if diverged:
-        kept = {0: "interpolation", seed_index: "tracked seed"}.get(
-            best["iteration"], f"iteration {best['iteration']}")
-        reason = f"diverged: {reason}; kept {kept}"
-    report(1.0)
-    # Eq. 4 sums back in the caller's intensity units² (exact: a power of two; saturated at the
-    # largest float where those units overflow, e.g. intensities near 1e200).
-    def to_caller(values):
-        with np.errstate(over="ignore"):
-            return np.minimum(np.ldexp(np.asarray(values, dtype=float), 2 * k),
-                              np.finfo(float).max)
+    return "iteration limit", False
 
-    return IntervalResult(root_translations=best["traj"].roots,
-                          local_rotations=best["traj"].local,
-                          residuals=to_caller(best["residuals"]),
-                          ranks=best["ranks"], n_samples=best["n_samples"],
-                          errors=to_caller(errors),
-                          kept_iteration=best["iteration"],
-                          diverged=diverged, reason=reason, finest_level=finest,
-                          top_level=top, timings=timings, history=history)
+
+def _track_and_correct(problem, options, views, start, end, traj, initial_counts):
+    """One pass of steps 2-3: the motion of every frame pair with the model on ``traj``
+    (predicted by ``traj``'s own motion), accumulated and drift-corrected onto the keys.
+
+    Returns
+    -------
+    new : _Trajectory or None
+    motions : FrameMotions
+    found : str or None
+        Why the new trajectory cannot be used (non-finite, beyond the limits, model lost).
+    """
+    sk = problem.skeleton
+    pred = motion_between(sk, traj.roots[:-1], traj.local[:-1], traj.roots[1:], traj.local[1:])
+    fm = estimate_view_motions(problem, options, traj.motion_views(views),
+                               (traj.roots[:-1], traj.local[:-1]), pred)
+    finite = np.isfinite(fm.translations).all(1) & np.isfinite(fm.rotvecs).all((1, 2))
+    if not np.all(finite):
+        return None, fm, f"non-finite motion estimate at frame {int(np.nonzero(~finite)[0][0])}"
+    roots, local = correct_trajectory(
+        problem, start, end, fm.translations, fm.rotvecs, options,
+        measured_on=traj.local[:-1] if options.root_displacement == "measured" else None)
+    local, found = _checked_trajectory(problem, options, start, end, roots, local)
+    if found is not None:
+        return None, fm, found
+    new = _Trajectory(problem, options, views, roots, local)
+    return new, fm, _lost(new, options, initial_counts)
 
 
 def _trajectory_problem(problem, options, start, end, roots, local):
@@ -595,18 +895,40 @@ def _trajectory_problem(problem, options, start, end, roots, local):
     return limit_violation(problem, local, start, end, options.limit_margin)
 
 
+def _checked_trajectory(problem, options, start, end, roots, local):
+    """A tracked trajectory as used, or why it cannot be (``TrackingOptions.limit_action``).
+
+    Returns
+    -------
+    local : ndarray, shape (n + 1, B, 3, 3)
+        ``local``, or with joints clamped into their limits (``'clamp'``).
+    found : str or None
+        Why the trajectory must not be used (non-finite, a joint beyond its limits with
+        ``'reject'``), or None.
+    """
+    if options.resolved_limit_action(problem) == "reject":
+        return local, _trajectory_problem(problem, options, start, end, roots, local)
+    if not (np.all(np.isfinite(roots)) and np.all(np.isfinite(local))):
+        return local, "non-finite corrected trajectory"
+    return clamp_to_limits(problem, local, start, end, options.limit_margin)[0], None
+
+
+
+
 def _lost(traj, options, initial_counts):
-    """A frame where the model lost most of the silhouette it had on the interpolation, or None."""
-    counts = traj.samples.counts()
-    lost = np.nonzero(counts < options.min_visible_fraction * initial_counts)[0]
-    if not len(lost):
+    """A frame where the model lost most of the silhouette it had on the interpolation (in any
+    view), or None."""
+    counts = traj.counts()
+    lost = counts < options.min_visible_fraction * initial_counts
+    if not np.any(lost):
         return None
-    f = int(lost[0])
-    return (f"model lost at frame {f}: {counts[f]} of {int(initial_counts[f])} silhouette "
-            f"samples left")
+    v, f = (int(i) for i in np.argwhere(lost)[np.argmin(np.argwhere(lost)[:, 1])])
+    where = f" in camera {v}" if len(counts) > 1 else ""
+    return (f"model lost{where} at frame {f}: {counts[v, f]} of {int(initial_counts[v, f])} "
+            f"silhouette samples left")
 
 
-def seed_trajectory(problem, options, pyramid, levels, start, end, kind):
+def seed_trajectory(problem, options, views, start, end, kind):
     """A tracked initial trajectory (``TrackingOptions.seed``).
 
     ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
@@ -616,22 +938,26 @@ def seed_trajectory(problem, options, pyramid, levels, start, end, kind):
     the same vectorised calls, so it costs half the frames of ``'forward'``). The two estimates
     of frame ``m`` are averaged (slerp 1/2), and each half is drift-corrected (§3) onto its two
     ends: every frame leans on its nearer key, where the accumulated drift is smaller.
+
+    Parameters
+    ----------
+    views : list of ViewInterval
+        The cameras' prepared frames (:func:`prepare_views`).
     """
     sk = problem.skeleton
-    n = len(pyramid[0]) - 1
+    n = len(views[0].pyramid[0]) - 1
     if kind not in ("forward", "bidirectional"):
         raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got {kind!r}")
     forward = _forward_chain(sk, start, end, n)
     if kind == "forward" or n < 2:
-        roots_f, local_f = _track_sequential(problem, options, pyramid, levels, [forward])[0]
+        roots_f, local_f = _track_sequential(problem, options, views, [forward])[0]
         t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
         return correct_trajectory(problem, start, end, t, r, options)
     m = (n + 1) // 2
     backward = _backward_chain(sk, start, end, n)
     chains = [tuple(x[:m] if i else x for i, x in enumerate(forward)),
               tuple(x[:n - m] if i else x for i, x in enumerate(backward))]
-    (roots_f, local_f), (roots_b, local_b) = _track_sequential(problem, options, pyramid, levels,
-                                                               chains)
+    (roots_f, local_f), (roots_b, local_b) = _track_sequential(problem, options, views, chains)
     roots_b, local_b = roots_b[::-1], local_b[::-1]             # frames m .. n
     middle = Pose(0.5 * (roots_f[-1] + roots_b[0]),
                   local_f[-1] @ exp_so3(0.5 * log_so3(np.swapaxes(local_f[-1], -1, -2)
@@ -663,7 +989,8 @@ def _backward_chain(sk, start, end, n):
     return end, world, r, pairs
 
 
-def _track_sequential(problem, options, pyramid, levels, chains):
+
+def _track_sequential(problem, options, views, chains):
     """Frame-to-frame tracking of several independent chains, one step of all chains per call.
 
     Each chain is ``(start pose, predicted world root displacements (k, 3), predicted rotvecs
@@ -671,8 +998,6 @@ def _track_sequential(problem, options, pyramid, levels, chains):
     own accumulated pose. Returns a list of (roots (k + 1, 3), local (k + 1, B, 3, 3)).
     """
     sk = problem.skeleton
-    finest, top = levels
-    camera = problem.camera.at_level(finest)
     lengths = [len(ch[1]) for ch in chains]
     roots = [np.empty((k + 1, 3)) for k in lengths]
     local = [np.empty((k + 1, sk.n_joints, 3, 3)) for k in lengths]
@@ -680,7 +1005,6 @@ def _track_sequential(problem, options, pyramid, levels, chains):
         roots[i][0], local[i][0] = pose.root_translation, pose.local_rotations
     for j in range(max(lengths)):
         active = [i for i, k in enumerate(lengths) if j < k]
-        c = len(active)
         t0 = np.stack([roots[i][j] for i in active])
         l0 = np.stack([local[i][j] for i in active])
         world = np.stack([chains[i][1][j] for i in active])
@@ -690,16 +1014,26 @@ def _track_sequential(problem, options, pyramid, levels, chains):
         # actually is at.
         pt = np.einsum("cji,cj->ci", root_world_rotation(sk, l0), world)
         t1, l1 = apply_motion(sk, t0, l0, pt, rotvecs)
-        rot, org = _frames_in_camera(problem, np.concatenate([t0, t1]), np.concatenate([l0, l1]))
-        both = sample_silhouette(problem.body, camera, rot, org, options.candidate_budget)
-        fm = estimate_motions(problem, options, pyramid, finest, pairs, (t0, l0),
-                              (rot[:c], org[:c]), both.poses(0, c), (pt, rotvecs),
-                              next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),
-                              top_level=top)
+        steps = [_step_view(problem, options, view, t0, l0, t1, l1, pairs) for view in views]
+        fm = estimate_view_motions(problem, options, steps, (t0, l0), (pt, rotvecs))
         t_new, l_new = apply_motion(sk, t0, l0, fm.translations, fm.rotvecs)
         for k, i in enumerate(active):
             roots[i][j + 1], local[i][j + 1] = t_new[k], l_new[k]
     return list(zip(roots, local))
+
+
+def _step_view(problem, options, view, t0, l0, t1, l1, pairs):
+    """One view's :class:`~.motion.MotionView` of c frame pairs: the model at poses (t0, l0),
+    predicted at (t1, l1) (ray cast in one call)."""
+    c = len(t0)
+    rot, org = _frames_in_camera(problem, np.concatenate([t0, t1]), np.concatenate([l0, l1]),
+                                 view.camera)
+    both = sample_silhouette(problem.body, view.camera.at_level(view.finest), rot, org,
+                             options.candidate_budget)
+    return MotionView(camera=view.camera, pyramid=view.pyramid, finest_level=view.finest,
+                      image_pairs=pairs, frames_cam=(rot[:c], org[:c]), samples=both.poses(0, c),
+                      next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),
+                      top_level=view.top, available=view.available)
 
 
 def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
@@ -707,7 +1041,7 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
 
     The model is placed at its own accumulated pose each frame; the motion is predicted by the
     interpolated trajectory, as in the first pass of :func:`track_interval`. The end key is
-    used only for that prediction.
+    used only for that prediction. ``frames`` and ``pyramid`` as for :func:`track_interval`.
 
     Returns
     -------
@@ -715,8 +1049,7 @@ def track_accumulated(problem, frames, start, end, options=None, pyramid=None):
     local : ndarray, shape (n + 1, B, 3, 3)
     """
     options = options or TrackingOptions()
-    problem, start, end, pyramid, levels, _ = _prepare(problem, frames, start, end, options,
-                                                       pyramid)
-    n = len(pyramid[0]) - 1
-    return _track_sequential(problem, options, pyramid, levels,
+    start, end, views = prepare_views(problem, frames, start, end, options, pyramid)
+    n = len(views[0].pyramid[0]) - 1
+    return _track_sequential(problem, options, views,
                              [_forward_chain(problem.skeleton, start, end, n)])[0]

@@ -9,8 +9,9 @@ from core.kinematics import exp_so3
 from core.tracking.body_model import joint_frames_in_camera, sample_silhouette
 from core.tracking.jacobians import motion_between
 from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
-from core.tracking.trajectory import (Pose, correct_trajectory, interpolate_poses,
-                                      limit_violation, photometric_error, track_interval)
+from core.tracking.trajectory import (Pose, clamp_to_limits, correct_trajectory,
+                                      interpolate_poses, limit_violation, photometric_error,
+                                      track_interval)
 from tests.core.tracking_fixtures import front_camera, render, two_arm_body, two_arm_skeleton
 
 RNG = np.random.default_rng(11)
@@ -126,13 +127,13 @@ def test_non_finite_estimates_diverge_and_fall_back(seq, monkeypatch):
     import core.tracking.trajectory as trajectory
     sk, body, cam, roots, local, frames = seq
     problem = TrackingProblem(sk, body, cam)
-    real = trajectory.estimate_motions
+    real = trajectory.estimate_view_motions
 
     def broken(*args, **kwargs):
         fm = real(*args, **kwargs)
         fm.rotvecs[3] = np.nan                      # a numerical failure at frame 3
         return fm
-    monkeypatch.setattr(trajectory, "estimate_motions", broken)
+    monkeypatch.setattr(trajectory, "estimate_view_motions", broken)
     start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
     res = track_interval(problem, frames, start, end,
                          TrackingOptions(seed="interpolation", max_iterations=2))
@@ -169,6 +170,29 @@ def test_limit_violation_names_joint_axis_and_frame():
     assert "'front2' axis X" in message and "frame 2" in message
     local[2, 2] = exp_so3([np.radians(115.0), 0.0, 0.0])     # within the margin
     assert limit_violation(problem, local, start, start, margin) is None
+
+
+def test_clamp_to_limits_moves_only_the_offending_joint_frames():
+    """``limit_action='clamp'`` (several cameras): the joint's angle is put on the widened limit;
+    every other frame and joint is kept bit for bit."""
+    sk = two_arm_skeleton()
+    limits = np.tile([-np.inf, np.inf], (5, 3, 1))
+    limits[2, 0] = np.radians([-10.0, 90.0])
+    sk = type(sk)(names=sk.names, parents=sk.parents, offsets=sk.offsets,
+                  rest_rotations=sk.rest_rotations, tails=sk.tails, dof_axes=sk.dof_axes,
+                  limits=limits)
+    problem = TrackingProblem(sk, two_arm_body(sk), front_camera())
+    start = Pose(np.zeros(3), np.broadcast_to(np.eye(3), (5, 3, 3)))
+    local = exp_so3(RNG.normal(0, 0.2, (4, 5, 3)))
+    local[:, 2] = exp_so3(np.radians([[20.0, 0, 0], [30.0, 0, 0], [150.0, 0, 0], [-60.0, 0, 0]]))
+    clamped, first = clamp_to_limits(problem, local, start, start, np.radians(30.0))
+    assert "'front2' axis X" in first and "frame 2" in first
+    np.testing.assert_allclose(clamped[[2, 3], 2],
+                               exp_so3(np.radians([[120.0, 0, 0], [-40.0, 0, 0]])), atol=1e-12)
+    keep = np.ones((4, 5), dtype=bool)
+    keep[[2, 3], 2] = False
+    np.testing.assert_array_equal(clamped[keep], local[keep])
+    assert limit_violation(problem, clamped, start, start, np.radians(30.0) + 1e-9) is None
 
 
 def test_bad_inputs_raise(seq):
