@@ -25,6 +25,7 @@ import numpy as np
 
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
+from ..preferences import preferences
 from .acceptance import interval_notes, write_part_curves
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
@@ -65,6 +66,8 @@ class TrackRequest:
     tracked_bones : list of str
     state : str
         Digest of the rig's keys when the request was made.
+    written : int
+        Keys written (set by :func:`apply_result`).
     """
 
     obj_name: str
@@ -82,6 +85,7 @@ class TrackRequest:
     tracked_bones: list
     state: str
     timings: dict = field(default_factory=dict)
+    written: int = 0              # keys written by apply_result
 
     @property
     def first(self):
@@ -279,7 +283,8 @@ def prepare_tracking(context, settings):
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
-        options=options, processes=settings.processes or None, footage=footage,
+        options=options, processes=settings.processes or preferences().track_processes or None,
+        footage=footage,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig))
@@ -358,6 +363,7 @@ def apply_result(context, request, result):
     write_part_curves(obj, object_channelbag(obj), request.key_frames.tolist(),
                       result.intervals)
     request.timings["write"] = time.perf_counter() - tic
+    request.written = int(written)
     warnings = interval_notes(request.key_frames.tolist(), result.intervals)
     n_int = len(result.intervals)
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
