@@ -101,8 +101,25 @@ def interval_summaries(request, result):
             "error_vs_interpolation": ratio,
             "mean_residual": float(np.mean(r.residuals)),
             "min_rank": int(np.min(r.ranks)),
+            "parts": part_summaries(r.acceptance),
         })
     return out
+
+
+def part_summaries(verdicts):
+    """Per body part of one interval: ``result`` 'tracked' or 'in-between' (kept the keys'
+    interpolation), the core's ``reason`` code and the evidence in cm (``drift_cm``,
+    ``departure_cm``; None where not measured) and ``seen`` (share in view)."""
+    if verdicts is None:
+        return {}
+
+    def cm(value):
+        return round(100.0 * float(value), 2) if np.isfinite(value) else None
+    return {part: {"result": "tracked" if verdicts.tracked[p] else "in-between",
+                   "reason": str(verdicts.reasons[p]), "drift_cm": cm(verdicts.drift[p]),
+                   "departure_cm": cm(verdicts.departure[p]),
+                   "seen": round(float(verdicts.seen[p]), 3)}
+            for p, part in enumerate(verdicts.parts)}
 
 
 def track_armature(scene, armature=None, camera=None, frame_range=None, processes=None,
@@ -130,13 +147,15 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
     Returns
     -------
     dict
-        ``status`` ('ok', or 'warning' when an interval diverged), ``armature``,
+        ``status`` ('ok', or 'warning' when a body part kept the in-between of the keys
+        somewhere: ``warnings`` say where and why), ``armature``,
         ``camera``, ``frames`` ([first, last] keyframe), ``keyframes`` (list of int),
         ``intervals`` (one dict each: ``frames`` [a, b], ``status`` 'tracked' /
         'interpolated' (the interpolation between the keys scored best and was kept) /
         'diverged', ``reason``, ``error_vs_interpolation`` (photometric error of the kept
         trajectory / the interpolation's, the paper's eq. 4 total), ``mean_residual``,
-        ``min_rank``), ``bones``, ``keys`` (keys written), ``suggested`` (frames; only with
+        ``min_rank``, ``parts``: per body part whether it kept the tracking or the keys'
+        in-between and why, :func:`part_summaries`), ``bones``, ``keys`` (keys written), ``suggested`` (frames; only with
         ``suggest``), ``seconds`` ({'read', 'track', 'write'}), ``warnings``, ``message``.
 
     Raises

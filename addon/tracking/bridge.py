@@ -26,6 +26,7 @@ import numpy as np
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
+from .acceptance import interval_notes, write_part_curves
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
@@ -322,10 +323,6 @@ def run_core(request, frames, progress=None, cancel=None):
     return result
 
 
-def _interval_name(request, i):
-    return f"{request.key_frames[i]}–{request.key_frames[i + 1]}"
-
-
 def apply_result(context, request, result):
     """Write a finished run into the armature's action.
 
@@ -333,7 +330,8 @@ def apply_result(context, request, result):
     -------
     summary : str
     warnings : list of str
-        One per diverged interval (by frame range and reason).
+        One per interval where a body part kept the in-between of the keys, in plain words
+        (``acceptance.interval_notes``).
 
     Raises
     ------
@@ -362,16 +360,16 @@ def apply_result(context, request, result):
                              request.tracked_bones, frames, result.root_translations,
                              result.local_rotations, request.key_values, frames[1:], residuals,
                              ranks, max_rank)
+    write_part_curves(obj, object_channelbag(obj), request.key_frames.tolist(),
+                      result.intervals)
     request.timings["write"] = time.perf_counter() - tic
     request.written = int(written)
-    warnings = [f"Interval {_interval_name(request, i)} {r.reason}; it keeps that fallback "
-                "trajectory (more keyframes help)"
-                for i, r in enumerate(result.intervals) if r.diverged]
+    warnings = interval_notes(request.key_frames.tolist(), result.intervals)
     n_int = len(result.intervals)
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
-               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual and rank "
-               "curves in the Graph Editor")
+               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual, rank "
+               "and 'Tracked: <body part>' curves in the Graph Editor")
     return summary, warnings
 
 

@@ -83,6 +83,12 @@ def test_track_saves_the_tracked_keys_and_reports_each_interval(walk_folder, tmp
     for interval in summary["intervals"]:
         assert interval["status"] in ("tracked", "interpolated", "diverged")
         assert 0 < interval["error_vs_interpolation"] <= 1.0    # never worse than interpolating
+        assert set(interval["parts"]) == {"torso and head", "left arm", "right arm", "left leg",
+                                          "right leg"}
+        assert all(p["result"] in ("tracked", "in-between") for p in interval["parts"].values())
+    kept = [i for i in summary["intervals"]
+            if any(p["result"] == "in-between" for p in i["parts"].values())]
+    assert len(summary["warnings"]) == len(kept)           # one plain line per such interval
     assert summary["keys"] > 0 and isinstance(summary["suggested"], list)
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
     assert digest(shot) == before                         # --output: the shot is left alone
