@@ -25,6 +25,8 @@ import numpy as np
 
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
+from ..preferences import preferences
+from .acceptance import interval_notes, write_part_curves
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
@@ -70,6 +72,8 @@ class TrackRequest:
     tracked_bones : list of str
     state : str
         Digest of the rig's keys when the request was made.
+    written : int
+        Keys written (set by :func:`apply_result`).
     """
 
     obj_name: str
@@ -88,6 +92,7 @@ class TrackRequest:
     tracked_bones: list
     state: str
     timings: dict = field(default_factory=dict)
+    written: int = 0              # keys written by apply_result
 
     @property
     def first(self):
@@ -331,7 +336,8 @@ def prepare_tracking(context, settings):
                               estimate_depth=settings.estimate_depth)
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
-        options=options, processes=settings.processes or None, footage=footage,
+        options=options, processes=settings.processes or preferences().track_processes or None,
+        footage=footage,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced)
@@ -370,10 +376,6 @@ def run_core(request, frames, progress=None, cancel=None):
     return result
 
 
-def _interval_name(request, i):
-    return f"{request.key_frames[i]}–{request.key_frames[i + 1]}"
-
-
 def apply_result(context, request, result):
     """Write a finished run into the armature's action.
 
@@ -381,7 +383,8 @@ def apply_result(context, request, result):
     -------
     summary : str
     warnings : list of str
-        One per diverged interval (by frame range and reason).
+        One per interval where a body part kept the in-between of the keys, in plain words
+        (``acceptance.interval_notes``).
 
     Raises
     ------
@@ -411,15 +414,16 @@ def apply_result(context, request, result):
                              request.tracked_bones, frames, result.root_translations,
                              result.local_rotations, request.key_values, frames[1:], residuals,
                              ranks, max_rank)
+    write_part_curves(obj, object_channelbag(obj), request.key_frames.tolist(),
+                      result.intervals)
     request.timings["write"] = time.perf_counter() - tic
-    warnings = [f"Interval {_interval_name(request, i)} {r.reason}; it keeps that fallback "
-                "trajectory (more keyframes help)"
-                for i, r in enumerate(result.intervals) if r.diverged]
+    request.written = int(written)
+    warnings = interval_notes(request.key_frames.tolist(), result.intervals)
     n_int = len(result.intervals)
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
-               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual and rank "
-               "curves in the Graph Editor")
+               f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual, rank "
+               "and 'Tracked: <body part>' curves in the Graph Editor")
     if request.replaced:
         summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
                     f"{len(request.replaced)} keyed frames between them replaced")

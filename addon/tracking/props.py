@@ -73,7 +73,8 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
                     "the pass with the smallest photometric error is kept)")
     processes: IntProperty(
         name="Processes", default=0, min=0, max=64,
-        description="Worker processes for the intervals (0 = one per CPU, at most one per "
+        description="Worker processes for the intervals (0 = automatic: Tracking Processes of "
+                    "the add-on's preferences, one per CPU unless set there; at most one per "
                     "interval; 1 = all in Blender's process)")
     estimate_depth: BoolProperty(
         name="Estimate Depth", default=False,

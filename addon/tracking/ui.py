@@ -168,7 +168,7 @@ def draw_track_panel(layout, context, in_clip_editor=False):
     col = layout.column(align=True)
     col.label(text="Where is tracking unsure?", icon="GRAPH")
     if obj is not None and PROP_RESIDUAL in obj.keys():
-        col.label(text="Graph Editor: residual and rank curves")
+        col.label(text="Graph Editor: residual, rank and 'Tracked: <body part>' curves")
     col.operator("track_and_stride.suggest_keyframes", icon="MARKER_HLT")
     col.prop(settings, "suggest_threshold")
 

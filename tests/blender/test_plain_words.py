@@ -27,7 +27,7 @@ def _our_classes():
 
 
 def _properties(rna):
-    return [p for p in rna.properties if p.identifier not in ("rna_type", "name")]
+    return [p for p in rna.properties if p.identifier not in ("rna_type", "name", "bl_idname")]
 
 
 def _registered_texts():

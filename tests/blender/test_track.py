@@ -552,27 +552,51 @@ def test_a_movie_deleted_after_the_checks_is_refused_in_the_synchronous_run(
     assert "track_and_stride_residual" not in obj.keys()
 
 
-def test_a_divergent_interval_is_reported_by_name(walk_folder, monkeypatch):
-    """The core's fallback (here: forced) keeps the interval's best trajectory; the report
-    names the interval and the reason."""
+def test_parts_that_kept_the_in_between_show_in_the_report_and_the_graph_editor(walk_folder,
+                                                                               monkeypatch):
+    """Where the acceptance rule keeps the keys' in-between for a body part, the report says
+    so per interval in plain words with the evidence, and a 'Tracked: <part>' curve (1 tracked,
+    0 in-between) shows it in the Graph Editor; the old divergence wording is gone."""
     obj = build_walk_scene(walk_folder)
     settings().processes = 1
     track = bridge("tracking.bridge")
-    real = track.track_keyframes
+    rule = importlib.import_module(f"{MODULE}.core.tracking.acceptance").AcceptanceRule
+    real, seen = track.track_keyframes, {}
 
-    def diverging(*args, **kwargs):
-        result = real(*args, **kwargs)
-        second = result.intervals[1]
-        second.diverged = True
-        second.reason = "diverged: eq. 4 error grew (test); kept interpolation"
-        return result
+    def judged(problem, frames, keys, roots, local, options, **kwargs):
+        # Interval 21-41 as the default rule decides; 1-21 by a rule no drift passes.
+        free = real(problem, frames, keys, roots, local, options, **kwargs)
+        strict = real(problem, frames, keys, roots, local,
+                      options.replace(acceptance=rule(0.0, 0.0, 0.0)), **kwargs)
+        strict.intervals[1] = free.intervals[1]
+        seen["result"] = strict
+        return strict
 
-    monkeypatch.setattr(track, "track_keyframes", diverging)
+    monkeypatch.setattr(track, "track_keyframes", judged)
     summary, warnings = track.track_now(bpy.context, settings())
-    assert warnings == ["Interval 21–41 diverged: eq. 4 error grew (test); kept interpolation; "
-                        "it keeps that fallback trajectory (more keyframes help)"]
-    assert "Tracked 08_01 over frames 1–41" in summary
-    assert channelbag(obj).fcurves.find('["track_and_stride_rank"]') is not None
+    first, second = seen["result"].intervals
+    v = first.acceptance
+    assert v.parts == ("torso and head", "left arm", "right arm", "left leg", "right leg")
+    assert not np.any(v.tracked) and np.all(v.drift > 0)
+    whys = "; ".join(f"{p}: drift {100 * d:.{1 if 100 * d < 9.95 else 0}f} cm at the end key"
+                     for p, d in zip(v.parts, v.drift))
+    expected = [f"Frames 1–21, torso and head, left arm, right arm, left leg and right leg: kept "
+                f"the in-between of your keys — the footage did not support the tracked motion "
+                f"({whys})"]
+    if not np.all(second.acceptance.tracked):
+        assert len(warnings) == 2 and warnings[1].startswith("Frames 21–41, ")
+    assert warnings[:1] == expected
+    assert not any("eq. 4" in w or "more keyframes" in w for w in warnings)
+    assert "'Tracked: <body part>' curves in the Graph Editor" in summary
+    bag = channelbag(obj)
+    for p, part in enumerate(v.parts):
+        fcurve = bag.fcurves.find(f'["Tracked: {part}"]')
+        assert fcurve is not None and fcurve.group.name == "Track & Stride"
+        assert [tuple(k.co) for k in fcurve.keyframe_points] == [
+            (1.0, 0.0), (21.0, float(second.acceptance.tracked[p])),
+            (41.0, float(second.acceptance.tracked[p]))]
+        assert {k.interpolation for k in fcurve.keyframe_points} == {"CONSTANT"}
+        assert obj.id_properties_ui(f"Tracked: {part}").as_dict()["description"]
 
 
 class RecordingLayout:
