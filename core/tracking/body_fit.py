@@ -100,6 +100,9 @@ class BodyFitOptions:
         Share of a side's profile pixels that must be unoccluded and inside the image.
     mask_margin : float, pixels
         Profile pixels this close to an occluding part are masked too.
+    overlap_depth : float
+        Another part occludes a profile pixel when it is hit nearer than the bone's axis plus
+        this many times the bone's current radius (parts that overlap it at its own depth).
     one_side : float
         Weight of a profile's single visible edge when its other side is masked.
     min_contrast : float
@@ -110,6 +113,11 @@ class BodyFitOptions:
         Tail/head ratios tried (geometric, ``1 / max_taper`` .. ``max_taper``).
     passes : int
         Fitting passes (occlusion from the current radii, then from the fitted ones).
+    min_aspect : float
+        Bones shorter than this many times their larger current radius are blobs, not
+        cylinders: their outline is their ends, not their sides; they keep their radii.
+    inset : float
+        Share of the measured radius left out of the fitted one (0: the silhouette itself).
     """
 
     positions: tuple = (0.25, 0.375, 0.5, 0.625, 0.75)
@@ -125,11 +133,14 @@ class BodyFitOptions:
     min_view_angle: float = 30.0
     min_side_coverage: float = 0.3
     mask_margin: float = 2.0
+    overlap_depth: float = 1.0
     one_side: float = 0.5
     min_contrast: float = 1.5
     max_taper: float = 1.6
     taper_steps: int = 15
     passes: int = 2
+    min_aspect: float = 1.5
+    inset: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,8 +153,8 @@ class BodyFit:
         Head and tail radius: fitted where ``fitted``, else the input radii.
     fitted : ndarray, shape (B,), bool
     reasons : tuple of str, (B,)
-        Why a bone kept its radii ('' where it was fitted): 'no shape', 'seen end-on',
-        'hidden or outside the image', 'no clear edge'.
+        Why a bone kept its radii ('' where it was fitted): 'no shape', 'shorter than it is
+        wide', 'seen end-on', 'hidden or outside the image', 'no clear edge'.
     contrast : ndarray, shape (B,)
         Peak score over the median score (NaN where not measured).
     profiles : ndarray, shape (B,), int
@@ -278,8 +289,11 @@ def _profiles(model, camera, frames, rotations, origins, grid, upper, occluders,
     flat_pix = pix[idx]
     # Occlusion by other parts nearer the camera than this bone's axis (the tracker's caster).
     hits = ray_cast(occluders, camera, rotations, origins, flat_pix, frames=idx[0])
+    s = np.asarray(o.positions, dtype=float)
+    r_now = occluders.radii[:, :1] + (occluders.radii[:, 1:] - occluders.radii[:, :1]) * s
+    reach = depth + o.overlap_depth * r_now                             # (K, P, S)
     occluded = (hits.hit & (hits.joints != np.asarray(model.joints)[idx[1]])
-                & (hits.depth < depth[idx[:3]]))
+                & (hits.depth < reach[idx[:3]]))
     _, e_u, e_v = sample_with_gradient(frames, flat_pix[:, 0], flat_pix[:, 1], frames=idx[0])
     strength = np.abs(e_u * tangent[idx][:, 0] + e_v * tangent[idx][:, 1])
     blocked = np.zeros(valid.shape, dtype=bool)
@@ -424,6 +438,9 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
         new, fitted = model.radii.copy(), np.zeros(n, dtype=bool)
         reasons, contrast = [""] * n, np.full(n, np.nan)
         for i in range(n):
+            if lengths[i] < o.min_aspect * model.radii[i].max():
+                reasons[i] = "shorter than it is wide"
+                continue
             if end_on[:, i].all():
                 reasons[i] = "seen end-on"
                 continue
@@ -437,6 +454,7 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
                 continue
             new[i], fitted[i] = np.clip(value, o.min_radius, upper[i]), True
         current = new
+    current[fitted] = np.maximum(current[fitted] * (1.0 - o.inset), o.min_radius)
     b = skeleton.n_joints
     out_fitted = np.zeros(b, dtype=bool)
     out_fitted[model.joints] = fitted
