@@ -13,7 +13,7 @@ Edit Mode).
 import bpy
 import numpy as np
 
-from ...core.tracking.body_fit import BodyFitError, fit_body_radii
+from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from ..common.reporting import report_outcome
 from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, frame_range,
@@ -93,7 +93,8 @@ def fit_body_to_footage(context, settings):
         raise TrackError(str(exc)) from None
     before = envelope_radii(rig)
     try:
-        fit = fit_body_radii(rig.skeleton, before, camera, frames, key_roots, key_locals)
+        fit = fit_body_radii(rig.skeleton, before, camera, frames, key_roots, key_locals,
+                             mirror=mirror_bones(rig.bone_names))
     except BodyFitError as exc:
         raise TrackError(f"Cannot fit the body: {exc}") from None
     if not np.all(np.isfinite(fit.radii)):      # never write what cannot be stood behind

@@ -26,7 +26,8 @@ For every camera, keyed frame ``k``, bone ``b`` with a shape and position ``s`` 
    units of the profile's own texture, so that every frame and side votes alike.
 3. **Occlusion.** The tracker's own ray casting (:func:`.body_model.ray_cast`) at the keyed
    pose: a profile pixel where another part is the front-most surface, nearer the camera than
-   this bone's axis, shows that part's edges, not this bone's: it is masked, with a margin of
+   this bone's axis plus ``overlap_depth`` times its radius (in front of it, or overlapping it
+   at its own depth), shows that part's edges, not this bone's: it is masked, with a margin of
    ``mask_margin`` pixels (the blur spreads the occluder's edge). A side with less than
    ``min_side_coverage`` of its pixels left is dropped. The first pass uses the current radii;
    the next one the radii just fitted (``passes``).
@@ -38,18 +39,23 @@ For every camera, keyed frame ``k``, bone ``b`` with a shape and position ``s`` 
    is masked. Texture inside the limb and in the background lies at other radii in every
    frame and at every position; the silhouette does not.
 5. **Bone.** The straight taper ``r(s) = 2 a / (1 + t) (1 + (t - 1) s)`` (mean radius ``a`` on
-   the grid in ``[min_radius, search_radius(b)]``, tail/head ratio ``t`` in ``[1 / max_taper,
-   max_taper]``) whose mean vote over every profile of the bone (all cameras and keyed frames,
-   all positions) is highest: a robust consensus, since a frame or position whose edges are
+   the grid, tail/head ratio ``t`` in ``[1 / max_taper, max_taper]``) whose mean vote over
+   every profile of the bone is highest -- all cameras, keyed frames and positions, and those
+   of its mirror bone (``mirror``: left and right get one shape, so that an outlier on one side
+   is outvoted by the other): a robust consensus, since a frame or position whose edges are
    elsewhere adds a little everywhere rather than moving the peak. Ties between tapers go to
-   the current one. The bone is fitted when that peak stands ``min_contrast`` times above the
-   median score of all candidates; otherwise (or when the bone is seen end-on, hidden, or
-   outside every image) it keeps its current radii and says why (:attr:`BodyFit.reasons`).
+   the current one. The answer's mean radius stays within ``1 / max_change`` .. ``max_change``
+   times the current one (plausible anatomy: the current radii are a plausible body, the
+   defaults of :func:`core.armature.plausible_envelope_radii` or the animator's). The bone is
+   fitted when that peak stands ``min_contrast`` times above the median score of every
+   candidate searched (``min_radius`` .. ``search_radius``, below); otherwise, or when the bone
+   is seen end-on, hidden, outside every image, or shorter than ``min_aspect`` times its radius
+   (a blob whose outline is its ends, not its sides), it keeps its current radii and says why
+   (:attr:`BodyFit.reasons`).
 
-Searched radii of a bone (the plausible-anatomy clamp): ``min_radius`` .. ``search_radius =
-clip(max(search_factor x the larger current radius, length_fraction x bone length),
-min_search, max_radius)``. Settings chosen on rendered clips: ``docs/tracking.md``, *Fit Body
-to Footage*.
+Searched radii: ``min_radius`` .. ``search_radius = clip(max(search_factor x the larger
+current radius, length_fraction x bone length), min_search, max_radius)``. Settings chosen on
+rendered clips and the real benchmark: ``docs/tracking.md``, *Fit Body to Footage*.
 """
 
 from dataclasses import dataclass
@@ -59,7 +65,8 @@ import numpy as np
 from .body_model import body_model_from_skeleton, joint_frames_in_camera, part_geometry, ray_cast
 from .image import gaussian_blur, pyr_down, sample_with_gradient
 
-__all__ = ["BodyFit", "BodyFitError", "BodyFitOptions", "fit_body_radii", "search_radii"]
+__all__ = ["BodyFit", "BodyFitError", "BodyFitOptions", "fit_body_radii", "mirror_bones",
+           "search_radii"]
 
 # Points closer to the camera plane than this (metres) are not sampled.
 _NEAR = 1e-2
@@ -113,11 +120,11 @@ class BodyFitOptions:
         Tail/head ratios tried (geometric, ``1 / max_taper`` .. ``max_taper``).
     passes : int
         Fitting passes (occlusion from the current radii, then from the fitted ones).
+    max_change : float
+        The fitted mean radius stays within this factor of the current one (either way).
     min_aspect : float
         Bones shorter than this many times their larger current radius are blobs, not
         cylinders: their outline is their ends, not their sides; they keep their radii.
-    inset : float
-        Share of the measured radius left out of the fitted one (0: the silhouette itself).
     """
 
     positions: tuple = (0.25, 0.375, 0.5, 0.625, 0.75)
@@ -139,8 +146,8 @@ class BodyFitOptions:
     max_taper: float = 1.6
     taper_steps: int = 15
     passes: int = 2
+    max_change: float = 1.5
     min_aspect: float = 1.5
-    inset: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -337,16 +344,19 @@ def _votes(strength, mask, n_offset, one_side):
     return np.maximum(best, alone), mask.any(axis=(-1, -2))
 
 
-def _taper_vote(vote, voted, grid, upper, current, options):
+def _taper_vote(vote, voted, grid, upper, allowed, current, options):
     """Head and tail radius of one bone whose straight taper has the highest mean vote over
     all its profiles (module docstring, step 5), and that peak's contrast.
 
-    vote : (M, S, G) (M = cameras x keyed frames); voted : (M, S) bool; upper : metres.
+    vote : (M, S, G) (M = cameras x keyed frames); voted : (M, S) bool; upper : largest mean
+    radius searched, metres; allowed : (lowest, highest) mean radius the answer may take (the
+    contrast is measured against every candidate searched).
     """
     o = options
     s = np.asarray(o.positions, dtype=float)
     band = grid[(grid >= o.min_radius) & (grid <= upper)]
-    if not voted.any() or len(band) < 3:
+    ok = (band >= allowed[0]) & (band <= allowed[1])
+    if not voted.any() or len(band) < 3 or not ok.any():
         return None, np.nan
     tapers = np.geomspace(1.0 / o.max_taper, o.max_taper, o.taper_steps)
     r = (2.0 * band[:, None, None] / (1.0 + tapers[None, :, None])
@@ -361,11 +371,12 @@ def _taper_vote(vote, voted, grid, upper, current, options):
     frac = np.moveaxis(f[..., ss], -1, 0)
     score = (v[rows, col0] * (1.0 - frac) + v[rows, col0 + 1] * frac).mean(axis=0)   # (A, T)
     covered = score > 0
+    med = float(np.median(score[covered])) if covered.any() else 0.0
     ratio = current[1] / current[0] if current[0] > 0 and current[1] > 0 else 1.0
     # Ties (a taper the votes cannot tell apart) go to the current taper.
     score = score - 1e-3 * np.abs(np.log(tapers / ratio))
+    score[~ok] = -np.inf
     a, t = np.unravel_index(int(np.argmax(score)), score.shape)
-    med = float(np.median(score[covered])) if covered.any() else 0.0
     head = 2.0 * band[a] / (1.0 + tapers[t])
     return np.array([head, head * tapers[t]]), score[a, t] / max(med, _MEDIAN_FLOOR)
 
@@ -382,7 +393,8 @@ def _view_votes(model, occluders, camera, frames, rotations, origins, grid, uppe
     return vote, voted, end_on, seen, level
 
 
-def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, options=None):
+def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, options=None,
+                   mirror=None):
     """Envelope radii that fit the person seen at the keyed frames (module docstring).
 
     Parameters
@@ -402,6 +414,9 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     key_locals : array_like, shape (K, B, 3, 3)
         The keyed poses (``forward_kinematics`` convention), K >= 1.
     options : BodyFitOptions, optional
+    mirror : array_like, shape (B,), int, optional
+        Each bone's mirror image (the other side of the body; -1: none), e.g.
+        :func:`mirror_bones`: a bone and its mirror get one shape from both their profiles.
 
     Returns
     -------
@@ -427,6 +442,7 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     grid = np.arange(0.0, upper.max() + o.max_offset + 1.5 * o.radius_step, o.radius_step)
     current = model.radii.copy()
     n = model.n_cylinders
+    partner = _partners(model, mirror, skeleton.n_joints)
     for _ in range(max(1, int(o.passes))):
         occluders = body_model_from_skeleton(skeleton, _scatter(radii, model, current))
         views = [_view_votes(model, occluders, c, f, rot, org, grid, upper, o)
@@ -437,24 +453,28 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
         seen = np.concatenate([v[3] for v in views])
         new, fitted = model.radii.copy(), np.zeros(n, dtype=bool)
         reasons, contrast = [""] * n, np.full(n, np.nan)
+        usable = np.ones(n, dtype=bool)
         for i in range(n):
             if lengths[i] < o.min_aspect * model.radii[i].max():
                 reasons[i] = "shorter than it is wide"
-                continue
-            if end_on[:, i].all():
+            elif end_on[:, i].all():
                 reasons[i] = "seen end-on"
-                continue
-            if not seen[:, i].any():
+            elif not seen[:, i].any():
                 reasons[i] = "hidden or outside the image"
-                continue
-            value, contrast[i] = _taper_vote(vote[:, i], voted[:, i], grid, upper[i],
-                                             model.radii[i], o)
+            usable[i] = not reasons[i]
+        for i in np.nonzero(usable)[0]:
+            # Both sides of the body vote for one shape (module docstring, step 5).
+            both = [i] + [p for p in (partner[i],) if p >= 0 and usable[p]]
+            mean = model.radii[i].mean()
+            value, contrast[i] = _taper_vote(
+                np.concatenate(vote[:, both].swapaxes(0, 1)),
+                np.concatenate(voted[:, both].swapaxes(0, 1)), grid, upper[both].min(),
+                (mean / o.max_change, mean * o.max_change), model.radii[i], o)
             if value is None or not contrast[i] >= o.min_contrast:
                 reasons[i] = "no clear edge"
                 continue
-            new[i], fitted[i] = np.clip(value, o.min_radius, upper[i]), True
+            new[i], fitted[i] = np.clip(value, o.min_radius, upper[both].min()), True
         current = new
-    current[fitted] = np.maximum(current[fitted] * (1.0 - o.inset), o.min_radius)
     b = skeleton.n_joints
     out_fitted = np.zeros(b, dtype=bool)
     out_fitted[model.joints] = fitted
@@ -468,6 +488,53 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     return BodyFit(radii=_scatter(radii, model, current), fitted=out_fitted,
                    reasons=tuple(out_reasons), contrast=out_contrast, profiles=out_profiles,
                    levels=tuple(v[4] for v in views))
+
+
+def _partners(model, mirror, n_joints):
+    """Part index of each part's mirror image (-1: none), (P,)."""
+    partner = np.full(model.n_cylinders, -1)
+    if mirror is None:
+        return partner
+    mirror = np.asarray(mirror, dtype=int)
+    if mirror.shape != (n_joints,) or np.any(mirror >= n_joints):
+        raise BodyFitError(f"Expected mirror of shape ({n_joints},) with bone indices or -1, "
+                           f"got {mirror.shape}")
+    part_of = np.full(n_joints, -1)
+    part_of[model.joints] = np.arange(model.n_cylinders)
+    for p, j in enumerate(model.joints):
+        if mirror[j] >= 0 and mirror[j] != j:
+            partner[p] = part_of[mirror[j]]
+    return partner
+
+
+def mirror_bones(names):
+    """Index of each bone's mirror image by name, -1 where none, (B,) int.
+
+    Recognises Blender's conventions (``hand.L`` / ``hand.R``, ``_L`` / ``_R``, ``-l`` / ``-r``,
+    ``L_`` / ``R_`` prefixes, ``Left`` / ``Right`` anywhere, any case of these) and CMU's /
+    Acclaim's ``l`` / ``r`` prefix (``lfemur`` / ``rfemur``) when both names exist.
+    """
+    names = list(names)
+    index = {n: i for i, n in enumerate(names)}
+    swaps = [("left", "right"), ("Left", "Right"), ("LEFT", "RIGHT")]
+    out = np.full(len(names), -1)
+    for i, name in enumerate(names):
+        candidates = []
+        for a, b in swaps:
+            if a in name:
+                candidates.append(name.replace(a, b))
+            if b in name:
+                candidates.append(name.replace(b, a))
+        for sep in ".-_ ":
+            for a, b in (("L", "R"), ("l", "r"), ("R", "L"), ("r", "l")):
+                if name.endswith(sep + a):
+                    candidates.append(name[:-1] + b)
+                if name.startswith(a + sep):
+                    candidates.append(b + name[1:])
+        if name[:1] in ("l", "r"):
+            candidates.append({"l": "r", "r": "l"}[name[0]] + name[1:])
+        out[i] = next((index[c] for c in candidates if c in index and c != name), -1)
+    return out
 
 
 def _scatter(radii, model, part_radii):
