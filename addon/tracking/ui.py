@@ -54,6 +54,7 @@ def _draw_armature(layout, context, settings):
     row = col.row(align=True)
     row.operator("track_and_stride.show_envelopes", icon="BONE_DATA")
     row.operator("track_and_stride.add_envelope_body", text="Body Mesh")
+    col.operator("track_and_stride.fit_body_to_footage", icon="MOD_SHRINKWRAP")
     axes = int(np.count_nonzero(rig.dof_mask))
     col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
               icon="CON_ROTLIMIT")
