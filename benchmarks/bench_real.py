@@ -277,7 +277,7 @@ def score_run(rig, arrays, record, reference_joints, views, n_frames):
         if k < len(record["intervals"]):
             iv = record["intervals"][k]
             row.update(kept_iteration=iv["kept_iteration"], diverged=iv["diverged"],
-                       eq4=iv["eq4_errors"])
+                       eq4=iv["eq4_errors"], acceptance=iv.get("acceptance"))
         intervals.append(row)
     out["intervals"] = intervals
     out["frames_scored"] = int(len(inside))
@@ -364,6 +364,10 @@ def parse_args():
     parser.add_argument("--detections-cache", default="",
                         help="reuse/store MediaPipe's passes in this .npz (development only: "
                              "speeds then come from the cached run)")
+    parser.add_argument("--dump-core-inputs", default="",
+                        help="development: save what the operator handed the core (problem, "
+                             "keys, decoded frames) and the reference into this folder, for "
+                             "benchmarks/real/core_replay.py")
     parser.add_argument("--reuse-blender", action="store_true",
                         help="score the Blender stage's last output again (development only)")
     return parser.parse_args()
@@ -421,9 +425,17 @@ def main():
             "timed_spacing": 20 if 20 in args.spacings else args.spacings[0],
             "radii_operator": args.radii_operator, "poses": str(poses_path),
             "output": str(work / "blender"),
+            "dump_core_inputs": str(Path(args.dump_core_inputs).resolve())
+            if args.dump_core_inputs else "",
             "bones": [{"name": n, "parent": p, "locked": bool(lk), "rest": rig.rest[i].tolist(),
                        "length": float(rig.lengths[i]), "radii": radii[i].tolist()}
                       for i, (n, p, lk) in enumerate(rigmod.BONES)]}
+    if args.dump_core_inputs:
+        dump = Path(args.dump_core_inputs)
+        dump.mkdir(parents=True, exist_ok=True)
+        np.savez(dump / "reference.npz", joints=reference_joints, joint_bones=rig.joint_bones,
+                 joint_offsets=rig.joint_offsets, bone_names=np.array(rigmod.BONE_NAMES),
+                 joint_names=np.array(rigmod.JOINT_NAMES))
     plan_path = work / "plan.json"
     plan_path.write_text(json.dumps(plan, indent=1))
 
@@ -496,6 +508,7 @@ def main():
         m = mean_over[f"keys_every_{every}"]
         m["tracker_over_slerp"] = m["tracker_cm"] / m["slerp_cm"]
     results = {
+        "acceptance": acceptance_summary(single, args.cameras, args.spacings),
         "reference": ref_figures | {
             "rig_fit_cm": float(100 * nanmean(residuals)),
             "rig_fit_per_joint_cm": dict(zip(rigmod.JOINT_NAMES,
@@ -562,6 +575,31 @@ def multi_view_speed(runs, detections, cameras, every):
                                "Track Keyframes with every camera switched on at keys every "
                                f"{every} (Blender decoding all videos, tracking, writing keys) "
                                "vs MediaPipe Pose over the same videos (sum of its times)"}
+
+
+def acceptance_summary(single, cameras, spacings):
+    """The acceptance rule's per-interval, per-part results (core.tracking.acceptance): the rule,
+    and per camera and spacing the parts that kept the interpolation, with reason and evidence,
+    and the share of (interval, part) pairs that kept the tracking."""
+    from dataclasses import asdict
+    from core.tracking.acceptance import AcceptanceRule
+    out = {"rule": asdict(AcceptanceRule()), "per_camera": {}}
+    for c in cameras:
+        for every in spacings:
+            run = single.get(c, {}).get(f"keys_every_{every}")
+            if run is None:
+                continue
+            kept, total, rows = 0, 0, []
+            for iv in run["intervals"]:
+                for part, v in (iv.get("acceptance") or {}).items():
+                    total += 1
+                    kept += bool(v["tracked"])
+                    if not v["tracked"]:
+                        rows.append({"frames": iv["frames"], "part": part} | v)
+            out["per_camera"].setdefault(c, {})[f"keys_every_{every}"] = {
+                "tracked_share": kept / total if total else None,
+                "kept_interpolation": rows}
+    return out
 
 
 def _mediapipe_version():

@@ -12,6 +12,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from . import storage
 from .bridge import PredictOptions, export_model, import_model, learn_gait, predict_gait
 from .rigs import GaitError
+from ..preferences import operator_value
 
 _MODES = ("OBJECT", "POSE")
 MAX_STYLE_COUNT = 16
@@ -197,8 +198,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
                            "prediction starts on the frame after it", default=100)
     horizon: FloatProperty(
         name="Length", description="How long the prediction runs, in seconds (frames = seconds "
-        "× scene fps; the prediction horizon)", default=2.0, min=0.05, max=60.0,
-        unit="TIME_ABSOLUTE")
+        "× scene fps; the prediction horizon; default: the add-on preference)", default=2.0,
+        min=0.05, max=60.0, unit="TIME_ABSOLUTE")
     cadence: FloatProperty(
         name="Cadence", description="Retiming: multiplies the walker's steps per second (1.2 = "
         "steps 20 % quicker, each cycle 1/1.2 as long, same distance per cycle)",
@@ -258,6 +259,9 @@ class TS_OT_predict_gait(bpy.types.Operator):
         return _poll_armature(cls, context)
 
     def execute(self, context):
+        # Length not given (a script, the first run): the add-on preference; kept in the
+        # operator so that the redo panel shows and reuses it.
+        self.horizon = operator_value(self, "horizon", "gait_length", context)
         options = PredictOptions(**{k: getattr(self, k) for k in (
             "range_mode", "frame_start", "frame_end", "horizon", "cadence", "style_mode",
             "restyle_from", "restyle_to", "restyle_amount", "library_style", "stride",

@@ -7,12 +7,17 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...core.mocap import MocapParseError
+from ..common.reporting import one_line
 from .acclaim_bridge import AcclaimError, export_acclaim
 from .acclaim_import import AcclaimImport
 from ..common.reporting import report_outcome
+from ..preferences import FRAME_RATE_ITEMS, fill_unset, operator_value
 
 # What an import or export reports as "cannot run" (nothing else is caught).
 _ERRORS = (MocapParseError, AcclaimError)
+# Operator properties whose default is an add-on preference (preferences.py).
+_PREFERRED = (("frame_rate_mode", "acclaim_frame_rate_mode"),
+              ("source_fps", "acclaim_capture_rate"))
 
 
 # The running modal imports (one at a time).
@@ -33,6 +38,7 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
     Long captures show progress; Esc cancels and leaves the file as it was"""
 
     bl_idname = "import_anim.acclaim"
+    bl_description = one_line(__doc__)
     bl_label = "Import Acclaim Motion Capture"
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 
@@ -46,11 +52,7 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
     frame_rate_mode: EnumProperty(
         name="Frame Rate",
         description="How the capture's sample rate meets the scene's frame rate",
-        items=(("RESAMPLE", "Resample to Scene",
-                "Interpolate the capture to the scene's frames per second (keeps the timing)"),
-               ("KEEP", "Keep Capture Rate",
-                "One frame per capture sample; set the scene's frames per second to the capture rate")),
-        default="RESAMPLE")
+        items=FRAME_RATE_ITEMS, default="RESAMPLE")
     use_file_rate: BoolProperty(
         name="Rate From File",
         description="Use the frame rate the .amc records (files exported by Track & Stride record "
@@ -58,7 +60,8 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         default=True)
     source_fps: FloatProperty(
         name="Capture Rate",
-        description="Samples per second of an .amc that records no rate (CMU captures: 120)",
+        description="Samples per second of an .amc that records no rate (CMU captures: 120; "
+                    "default: the add-on preference)",
         default=120.0, min=1.0, max=1000.0)
     frame_start: IntProperty(name="Start Frame", description="Scene frame of the first sample", default=1)
     set_frame_range: BoolProperty(
@@ -68,13 +71,15 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         default=False, options={"HIDDEN", "SKIP_SAVE"})
 
     def _job(self, context):
-        return AcclaimImport(context, self.filepath, self.asf_filepath, self.frame_rate_mode,
-                             self.source_fps, self.use_file_rate, self.frame_start,
-                             self.set_frame_range)
+        """The import; Frame Rate and Capture Rate not given: the add-on preferences."""
+        mode, rate = (operator_value(self, prop, pref, context) for prop, pref in _PREFERRED)
+        return AcclaimImport(context, self.filepath, self.asf_filepath, mode, rate,
+                             self.use_file_rate, self.frame_start, self.set_frame_range)
 
     def invoke(self, context, event):
         """From the menu or a drop: after the file browser, the import runs modal."""
         self.run_modal = _can_run_modal(context)
+        fill_unset(self, _PREFERRED, context)       # the browser shows what will be used
         return ImportHelper.invoke(self, context, event)
 
     def execute(self, context):

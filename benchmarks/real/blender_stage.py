@@ -352,7 +352,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
                           "kept_iteration": int(iv.kept_iteration),
                           "eq4_errors": [float(e) for e in iv.errors],
                           "diverged": bool(iv.diverged), "reason": str(iv.reason),
-                          "finest_level": int(iv.finest_level)})
+                          "finest_level": int(iv.finest_level),
+                          "acceptance": acceptance_record(iv.acceptance)})
     record = {"run": name, "cameras": list(cameras), "keys_every": every, "keys": keys, "camera_setup": setup,
               "notes": notes, "operator_wall_s": wall, "frames_read": int(n),
               "phases_s": {k[:-2]: v for k, v in rec.log.items() if k.endswith("_s")},
@@ -365,6 +366,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
               "slerp_pos": slerp_pos, "tracked_rot": tracked[0], "tracked_pos": tracked[1],
               "slerp_first_frame": np.array(keys[0])}
     record["footage_checksum"] = rec.log.get("footage_checksum")
+    if plan.get("dump_core_inputs"):
+        dump_core_inputs(Path(plan["dump_core_inputs"]), name, every, rec.log)
     if len(cameras) > 1:                       # every camera's frames, in the problem's order
         record["view_names"] = list(request.view_names)
         record["footage_checksum"] = [checksum(rec.views_read[v])
@@ -376,6 +379,41 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
 def _checksums(frames):
     """:func:`checksum` of one camera's frames, or the list of several cameras'."""
     return [checksum(f) for f in frames] if isinstance(frames, list) else checksum(frames)
+
+
+def acceptance_record(verdicts):
+    """Per body part: kept the tracking or the interpolation, why, and the evidence (cm)."""
+    if verdicts is None:
+        return None
+    return {part: {"tracked": bool(verdicts.tracked[p]), "reason": str(verdicts.reasons[p]),
+                   "drift_cm": _cm(verdicts.drift[p]), "gap_cm": _cm(verdicts.gap[p]),
+                   "departure_cm": _cm(verdicts.departure[p]), "seen": float(verdicts.seen[p])}
+            for p, part in enumerate(verdicts.parts)}
+
+
+def _cm(metres):
+    value = 100.0 * float(metres)
+    return round(value, 3) if np.isfinite(value) else None
+
+
+def dump_core_inputs(folder, name, every, log):
+    """Development: what the operator handed the core (``--dump-core-inputs``), so that the
+    core can be re-run outside Blender on exactly these inputs (``benchmarks/real/
+    core_replay.py``): the request's problem, options and keys (a pickle whose classes are
+    the installed extension's; the replay maps them back to ``core``) and the decoded frames
+    (float32 .npy, once per camera)."""
+    import pickle
+    folder.mkdir(parents=True, exist_ok=True)
+    request = log["prepare_tracking"]
+    with open(folder / f"{name}_{every}.pkl", "wb") as f:
+        pickle.dump({"problem": request.problem, "options": request.options,
+                     "key_frames": np.asarray(request.key_frames),
+                     "key_roots": request.key_roots, "key_locals": request.key_locals,
+                     "bone_names": list(request.rig.bone_names),
+                     "armature2world": np.asarray(request.rig.armature2world)}, f)
+    frames_path = folder / f"{name}_frames.npy"
+    if not frames_path.exists() and log.get("read_footage") is not None:
+        np.save(frames_path, np.asarray(log["read_footage"], dtype=np.float32))
 
 
 def main():

@@ -8,11 +8,13 @@ distortion), ``calibration`` (calibration files: Pose2Sim TOML, Qualisys QCA), `
 (tapered cylinders / boxes, ray casting with occlusion), ``image`` (grayscale, derivatives,
 pyramid, sampling), ``jacobians`` (eqs. 2-3, A.2-A.8), ``motion`` (A x = b, rank, eq. 10,
 coarse-to-fine, one or several cameras), ``drift`` (eqs. 11-24), ``trajectory`` (the §2.2
-loop), ``parallel`` (several intervals), ``presets`` (Table 1), ``problem`` (inputs and
+loop), ``parallel`` (several intervals), ``acceptance`` (per body part: the tracked motion or the
+interpolation), ``presets`` (Table 1), ``problem`` (inputs and
 options), ``suggest`` (where one more keyframe pays off), ``overlay`` (the body model drawn over
 frames, contact sheets).
 """
 
+from .acceptance import AcceptanceRule, PartVerdicts, body_parts
 from .body_model import (BodyModel, RayHits, SilhouetteSamples, body_model_from_skeleton,
                          joint_frames_in_camera, ray_cast, sample_silhouette)
 from .calibration import (CalibratedCamera, CalibrationError, fit_to_footage, qca_binning_factor,
@@ -36,7 +38,7 @@ from .trajectory import (IntervalResult, Pose, ViewInterval, eq4_view_weights, i
                          track_accumulated, track_interval)
 
 __all__ = [
-    "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "FrameMotions",
+    "AcceptanceRule", "PartVerdicts", "body_parts", "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "FrameMotions",
     "IntervalResult", "KeySuggestion", "LensDistortion", "MotionLayout", "MotionView",
     "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
     "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
@@ -52,3 +54,7 @@ __all__ = [
     "to_grayscale", "track_accumulated", "track_interval", "track_keyframes", "view_frames",
     "view_weights", "world2camera_from_blender",
 ]
+
+from .key_choice import PoseChoice, choose_poses  # noqa: E402  (Track Between)
+
+__all__ += ["PoseChoice", "choose_poses"]

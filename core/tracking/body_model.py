@@ -616,6 +616,19 @@ class SilhouetteSamples:
 
 def projected_area(model, camera, geometry):
     """Rough projected area (pixels) of the body per pose, parts counted separately, (...,)."""
+    area, box = _part_areas(camera, geometry)
+    return area.sum(axis=-1) + box.sum(axis=-1)
+
+
+def part_areas(model, camera, geometry):
+    """Rough projected area (pixels) of every part on its own (..., P + Q), cylinders first."""
+    area, box = _part_areas(camera, geometry)
+    return np.concatenate([area, np.broadcast_to(box, area.shape[:-1] + box.shape[-1:])],
+                          axis=-1)
+
+
+def _part_areas(camera, geometry):
+    """Cylinders' (..., P) and boxes' (..., Q) rough projected areas, pixels."""
     g = geometry
     f = 0.5 * (camera.fx + camera.fy)
     ends = g.starts + g.axes * g.lengths[:, None]
@@ -628,7 +641,7 @@ def projected_area(model, camera, geometry):
     area = np.linalg.norm(ub - ua, axis=-1) * 0.5 * (da + db) + 0.785 * np.maximum(da, db) ** 2
     zc = np.maximum(g.box_centres[..., 2], _NEAR)
     box = 3.0 * np.sort(g.box_half_sizes, axis=1)[:, 1:].prod(axis=1) * (f / zc) ** 2
-    return area.sum(axis=-1) + box.sum(axis=-1)
+    return area, box
 
 
 def _capsule_rows(model, camera, geo, poses, parts, v):

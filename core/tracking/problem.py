@@ -4,6 +4,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .acceptance import AcceptanceRule
 from .body_model import BodyModel
 from .camera import PinholeCamera
 from ..kinematics import rest_pose
@@ -216,6 +217,12 @@ class TrackingOptions:
         the trajectory is scored like any other. None: ``'reject'`` with one camera (the
         single-camera tracker as it was), ``'clamp'`` with several (chosen on the validation
         clips, docs/tracking.md *Several cameras*).
+    acceptance : AcceptanceRule or None
+        Never worse than the interpolation: per interval and body part, the tracked motion is
+        kept only where the footage supports it, else the part keeps the keys' interpolation
+        (``core.tracking.acceptance``; thresholds chosen in docs/tracking.md *Never worse than
+        the interpolation*). None: every part keeps the tracked motion (the evidence is still
+        reported in ``IntervalResult.acceptance``, nothing rejected).
     """
 
     tau: float = 0.02
@@ -246,6 +253,7 @@ class TrackingOptions:
     depth_from_views: bool = True
     view_tau: float = 0.01
     limit_action: str = None
+    acceptance: AcceptanceRule = AcceptanceRule()
 
     def __post_init__(self):
         if self.seed not in ("interpolation", "forward", "bidirectional"):

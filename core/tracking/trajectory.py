@@ -28,7 +28,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
-from .body_model import joint_frames_in_camera, part_bounds, part_geometry, sample_silhouette
+from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, body_parts, judge_parts,
+                         keep_interpolation, part_distances, seen_shares)
+from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_geometry,
+                         sample_silhouette)
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
 from .image import bilinear, gaussian_pyramid
@@ -90,6 +93,11 @@ class IntervalResult:
     view_levels : list of (int, int) or None
         ``(finest_level, top_level)`` per camera; None for a camera that did not film the
         interval.
+    acceptance : PartVerdicts or None
+        Per body part: the evidence and whether it kept the tracked motion or the
+        interpolation (:mod:`.acceptance`; ``TrackingOptions.acceptance``). When a part kept
+        the interpolation, the trajectory and ``residuals`` are those of the mixed result;
+        ``errors`` and ``kept_iteration`` still describe the trajectories the loop scored.
     """
 
     root_translations: np.ndarray
@@ -107,6 +115,7 @@ class IntervalResult:
     history: list = field(default_factory=list)
     view_samples: np.ndarray = None
     view_levels: list = field(default_factory=list)
+    acceptance: PartVerdicts = None
 
     @property
     def n_frames(self):
@@ -595,6 +604,11 @@ class _Trajectory:
 
     def __init__(self, problem, options, views, roots, local):
         self.roots, self.local = roots, local
+        # Evidence for the acceptance (:func:`_accept_parts`): where the tracking pass that
+        # made this trajectory ended before the drift correction (roots (3,), local (B, 3, 3)),
+        # or the seed's forward and backward estimates of its middle frame.
+        self.uncorrected_end = None
+        self.seed_middles = None
         self.cams, self.samples = [], []
         for view in views:
             cam = _frames_in_camera(problem, roots, local, view.camera)
@@ -695,8 +709,70 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     report(_PROGRESS_SEED)
     reason, diverged = _iterate(problem, options, views, start, end, traj, scores, timings,
                                 report)
+    verdicts = _accept_parts(problem, options, views, start, end, scores)
     report(1.0)
-    return scores.result(problem, views, reason, diverged, timings)
+    result = scores.result(problem, views, reason, diverged, timings)
+    result.acceptance = verdicts
+    return result
+
+
+def _accept_parts(problem, options, views, start, end, scores):
+    """Per body part, keep the tracked motion or the interpolation (:mod:`.acceptance`).
+
+    Replaces ``scores.best``'s trajectory (and its eq. 4 residuals) with the mixed one when a
+    part keeps the interpolation. Returns the :class:`~.acceptance.PartVerdicts`.
+    """
+    sk = problem.skeleton
+    names, part_of = body_parts(sk.names, sk.parents)
+    best, interp = scores.best, scores.initial
+    nan = np.full(len(names), np.nan)
+    gap = nan.copy()
+    if scores.seed_middles is not None:
+        forward, backward = scores.seed_middles
+        m = (len(interp.roots)) // 2
+        gap = part_distances(sk, part_of, forward.root_translation[None],
+                             forward.local_rotations[None], backward.root_translation[None],
+                             backward.local_rotations[None], interp.roots[m:m + 1],
+                             interp.local[m:m + 1])[0]
+    traj = best["traj"]
+    seen = _seen_shares(problem, options, views, traj, part_of)
+    if best["iteration"] == 0:
+        return PartVerdicts(names, nan.copy(), gap, np.zeros(len(names)), seen,
+                            np.zeros(len(names), dtype=bool), (NOT_TRACKED,) * len(names))
+    departure = part_distances(sk, part_of, traj.roots, traj.local, interp.roots, interp.local,
+                               interp.roots, interp.local).max(axis=0)
+    drift = gap.copy()
+    if traj.uncorrected_end is not None:
+        root, local = traj.uncorrected_end
+        drift = part_distances(sk, part_of, np.asarray(root, float)[None],
+                               np.asarray(local, float)[None], interp.roots[-1:],
+                               interp.local[-1:], interp.roots[-1:], interp.local[-1:])[0]
+    tracked, reasons = np.ones(len(names), dtype=bool), (TRACKED,) * len(names)
+    if options.acceptance is not None:
+        tracked, reasons = judge_parts(options.acceptance, drift, departure, seen)
+    if not np.all(tracked):
+        roots, local = keep_interpolation(part_of, tracked, traj.roots, traj.local,
+                                          interp.roots, interp.local)
+        mixed = _Trajectory(problem, options, views, roots, local)
+        best["traj"], best["residuals"] = mixed, _eq4(problem, views, mixed, scores.weights)
+    return PartVerdicts(names, drift, gap, departure, seen, tracked, reasons)
+
+
+def _seen_shares(problem, options, views, traj, part_of):
+    """(P,) share of every body part's outline in view along ``traj`` (best camera)."""
+    body, b = problem.body, problem.skeleton.n_joints
+    best = None
+    for view, (rot, org), samples in zip(views, traj.cams, traj.samples):
+        n = len(rot)
+        camera = view.camera.at_level(view.finest)
+        seen = np.bincount(samples.frames * b + samples.joints, minlength=n * b).reshape(n, b)
+        seen = seen * samples.strides[:, None] ** 2
+        areas = part_areas(body, camera, part_geometry(body, rot, org))       # (n, P + Q)
+        whole = np.zeros((n, b))
+        np.add.at(whole, (slice(None), body.part_joints), areas)
+        share = seen_shares(part_of, seen, whole)
+        best = share if best is None else np.maximum(best, share)
+    return best
 
 
 def _initial_trajectory(problem, start, end, n, initial):
@@ -721,6 +797,8 @@ class _Scores:
 
     def __init__(self, problem, views, initial, keep_history):
         self.weights = eq4_view_weights(initial)
+        self.initial = initial
+        self.seed_middles = None
         self.keep_history = keep_history
         per_frame = _eq4(problem, views, initial, self.weights)
         self.initial_counts = initial.counts().astype(float)
@@ -802,10 +880,13 @@ def _add_seed(problem, options, views, start, end, scores, timings):
     (non-finite, beyond the limits, the model lost): it is then dropped and the loop starts
     from the interpolation."""
     tic = time.perf_counter()
-    roots, local = seed_trajectory(problem, options, views, start, end, options.seed)
+    ends = {}
+    roots, local = seed_trajectory(problem, options, views, start, end, options.seed, ends=ends)
     local, found = _checked_trajectory(problem, options, start, end, roots, local)
     if found is None:
         seed = _Trajectory(problem, options, views, roots, local)
+        seed.uncorrected_end = ends.get("uncorrected_end")
+        seed.seed_middles = ends.get("middles")
         found = _lost(seed, options, scores.initial_counts)
     timings["seed"] = time.perf_counter() - tic
     if found is not None:
@@ -813,6 +894,7 @@ def _add_seed(problem, options, views, start, end, scores, timings):
         return None
     error, per_frame = scores.score(problem, views, seed)
     scores.seed_index = len(scores.errors) - 1
+    scores.seed_middles = seed.seed_middles
     if error < scores.errors[0]:
         scores.keep(seed, per_frame, None)
     return seed
@@ -885,7 +967,23 @@ def _track_and_correct(problem, options, views, start, end, traj, initial_counts
     if found is not None:
         return None, fm, found
     new = _Trajectory(problem, options, views, roots, local)
+    new.uncorrected_end = _uncorrected_end(
+        problem, start, fm.translations, fm.rotvecs,
+        traj.local[:-1] if options.root_displacement == "measured" else None)
     return new, fm, _lost(new, options, initial_counts)
+
+
+def _uncorrected_end(problem, start, translations, rotvecs, measured_on=None):
+    """Where frame-to-frame motions accumulated from the start key end, before the drift
+    correction (as :func:`correct_trajectory` accumulates them): root (3,), local (B, 3, 3)."""
+    sk = problem.skeleton
+    accumulated = accumulate_rotations(np.asarray(start.local_rotations, float),
+                                       exp_so3(rotvecs))
+    frames = accumulated if measured_on is None else np.concatenate(
+        [measured_on, accumulated[-1:]])
+    positions = accumulate_root_positions(start.root_translation,
+                                          root_world_rotation(sk, frames), translations)
+    return positions[-1], accumulated[-1]
 
 
 def _trajectory_problem(problem, options, start, end, roots, local):
@@ -928,7 +1026,7 @@ def _lost(traj, options, initial_counts):
             f"silhouette samples left")
 
 
-def seed_trajectory(problem, options, views, start, end, kind):
+def seed_trajectory(problem, options, views, start, end, kind, ends=None):
     """A tracked initial trajectory (``TrackingOptions.seed``).
 
     ``'forward'``: frame-to-frame tracking from the start key (the model on its own accumulated
@@ -943,14 +1041,21 @@ def seed_trajectory(problem, options, views, start, end, kind):
     ----------
     views : list of ViewInterval
         The cameras' prepared frames (:func:`prepare_views`).
+    ends : dict, optional
+        Filled with evidence for the acceptance: ``'uncorrected_end'`` (``'forward'``: root
+        (3,), local (B, 3, 3) where the pass ended before the correction) or ``'middles'``
+        (``'bidirectional'``: the forward and backward estimates of the middle frame, two
+        :class:`Pose`).
     """
     sk = problem.skeleton
+    ends = {} if ends is None else ends
     n = len(views[0].pyramid[0]) - 1
     if kind not in ("forward", "bidirectional"):
         raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got {kind!r}")
     forward = _forward_chain(sk, start, end, n)
     if kind == "forward" or n < 2:
         roots_f, local_f = _track_sequential(problem, options, views, [forward])[0]
+        ends["uncorrected_end"] = (roots_f[-1], local_f[-1])
         t, r = motion_between(sk, roots_f[:-1], local_f[:-1], roots_f[1:], local_f[1:])
         return correct_trajectory(problem, start, end, t, r, options)
     m = (n + 1) // 2
@@ -959,6 +1064,7 @@ def seed_trajectory(problem, options, views, start, end, kind):
               tuple(x[:n - m] if i else x for i, x in enumerate(backward))]
     (roots_f, local_f), (roots_b, local_b) = _track_sequential(problem, options, views, chains)
     roots_b, local_b = roots_b[::-1], local_b[::-1]             # frames m .. n
+    ends["middles"] = (Pose(roots_f[-1], local_f[-1]), Pose(roots_b[0], local_b[0]))
     middle = Pose(0.5 * (roots_f[-1] + roots_b[0]),
                   local_f[-1] @ exp_so3(0.5 * log_so3(np.swapaxes(local_f[-1], -1, -2)
                                                       @ local_b[0])))

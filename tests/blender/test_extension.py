@@ -1,5 +1,6 @@
 """The built zip installs like a user's, registers its operators/menus, and unregisters cleanly."""
 
+import importlib
 import re
 import shutil
 import subprocess
@@ -81,6 +82,7 @@ def test_operators_and_menus_are_registered():
 
 
 def test_register_unregister_register_leaves_nothing_stale():
+    cli = importlib.import_module(f"{MODULE}.addon.cli")
     registered = {c.__name__ for c in _our_classes()}
     assert registered
     handlers_before = len(_our_handlers())
@@ -91,9 +93,17 @@ def test_register_unregister_register_leaves_nothing_stale():
         assert _menu_draw_funcs(bpy.types.TOPBAR_MT_file_export) == []
         assert _our_handlers() == []
         assert not hasattr(bpy.types, "VIEW3D_PT_track_and_stride")
+        for menu in (bpy.types.VIEW3D_MT_pose, bpy.types.GRAPH_MT_key, bpy.types.DOPESHEET_MT_key):
+            assert _menu_draw_funcs(menu) == []
+        assert cli._HANDLES == []                                       # command unregistered
+        assert MODULE not in bpy.context.preferences.addons
     finally:
         addon_utils.enable(MODULE, default_set=True)
     assert {c.__name__ for c in _our_classes()} == registered
     assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 2  # no duplicate entries
+    for menu in (bpy.types.VIEW3D_MT_pose, bpy.types.GRAPH_MT_key, bpy.types.DOPESHEET_MT_key):
+        assert len(_menu_draw_funcs(menu)) == 1
+    assert len(cli._HANDLES) == 1
+    assert bpy.context.preferences.addons[MODULE].preferences is not None
     assert len(_our_handlers()) == handlers_before
     assert bpy.ops.import_anim.acclaim.poll() in (True, False)

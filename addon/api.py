@@ -1,0 +1,283 @@
+"""Track & Stride's Python API: what the command line runs, for scripts and pipeline tools.
+
+Every function works on the open file (``bpy.data``), takes plain arguments (names or
+objects, paths, numbers), returns a summary dict that :func:`json.dumps` can write, and raises
+one of :data:`ERRORS` -- with a message that says why and what to do -- when the request cannot
+be carried out; then nothing was changed. Nothing here saves the file (see :func:`save_blend`).
+Defaults that are not given come from the add-on's preferences
+(Edit › Preferences › Add-ons › Track & Stride, :mod:`.preferences`).
+
+Reaching the module from a script (installed from disk, it lives in the ``user_default``
+repository)::
+
+    import importlib
+    ts = importlib.import_module("bl_ext.user_default.track_and_stride.addon.api")
+    summary = ts.track(armature="Walker", processes=2)
+
+``docs/pipeline.md`` documents every function, its return dict and the command line.
+"""
+
+from pathlib import Path
+
+import bpy
+
+from ..core.mocap import MocapParseError
+from .gait import storage as gait_storage
+from .gait.bridge import PredictOptions, predict_gait, resolve_model
+from .gait.bridge import export_model, import_model, learn    # noqa: F401  (re-exported)
+from .gait.rigs import GaitError
+from .mocap.acclaim_bridge import AcclaimError, scene_fps
+from .mocap.acclaim_import import AcclaimImport
+from .common.fcurves import object_channelbag
+from .preferences import preferences
+from .tracking.batch import track_armature
+from .tracking.bridge import TrackError
+
+__all__ = ["track", "predict", "import_acclaim", "learn", "export_model", "import_model",
+           "open_blend", "save_blend", "find_model", "ERRORS", "TrackError", "GaitError",
+           "AcclaimError", "MocapParseError"]
+
+#: What the API raises when a request cannot be carried out (nothing was changed then).
+ERRORS = (TrackError, GaitError, AcclaimError, MocapParseError)
+
+
+class _SceneContext:
+    """What the bridges read from ``bpy.context``: the scene (and the active object)."""
+
+    def __init__(self, scene, active_object=None):
+        self.scene = scene
+        self.active_object = active_object
+
+
+def _scene(scene):
+    if scene is None:
+        return bpy.context.scene
+    if isinstance(scene, str):
+        found = bpy.data.scenes.get(scene)
+        if found is None:
+            raise ValueError(f"No scene named {scene!r} in this file")
+        return found
+    return scene
+
+
+def _object(name_or_object, kind, error):
+    """An object of ``kind`` ('ARMATURE', 'CAMERA') by name, or the object itself."""
+    if name_or_object is None:
+        return None
+    obj = bpy.data.objects.get(name_or_object) if isinstance(name_or_object, str) \
+        else name_or_object
+    if obj is None:
+        raise error(f"No object named {name_or_object!r} in this file")
+    if obj.type != kind:
+        raise error(f"{obj.name} is not {'an armature' if kind == 'ARMATURE' else 'a camera'}")
+    return obj
+
+
+# ------------------------------------------------------------------------------ tracking
+def track(armature=None, camera=None, frames=None, processes=None, suggest=False, scene=None):
+    """Track Keyframes on a scene, synchronously (``tracking.batch.track_armature``).
+
+    Parameters
+    ----------
+    armature : str or bpy.types.Object, optional
+        Default: the Track panel's armature, else the scene's only armature.
+    camera : str or bpy.types.Object, optional
+        Default: the Track panel's camera, else the scene camera.
+    frames : (int, int), optional
+        Frames searched for keyframes; default: the Track panel's range.
+    processes : int, optional
+        Worker processes (0 = automatic); default: the Track panel's, whose 0 means the
+        add-on preference *Tracking Processes*.
+    suggest : bool
+        Also mark suggested keyframes (timeline markers at residual spikes).
+    scene : str or bpy.types.Scene, optional
+        Default: the current scene.
+
+    Returns
+    -------
+    dict
+        See ``track_armature`` (``status``, ``intervals``, ``keys``, ``message`` …).
+
+    Raises
+    ------
+    TrackError
+    """
+    scene = _scene(scene)
+    return track_armature(scene, _object(armature, "ARMATURE", TrackError),
+                          _object(camera, "CAMERA", TrackError), frames, processes, suggest)
+
+
+# ------------------------------------------------------------------------------ gait
+def find_model(name):
+    """(name, GaitModel) for a model argument: '' (the file's active model), a model of the
+    file, the stock library's name, or a model file (.npz). :class:`GaitError` names the
+    models there are (and says when ``name`` is a style of the model rather than a model)."""
+    try:
+        return resolve_model(name)
+    except GaitError as exc:
+        if name and not str(name).lower().endswith(".npz"):
+            try:
+                active, model = gait_storage.active_entry()
+            except GaitError:
+                raise exc from None
+            if name in model.style_names:
+                raise GaitError(f"{exc}; {name!r} is a style of {active}: ask for it as a style "
+                                "(--style / style_mode='LIBRARY')") from None
+        raise
+
+
+def predict(armature=None, model="", frames=None, length=None, scene=None, **options):
+    """Predict Gait: continue an armature's walk after its observed frames.
+
+    Parameters
+    ----------
+    armature : str or bpy.types.Object, optional
+        The walker (an Acclaim import or a CMU BVH conversion). Default: the active object
+        when it is an armature, else the scene's only armature.
+    model : str
+        A gait model of the file by name, the stock library's name (``'Stock Gaits'``), the
+        path of a model file (.npz), or '' (the file's active model; the stock library in a
+        file without models).
+    frames : (int, int), optional
+        The observed frames (the reference range); default: the keyed range.
+    length : float, optional
+        Seconds to predict; default: the add-on preference *Prediction Length* (2 s).
+    scene : str or bpy.types.Scene, optional
+    **options
+        Other Predict Gait options (``gait.bridge.PredictOptions``): ``cadence``,
+        ``style_mode`` ('OBSERVED', 'RESTYLE', 'LIBRARY'), ``library_style``,
+        ``restyle_from``, ``restyle_to``, ``restyle_amount``, ``stride``, ``root_travel``,
+        ``plant_feet``, ``mannerisms``, ``adaptation`` ('BATCH', 'ONLINE'), ``target``
+        ('AFTER', 'NEW_ACTION').
+
+    Returns
+    -------
+    dict
+        ``status``, ``object``, ``action``, ``model``, ``observed`` and ``predicted`` frame
+        ranges, ``keys``, ``strides_per_s``, ``fit``, ``period_s``, ``replaced``,
+        ``warnings``, ``message`` (``gait.bridge.predict_gait``).
+
+    Raises
+    ------
+    GaitError
+    """
+    scene = _scene(scene)
+    obj = _object(armature, "ARMATURE", GaitError) if armature is not None \
+        else default_walker(scene)
+    if length is None:
+        length = preferences().gait_length
+    kwargs = dict(options, model=str(model or ""), horizon=float(length))
+    if frames is not None:
+        kwargs.update(range_mode="CUSTOM", frame_start=int(frames[0]), frame_end=int(frames[1]))
+    unknown = set(kwargs) - set(PredictOptions.__dataclass_fields__)
+    if unknown:
+        raise GaitError(f"Unknown predict options: {', '.join(sorted(unknown))}")
+    find_model(kwargs["model"])                        # refuse an unknown model by its name
+    return predict_gait(_SceneContext(scene, obj), obj, PredictOptions(**kwargs))
+
+
+def default_walker(scene):
+    """The armature to predict when none is named: the active object when it is an armature
+    of the scene, else the scene's only armature; :class:`GaitError` when neither says."""
+    active = bpy.context.view_layer.objects.active if scene == bpy.context.scene else None
+    if active is not None and active.type == "ARMATURE":
+        return active
+    found = [o for o in scene.objects if o.type == "ARMATURE"]
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise GaitError(f"Scene {scene.name} has no armature to predict")
+    names = ", ".join(sorted(o.name for o in found))
+    raise GaitError(f"Scene {scene.name} has several armatures ({names}) and none is active: "
+                    "say which one walks")
+
+
+# ------------------------------------------------------------------------------ import
+def import_acclaim(motion, skeleton="", frame_rate_mode=None, capture_rate=None,
+                   use_file_rate=True, frame_start=1, set_frame_range=True):
+    """Import an Acclaim motion (.amc) and its skeleton (.asf) as an animated armature into the
+    current scene (as *File › Import › Acclaim*, synchronously).
+
+    Parameters
+    ----------
+    motion : str or Path
+        The .amc (or .amc.gz) file.
+    skeleton : str or Path
+        The .asf; '' = found beside the motion (same name, the CMU subject number, or the only
+        .asf there).
+    frame_rate_mode : {'RESAMPLE', 'KEEP'}, optional
+        Resample to the scene's frames per second, or keep the capture rate (and set the
+        scene's to it). Default: the add-on preference (Resample).
+    capture_rate : float, optional
+        Samples per second of a motion that records no rate; default: the add-on preference
+        (120, CMU's rate).
+    use_file_rate : bool
+        Use the rate the .amc records, when it records one.
+    frame_start : int
+        Scene frame of the first sample.
+    set_frame_range : bool
+        Set the scene's frame range to the motion.
+
+    Returns
+    -------
+    dict
+        ``status`` 'ok', ``object`` (the new armature), ``action``, ``frames`` [first, last],
+        ``fps`` (the scene's, after the import), ``bones``, ``fcurves``, ``keys``,
+        ``motion`` and ``skeleton`` (paths), ``warnings`` [], ``message``.
+
+    Raises
+    ------
+    AcclaimError
+        A file is missing or the import cannot run.
+    MocapParseError
+        A file is malformed (the message names the file and line).
+    """
+    prefs = preferences()
+    mode = frame_rate_mode or prefs.acclaim_frame_rate_mode
+    if mode not in ("RESAMPLE", "KEEP"):
+        raise AcclaimError(f"frame_rate_mode must be 'RESAMPLE' or 'KEEP', got {mode!r}")
+    rate = prefs.acclaim_capture_rate if capture_rate is None else float(capture_rate)
+    context = bpy.context
+    job = AcclaimImport(context, str(motion), str(skeleton or ""), mode, rate,
+                        bool(use_file_rate), int(frame_start), bool(set_frame_range))
+    message = job.run()
+    obj = context.view_layer.objects.active
+    bag = object_channelbag(obj)
+    fcurves = list(bag.fcurves) if bag is not None else []
+    n_frames = len(fcurves[0].keyframe_points) if fcurves else 0
+    return {"status": "ok", "object": obj.name, "action": obj.animation_data.action.name,
+            "frames": [job.frame_start, job.frame_start + n_frames - 1],
+            "fps": scene_fps(context.scene), "bones": len(obj.data.bones),
+            "fcurves": len(fcurves), "keys": sum(len(f.keyframe_points) for f in fcurves),
+            "motion": str(Path(job.amc_path).resolve()),
+            "skeleton": str(Path(job.asf_path).resolve()), "warnings": [], "message": message}
+
+
+# ------------------------------------------------------------------------------ files
+def open_blend(path):
+    """Open a .blend file (replacing the open one). :class:`ValueError` when it cannot be read."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path} does not exist")
+    try:
+        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+    except RuntimeError as exc:
+        raise ValueError(f"Cannot open {path.name} as a .blend file: "
+                         f"{str(exc).strip().splitlines()[-1]}") from None
+
+
+def save_blend(path=None):
+    """Save the open file to ``path`` (None: where it was opened from); returns the path.
+    Paths relative to the file (footage, libraries) are remapped to the new location.
+    :class:`OSError` when it cannot be written."""
+    target = Path(path).resolve() if path else Path(bpy.data.filepath)
+    if not str(target) or (not path and not bpy.data.filepath):
+        raise OSError("The file has never been saved: give a path")
+    try:
+        if path and str(target) != bpy.data.filepath:
+            bpy.ops.wm.save_as_mainfile(filepath=str(target), check_existing=False)
+        else:
+            bpy.ops.wm.save_mainfile()
+    except RuntimeError as exc:
+        raise OSError(f"Cannot save {target}: {str(exc).strip().splitlines()[-1]}") from None
+    return str(target)

@@ -1,0 +1,124 @@
+"""What Track Keyframes kept, per interval and body part, shown to the animator.
+
+The core decides, per interval between two keys and per body part (torso and head, arms,
+legs), whether the tracked motion is kept or the in-between of the keys
+(``core.tracking.acceptance``). This module words that for the operator's report
+(:func:`interval_notes`) and writes it as curves the Graph Editor shows
+(:func:`write_part_curves`): one custom property of the armature object per part,
+``Tracked: <part>``, 1 where the part follows the footage, 0 where it kept the in-between of
+the keys, keyed at every interval's first frame with constant interpolation, in the channel
+group *Track & Stride* beside the residual and rank curves.
+"""
+
+import bpy
+import numpy as np
+
+from ...core.tracking.acceptance import DRIFTED, HIDDEN, NOT_TRACKED
+from ..common.fcurves import enum_value, insert_keys_preserving, remove_keys_at, set_key_type
+
+#: Custom property (and F-curve) name prefix of the per-part result curves.
+PART_CURVE_PREFIX = "Tracked: "
+GROUP = "Track & Stride"
+GENERATED = "GENERATED"
+
+
+def _cm(metres):
+    cm = 100.0 * float(metres)
+    return f"{cm:.1f}" if cm < 9.95 else f"{cm:.0f}"
+
+
+def _why(reason, drift, seen):
+    if reason == DRIFTED:
+        return f"drift {_cm(drift)} cm at the end key"
+    if reason == HIDDEN:
+        return f"mostly hidden: {100.0 * float(seen):.0f} % in view"
+    return ""
+
+
+def interval_notes(key_frames, intervals):
+    """One plain-words line per interval where a body part kept the in-between of the keys.
+
+    Parameters
+    ----------
+    key_frames : sequence of int
+        Scene frames of the keys (K,).
+    intervals : sequence of IntervalResult
+        K - 1 results (``acceptance`` may be None: an interval nothing tracked).
+
+    Returns
+    -------
+    list of str
+        e.g. ``"Frames 40–60, left leg: kept the in-between of your keys — the footage did
+        not support the tracked motion (drift 6.0 cm at the end key)"``.
+    """
+    notes = []
+    for i, r in enumerate(intervals):
+        span = f"Frames {int(key_frames[i])}–{int(key_frames[i + 1])}"
+        verdicts = r.acceptance
+        if verdicts is None or all(x == NOT_TRACKED for x in verdicts.reasons):
+            if r.kept_iteration == 0 and int(key_frames[i + 1]) - int(key_frames[i]) > 1:
+                notes.append(f"{span}: kept the in-between of your keys — no tracked motion "
+                             "matched the footage better")
+            continue
+        kept = [p for p, ok in enumerate(verdicts.tracked) if not ok]
+        if not kept:
+            continue
+        parts = [verdicts.parts[p] for p in kept]
+        names = ", ".join(parts[:-1]) + (" and " if len(parts) > 1 else "") + parts[-1]
+        whys = "; ".join((f"{verdicts.parts[p]}: " if len(kept) > 1 else "")
+                         + _why(verdicts.reasons[p], verdicts.drift[p], verdicts.seen[p])
+                         for p in kept)
+        notes.append(f"{span}, {names}: kept the in-between of your keys — the footage did not "
+                     f"support the tracked motion ({whys})")
+    return notes
+
+
+def part_results(key_frames, intervals):
+    """Per part name, 1.0 / 0.0 per interval (tracked / kept the in-between).
+
+    Returns
+    -------
+    dict of str -> ndarray, shape (K - 1,)
+    """
+    names = []
+    for r in intervals:
+        if r.acceptance is not None:
+            names += [n for n in r.acceptance.parts if n not in names]
+    out = {n: np.zeros(len(intervals)) for n in names}
+    for i, r in enumerate(intervals):
+        if r.acceptance is None:
+            continue
+        for name, ok in zip(r.acceptance.parts, r.acceptance.tracked):
+            out[name][i] = float(ok)
+    return out
+
+
+def write_part_curves(obj, bag, key_frames, intervals):
+    """The ``Tracked: <part>`` curves (module docstring) over the keys' span, replacing this
+    module's earlier keys there. Returns the part names written."""
+    key_frames = np.asarray(key_frames, dtype=float)
+    results = part_results(key_frames, intervals)
+    constant = enum_value(bpy.types.Keyframe, "interpolation", "CONSTANT")
+    for name, values in results.items():
+        prop = PART_CURVE_PREFIX + name
+        if prop not in obj.keys():
+            obj[prop] = 1
+        obj.id_properties_ui(prop).update(min=0, max=1, description=(
+            f"Track & Stride: 1 where the {name} follows the footage, 0 where it kept the "
+            "in-between of your keys because the footage did not support the tracked motion "
+            "(the reason per interval is in Track Keyframes' report, Info editor)"))
+        path = f'["{prop}"]'
+        fcurve = bag.fcurves.find(path, index=0)
+        span = np.arange(key_frames[0], key_frames[-1] + 1)
+        if fcurve is not None:
+            remove_keys_at(fcurve, span)
+        # The last key holds the last interval's value up to the final key.
+        frames = np.concatenate([key_frames[:-1], key_frames[-1:]])
+        insert_keys_preserving(bag, path, 0, GROUP, frames,
+                               np.concatenate([values, values[-1:]]))
+        fcurve = bag.fcurves.find(path, index=0)
+        points = fcurve.keyframe_points
+        points.foreach_set("interpolation", np.full(len(points), constant, np.int32))
+        set_key_type(fcurve, frames, GENERATED)
+        fcurve.update()
+    return list(results)

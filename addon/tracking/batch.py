@@ -1,0 +1,193 @@
+"""Track Keyframes without the UI: one function that scripts, the Python API
+(:mod:`..api`) and the command line (:mod:`..cli`) call.
+
+:func:`track_armature` runs the operator's synchronous path (``bridge.prepare_tracking`` →
+``read_footage`` → ``run_core`` → ``apply_result``) on the scene's Track settings, with the
+armature, camera, frame range and processes given as arguments instead of the panel's (the
+scene's settings are read, never changed). It refuses and changes nothing exactly where the
+operator does (:class:`~.bridge.TrackError`), and returns a summary dict with one entry per
+interval.
+"""
+
+import time
+
+import numpy as np
+
+from .bridge import (TrackError, apply_result, prepare_tracking, read_footage, run_core,
+                     suggest_markers)
+from .props import track_settings
+
+
+class _BatchContext:
+    """What the bridge reads from ``bpy.context``: the scene and the active object."""
+
+    def __init__(self, scene, active_object):
+        self.scene = scene
+        self.active_object = active_object
+
+
+class _SettingsView:
+    """The scene's Track settings with some fields replaced (read-only view: the scene's
+    settings stay as they are)."""
+
+    def __init__(self, settings, **overrides):
+        self._settings = settings
+        self._overrides = overrides
+
+    def __getattr__(self, name):
+        overrides = self.__dict__["_overrides"]
+        if name in overrides:
+            return overrides[name]
+        return getattr(self.__dict__["_settings"], name)
+
+
+def batch_settings(scene, armature=None, camera=None, frame_range=None, processes=None):
+    """(context, settings) for the bridge: the scene's Track settings, overridden by the
+    arguments that are given (see :func:`track_armature`)."""
+    settings = track_settings(scene)
+    overrides = {}
+    if armature is not None:
+        if armature.type != "ARMATURE":
+            raise TrackError(f"{armature.name} is not an armature")
+        overrides["armature"] = armature
+    if camera is not None:
+        if camera.type != "CAMERA":
+            raise TrackError(f"{camera.name} is not a camera")
+        overrides["camera"] = camera
+    if frame_range is not None:
+        first, last = (int(f) for f in frame_range)
+        overrides.update(range_mode="CUSTOM", frame_start=first, frame_end=last)
+    if processes is not None:
+        if int(processes) < 0:
+            raise TrackError(f"Processes must be 0 (automatic) or more, got {processes}")
+        overrides["processes"] = int(processes)
+    view = _SettingsView(settings, **overrides)
+    return _BatchContext(scene, armature or default_armature(scene)), view
+
+
+def default_armature(scene):
+    """The armature to track when none is named: the Track panel's, else the scene's only
+    armature; :class:`TrackError` when neither says."""
+    chosen = track_settings(scene).armature
+    if chosen is not None:
+        return chosen
+    found = [o for o in scene.objects if o.type == "ARMATURE"]
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise TrackError(f"Scene {scene.name} has no armature to track")
+    names = ", ".join(sorted(o.name for o in found))
+    raise TrackError(f"Scene {scene.name} has several armatures ({names}) and its Track panel "
+                     "names none: say which one to track")
+
+
+def interval_summaries(request, result):
+    """One dict per interval of a finished run (see :func:`track_armature`)."""
+    out = []
+    for i, r in enumerate(result.intervals):
+        errors = np.asarray(r.errors, dtype=float)
+        kept = int(r.kept_iteration)
+        if r.diverged:
+            status = "diverged"
+        elif kept == 0:
+            status = "interpolated"
+        else:
+            status = "tracked"
+        ratio = float(errors[kept] / errors[0]) if errors[0] > 0 else None
+        out.append({
+            "frames": [int(request.key_frames[i]), int(request.key_frames[i + 1])],
+            "status": status,
+            "reason": str(r.reason),
+            "error_vs_interpolation": ratio,
+            "mean_residual": float(np.mean(r.residuals)),
+            "min_rank": int(np.min(r.ranks)),
+            "parts": part_summaries(r.acceptance),
+        })
+    return out
+
+
+def part_summaries(verdicts):
+    """Per body part of one interval: ``result`` 'tracked' or 'in-between' (kept the keys'
+    interpolation), the core's ``reason`` code and the evidence in cm (``drift_cm``,
+    ``departure_cm``; None where not measured) and ``seen`` (share in view)."""
+    if verdicts is None:
+        return {}
+
+    def cm(value):
+        return round(100.0 * float(value), 2) if np.isfinite(value) else None
+    return {part: {"result": "tracked" if verdicts.tracked[p] else "in-between",
+                   "reason": str(verdicts.reasons[p]), "drift_cm": cm(verdicts.drift[p]),
+                   "departure_cm": cm(verdicts.departure[p]),
+                   "seen": round(float(verdicts.seen[p]), 3)}
+            for p, part in enumerate(verdicts.parts)}
+
+
+def track_armature(scene, armature=None, camera=None, frame_range=None, processes=None,
+                   suggest=False):
+    """Track an armature through the scene's footage between its keyframes, synchronously.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+        Its Track settings give the footage, the iterations and thresholds; its render size
+        and (by default) its camera the intrinsics.
+    armature : bpy.types.Object, optional
+        Default: the Track panel's armature, else the scene's only armature.
+    camera : bpy.types.Object, optional
+        The camera that filmed the footage. Default: the Track panel's camera, else the
+        scene camera.
+    frame_range : (int, int), optional
+        Frames searched for keyframes. Default: the Track panel's range.
+    processes : int, optional
+        Worker processes (0 = automatic: the add-on preference, else one per CPU).
+        Default: the Track panel's value.
+    suggest : bool
+        Also put suggestion markers at residual spikes (*Suggest Keyframes*).
+
+    Returns
+    -------
+    dict
+        ``status`` ('ok', or 'warning' when a body part kept the in-between of the keys
+        somewhere: ``warnings`` say where and why), ``armature``,
+        ``camera``, ``frames`` ([first, last] keyframe), ``keyframes`` (list of int),
+        ``intervals`` (one dict each: ``frames`` [a, b], ``status`` 'tracked' /
+        'interpolated' (the interpolation between the keys scored best and was kept) /
+        'diverged', ``reason``, ``error_vs_interpolation`` (photometric error of the kept
+        trajectory / the interpolation's, the paper's eq. 4 total), ``mean_residual``,
+        ``min_rank``, ``parts``: per body part whether it kept the tracking or the keys'
+        in-between and why, :func:`part_summaries`), ``bones``, ``keys`` (keys written), ``suggested`` (frames; only with
+        ``suggest``), ``seconds`` ({'read', 'track', 'write'}), ``warnings``, ``message``.
+
+    Raises
+    ------
+    TrackError
+        The run cannot be carried out (the message says why); nothing was changed.
+    """
+    context, settings = batch_settings(scene, armature, camera, frame_range, processes)
+    tic = time.perf_counter()
+    request = prepare_tracking(context, settings)
+    frames = read_footage(request, 0, len(request.scene_frames))
+    read_s = time.perf_counter() - tic
+    result = run_core(request, frames)
+    del frames
+    message, warnings = apply_result(context, request, result)
+    intervals = interval_summaries(request, result)
+    summary = {
+        "status": "warning" if warnings else "ok",
+        "armature": request.obj_name,
+        "camera": (settings.camera or scene.camera).name,
+        "frames": [request.first, request.last],
+        "keyframes": [int(f) for f in request.key_frames],
+        "intervals": intervals,
+        "bones": len(request.tracked_bones),
+        "keys": int(request.written),
+        "seconds": {"read": read_s, "track": request.timings.get("track", 0.0),
+                    "write": request.timings.get("write", 0.0)},
+        "warnings": list(warnings),
+        "message": message,
+    }
+    if suggest:
+        line, suggested = suggest_markers(context, settings)
+        summary["suggested"] = [int(f) for f in suggested]
+        summary["message"] += f". {line}"
+    return summary

@@ -1,0 +1,70 @@
+"""Development: re-run the tracking core on exactly what the operator handed it, outside Blender.
+
+``benchmarks/bench_real.py --dump-core-inputs DIR`` saves, per camera and spacing, the request
+the operator built (problem, options, keys: ``<cam>_<every>.pkl``, classes of the installed
+extension) and the decoded frames (``<cam>_frames.npy``), plus the reference joints
+(``reference.npz``). This module loads them with the classes mapped back to this checkout's
+``core`` and scores poses against the reference, so that settings of the core (e.g. the
+acceptance rule, ``benchmarks/tune_acceptance.py``) can be compared in seconds instead of a
+5-minute benchmark run. Not used by ``make bench-real``.
+"""
+
+import pickle
+import re
+from pathlib import Path
+
+import numpy as np
+
+from core.kinematics import forward_kinematics
+
+
+class _CoreUnpickler(pickle.Unpickler):
+    """Maps ``bl_ext.<repo>.track_and_stride.core.x`` (the installed extension) to ``core.x``."""
+
+    def find_class(self, module, name):
+        module = re.sub(r"^.*?\.core(\.|$)", r"core\1", module) if ".core" in module else module
+        return super().find_class(module, name)
+
+
+def load_case(folder, camera, every):
+    """The operator's request for one camera and spacing, and that camera's frames.
+
+    Returns
+    -------
+    case : dict
+        ``problem``, ``options``, ``key_frames`` (scene frames), ``key_roots``,
+        ``key_locals``, ``bone_names``, ``armature2world``, ``frames`` (N, H, W) float32
+        (scene frames 1..N).
+    """
+    folder = Path(folder)
+    with open(folder / f"{camera}_{every}.pkl", "rb") as f:
+        case = _CoreUnpickler(f).load()
+    case["frames"] = np.load(folder / f"{camera}_frames.npy", mmap_mode="r")
+    return case
+
+
+class Reference:
+    """The benchmark's reference joints and how the rig places them (``reference.npz``)."""
+
+    def __init__(self, folder):
+        data = np.load(Path(folder) / "reference.npz")
+        self.joints = data["joints"]                          # (N, J, 3), scene frames 1..N
+        self.joint_offsets = data["joint_offsets"]
+        self.bone_names = [str(b) for b in data["bone_names"]]
+        self.joint_bones = data["joint_bones"]
+
+    def pose_joints(self, case, roots, local):
+        """World positions (F, J, 3) of the scored joints at core poses of ``case``'s rig."""
+        sk = case["problem"].skeleton
+        order = [case["bone_names"].index(self.bone_names[b]) for b in self.joint_bones]
+        rot, pos = forward_kinematics(sk, np.asarray(local), np.asarray(roots))
+        a2w = np.asarray(case["armature2world"], dtype=float)
+        rot = np.einsum("ij,fbjk->fbik", a2w[:3, :3], rot)
+        pos = pos @ a2w[:3, :3].T + a2w[:3, 3]
+        rot, pos = rot[:, order], pos[:, order]
+        return pos + np.einsum("fjab,jb->fja", rot, self.joint_offsets)
+
+    def errors(self, case, frames, roots, local):
+        """Joint distances (F, J), metres, at scene frames ``frames`` (F,)."""
+        est = self.pose_joints(case, roots, local)
+        return np.linalg.norm(est - self.joints[np.asarray(frames) - 1], axis=-1)

@@ -1,0 +1,266 @@
+"""Never worse than the interpolation: which body parts of an interval keep the tracked motion.
+
+Eq. 4 (the photometric error) picks the best of the trajectories an interval tracked, but on
+real footage it is not a reliable judge of whether the tracked motion beats the keys'
+interpolation (issue 10: legs pulled together where dark shorts meet a dark mat, planted feet
+drifting). So after tracking, every **body part** (torso and head, left/right arm, left/right
+leg: :func:`body_parts`) is judged on evidence beyond eq. 4, and a part whose tracked motion the
+footage does not support gets the interpolation back -- the slerp of the keys the tracker
+started from, bit for bit on that part's bones (:func:`keep_interpolation`).
+
+The evidence, per part and interval (distances: mean over the part's bone heads and tails, the
+rest of the body held at the interpolation, so a limb is not blamed for the torso):
+
+* ``drift`` (m): how far the tracking pass that produced the kept trajectory, accumulated frame
+  by frame from the start key, missed the end key before the drift correction (§3) pulled it
+  there; for the bidirectional seed, the gap between its forward and backward halves where they
+  meet. Drift is error the correction spreads linearly over the interval: when it is large the
+  frame-to-frame motion was not what the images showed.
+* ``gap`` (m): forward and backward passes of the seed disagree at the middle frame (NaN when
+  no seed ran).
+* ``departure`` (m): the largest distance, over the interval's frames, between the tracked part
+  and the interpolated part: what keeping the tracking changes.
+* ``seen``: the share of the part's outline in view (not hidden by other parts or by the image
+  border), mean over the interval's frames, best camera.
+
+The rule (:class:`AcceptanceRule`, thresholds chosen on the validation clips and one camera of
+the real footage, ``docs/tracking.md`` *Never worse than the interpolation*): keep the tracked
+motion of a part unless its drift exceeds both ``max_drift`` and ``drift_ratio`` times its
+departure (the correction would then move the part more than the tracking itself did), or it
+is seen less than ``min_seen`` (the images hardly measure it).
+
+Plain arrays in and out; the bridge turns :class:`PartVerdicts` into the animator's words.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..kinematics import bone_tails, forward_kinematics
+
+#: Part names, in the order :func:`body_parts` numbers them.
+TORSO, LEFT_ARM, RIGHT_ARM, LEFT_LEG, RIGHT_LEG = ("torso and head", "left arm", "right arm",
+                                                   "left leg", "right leg")
+PART_NAMES = (TORSO, LEFT_ARM, RIGHT_ARM, LEFT_LEG, RIGHT_LEG)
+
+#: Reason codes of :class:`PartVerdicts` (the bridge words them for the animator).
+TRACKED = "tracked"
+DRIFTED = "drifted"
+HIDDEN = "hidden"
+NOT_TRACKED = "not tracked"
+
+
+@dataclass(frozen=True)
+class AcceptanceRule:
+    """Thresholds of the per-part acceptance (see the module docstring).
+
+    Attributes
+    ----------
+    max_drift : float, metres
+        Drift below this never rejects a part.
+    drift_ratio : float
+        A part whose drift exceeds ``max_drift`` is rejected when the drift is also more than
+        this many times its departure from the interpolation.
+    min_seen : float
+        A part seen (mean share of its outline in view) less than this keeps the interpolation.
+    """
+
+    max_drift: float = 0.03
+    drift_ratio: float = 2.0
+    min_seen: float = 0.0
+
+
+@dataclass(eq=False)
+class PartVerdicts:
+    """Per-part evidence and decision of one interval.
+
+    Attributes
+    ----------
+    parts : tuple of str
+        Part names (``PART_NAMES`` order, only the parts the rig has).
+    drift, gap, departure : ndarray, shape (P,), metres
+    seen : ndarray, shape (P,)
+    tracked : ndarray, shape (P,), bool
+        True: the part keeps the tracked motion; False: it keeps the interpolation.
+    reasons : tuple of str
+        One code per part: ``TRACKED``, ``DRIFTED``, ``HIDDEN`` or ``NOT_TRACKED`` (the
+        interval as a whole kept the interpolation, e.g. eq. 4 preferred it).
+    """
+
+    parts: tuple
+    drift: np.ndarray
+    gap: np.ndarray
+    departure: np.ndarray
+    seen: np.ndarray
+    tracked: np.ndarray
+    reasons: tuple = field(default_factory=tuple)
+
+
+def side_of(name):
+    """'left', 'right' or None from a bone name (CMU ``lfemur``, Mixamo ``LeftUpLeg``, Blender
+    ``thigh.L`` / ``thigh_l``, ``l_thigh``)."""
+    low = name.lower().replace("mixamorig:", "")
+    if low.startswith("left") or low.endswith(("left", ".l", "_l", "-l", " l")) \
+            or low.startswith(("l_", "l.", "l-")):
+        return "left"
+    if low.startswith("right") or low.endswith(("right", ".r", "_r", "-r", " r")) \
+            or low.startswith(("r_", "r.", "r-")):
+        return "right"
+    if low.startswith(("lhip", "lfemur", "ltibia", "lfoot", "ltoe", "lclav", "lhumer", "lradius",
+                       "lwrist", "lhand", "lfinger", "lthumb", "lshoulder", "lupperarm", "lknee",
+                       "lankle", "lelbow", "lforearm", "lthigh", "lshin", "lcalf", "lleg", "larm")):
+        return "left"
+    if low.startswith(("rhip", "rfemur", "rtibia", "rfoot", "rtoe", "rclav", "rhumer", "rradius",
+                       "rwrist", "rhand", "rfinger", "rthumb", "rshoulder", "rupperarm", "rknee",
+                       "rankle", "relbow", "rforearm", "rthigh", "rshin", "rcalf", "rleg", "rarm")):
+        return "right"
+    return None
+
+
+def body_parts(names, parents):
+    """Body parts of a rig: torso and head, left/right arm, left/right leg.
+
+    A limb is the subtree of a sided bone (:func:`side_of`) whose parent is not sided; it is a
+    leg when it hangs from the root bone, an arm otherwise. Every other bone (root, spine,
+    neck, head, and bones without a side) belongs to the torso and head.
+
+    Parameters
+    ----------
+    names : sequence of str, length B
+    parents : array_like, shape (B,), int
+        Parent index (-1 for the root), parents before children.
+
+    Returns
+    -------
+    parts : tuple of str
+        The names of the parts the rig has, in ``PART_NAMES`` order.
+    part_of : ndarray, shape (B,), int
+        Index into ``parts`` of every bone.
+    """
+    parents = np.asarray(parents, dtype=int)
+    full = np.zeros(len(names), dtype=int)                      # index into PART_NAMES
+    for j, name in enumerate(names):
+        p = parents[j]
+        if p >= 0 and full[p] != 0:
+            full[j] = full[p]
+            continue
+        side = side_of(name)
+        if side is None or p < 0:
+            continue
+        leg = parents[p] < 0                                    # hangs from the root bone
+        full[j] = {("left", False): 1, ("right", False): 2,
+                   ("left", True): 3, ("right", True): 4}[(side, bool(leg))]
+    present = [k for k in range(len(PART_NAMES)) if np.any(full == k)]
+    remap = np.full(len(PART_NAMES), -1)
+    remap[present] = np.arange(len(present))
+    return tuple(PART_NAMES[k] for k in present), remap[full]
+
+
+def _part_points(skeleton, roots, local):
+    """Heads and tails (F, B, 2, 3) of every bone."""
+    rot, pos = forward_kinematics(skeleton, local, roots)
+    return np.stack([pos, bone_tails(skeleton, rot, pos)], axis=2)
+
+
+def part_distances(skeleton, part_of, roots_a, local_a, roots_b, local_b, base_roots,
+                   base_local):
+    """Distance of every part between two trajectories, the rest of the body at ``base``.
+
+    For part ``p``, pose A' takes the local rotations of ``p``'s bones from A (and the root
+    translation, when ``p`` holds the root bone) and everything else from ``base``; B' likewise
+    from B. The distance is the mean over ``p``'s bone heads and tails of ``|A' - B'|``.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    part_of : ndarray, shape (B,), int
+    roots_a, roots_b, base_roots : ndarray, shape (F, 3), metres
+    local_a, local_b, base_local : ndarray, shape (F, B, 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (F, P), metres
+    """
+    n_parts = int(part_of.max()) + 1
+    out = np.empty((len(roots_a), n_parts))
+    for p in range(n_parts):
+        mine = part_of == p
+        poses = []
+        for roots, local in ((roots_a, local_a), (roots_b, local_b)):
+            mixed = np.array(base_local, dtype=float)
+            mixed[:, mine] = local[:, mine]
+            poses.append(_part_points(skeleton, roots if mine[0] else base_roots, mixed))
+        out[:, p] = np.linalg.norm(poses[0][:, mine] - poses[1][:, mine], axis=-1).mean(axis=(1, 2))
+    return out
+
+
+def judge_parts(rule, drift, departure, seen):
+    """The rule (module docstring): which parts keep the tracked motion, and why not.
+
+    Parameters
+    ----------
+    rule : AcceptanceRule
+    drift, departure, seen : ndarray, shape (P,)
+
+    Returns
+    -------
+    tracked : ndarray, shape (P,), bool
+    reasons : tuple of str
+        ``TRACKED``, ``DRIFTED`` or ``HIDDEN`` per part.
+    """
+    drift = np.asarray(drift, dtype=float)
+    departure = np.asarray(departure, dtype=float)
+    seen = np.asarray(seen, dtype=float)
+    drifted = (drift > rule.max_drift) & (drift > rule.drift_ratio * departure)
+    hidden = seen < rule.min_seen
+    reasons = tuple(DRIFTED if d else HIDDEN if h else TRACKED for d, h in zip(drifted, hidden))
+    return ~(drifted | hidden), reasons
+
+
+def keep_interpolation(part_of, tracked, roots, local, interp_roots, interp_local):
+    """The tracked trajectory with the rejected parts' bones set to the interpolation.
+
+    Parameters
+    ----------
+    part_of : ndarray, shape (B,), int
+    tracked : ndarray, shape (P,), bool
+        Parts that keep the tracking.
+    roots, interp_roots : ndarray, shape (F, 3)
+    local, interp_local : ndarray, shape (F, B, 3, 3)
+
+    Returns
+    -------
+    roots : ndarray, shape (F, 3)
+        The interpolation's when the root bone's part is rejected, else the tracked (copies).
+    local : ndarray, shape (F, B, 3, 3)
+        Rejected parts' bones: exactly ``interp_local``'s values.
+    """
+    rejected = ~np.asarray(tracked, dtype=bool)[part_of]
+    local = np.array(local, dtype=float)
+    local[:, rejected] = interp_local[:, rejected]
+    roots = np.array(interp_roots if rejected[0] else roots, dtype=float)
+    return roots, local
+
+
+def seen_shares(part_of, seen_joints, whole_joints):
+    """Share of each part's outline in view from per-bone pixel areas.
+
+    Parameters
+    ----------
+    part_of : ndarray, shape (B,), int
+    seen_joints : ndarray, shape (F, B)
+        Area of every bone's shape seen (front-most, inside the image) per frame, pixels.
+    whole_joints : ndarray, shape (F, B)
+        Area every bone's shape would cover on its own, pixels.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        Mean over frames of seen / whole (1 for a part without shape: nothing to hide).
+    """
+    n_parts = int(part_of.max()) + 1
+    onehot = np.eye(n_parts)[part_of]                                    # (B, P)
+    seen = np.asarray(seen_joints, dtype=float) @ onehot
+    whole = np.asarray(whole_joints, dtype=float) @ onehot
+    share = np.where(whole > 0, np.minimum(seen / np.where(whole > 0, whole, 1.0), 1.0), 1.0)
+    return share.mean(axis=0)

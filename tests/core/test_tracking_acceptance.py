@@ -1,0 +1,162 @@
+"""Per body part acceptance: the rule, exact identities of the kept interpolation, the wiring."""
+
+import numpy as np
+import pytest
+
+from core.kinematics import Skeleton, exp_so3
+from core.tracking.acceptance import (DRIFTED, HIDDEN, LEFT_ARM, LEFT_LEG, RIGHT_ARM,
+                                      RIGHT_LEG, TORSO, TRACKED, AcceptanceRule, body_parts,
+                                      judge_parts, keep_interpolation, part_distances,
+                                      seen_shares, side_of)
+from core.tracking.problem import TrackingOptions, TrackingProblem
+from core.tracking.trajectory import Pose, interpolate_poses, track_interval
+from tests.core.tracking_fixtures import front_camera, render, two_arm_body
+
+#: The benchmark rig of the real footage (benchmarks/real/rig.py) and CMU's ASF names.
+REAL_RIG = (("root", -1), ("lfemur", 0), ("ltibia", 1), ("lfoot", 2), ("rfemur", 0),
+            ("rtibia", 4), ("rfoot", 5), ("thorax", 0), ("neck", 7), ("head", 8),
+            ("lhumerus", 7), ("lradius", 10), ("rhumerus", 7), ("rradius", 12))
+
+
+def test_body_parts_of_the_real_rig():
+    names, parents = zip(*REAL_RIG)
+    parts, part_of = body_parts(names, parents)
+    assert parts == (TORSO, LEFT_ARM, RIGHT_ARM, LEFT_LEG, RIGHT_LEG)
+    got = {n: parts[p] for n, p in zip(names, part_of)}
+    assert got == {"root": TORSO, "thorax": TORSO, "neck": TORSO, "head": TORSO,
+                   "lfemur": LEFT_LEG, "ltibia": LEFT_LEG, "lfoot": LEFT_LEG,
+                   "rfemur": RIGHT_LEG, "rtibia": RIGHT_LEG, "rfoot": RIGHT_LEG,
+                   "lhumerus": LEFT_ARM, "lradius": LEFT_ARM,
+                   "rhumerus": RIGHT_ARM, "rradius": RIGHT_ARM}
+
+
+@pytest.mark.parametrize("name,side", [("lowerback", None), ("lclavicle", "left"),
+                                       ("LeftUpLeg", "left"), ("mixamorig:RightArm", "right"),
+                                       ("thigh.L", "left"), ("upper_arm.R", "right"),
+                                       ("root", None), ("rhipjoint", "right"), ("spine", None)])
+def test_sides_from_bone_names(name, side):
+    assert side_of(name) == side
+
+
+def test_the_rule_rejects_contradicted_parts_and_keeps_supported_ones():
+    rule = AcceptanceRule(max_drift=0.04, drift_ratio=1.0, min_seen=0.2)
+    #                 supported   drift > departure   drift < departure   hidden   no evidence
+    drift = np.array([0.01,       0.08,               0.08,               0.01,    np.nan])
+    departure = np.array([0.03,   0.02,               0.10,               0.05,    0.04])
+    seen = np.array([0.9,         0.9,                0.9,                0.1,     0.9])
+    tracked, reasons = judge_parts(rule, drift, departure, seen)
+    assert tracked.tolist() == [True, False, True, False, True]
+    assert reasons == (TRACKED, DRIFTED, TRACKED, HIDDEN, TRACKED)
+
+
+def test_kept_interpolation_is_the_slerp_bit_for_bit_on_that_parts_bones():
+    rng = np.random.default_rng(3)
+    names, parents = zip(*REAL_RIG)
+    _, part_of = body_parts(names, parents)
+    f, b = 7, len(names)
+    roots, interp_roots = rng.normal(size=(f, 3)), rng.normal(size=(f, 3))
+    local = exp_so3(rng.normal(size=(f, b, 3)))
+    interp = exp_so3(rng.normal(size=(f, b, 3)))
+    tracked = np.array([True, False, True, False, True])        # left arm, left leg rejected
+    r, l = keep_interpolation(part_of, tracked, roots, local, interp_roots, interp)
+    rejected = np.isin(part_of, [1, 3])
+    assert l[:, rejected].tobytes() == interp[:, rejected].tobytes()
+    assert l[:, ~rejected].tobytes() == local[:, ~rejected].tobytes()
+    assert r.tobytes() == roots.tobytes()
+    # Rejecting the torso (which holds the root bone) gives its translation back too.
+    r, l = keep_interpolation(part_of, np.array([False, True, True, True, True]), roots, local,
+                              interp_roots, interp)
+    assert r.tobytes() == interp_roots.tobytes()
+    assert l[:, part_of == 0].tobytes() == interp[:, part_of == 0].tobytes()
+
+
+def _chain_skeleton():
+    """Root with a left arm (from a spine bone) and a right leg (from the root)."""
+    names = ("hips", "spine", "upperarm_l", "forearm_l", "thigh_r", "shin_r")
+    parents = [-1, 0, 1, 2, 0, 4]
+    up = [0.0, 0.3, 0.0]
+    return Skeleton(names=names, parents=parents,
+                    offsets=[[0, 0, 1.0], up, up, up, [0.1, 0, 0], up],
+                    rest_rotations=np.broadcast_to(np.eye(3), (6, 3, 3)),
+                    tails=np.array([up] * 6), dof_axes=((0, 1, 2),) * 6, limits=None,
+                    root_translation=True)
+
+
+def test_part_distances_see_only_the_parts_own_bones():
+    sk = _chain_skeleton()
+    parts, part_of = body_parts(sk.names, sk.parents)
+    assert parts == (TORSO, LEFT_ARM, RIGHT_LEG)
+    base = np.broadcast_to(np.eye(3), (2, 6, 3, 3)).copy()
+    roots = np.zeros((2, 3))
+    moved = base.copy()
+    moved[:, 0] = exp_so3(np.array([0.0, 0.0, 0.5]))           # the hips turn ...
+    moved[:, 3] = exp_so3(np.array([0.4, 0.0, 0.0]))           # ... and the forearm bends
+    d = part_distances(sk, part_of, roots, moved, roots, base, roots, base)
+    assert d.shape == (2, 3)
+    assert np.all(d[:, 0] > 0) and np.all(d[:, 1] > 0)
+    assert np.all(d[:, 2] == 0.0)                               # the leg did not move itself
+    # The forearm's tail moved by 2 sin(0.2) x 0.3 m; its head and the upper arm not at all.
+    np.testing.assert_allclose(d[:, 1], 2 * np.sin(0.2) * 0.3 / 4, rtol=1e-12)
+
+
+def test_seen_shares_by_part():
+    part_of = np.array([0, 1, 1, 2])
+    seen = np.array([[10.0, 5.0, 5.0, 0.0], [10.0, 10.0, 0.0, 0.0]])
+    whole = np.array([[20.0, 10.0, 10.0, 0.0], [10.0, 10.0, 10.0, 0.0]])
+    np.testing.assert_allclose(seen_shares(part_of, seen, whole), [0.75, 0.5, 1.0])
+
+
+def _left_right_arm_skeleton():
+    """tests.core.tracking_fixtures' two-arm body with sided names (both arms hang from the
+    root, so they count as legs)."""
+    down = np.array([[0.0, 0.0, -0.3]])
+    return Skeleton(names=("torso", "l_arm", "l_forearm", "r_arm", "r_forearm"),
+                    parents=[-1, 0, 1, 0, 3],
+                    offsets=[[0.0, 0.0, 1.0], [0.0, -0.15, 0.0], [0.0, 0.0, -0.3],
+                             [0.0, 0.15, 0.0], [0.0, 0.0, -0.3]],
+                    rest_rotations=np.broadcast_to(np.eye(3), (5, 3, 3)),
+                    tails=np.concatenate([[[0.0, 0.0, 0.4]], down, down, down, down]),
+                    dof_axes=((0, 1, 2),) * 5, limits=None, root_translation=True)
+
+
+@pytest.fixture(scope="module")
+def swing():
+    sk = _left_right_arm_skeleton()
+    body = two_arm_body(sk)
+    cam = front_camera(200, 160, f=420.0)
+    n = 8
+    s = np.linspace(0.0, 1.0, n + 1)
+    local = np.broadcast_to(np.eye(3), (n + 1, 5, 3, 3)).copy()
+    local[:, 1] = exp_so3(np.stack([0.35 * np.sin(3.0 * s), -0.5 - 0.2 * s, 0 * s], 1))
+    local[:, 2] = exp_so3(np.stack([0.3 + 0.4 * s ** 2, 0 * s, 0 * s], 1))
+    local[:, 3] = exp_so3(np.stack([0 * s, 0.9 + 0.1 * s, 0.2 * s], 1))
+    roots = np.stack([0.1 * s, 0 * s, 0 * s], 1)
+    frames = render(sk, body, cam, roots, local)
+    problem = TrackingProblem(sk, body, cam)
+    return problem, frames, Pose(roots[0], local[0]), Pose(roots[-1], local[-1]), n
+
+
+def test_track_interval_reports_evidence_and_applies_the_rule(swing):
+    problem, frames, start, end, n = swing
+    options = TrackingOptions(max_iterations=2)
+    free = track_interval(problem, frames, start, end, options.replace(acceptance=None))
+    v = free.acceptance
+    assert v.parts == (TORSO, LEFT_LEG, RIGHT_LEG)
+    assert np.all(v.tracked)
+    for values in (v.drift, v.gap, v.departure, v.seen):
+        assert values.shape == (3,) and np.all(np.isfinite(values))
+    assert np.all(v.seen > 0) and np.all(v.seen <= 1)
+    assert free.kept_iteration > 0 and np.any(v.departure > 0)
+    # A rule nothing passes: every part keeps the interpolation, exactly.
+    strict = track_interval(problem, frames, start, end,
+                            options.replace(acceptance=AcceptanceRule(0.0, 0.0, 1.01)))
+    roots, local = interpolate_poses(problem.skeleton, start, end, n)
+    assert strict.local_rotations.tobytes() == local.tobytes()
+    assert strict.root_translations.tobytes() == roots.tobytes()
+    assert not np.any(strict.acceptance.tracked)
+    assert np.all(np.isfinite(strict.residuals))
+    # A rule everything passes changes nothing.
+    lenient = track_interval(problem, frames, start, end,
+                             options.replace(acceptance=AcceptanceRule(np.inf, 1.0, 0.0)))
+    assert lenient.local_rotations.tobytes() == free.local_rotations.tobytes()
+    assert lenient.residuals.tobytes() == free.residuals.tobytes()
