@@ -187,8 +187,7 @@ class TS_UL_track_cameras(bpy.types.UIList):
 
 
 class TS_OT_find_cameras(bpy.types.Operator):
-    """Fill the Cameras list with every camera of the scene that has footage (a movie clip as
-    its background), keeping the settings of cameras already listed"""
+    """List every camera with footage (a movie clip as its background); keeps their settings"""
 
     bl_idname = "track_and_stride.find_cameras"
     bl_label = "Find Cameras"
@@ -211,8 +210,7 @@ class TS_OT_find_cameras(bpy.types.Operator):
 
 
 class TS_OT_clear_cameras(bpy.types.Operator):
-    """Empty the Cameras list: Track Keyframes then tracks the Footage and Camera chosen
-    above (one camera)"""
+    """Empty the Cameras list: Track Keyframes then uses the Footage and Camera above"""
 
     bl_idname = "track_and_stride.clear_cameras"
     bl_label = "Clear Cameras"
