@@ -3,7 +3,7 @@
 import bpy
 
 from .common.body_bridge import build_envelope_body
-from .common.reporting import report_outcome
+from .common.reporting import one_line, report_outcome
 
 
 class TS_OT_add_envelope_body(bpy.types.Operator):
@@ -11,6 +11,7 @@ class TS_OT_add_envelope_body(bpy.types.Operator):
     tracker sees); run again after editing radii to refresh it"""
 
     bl_idname = "track_and_stride.add_envelope_body"
+    bl_description = one_line(__doc__)
     bl_label = "Envelope Body Mesh"
     bl_options = {"REGISTER", "UNDO"}
 

@@ -64,6 +64,10 @@ def step_import_walk(bpy):
 GAIT_TRAIN = ("08_04", "08_07", "35_01", "35_02", "35_03", "35_04", "35_05", "35_06")
 GAIT_TEST, GAIT_ADAPT_S, GAIT_END_S = "35_08", 1.67, 4.0
 GAIT_PLOT = ("lfemur.rx", "lfemur.rz", "ltibia.rx", "lfoot.rx")
+#: Plain names of the plotted Acclaim channels (the code in brackets, as the Graph Editor's
+#: channel is named after the bone).
+PLAIN_NAMES = {"lfemur.rx": "left hip, swing fore-aft", "lfemur.rz": "left hip, out to the side",
+               "ltibia.rx": "left knee bend", "lfoot.rx": "left ankle bend"}
 
 
 def step_gait_prediction(bpy):
@@ -115,7 +119,7 @@ def plot_gait(path, frames, dofs, names, last, fps):
         ax.plot(t[last - 1:], np.degrees(dofs[last - 1:, c]), color="tab:orange", lw=1.5,
                 ls="--", label="predicted")
         ax.axvline(t[last - 1], color="tab:blue", lw=0.8)
-        ax.set_ylabel(f"{name} (°)")
+        ax.set_ylabel(f"{PLAIN_NAMES[name]} (°)\n[{name}]", fontsize=8)
     axes[0].legend(loc="upper right", fontsize=8, ncol=3)
     axes[0].set_title("Gait › Predict on a held-out walk: adapt on 0–1.67 s, predict to 4 s")
     axes[-1].set_xlabel("time (s)")
@@ -160,7 +164,7 @@ def step_track_footage(bpy):
         addon + "tracking.keys").read_residuals(walker, 1, TRACK_FRAMES)
     rank = track_scene.channelbag(walker).fcurves.find('["track_and_stride_rank"]')
     keys = request.key_frames.tolist()
-    suggested = [m.frame for m in scene.timeline_markers if m.name.startswith("Key? ")]
+    suggested = [m.frame for m in scene.timeline_markers if m.name.startswith("Key here? ")]
     interior = np.setdiff1d(frames, keys)
     mpjpe = 100 * errors[interior - 1].mean()
     print(f"demo: tracked {TRACK_FRAMES} frames (keys {keys}) in {wall:.1f} s through the "
@@ -249,9 +253,9 @@ def confidence_png(path, track):
 
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
     axes[0].plot(track["residual_frames"], track["residuals"], color="tab:red")
-    axes[0].set_ylabel("eq. 4 residual")
+    axes[0].set_ylabel("image mismatch\n(residual)")
     axes[1].step(track["residual_frames"], track["ranks"], where="mid", color="tab:blue")
-    axes[1].set_ylabel("rank of A")
+    axes[1].set_ylabel("usable motion\nequations (rank)")
     axes[2].plot(track["frames"], 100 * np.asarray(track["errors"]), color="k")
     axes[2].set_ylabel("joint error (cm)")
     axes[2].set_xlabel("frame")

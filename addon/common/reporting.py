@@ -24,3 +24,10 @@ def report_outcome(operator, errors, action):
         return {"CANCELLED"}
     operator.report({"INFO"}, summary)
     return {"FINISHED"}
+
+
+def one_line(docstring):
+    """A class docstring as a tooltip: one line, the source's line breaks and indentation
+    folded into single spaces (Blender shows ``__doc__`` verbatim otherwise). Use as
+    ``bl_description = one_line(__doc__)`` in an operator's class body."""
+    return " ".join((docstring or "").split())

@@ -7,6 +7,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...core.mocap import MocapParseError
+from ..common.reporting import one_line
 from .acclaim_bridge import AcclaimError, export_acclaim
 from .acclaim_import import AcclaimImport
 from ..common.reporting import report_outcome
@@ -37,6 +38,7 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
     Long captures show progress; Esc cancels and leaves the file as it was"""
 
     bl_idname = "import_anim.acclaim"
+    bl_description = one_line(__doc__)
     bl_label = "Import Acclaim Motion Capture"
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 

@@ -32,7 +32,9 @@ from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
-                   read_residuals, unwritable_channels, write_tracking)
+                   read_residuals, remove_replaced_keys, selected_frames, unwritable_channels,
+                   write_tracking)
+from ...core.tracking.key_choice import choose_poses
 
 _TRANSFORM_PATHS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                     "scale", "delta_location", "delta_rotation_euler",
@@ -57,9 +59,13 @@ class TrackRequest:
     processes : int or None
     footage : Footage
     key_frames : ndarray, shape (K,), int
-        Scene frames of the keyframes (K >= 2).
+        Scene frames of the poses tracked between (K >= 2; the keyframes, or those chosen by
+        *Track Between*).
     tracked_before : list of int
         Frames in the span holding earlier tracked keys (replaced).
+    replaced : list of int
+        Keyed frames in the span that *Track Between* left out (their estimated channels'
+        keys are replaced).
     key_roots, key_locals : ndarray, shape (K, 3) and (K, B, 3, 3)
     key_values : dict
         Every pose channel's value at the keyframes, (path, index) -> (K,).
@@ -79,6 +85,7 @@ class TrackRequest:
     footage: object
     key_frames: np.ndarray
     tracked_before: list
+    replaced: list
     key_roots: np.ndarray
     key_locals: np.ndarray
     key_values: dict
@@ -136,6 +143,28 @@ def frame_range(scene, settings):
     return int(scene.frame_start), int(scene.frame_end)
 
 
+def render_size_mismatch(scene, width, height):
+    """What to change so that the render size equals the footage's ``width`` × ``height``, in
+    plain words, or ``None`` when it does. The render size is Output › Format's resolution
+    times its percentage: when the resolution is right and only the percentage is not, the
+    message says so (the usual culprit after a preview render at 50 %)."""
+    render = scene.render
+    actual = render_size(scene)
+    if actual == (width, height):
+        return None
+    percent = render.resolution_percentage
+    if (render.resolution_x, render.resolution_y) == (width, height):
+        return (f"The footage is {width}×{height} and so is Output › Format › Resolution, but "
+                f"its % is {percent} %, so the render size is {actual[0]}×{actual[1]}: set the "
+                "Resolution % to 100 (Match Render Size) so that the camera sees what was "
+                "filmed")
+    fix = "set Output › Format › Resolution to the footage size"
+    if percent != 100:
+        fix += f" and its % ({percent} %) to 100"
+    return (f"The footage is {width}×{height} but the render size is {actual[0]}×{actual[1]}: "
+            f"{fix} (Match Render Size) so that the camera sees what was filmed")
+
+
 def resolve_footage(settings):
     """The :class:`~.footage.Footage` chosen in the panel."""
     try:
@@ -189,7 +218,27 @@ def _body(rig):
                          "limbs") from None
 
 
-def _keyframes(obj, rig, first, last):
+def marker_frames(scene, first, last):
+    """Frames of the scene's timeline markers in ``[first, last]``."""
+    return sorted({int(m.frame) for m in scene.timeline_markers if first <= m.frame <= last})
+
+
+def choose_keyframes(scene, obj, rig, settings, first, last):
+    """The poses to track between (*Track Between*, ``core.tracking.choose_poses``).
+
+    Returns
+    -------
+    choice : PoseChoice
+        ``poses`` (the chosen keyed frames) and ``replaced`` (keyed frames between them that
+        tracking replaces).
+    tracked : list of int
+        Frames strictly inside the chosen span holding earlier tracked keys.
+
+    Raises
+    ------
+    TrackError
+        With a message that says what to do.
+    """
     if last < first:
         raise TrackError(f"The frame range {first}–{last} is empty")
     hint = "pose the armature over the footage and key it (I) at two frames or more"
@@ -201,11 +250,16 @@ def _keyframes(obj, rig, first, last):
     if len(keys) == 1:
         raise TrackError(f"Only one keyframe of {obj.name} (frame {keys[0]}) in frames "
                          f"{first}–{last}: key the pose at one more frame")
-    if np.all(np.diff(keys) < 2):
-        raise TrackError(f"Nothing to track: keyframes {keys[0]}–{keys[-1]} leave no frame "
-                         "between them")
-    tracked = [f for f in tracked if keys[0] < f < keys[-1]]
-    return np.array(keys), tracked
+    mode = getattr(settings, "track_between", "ALL")
+    try:
+        choice = choose_poses(
+            keys, mode, every=getattr(settings, "key_step", 10),
+            selected=selected_frames(obj, rig, first, last) if mode == "SELECTED" else (),
+            markers=marker_frames(scene, first, last) if mode == "MARKERS" else ())
+    except TrackingError as exc:
+        raise TrackError(f"{obj.name}, frames {first}–{last}: {exc}") from None
+    poses = choice.poses
+    return choice, [f for f in tracked if poses[0] < f < poses[-1]]
 
 
 def _listed(names):
@@ -249,13 +303,12 @@ def prepare_tracking(context, settings):
     except RigError as exc:
         raise TrackError(str(exc)) from None
     first, last = frame_range(scene, settings)
-    key_frames, tracked_before = _keyframes(obj, rig, first, last)
+    choice, tracked_before = choose_keyframes(scene, obj, rig, settings, first, last)
+    key_frames, replaced = choice.poses, choice.replaced.tolist()
     footage = resolve_footage(settings)
-    width, height = render_size(scene)
-    if (footage.width, footage.height) != (width, height):
-        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
-                         f"is {width}×{height}: set Output › Format to the footage size "
-                         "(Match Render Size) so that the camera sees what was filmed")
+    mismatch = render_size_mismatch(scene, footage.width, footage.height)
+    if mismatch:
+        raise TrackError(mismatch)
     outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
     if outside:
         raise TrackError(f"The footage ({footage.n_frames} frames from scene frame "
@@ -272,7 +325,7 @@ def prepare_tracking(context, settings):
     layout = problem.layout
     if layout.n_params == 0:
         raise TrackError(f"Every rotation of {obj.name}'s bodied bones is locked: unlock the axes "
-                         "to estimate (Table 1 DOF sets the paper's)")
+                         "to estimate (the padlocks in the Bone properties › Transform)")
     key_roots, key_locals = read_pose(rig, key_frames)
     bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
     if len(layout.translation_axes):
@@ -287,7 +340,7 @@ def prepare_tracking(context, settings):
         footage=footage,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
-        tracked_bones=tracked_bones, state=channel_state(obj, rig))
+        tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced)
 
 
 def read_footage(request, start, stop, reader=None, out=None):
@@ -355,6 +408,7 @@ def apply_result(context, request, result):
     layout = request.problem.layout
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
                                      and not request.options.estimate_depth)
+    remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
                              request.tracked_bones, frames, result.root_translations,
@@ -370,6 +424,9 @@ def apply_result(context, request, result):
                f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
                f"{written} keys) in {request.timings.get('track', 0.0):.1f} s; residual, rank "
                "and 'Tracked: <body part>' curves in the Graph Editor")
+    if request.replaced:
+        summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
+                    f"{len(request.replaced)} keyed frames between them replaced")
     return summary, warnings
 
 
@@ -381,7 +438,16 @@ def track_now(context, settings):
     return apply_result(context, request, result)
 
 
-SUGGESTION_PREFIX = "Key? "
+SUGGESTION_PREFIX = "Key here? "
+#: The prefix of suggestion markers before issue 14 (replaced like the current ones).
+_OLD_SUGGESTION_PREFIX = "Key? "
+
+
+def suggestion_name(residual, usual):
+    """A suggestion marker's name: how many times the usual mismatch this frame shows
+    (``Key here? (mismatch 4.2× usual)``; usual = the median residual of the tracked frames)."""
+    ratio = residual / usual if usual > 0 else float("inf")
+    return f"{SUGGESTION_PREFIX}(mismatch {ratio:.1f}× usual)"
 
 
 def suggest_markers(context, settings):
@@ -408,18 +474,20 @@ def suggest_markers(context, settings):
     keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
     found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)
     markers = scene.timeline_markers
-    for marker in [m for m in markers if m.name.startswith(SUGGESTION_PREFIX)
+    for marker in [m for m in markers
+                   if m.name.startswith((SUGGESTION_PREFIX, _OLD_SUGGESTION_PREFIX))
                    and first <= m.frame <= last]:
         markers.remove(marker)
+    usual = float(np.median(residuals))
     for s in found:
-        markers.new(f"{SUGGESTION_PREFIX}z {s.z:.1f}", frame=s.frame)
+        markers.new(suggestion_name(s.residual, usual), frame=s.frame)
     if not found:
-        return (f"No residual spike above z {settings.suggest_threshold:g} in frames "
-                f"{first}–{last}: the keyframes suffice"), []
+        return (f"No frame stands out (spike threshold {settings.suggest_threshold:g}) in "
+                f"frames {first}–{last}: the keyframes suffice"), []
     listed = ", ".join(str(s.frame) for s in found)
     return (f"Suggested {len(found)} keyframe{'s' * (len(found) != 1)} at frame"
-            f"{'s' * (len(found) != 1)} {listed} (residual spikes, markers '{SUGGESTION_PREFIX}…')"
-            ), [s.frame for s in found]
+            f"{'s' * (len(found) != 1)} {listed}, where the footage matches the body worst "
+            f"(markers '{SUGGESTION_PREFIX}…')"), [s.frame for s in found]
 
 
 class TrackJob:

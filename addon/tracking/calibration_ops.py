@@ -6,6 +6,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from .calibration import CalibrationImportError, import_calibration
+from ..common.reporting import one_line
 
 
 class TS_OT_import_calibration(bpy.types.Operator, ImportHelper):
@@ -13,6 +14,7 @@ class TS_OT_import_calibration(bpy.types.Operator, ImportHelper):
     with its footage behind it and its lens distortion on the footage"""
 
     bl_idname = "import_scene.camera_calibration"
+    bl_description = one_line(__doc__)
     bl_label = "Import Camera Calibration"
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 

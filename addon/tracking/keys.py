@@ -19,7 +19,9 @@ Writing
 Per interval the in-between frames are keyed in bulk (``pose_bridge.write_pose_keys``, Euler
 continuity from the keyframe before), on the bones whose rotation was estimated (and the root
 location). A tracked channel without a key at a keyframe gets one holding its value from before
-(so the keyed pose stays the pose). Existing keys keep their exact state. Confidence curves
+(so the keyed pose stays the pose). Existing keys keep their exact state. With *Track Between* the keyed frames left out between
+the chosen poses are *replaced*: :func:`remove_replaced_keys` first removes their keys on the
+estimated channels only, then they are written like any in-between frame. Confidence curves
 (custom properties of the armature object, visible in the Graph Editor):
 ``track_and_stride_residual`` (eq. 4 residual of the frame pair ``f-1 -> f``, linear) and
 ``track_and_stride_rank`` (rank of ``A`` for that pair, constant; the paper's Fig. 10).
@@ -108,6 +110,45 @@ def classify_frames(obj, rig, first, last):
     return keyframes, tracked
 
 
+def selected_frames(obj, rig, first, last):
+    """Frames in ``[first, last]`` where a key of the rig's pose channels is selected (the
+    *Selected Keys* choice of *Track Between*; a key at a fractional frame counts for the
+    nearest frame)."""
+    bag = object_channelbag(obj)
+    found = set()
+    if bag is None:
+        return []
+    for path, index, _ in rig_channels(rig):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is None or not len(fcurve.keyframe_points):
+            continue
+        points = fcurve.keyframe_points
+        selected = np.zeros(len(points), dtype=bool)
+        points.foreach_get("select_control_point", selected)
+        frames = np.rint(key_frames_and_types(fcurve)[0][selected]).astype(int)
+        found.update(int(f) for f in frames if first <= f <= last)
+    return sorted(found)
+
+
+def estimated_channels(rig, tracked_bones):
+    """``(path, index)`` of the channels tracking estimates and writes: every rotation channel
+    of the tracked bones (a locked Euler axis excepted: not estimated) and the root's unlocked
+    location axes. The *replaced* keys of a Track Between choice are removed from these only."""
+    bones = set(tracked_bones)
+    out = []
+    for k, (name, mode) in enumerate(zip(rig.bone_names, rig.rotation_modes)):
+        if name not in bones:
+            continue
+        prop, count = channel_property(mode)
+        out += [(pose_bone_path(name, prop), i) for i in range(count)
+                if prop != "rotation_euler" or rig.dof_mask[k, i]]
+    root = rig.bone_names[0]
+    if root in bones:
+        out += [(pose_bone_path(root, "location"), int(i))
+                for i in np.nonzero(rig.root_location_mask)[0]]
+    return out
+
+
 def channel_state(obj, rig):
     """A digest of every key on the rig's pose channels (detects edits during a modal run)."""
     channels = rig_channels(rig)
@@ -165,6 +206,28 @@ def evaluate_channels_at(obj, rig, frames):
             value = float(getattr(obj.pose.bones[name], prop)[index])
             out[(path, index)] = np.full(len(frames), value)
     return out
+
+
+def remove_replaced_keys(rig, tracked_bones, replaced):
+    """Remove the keys at ``replaced`` frames from the estimated channels
+    (:func:`estimated_channels`), before :func:`write_tracking` keys those frames with tracked
+    poses: the keyed frames between the poses that the animator's *Track Between* choice left
+    out. Their keys on other channels stay, exactly.
+
+    Returns
+    -------
+    int
+        Keys removed.
+    """
+    bag = object_channelbag(rig.obj)
+    if bag is None or not len(replaced):
+        return 0
+    removed = 0
+    for path, index in estimated_channels(rig, tracked_bones):
+        fcurve = bag.fcurves.find(path, index=index)
+        if fcurve is not None:
+            removed += remove_keys_at(fcurve, replaced)
+    return removed
 
 
 def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots, local,

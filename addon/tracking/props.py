@@ -51,6 +51,22 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         default="SCENE")
     frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)")
     frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)")
+    track_between: EnumProperty(
+        name="Track Between",
+        description="The keyed poses to track between. The other keys between the first and "
+                    "the last of them are replaced by tracked ones (the chosen poses stay as "
+                    "they are); for an imported capture, where every frame is keyed",
+        items=(("ALL", "All Keys", "Every keyframe in the range is a pose to track between"),
+               ("SELECTED", "Selected Keys", "The frames whose keys are selected (Dope Sheet or "
+                "Timeline)"),
+               ("NTH", "Every Nth Key", "The first key, every Nth key after it and the last "
+                "one (keys counted, so frames when every frame is keyed)"),
+               ("MARKERS", "Markers", "The keyed frames at the scene's timeline markers")),
+        default="ALL")
+    key_step: IntProperty(
+        name="N", default=10, min=2, soft_max=100,
+        description="Every Nth Key: track between every Nth keyed frame (10 on a capture keyed "
+                    "at every frame = a pose every 10 frames)")
     iterations: IntProperty(
         name="Iterations", default=4, min=1, max=20,
         description="Drift-correction passes per interval (track, accumulate, correct, score; "

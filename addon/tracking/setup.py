@@ -1,4 +1,5 @@
-"""Setting a scene up for tracking: footage behind the camera, render size, Table 1 DOF.
+"""Setting a scene up for tracking: footage behind the camera, render size, the Simplified
+Joints preset (Yamamoto's Table 1 DOF).
 
 Camera background: a Blender camera shows background images (a movie clip, or an image /
 movie / image sequence) in the viewport when looking through it (Numpad 0), so the armature is
@@ -13,11 +14,22 @@ import bpy
 import numpy as np
 
 from ...core.tracking import find_table1_parts, table1_dof_mask
+from ...core.tracking.dof_check import locked_axis_motion
 from .camera_bridge import render_size
 from ..common.fcurves import not_editable
 from .footage import FootageError, footage_from_clip
-from ..common.pose_bridge import RigError, rig_from_armature
+from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from .bridge import TrackError, resolve_camera, resolve_footage
+from .keys import classify_frames
+
+#: Simplified Joints warns when the keyed poses turn a bone it keeps (thighs, upper arms,
+#: head) this far (degrees, path length over the keys) about the axes it locks there. On the
+#: rendered benchmarks (``benchmarks/bench_dof_preset.py``, docs/track_blender.md) the walk,
+#: where the preset tracked 3-22 % worse, turns its upper arms 277° that way over its 61 frames
+#: (214° / 93° / 24° seen from keys every 10 / 20 / 30 frames); the run, where the preset
+#: tracked 3-17 % better, at most 56° (28° / 20° / 11°). 75° parts the two wherever the keys
+#: see the motion.
+PRESET_WARN_DEGREES = 75.0
 
 
 def _clip_background(camera_data, clip):
@@ -202,9 +214,13 @@ def match_render_size(context, settings):
     """Set the render size to the footage's; returns a summary."""
     footage = resolve_footage(settings)
     render = context.scene.render
+    before = (render.resolution_x, render.resolution_y, render.resolution_percentage)
     render.resolution_x, render.resolution_y = footage.width, footage.height
     render.resolution_percentage = 100
-    return f"Render size set to {footage.width}×{footage.height} (the footage's)"
+    if before[:2] == (footage.width, footage.height) and before[2] != 100:
+        return (f"Resolution % set from {before[2]} % to 100: the render size is now the "
+                f"footage's {footage.width}×{footage.height}")
+    return f"Render size set to {footage.width}×{footage.height} (the footage's), at 100 %"
 
 
 def footage_size_mismatch(scene, footage):
@@ -215,17 +231,27 @@ def footage_size_mismatch(scene, footage):
     return f"Footage {footage.width}×{footage.height} ≠ render {width}×{height}"
 
 
-def apply_table1_dof(obj):
-    """Lock rotation axes so that only Yamamoto's Table 1 DOF are estimated.
+def apply_table1_dof(obj, frames=None):
+    """Lock rotation axes so that only Yamamoto's Table 1 DOF are estimated (*Simplified
+    Joints*).
 
     Bones of the Table 1 parts keep the axes of their role (``core.tracking.presets``), every
     other bone of the tracked tree is locked (it follows its keys between keyframes). Axes are
     only ever locked, never unlocked (an axis the rig itself locks stays locked).
 
+    Parameters
+    ----------
+    obj : bpy.types.Object
+    frames : tuple of int, optional
+        (first, last) frames whose keyed poses are checked for motion on the axes the preset
+        locks on the bones it keeps (:data:`PRESET_WARN_DEGREES`).
+
     Returns
     -------
-    str
-        Summary naming the recognised rig and the DOF count.
+    summary : str
+        Naming the recognised rig and the number of axes estimated.
+    warning : str or None
+        The bones the keys show turning about the axes now locked.
     """
     try:
         rig = rig_from_armature(obj)
@@ -233,13 +259,34 @@ def apply_table1_dof(obj):
     except (RigError, ValueError) as exc:
         raise TrackError(f"{obj.name}: {exc}") from None
     mask, translation = table1_dof_mask(rig.skeleton, parts)
+    warning = None if frames is None else _locked_motion_warning(obj, rig, mask, parts, *frames)
     for k, name in enumerate(rig.bone_names):
         obj.pose.bones[name].lock_rotation = [bool(v) for v in ~mask[k]]
     skipped = [part for part, bone in parts.items() if bone is None]
     total = int(mask.sum()) + (3 if translation.any() and rig.root_location_mask.any() else 0)
     note = f"; no bone for {', '.join(skipped)}" if skipped else ""
-    return (f"Table 1 DOF on {obj.name} ({rig_name} bone names): {total} degrees of freedom "
-            f"estimated, every other rotation axis locked{note}")
+    return (f"Simplified Joints on {obj.name} ({rig_name} bone names): {total} degrees of "
+            f"freedom estimated, every other rotation axis locked{note}"), warning
+
+
+def _locked_motion_warning(obj, rig, mask, parts, first, last):
+    """A warning naming the kept bones whose keyed poses turn about axes the preset locks."""
+    if obj.animation_data is None or obj.animation_data.action is None:
+        return None
+    keys = classify_frames(obj, rig, first, last)[0]
+    if len(keys) < 2:
+        return None
+    motion = locked_axis_motion(read_pose(rig, keys)[1], mask)
+    kept = [rig.bone_names.index(b) for b in parts.values()
+            if b is not None and b in rig.bone_names]
+    moving = sorted(((motion[j], rig.bone_names[j]) for j in kept
+                     if mask[j].any() and motion[j] > PRESET_WARN_DEGREES), reverse=True)
+    if not moving:
+        return None
+    listed = ", ".join(f"{name} {deg:.0f}°" for deg, name in moving[:4])
+    return (f"The keys of {obj.name} (frames {keys[0]}–{keys[-1]}) turn {listed} about axes "
+            "Simplified Joints just locked (twists): tracking cannot follow that motion and may "
+            "do worse than with all axes free. Undo (Ctrl Z) to free them again")
 
 
 def dof_summary(rig):

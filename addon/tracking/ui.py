@@ -6,6 +6,8 @@ says what is set and what is missing; disabled buttons say why in their tooltip 
 below. Drawing only reads Blender data (nothing is loaded or created while drawing).
 """
 
+import textwrap
+
 import bpy
 import numpy as np
 
@@ -14,12 +16,20 @@ from ..common.pose_bridge import RigError, rig_from_armature
 from .bridge import envelope_radii, frame_range
 from .keys import PROP_RESIDUAL, classify_frames
 from .ops import track_poll_message
+from .bridge import TrackError, choose_keyframes          # Track Between's preview
+from . import preview
 from .props import track_settings
 
 
 def _list(frames, limit=8):
     text = ", ".join(str(f) for f in frames[:limit])
     return text + (f" … ({len(frames)})" if len(frames) > limit else "")
+
+
+def _wrapped(col, text, icon="ERROR", width=44):
+    """A message as several labels (panel labels do not wrap), the icon on the first."""
+    for i, line in enumerate(textwrap.wrap(text, width)):
+        col.label(text=line, icon=icon if i == 0 else "BLANK1")
 
 
 def _draw_armature(layout, context, settings):
@@ -44,10 +54,10 @@ def _draw_armature(layout, context, settings):
     row = col.row(align=True)
     row.operator("track_and_stride.show_envelopes", icon="BONE_DATA")
     row.operator("track_and_stride.add_envelope_body", text="Body Mesh")
+    col.operator("track_and_stride.fit_body_to_footage", icon="MOD_SHRINKWRAP")
     axes = int(np.count_nonzero(rig.dof_mask))
     col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
               icon="CON_ROTLIMIT")
-    col.operator("track_and_stride.table1_dof", icon="LOCKED")
     return obj
 
 
@@ -68,7 +78,11 @@ def _draw_footage(layout, context, settings, in_clip_editor):
                            f"{clip.frame_start}–{end}")
             if (width, height) != render_size(scene):
                 rw, rh = render_size(scene)
-                col.label(text=f"Render size is {rw}×{rh}", icon="ERROR")
+                percent = scene.render.resolution_percentage
+                col.label(text=f"Render size is {rw}×{rh}"
+                               + (f" ({percent} % of {scene.render.resolution_x}×"
+                                  f"{scene.render.resolution_y})" if percent != 100 else ""),
+                          icon="ERROR")
                 col.operator("track_and_stride.match_render_size", icon="FULLSCREEN_ENTER")
     else:
         col.prop(settings, "filepath", text="")
@@ -100,20 +114,42 @@ def _draw_frames(layout, context, settings, obj):
         row = col.row(align=True)
         row.prop(settings, "frame_start")
         row.prop(settings, "frame_end")
+    row = col.row(align=True)
+    row.prop(settings, "track_between", text="")
+    if settings.track_between == "NTH":
+        row.prop(settings, "key_step")
     first, last = frame_range(context.scene, settings)
     if obj is not None and obj.animation_data is not None and obj.animation_data.action:
-        try:
-            keys, tracked = classify_frames(obj, rig_from_armature(obj), first, last)
-        except RigError:
-            keys, tracked = [], []
-        if len(keys) >= 2:
-            col.label(text=f"Keyframes {_list(keys)}: {len(keys) - 1} intervals")
-        else:
-            col.label(text=f"{len(keys)} keyframe in {first}–{last}: key 2 or more",
-                      icon="ERROR")
-        if tracked:
-            col.label(text=f"{len(tracked)} tracked frames (replaced when tracking again)")
+        _draw_poses(col, context, settings, obj, first, last)
     col.prop(settings, "iterations")
+
+
+def _draw_poses(col, context, settings, obj, first, last):
+    """The preview of *Track Between*: the poses tracked between, the keys replaced."""
+    try:
+        rig = rig_from_armature(obj)
+        keys, tracked = classify_frames(obj, rig, first, last)
+    except RigError:
+        return
+    if len(keys) < 2:
+        col.label(text=f"{len(keys)} keyframe in {first}–{last}: key 2 or more", icon="ERROR")
+        return
+    try:
+        choice, _ = choose_keyframes(context.scene, obj, rig, settings, first, last)
+    except TrackError as exc:
+        _wrapped(col, str(exc))
+        return
+    poses = choice.poses.tolist()
+    if settings.track_between == "ALL":
+        col.label(text=f"Keyframes {_list(poses)}: {choice.intervals} intervals")
+    else:
+        shown = ", ".join(str(f) for f in poses[:3]) + (", …" if len(poses) > 3 else "")
+        col.label(text=f"Tracking between frames {shown} ({len(poses)} poses)")
+        if len(choice.replaced):
+            col.label(text=f"{len(choice.replaced)} keyed frames between them are replaced",
+                      icon="INFO")
+    if tracked:
+        col.label(text=f"{len(tracked)} tracked frames (replaced when tracking again)")
 
 
 def draw_track_panel(layout, context, in_clip_editor=False):
@@ -144,6 +180,11 @@ def draw_advanced(layout, context):
     layout.prop(settings, "processes")
     layout.prop(settings, "rank_threshold")
     layout.prop(settings, "estimate_depth")
+    # Yamamoto's Table 1 preset: off the main panel since it tracked worse than all axes free
+    # on the walk benchmark (docs/track_blender.md, Simplified Joints); it warns when applied.
+    col = layout.column(align=True)
+    col.label(text="Fewer axes (can track worse):", icon="CON_ROTLIMIT")
+    col.operator("track_and_stride.table1_dof", icon="LOCKED")
 
 
 class VIEW3D_PT_track_and_stride_track(bpy.types.Panel):
@@ -201,4 +242,14 @@ CLASSES = (VIEW3D_PT_track_and_stride_track, VIEW3D_PT_track_and_stride_track_ad
            CLIP_PT_track_and_stride_track, CLIP_PT_track_and_stride_track_advanced)
 
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
+def register():
+    register_classes()
+    preview.register()           # Track Between's lines in the Dope Sheet and Timeline
+
+
+def unregister():
+    preview.unregister()
+    unregister_classes()

@@ -54,3 +54,7 @@ __all__ = [
     "to_grayscale", "track_accumulated", "track_interval", "track_keyframes", "view_frames",
     "view_weights", "world2camera_from_blender",
 ]
+
+from .key_choice import PoseChoice, choose_poses  # noqa: E402  (Track Between)
+
+__all__ += ["PoseChoice", "choose_poses"]

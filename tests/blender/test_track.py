@@ -167,6 +167,10 @@ def _resolution_mismatch(obj):
     bpy.context.scene.render.resolution_x = 320
 
 
+def _half_percentage(obj):
+    bpy.context.scene.render.resolution_percentage = 50
+
+
 def _footage_too_short(obj):
     settings().file_start = 5
 
@@ -196,7 +200,10 @@ def _noise_modifier(obj):
     (_one_key, "Only one keyframe of 08_01 \\(frame 21\\)"),
     (_no_camera, "Add the camera that filmed the footage"),
     (_missing_footage, "not found"),
-    (_resolution_mismatch, "footage is 640×360 but the render size is 320×360"),
+    (_resolution_mismatch, "footage is 640×360 but the render size is 320×360: set Output › "
+                           "Format › Resolution to the footage size \\(Match Render Size\\)"),
+    (_half_percentage, "so is Output › Format › Resolution, but its % is 50 %, so the render "
+                       "size is 320×180: set the Resolution % to 100 \\(Match Render Size\\)"),
     (_footage_too_short, "does not cover frame 1"),
     (_moving_camera, "is animated"),
     (_locked_fcurve, "1 F-curve of 08_01 that tracking writes is locked "
@@ -355,12 +362,20 @@ def test_suggestions_mark_a_damaged_frame(walk_folder, tmp_path):
     obj = build_walk_scene(folder)
     settings().processes = 1
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
+    bpy.context.scene.timeline_markers.new("Key? z 9.9", frame=12)    # named before issue 14
     assert bpy.ops.track_and_stride.suggest_keyframes() == {"FINISHED"}
-    markers = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key? ")]
+    markers = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key here? ")]
     assert markers and all(abs(m.frame - 31) <= 1 for m in markers)
-    # Running it again replaces its markers.
+    # Plain names: the frame's residual over the clip's median residual.
+    curve = bridge("common.fcurves").keyframe_state(
+        channelbag(obj).fcurves.find('["track_and_stride_residual"]'))["co"]
+    usual = np.median(curve[:, 1])
+    for m in markers:
+        ratio = curve[curve[:, 0] == m.frame, 1][0] / usual
+        assert m.name == f"Key here? (mismatch {ratio:.1f}× usual)"
+    # Running it again replaces its markers (and those named the old way).
     assert bpy.ops.track_and_stride.suggest_keyframes() == {"FINISHED"}
-    again = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key? ")]
+    again = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key")]
     assert [(m.frame, m.name) for m in again] == [(m.frame, m.name) for m in markers]
     assert obj.name == "08_01"
 
@@ -399,6 +414,36 @@ def test_table1_dof_locks_the_papers_axes(walk_folder):
     settings().armature = crane
     with pytest.raises(RuntimeError, match="not a humanoid rig"):
         bpy.ops.track_and_stride.table1_dof()
+
+
+def test_simplified_joints_warns_when_the_keys_twist_what_it_locks(walk_folder):
+    """Keys 1, 21, 41 with the kept bones at rest except the left upper arm, twisted 70° about
+    its bone (Y) at frame 21: 0 -> 70 -> 0 is 140° on an axis the preset locks (swing = X, Z)."""
+    obj = build_walk_scene(walk_folder)
+    apply = bridge("tracking.setup").apply_table1_dof
+    kept = ("root", "lowerback", "head", "lfemur", "rfemur", "ltibia", "rtibia", "lhumerus",
+            "rhumerus", "lradius", "rradius")
+    for name in kept:
+        for axis in range(3):
+            fcurve = channelbag(obj).fcurves.find(f'pose.bones["{name}"].rotation_euler',
+                                                  index=axis)
+            if fcurve is None:                  # an axis the bone has no key on (rest: 0)
+                continue
+            for key in fcurve.keyframe_points:
+                key.co[1] = np.radians(70.0) if (name, axis, key.co[0]) == ("lhumerus", 1, 21) \
+                    else 0.0
+                key.handle_left[1] = key.handle_right[1] = key.co[1]
+            fcurve.update()
+    summary, warning = apply(obj, (1, 41))
+    assert summary.startswith("Simplified Joints on 08_01 (CMU (Acclaim) bone names): 23")
+    assert warning.startswith("The keys of 08_01 (frames 1–41) turn lhumerus 140° about axes "
+                              "Simplified Joints just locked")
+    assert "rhumerus" not in warning
+    # Untwisted: no warning (the preset is applied again, nothing more to lock).
+    fcurve = channelbag(obj).fcurves.find('pose.bones["lhumerus"].rotation_euler', index=1)
+    for key in fcurve.keyframe_points:
+        key.co[1] = key.handle_left[1] = key.handle_right[1] = 0.0
+    assert apply(obj, (1, 41))[1] is None
 
 
 def test_image_sequence_behind_the_camera(walk_folder):
@@ -602,8 +647,14 @@ def test_panels_draw_and_every_property_explains_itself(walk_folder):
         type("Panel", (), {"layout": RecordingLayout(drawn)})(), bpy.context)
     ops = {d[1] for d in drawn if d[0] == "operator"}
     assert {"track_and_stride.track_keyframes", "track_and_stride.suggest_keyframes",
-            "track_and_stride.table1_dof", "track_and_stride.show_envelopes",
+            "track_and_stride.show_envelopes",
             "track_and_stride.open_footage", "track_and_stride.show_footage"} <= ops
+    # The Simplified Joints preset (Yamamoto's Table 1) lives in Advanced, not the main panel.
+    assert "track_and_stride.table1_dof" not in ops
+    advanced = []
+    bpy.types.CLIP_PT_track_and_stride_track_advanced.draw(
+        type("Panel", (), {"layout": RecordingLayout(advanced)})(), bpy.context)
+    assert ("operator", "track_and_stride.table1_dof") in advanced
     assert ("label", "Keyframes 1, 21, 41: 2 intervals") in drawn
     assert ("label", "Body: 26 of 31 bones have envelope radii") in drawn   # the rendered parts
     for op in ("track_keyframes", "suggest_keyframes", "table1_dof", "show_envelopes",

@@ -1,0 +1,136 @@
+"""Fit Body to Footage: the armature's envelope radii from the person in the keyed frames.
+
+A thin adapter over :func:`core.tracking.body_fit.fit_body_radii`: read the armature, its
+keyframes, the camera (lens included) and the footage at those keys exactly as Track Keyframes
+reads them (:mod:`.bridge`), fit, and write the fitted bones' ``head_radius`` /
+``tail_radius`` (the body the tracker uses, :func:`.bridge.envelope_radii`). Bones without
+clear evidence keep their radii; the report says how many were fitted and why the others were
+not. Any problem is refused before anything changes; the keys are never touched; one undo step
+restores the radii. The user edits the radii afterwards as before (Envelope display, Alt S in
+Edit Mode).
+"""
+
+import bpy
+import numpy as np
+
+from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
+from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from ..common.reporting import report_outcome
+from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, frame_range,
+                     resolve_camera, resolve_editable_armature, resolve_footage)
+from .camera_bridge import render_size
+from .footage import FootageError, FootageReader
+from .keys import classify_frames
+from .props import track_settings
+
+
+def _keyed_frames(obj, rig, scene, settings, footage):
+    """Keyframes in the Track range that the footage covers (at least one)."""
+    first, last = frame_range(scene, settings)
+    if obj.animation_data is None or obj.animation_data.action is None:
+        raise TrackError(f"{obj.name} has no animation: pose the armature over the person in "
+                         "the footage and key it (I) first")
+    keys, _ = classify_frames(obj, rig, first, last)
+    if not keys:
+        raise TrackError(f"No keyframes of {obj.name} in frames {first}–{last}: pose the "
+                         "armature over the person and key it (I) first")
+    covered = [f for f in keys if footage.covers(f)]
+    if not covered:
+        raise TrackError(f"The footage covers none of the keyframes ({keys[0]}–{keys[-1]}): "
+                         "move the clip's Start Frame or the keyframes")
+    return covered
+
+
+def _describe(names, fit, radii_before):
+    """The report's line: how many bones were fitted, which kept their radii and why."""
+    fitted = [n for n, f in zip(names, fit.fitted) if f]
+    kept = {}
+    for name, reason in zip(names, fit.reasons):
+        if reason and reason != "no shape":
+            kept.setdefault(reason, []).append(name)
+    change = np.abs(fit.radii - radii_before)[fit.fitted]
+    text = (f"Body fitted to the footage: {len(fitted)} of {len(fitted) + sum(map(len, kept.values()))} "
+            f"bones")
+    if fitted:
+        text += f" (radii changed by {100 * change.max():.1f} cm at most)"
+    if kept:
+        text += "; kept their radii: " + "; ".join(
+            f"{', '.join(bones)} ({reason})" for reason, bones in kept.items())
+    return text
+
+
+def fit_body_to_footage(context, settings):
+    """Fit and write the radii (module docstring); returns the report's line.
+
+    Raises
+    ------
+    TrackError
+        Nothing can be fitted (the message says why); nothing was changed.
+    """
+    scene = context.scene
+    obj = resolve_editable_armature(context, settings, data=True)
+    if obj.mode == "EDIT":
+        raise TrackError("Leave Edit Mode first")
+    try:
+        rig = rig_from_armature(obj)
+    except RigError as exc:
+        raise TrackError(str(exc)) from None
+    camera_obj = resolve_camera(scene, settings)
+    footage = resolve_footage(settings)
+    width, height = render_size(scene)
+    if (footage.width, footage.height) != (width, height):
+        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
+                         f"is {width}×{height}: set Output › Format to the footage size "
+                         "(Match Render Size) so that the camera sees what was filmed")
+    keys = _keyed_frames(obj, rig, scene, settings, footage)
+    camera = _camera_in_armature_space(scene, camera_obj, rig,
+                                       settings.clip if settings.source == "CLIP" else None)
+    key_roots, key_locals = read_pose(rig, keys)
+    try:
+        with FootageReader(footage) as reader:
+            frames = reader.read(keys)
+    except FootageError as exc:
+        raise TrackError(str(exc)) from None
+    before = envelope_radii(rig)
+    try:
+        fit = fit_body_radii(rig.skeleton, before, camera, frames, key_roots, key_locals,
+                             mirror=mirror_bones(rig.bone_names))
+    except BodyFitError as exc:
+        raise TrackError(f"Cannot fit the body: {exc}") from None
+    if not np.all(np.isfinite(fit.radii)):      # never write what cannot be stood behind
+        raise TrackError("The fit gave no finite radii: nothing was changed")
+    bones = obj.data.bones
+    for name, (head, tail), fitted in zip(rig.bone_names, fit.radii, fit.fitted):
+        if fitted:
+            bones[name].head_radius, bones[name].tail_radius = float(head), float(tail)
+    return _describe(rig.bone_names, fit, before) + f" from {len(keys)} keyframes"
+
+
+class TS_OT_fit_body_to_footage(bpy.types.Operator):
+    """Set each bone's envelope radii (the body the tracker matches to the footage) from the
+    person's outline in the keyed frames. Bones without clear edges keep their radii; edit
+    them afterwards as usual (Alt S in Edit Mode)"""
+
+    bl_idname = "track_and_stride.fit_body_to_footage"
+    bl_label = "Fit Body to Footage"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        settings = track_settings(context.scene)
+        obj = settings.armature or context.active_object
+        if obj is None or obj.type != "ARMATURE":
+            cls.poll_message_set("Choose the armature to fit (Track panel) or make one active")
+            return False
+        if obj.mode == "EDIT":
+            cls.poll_message_set("Leave Edit Mode first")
+            return False
+        return True
+
+    def execute(self, context):
+        return report_outcome(self, TrackError,
+                              lambda: fit_body_to_footage(context, track_settings(context.scene)))
+
+
+CLASSES = (TS_OT_fit_body_to_footage,)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -1,0 +1,104 @@
+"""An animator's words (issue 14): every operator, panel, menu and property the extension
+registers has a one-line description (tooltips without the docstrings' line breaks and
+indentation), and nothing a user reads in the UI -- labels, item names, panel titles, marker
+names -- uses the papers' terms (they stay in tooltips and docs)."""
+
+import re
+from pathlib import Path
+
+import bpy
+import pytest
+
+from blender_support import MODULE, ROOT
+
+#: The papers' terms that must not appear in labels, names, reports and warnings.
+PAPER_TERMS = re.compile(r"\beq\.\s*\d|\brank of A\b|\bTable 1\b", re.IGNORECASE)
+#: What a docstring leaves in a tooltip when Blender takes it verbatim.
+STRAY_BREAK = re.compile(r"\n|\s{2,}")
+
+
+def _our_classes():
+    found = []
+    for base in (bpy.types.Operator, bpy.types.Panel, bpy.types.Menu, bpy.types.PropertyGroup,
+                 bpy.types.AddonPreferences, bpy.types.FileHandler):
+        found += [c for c in base.__subclasses__()
+                  if c.__module__.startswith(MODULE) and getattr(c, "is_registered", False)]
+    return found
+
+
+def _properties(rna):
+    return [p for p in rna.properties if p.identifier not in ("rna_type", "name", "bl_idname")]
+
+
+def _registered_texts():
+    """(where, label texts, description texts) of everything the extension registers."""
+    out = []
+    for cls in _our_classes():
+        rna = cls.bl_rna
+        if issubclass(cls, bpy.types.Operator):
+            module, name = cls.bl_idname.split(".")
+            rna = getattr(getattr(bpy.ops, module), name).get_rna_type()
+        labels = [rna.name] + [getattr(cls, "bl_label", "")]
+        descriptions = [rna.description] if issubclass(cls, bpy.types.Operator) else []
+        own = (bpy.types.Operator, bpy.types.PropertyGroup, bpy.types.AddonPreferences)
+        if not issubclass(cls, own):        # panels, menus: Blender's own properties
+            out.append((cls.__name__, labels, descriptions))
+            continue
+        for prop in _properties(rna):
+            if prop.is_hidden:
+                continue
+            labels.append(prop.name)
+            descriptions.append(prop.description)
+            for item in getattr(prop, "enum_items", ()):
+                labels.append(item.name)
+                descriptions.append(item.description)
+        out.append((cls.__name__, labels, descriptions))
+    return out
+
+
+def test_the_scan_sees_the_tracking_and_gait_classes():
+    names = {where for where, _, _ in _registered_texts()}
+    assert {"TS_OT_track_keyframes", "TS_OT_suggest_keyframes", "TS_TrackSettings",
+            "TS_OT_predict_gait"} <= names
+
+
+def test_every_description_is_one_clean_line():
+    bad = [(where, d) for where, _, descriptions in _registered_texts()
+           for d in descriptions if d and STRAY_BREAK.search(d)]
+    assert not bad, bad
+    missing = [where for where, _, descriptions in _registered_texts()
+               if any(not d for d in descriptions)]
+    assert not missing, missing
+
+
+def test_no_label_uses_the_papers_terms():
+    bad = [(where, label) for where, labels, _ in _registered_texts()
+           for label in labels if label and PAPER_TERMS.search(label)]
+    assert not bad, bad
+
+
+@pytest.mark.parametrize("folder", ["addon", "sample_scenes", "tools"])
+def test_no_user_visible_string_in_the_sources_uses_the_papers_terms(folder):
+    """Strings that reach the user -- reports, warnings, labels, marker and curve names, the
+    demo pictures' labels -- are found as string literals outside docstrings, comments and
+    ``description=`` tooltips (where the papers' terms belong)."""
+    bad = []
+    for path in sorted((Path(ROOT) / folder).rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        for lineno, line in enumerate(text.splitlines(), 1):
+            code = line.split("#", 1)[0]
+            for literal in re.findall(r"f?\"([^\"]*)\"|f?'([^']*)'", code):
+                literal = "".join(literal)
+                if PAPER_TERMS.search(literal):
+                    bad.append(f"{path.relative_to(ROOT)}:{lineno}: {literal}")
+    bad = [b for b in bad if not _is_tooltip_or_docstring(b)]
+    assert not bad, bad
+
+
+def _is_tooltip_or_docstring(hit):
+    """Tooltips (``description=`` arguments, ``bl_description``, the tooltip lines of a
+    property's ``id_properties_ui``) may cite the paper."""
+    path, lineno, _ = hit.split(":", 2)
+    lines = (Path(ROOT) / path).read_text(encoding="utf-8").splitlines()
+    context = "\n".join(lines[max(0, int(lineno) - 4):int(lineno)])
+    return bool(re.search(r"description\s*=|bl_description|_TOOLTIP", context))
