@@ -15,7 +15,7 @@ import numpy as np
 
 from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
-from ..common.reporting import report_outcome
+from ..common.reporting import one_line, report_outcome
 from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, frame_range,
                      resolve_camera, resolve_editable_armature, resolve_footage)
 from .camera_bridge import render_size
@@ -113,6 +113,7 @@ class TS_OT_fit_body_to_footage(bpy.types.Operator):
 
     bl_idname = "track_and_stride.fit_body_to_footage"
     bl_label = "Fit Body to Footage"
+    bl_description = one_line(__doc__)
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
