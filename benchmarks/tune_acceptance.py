@@ -14,7 +14,7 @@ candidate rules offline (the rule only mixes the two trajectories, so no re-trac
 ::
 
     .venv/bin/python benchmarks/tune_acceptance.py --dump build/dump --cameras cam01 \
-        --clips cmu_08_04,... --rule 0.04,1.0,0.0 --rule 0.03,1.5,0.2
+        --clips cmu_08_04,... --rule 0.04,1.0,0.0 --rule 0.03,1.5,0.0,whole,2
 
 Prints, per case, MPJPE (cm) of slerp, the raw tracking and each rule; with ``--parts``, per
 interval and part the evidence and what reverting that part alone changes (cm, negative =
@@ -125,13 +125,14 @@ def apply_rule(case, rule):
     'slerp': the interpolation)."""
     total = count = 0.0
     n_parts = len(case["parts"])
-    for rec in case["intervals"]:
+    for i, rec in enumerate(case["intervals"]):
         if rule == "slerp":
             combo = 2 ** n_parts - 1
         elif rule is None or rec["not_tracked"]:
             combo = 0
         else:
-            tracked, _ = judge_parts(rule, rec["drift"], rec["departure"], rec["seen"])
+            tracked, _ = judge_parts(rule, rec["drift"], rec["departure"], rec["seen"],
+                                     case["keys"][i + 1] - case["keys"][i])
             combo = sum(1 << p for p in range(n_parts) if not tracked[p])
         total += rec["sums"][combo]
         count += rec["count"]
@@ -151,6 +152,16 @@ def part_report(name, case):
     return base
 
 
+def _rule(text):
+    """``AcceptanceRule`` from 'max_drift,drift_ratio,min_seen[,torso,drift_growth]'."""
+    fields = text.split(",")
+    rule = AcceptanceRule(*(float(x) for x in fields[:3]))
+    if len(fields) > 3:
+        rule = AcceptanceRule(rule.max_drift, rule.drift_ratio, rule.min_seen, fields[3],
+                              float(fields[4]) if len(fields) > 4 else 0.0)
+    return rule
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dump", default="", help="bench_real --dump-core-inputs folder")
@@ -161,7 +172,8 @@ def main(argv=None):
     ap.add_argument("--cache", default=str(ROOT / "build" / "tune_acceptance.pkl"))
     ap.add_argument("--reuse", action="store_true", help="use the cache, track nothing")
     ap.add_argument("--rule", action="append", default=[],
-                    help="max_drift_m,drift_ratio,min_seen (repeatable)")
+                    help="max_drift_m,drift_ratio,min_seen[,torso,drift_growth] (repeatable; "
+                         "torso and drift_growth default to AcceptanceRule's)")
     ap.add_argument("--parts", action="store_true")
     args = ap.parse_args(argv)
     spacings = [int(k) for k in args.keys.split(",")]
@@ -180,10 +192,11 @@ def main(argv=None):
         cache.parent.mkdir(parents=True, exist_ok=True)
         with open(cache, "wb") as f:
             pickle.dump(cases, f)
-    rules = [AcceptanceRule(*(float(x) for x in r.split(","))) for r in args.rule]
+    rules = [_rule(r) for r in args.rule]
     rules = rules or [AcceptanceRule()]
     header = "case".rjust(16) + " slerp  track " + " ".join(
-        f"{r.max_drift:.3f}/{r.drift_ratio:.2f}/{r.min_seen:.2f}" for r in rules)
+        f"{r.max_drift:.3f}/{r.drift_ratio:.2f}/{r.min_seen:.2f}/{r.torso}/{r.drift_growth:g}"
+        for r in rules)
     print(header)
     table = {}
     for name, case in cases.items():

@@ -63,6 +63,12 @@ def interval_notes(key_frames, intervals):
         kept = [p for p, ok in enumerate(verdicts.tracked) if not ok]
         if not kept:
             continue
+        if len(kept) == len(verdicts.parts) and all(x == DRIFTED for x in verdicts.reasons):
+            # the whole body was judged together (AcceptanceRule.torso 'whole'): its mean drift
+            notes.append(f"{span}, whole body: kept the in-between of your keys — the footage "
+                         "did not support the tracked motion (drift "
+                         f"{_cm(np.mean(verdicts.drift))} cm on average at the end key)")
+            continue
         parts = [verdicts.parts[p] for p in kept]
         names = ", ".join(parts[:-1]) + (" and " if len(parts) > 1 else "") + parts[-1]
         whys = "; ".join((f"{verdicts.parts[p]}: " if len(kept) > 1 else "")

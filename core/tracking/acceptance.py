@@ -23,11 +23,17 @@ rest of the body held at the interpolation, so a limb is not blamed for the tors
 * ``seen``: the share of the part's outline in view (not hidden by other parts or by the image
   border), mean over the interval's frames, best camera.
 
-The rule (:class:`AcceptanceRule`, thresholds chosen on the validation clips and one camera of
-the real footage, ``docs/tracking.md`` *Never worse than the interpolation*): keep the tracked
-motion of a part unless its drift exceeds both ``max_drift`` and ``drift_ratio`` times its
-departure (the correction would then move the part more than the tracking itself did), or it
-is seen less than ``min_seen`` (the images hardly measure it).
+The rule (:class:`AcceptanceRule`; chosen by leave-one-camera-out cross-validation on the
+real footage and the validation clips, ``docs/tracking.md`` *Never worse than the
+interpolation*): a limb keeps its tracked motion unless its drift exceeds both the drift
+threshold and ``drift_ratio`` times its departure (the correction would then move the part
+more than the tracking itself did), or it is seen less than ``min_seen``. The threshold grows
+with the interval's length (``max_drift * (frames / 10) ** drift_growth``: drift accumulates
+frame by frame, and in long intervals the tracking is far better than the interpolation even
+where it drifted). The torso and head carries every limb: putting it back on the
+interpolation moves the whole body while the limbs keep their tracked rotations, so
+(``torso='whole'``) it is judged on the whole body's evidence (drift and departure averaged
+over the parts) and, when that fails, the whole interval keeps the interpolation.
 
 Plain arrays in and out; the bridge turns :class:`PartVerdicts` into the animator's words.
 """
@@ -57,17 +63,32 @@ class AcceptanceRule:
     Attributes
     ----------
     max_drift : float, metres
-        Drift below this never rejects a part.
+        Drift below this never rejects a part (for an interval of ``10`` frames; see
+        ``drift_growth``).
     drift_ratio : float
         A part whose drift exceeds ``max_drift`` is rejected when the drift is also more than
         this many times its departure from the interpolation.
     min_seen : float
         A part seen (mean share of its outline in view) less than this keeps the interpolation.
+    torso : {'own', 'whole', 'never'}
+        How the torso and head (which carries every limb) is judged: ``'own'`` on its own
+        evidence like a limb; ``'whole'`` on the whole body's (mean drift and departure over
+        the parts), and then reverted only together with every limb; ``'never'``: limbs only.
+    drift_growth : float
+        The drift threshold of an interval ``n`` frames long is ``max_drift * (n / 10) **
+        drift_growth`` (0: the same for every length).
     """
 
     max_drift: float = 0.03
-    drift_ratio: float = 2.0
+    drift_ratio: float = 1.5
     min_seen: float = 0.0
+    torso: str = "whole"
+    drift_growth: float = 2.0
+
+    def __post_init__(self):
+        if self.torso not in ("own", "whole", "never"):
+            raise ValueError(f"AcceptanceRule.torso: expected 'own', 'whole' or 'never', got "
+                             f"{self.torso!r}")
 
 
 @dataclass(eq=False)
@@ -194,13 +215,16 @@ def part_distances(skeleton, part_of, roots_a, local_a, roots_b, local_b, base_r
     return out
 
 
-def judge_parts(rule, drift, departure, seen):
+def judge_parts(rule, drift, departure, seen, frames=10):
     """The rule (module docstring): which parts keep the tracked motion, and why not.
 
     Parameters
     ----------
     rule : AcceptanceRule
     drift, departure, seen : ndarray, shape (P,)
+        Part 0 is the torso and head (:func:`body_parts`).
+    frames : int
+        The interval's length in frames (end key - start key).
 
     Returns
     -------
@@ -211,7 +235,13 @@ def judge_parts(rule, drift, departure, seen):
     drift = np.asarray(drift, dtype=float)
     departure = np.asarray(departure, dtype=float)
     seen = np.asarray(seen, dtype=float)
-    drifted = (drift > rule.max_drift) & (drift > rule.drift_ratio * departure)
+    limit = rule.max_drift * (frames / 10.0) ** rule.drift_growth
+    drifted = (drift > limit) & (drift > rule.drift_ratio * departure)
+    if rule.torso == "whole":                       # the torso moves the body it carries
+        body = drift.mean() > limit and drift.mean() > rule.drift_ratio * departure.mean()
+        drifted = np.full(len(drift), True) if body else np.append(False, drifted[1:])
+    elif rule.torso == "never":
+        drifted[0] = False
     hidden = seen < rule.min_seen
     reasons = tuple(DRIFTED if d else HIDDEN if h else TRACKED for d, h in zip(drifted, hidden))
     return ~(drifted | hidden), reasons

@@ -220,9 +220,9 @@ class TrackingOptions:
     acceptance : AcceptanceRule or None
         Never worse than the interpolation: per interval and body part, the tracked motion is
         kept only where the footage supports it, else the part keeps the keys' interpolation
-        (``core.tracking.acceptance``; thresholds chosen in docs/tracking.md *Never worse than
-        the interpolation*). None: every part keeps the tracked motion (the evidence is still
-        reported in ``IntervalResult.acceptance``, nothing rejected).
+        (``core.tracking.acceptance``; variant and thresholds chosen in docs/tracking.md *Never
+        worse than the interpolation*). None: every part keeps the tracked motion (the
+        evidence is still reported in ``IntervalResult.acceptance``, nothing rejected).
     """
 
     tau: float = 0.02

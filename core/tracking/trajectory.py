@@ -749,7 +749,8 @@ def _accept_parts(problem, options, views, start, end, scores):
                                interp.local[-1:], interp.roots[-1:], interp.local[-1:])[0]
     tracked, reasons = np.ones(len(names), dtype=bool), (TRACKED,) * len(names)
     if options.acceptance is not None:
-        tracked, reasons = judge_parts(options.acceptance, drift, departure, seen)
+        tracked, reasons = judge_parts(options.acceptance, drift, departure, seen,
+                                       len(interp.roots) - 1)
     if not np.all(tracked):
         roots, local = keep_interpolation(part_of, tracked, traj.roots, traj.local,
                                           interp.roots, interp.local)

@@ -578,11 +578,11 @@ def test_parts_that_kept_the_in_between_show_in_the_report_and_the_graph_editor(
     v = first.acceptance
     assert v.parts == ("torso and head", "left arm", "right arm", "left leg", "right leg")
     assert not np.any(v.tracked) and np.all(v.drift > 0)
-    whys = "; ".join(f"{p}: drift {100 * d:.{1 if 100 * d < 9.95 else 0}f} cm at the end key"
-                     for p, d in zip(v.parts, v.drift))
-    expected = [f"Frames 1–21, torso and head, left arm, right arm, left leg and right leg: kept "
-                f"the in-between of your keys — the footage did not support the tracked motion "
-                f"({whys})"]
+    # every part reverted together: one line for the whole body with its mean drift
+    mean = 100 * float(np.mean(v.drift))
+    expected = [f"Frames 1–21, whole body: kept the in-between of your keys — the footage did "
+                f"not support the tracked motion (drift {mean:.{1 if mean < 9.95 else 0}f} cm "
+                f"on average at the end key)"]
     if not np.all(second.acceptance.tracked):
         assert len(warnings) == 2 and warnings[1].startswith("Frames 21–41, ")
     assert warnings[:1] == expected
@@ -771,3 +771,29 @@ def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, mon
     assert not ops._RUNNING and ops.track_poll_message(bpy.context) is None
     assert datablock_counts() == counts
     same_keys(before, snapshot(obj))
+
+
+def test_report_names_each_reverted_part_with_its_own_drift_or_the_whole_body():
+    """interval_notes: one part reverted → that part and its drift; every part reverted for
+    drift → one 'whole body' line with the mean drift (the rule judged the body together)."""
+    from types import SimpleNamespace
+    notes_of = bridge("tracking.acceptance").interval_notes
+    core = importlib.import_module(f"{MODULE}.core.tracking.acceptance")
+    parts = core.PART_NAMES
+    drift = np.array([0.02, 0.01, 0.015, 0.061, 0.01])
+
+    def interval(tracked, reasons):
+        verdicts = core.PartVerdicts(parts, drift, drift, drift / 4, np.ones(5),
+                                     np.array(tracked), tuple(reasons))
+        return SimpleNamespace(acceptance=verdicts, kept_iteration=3)
+
+    ok, bad = core.TRACKED, core.DRIFTED
+    one = interval([True, True, True, False, True], [ok, ok, ok, bad, ok])
+    assert notes_of([1, 21], [one]) == [
+        f"Frames 1–21, {parts[3]}: kept the in-between of your keys — the footage did not "
+        "support the tracked motion (drift 6.1 cm at the end key)"]
+    everything = interval([False] * 5, [bad] * 5)
+    assert notes_of([1, 21, 41], [one, everything])[1] == (
+        "Frames 21–41, whole body: kept the in-between of your keys — the footage did not "
+        "support the tracked motion (drift 2.3 cm on average at the end key)")
+    assert notes_of([1, 21], [interval([True] * 5, [ok] * 5)]) == []

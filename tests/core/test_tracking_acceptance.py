@@ -39,7 +39,7 @@ def test_sides_from_bone_names(name, side):
 
 
 def test_the_rule_rejects_contradicted_parts_and_keeps_supported_ones():
-    rule = AcceptanceRule(max_drift=0.04, drift_ratio=1.0, min_seen=0.2)
+    rule = AcceptanceRule(max_drift=0.04, drift_ratio=1.0, min_seen=0.2, torso="own")
     #                 supported   drift > departure   drift < departure   hidden   no evidence
     drift = np.array([0.01,       0.08,               0.08,               0.01,    np.nan])
     departure = np.array([0.03,   0.02,               0.10,               0.05,    0.04])
@@ -47,6 +47,44 @@ def test_the_rule_rejects_contradicted_parts_and_keeps_supported_ones():
     tracked, reasons = judge_parts(rule, drift, departure, seen)
     assert tracked.tolist() == [True, False, True, False, True]
     assert reasons == (TRACKED, DRIFTED, TRACKED, HIDDEN, TRACKED)
+
+
+def test_the_torso_is_judged_on_the_whole_body_it_carries():
+    whole = AcceptanceRule(max_drift=0.03, drift_ratio=1.5, torso="whole", drift_growth=0.0)
+    #                  torso  l arm  r arm  l leg  r leg
+    departure = np.array([0.02, 0.02, 0.10, 0.05, 0.05])
+    # The torso alone drifted (0.08 > 1.5 x 0.02), the body as a whole did not (mean drift
+    # 0.034 < 1.5 x mean departure 0.048): the torso keeps the tracking, limbs on their own.
+    drift = np.array([0.08, 0.05, 0.01, 0.01, 0.02])
+    tracked, reasons = judge_parts(whole, drift, departure, np.ones(5))
+    assert tracked.tolist() == [True, False, True, True, True]
+    assert reasons[0] == TRACKED and reasons[1] == DRIFTED
+    # The same torso evidence judged on its own reverts it.
+    own = AcceptanceRule(max_drift=0.03, drift_ratio=1.5, torso="own", drift_growth=0.0)
+    assert judge_parts(own, drift, departure, np.ones(5))[0].tolist() == [False, False, True,
+                                                                          True, True]
+    # The whole body drifted (mean 0.094 > 1.5 x 0.048): every part keeps the interpolation,
+    # also the right arm whose own evidence is fine.
+    drift = np.array([0.20, 0.10, 0.01, 0.10, 0.06])
+    tracked, reasons = judge_parts(whole, drift, departure, np.ones(5))
+    assert not np.any(tracked) and set(reasons) == {DRIFTED}
+    # Limbs only: the torso is never reverted.
+    never = AcceptanceRule(max_drift=0.03, drift_ratio=1.5, torso="never", drift_growth=0.0)
+    assert judge_parts(never, drift, departure, np.ones(5))[0].tolist() == [True, False, True,
+                                                                            False, True]
+    with pytest.raises(ValueError, match="torso"):
+        AcceptanceRule(torso="body")
+
+
+def test_the_drift_threshold_grows_with_the_interval():
+    rule = AcceptanceRule(max_drift=0.03, drift_ratio=1.0, torso="own", drift_growth=2.0)
+    drift, departure, seen = np.array([0.05, 0.13]), np.array([0.01, 0.01]), np.ones(2)
+    # 10 frames: threshold 3 cm; 20 frames: 12 cm; 30 frames: 27 cm.
+    assert judge_parts(rule, drift, departure, seen, 10)[0].tolist() == [False, False]
+    assert judge_parts(rule, drift, departure, seen, 20)[0].tolist() == [True, False]
+    assert judge_parts(rule, drift, departure, seen, 30)[0].tolist() == [True, True]
+    flat = AcceptanceRule(max_drift=0.03, drift_ratio=1.0, torso="own", drift_growth=0.0)
+    assert judge_parts(flat, drift, departure, seen, 30)[0].tolist() == [False, False]
 
 
 def test_kept_interpolation_is_the_slerp_bit_for_bit_on_that_parts_bones():
@@ -160,3 +198,11 @@ def test_track_interval_reports_evidence_and_applies_the_rule(swing):
                              options.replace(acceptance=AcceptanceRule(np.inf, 1.0, 0.0)))
     assert lenient.local_rotations.tobytes() == free.local_rotations.tobytes()
     assert lenient.residuals.tobytes() == free.residuals.tobytes()
+    # The interval's length reaches the rule: with drift_growth 1 the threshold of this
+    # 8-frame interval is 0.8 max_drift.
+    drift = free.acceptance.drift[0]
+    assert drift > 0
+    for scale, kept in ((1.01, True), (0.99, False)):
+        rule = AcceptanceRule(scale * drift / 0.8, 0.0, 0.0, torso="own", drift_growth=1.0)
+        got = track_interval(problem, frames, start, end, options.replace(acceptance=rule))
+        assert got.acceptance.tracked[0] == kept
