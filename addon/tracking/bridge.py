@@ -356,10 +356,11 @@ def prepare_tracking(context, settings):
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
     if len(cameras) > 1:
-        # The acceptance rule's thresholds were chosen on one camera; with several, its drift
-        # evidence reverts parts that were tracked right (bench-real, keys every 20: four
-        # cameras 1.75 cm without it, 2.62 cm with it; two 2.02 / 3.11 cm; docs/bench_real.md).
-        # Its evidence is still reported (IntervalResult.acceptance), nothing is reverted.
+        # The acceptance rule's thresholds were chosen on one camera; with several it reverts
+        # parts that were tracked right (bench-real, keys every 10 / 20 / 30, four cameras:
+        # 1.40 / 1.75 / 2.10 cm without it, 1.63 / 1.74 / 2.12 with the whole-body rule, 1.57 /
+        # 2.62 / 3.02 with the per-part one; docs/bench_real.md, *Several cameras*). Its
+        # evidence is still reported (IntervalResult.acceptance); nothing is reverted.
         options = dataclasses.replace(options, acceptance=None)
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
