@@ -46,6 +46,8 @@ from benchmarks.real.score import (aligned_errors, joint_errors, nanmean,  # noq
 DATA = ROOT / "sample_scenes" / "data" / "footage" / "pose2sim_single_person"
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 SPACINGS = (10, 20, 30)
+# Camera sets tracked together besides each camera alone (issue 11): "all" = every camera.
+MULTI_VIEW = ("cam01+cam02", "all")
 FPS = 60
 # Views more than this far (pixels) from the consensus of a landmark are outliers (about 4 % of
 # the person's height in these 1920-pixel-tall frames, ~7 cm at the person).
@@ -337,10 +339,10 @@ def parse_args():
                         help="contact sheet PNG (default: real_contact_sheet.png beside --output)")
     parser.add_argument("--cameras", nargs="+", default=list(CAMERAS))
     parser.add_argument("--spacings", nargs="+", type=int, default=list(SPACINGS))
-    parser.add_argument("--multi-view", nargs="*", default=[],
-                        help="camera sets tracked together besides each camera alone, e.g. "
-                             "cam01+cam02 all (needs the operator's multi-camera support, "
-                             "issue 11)")
+    parser.add_argument("--multi-view", nargs="*", default=list(MULTI_VIEW),
+                        help="camera sets tracked together besides each camera alone, through "
+                             "the Track panel's Cameras list (issue 11; default cam01+cam02 "
+                             "all; none: no multi-view rows)")
     parser.add_argument("--radii", default="plausible",
                         help="envelope radii: 'plausible' (core.armature.plausible_envelope_radii"
                              " by bone name) or a JSON file {bone: [head, tail]} in metres")
@@ -494,6 +496,7 @@ def main():
                      "videos: MediaPipe Pose (model_complexity 1, video mode, OpenCV decoding) "
                      "vs Track Keyframes through the operator at keys every "
                      f"{speed_every} (Blender decoding, tracking, writing keys), this machine"}
+    speed.update(multi_view_speed(blender_json["runs"], detections, args.cameras, speed_every))
     mean_over = {}
     for every in args.spacings:
         rows = [single[c][f"keys_every_{every}"] for c in args.cameras
@@ -543,6 +546,35 @@ def main():
     print_tables(results, args)
     print(f"wrote {out_path} and {sheet} in {results['total_s']:.0f} s")
     return 0
+
+
+def multi_view_speed(runs, detections, cameras, every):
+    """Issue 11's speed figures: synchronised frame sets (one frame of every camera) per second
+    of wall time, in the same run, over the same frames: Track Keyframes with every camera
+    switched on (keys every ``every``; it decodes all the videos itself, tracks, writes keys)
+    vs MediaPipe Pose's peer pass over the same videos (its times summed). Empty when no
+    run tracked every camera at that spacing."""
+    run = next((r for r in runs if r["keys_every"] == every
+                and sorted(r["cameras"]) == sorted(cameras)), None)
+    if run is None:
+        return {}
+    if not run["footage_decoded_by_operator"]:
+        raise RuntimeError("the timed multi-view run must decode its footage itself")
+    views = len(cameras)
+    sets = run["frames_read"]
+    mp_sets = min(len(detections[c]["peer"].pixels) for c in cameras)
+    mp_seconds = sum(detections[c]["peer"].seconds for c in cameras)
+    phases = run["phases_s"]
+    return {f"tracker_{views}_views_fps": sets / run["operator_wall_s"],
+            f"mediapipe_{views}_views_fps": mp_sets / mp_seconds,
+            f"tracker_{views}_views_fps_without_decoding":
+                sets / (run["operator_wall_s"] - phases["read_footage"]),
+            f"tracker_{views}_views_core_fps": sets / phases["run_core"],
+            f"tracker_{views}_views_phases_s": phases,
+            "multi_view_what": f"frame sets of all {views} cameras per second of wall time: "
+                               "Track Keyframes with every camera switched on at keys every "
+                               f"{every} (Blender decoding all videos, tracking, writing keys) "
+                               "vs MediaPipe Pose over the same videos (sum of its times)"}
 
 
 def acceptance_summary(single, cameras, spacings):
@@ -612,6 +644,11 @@ def print_tables(results, args):
     print(f"\nSpeed: Track Keyframes {s['tracker_fps']:.1f} frames/s (without Blender's "
           f"decoding {s['tracker_fps_without_decoding']:.1f}, the core alone "
           f"{s['tracker_core_fps']:.1f}), MediaPipe {s['mediapipe_fps']:.1f} frames/s")
+    views = len(args.cameras)
+    if f"tracker_{views}_views_fps" in s:
+        print(f"  {views} views: Track Keyframes {s[f'tracker_{views}_views_fps']:.2f} frame "
+              f"sets/s (without decoding {s[f'tracker_{views}_views_fps_without_decoding']:.2f}),"
+              f" MediaPipe {s[f'mediapipe_{views}_views_fps']:.2f} frame sets/s")
 
 
 if __name__ == "__main__":

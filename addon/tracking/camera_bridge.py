@@ -55,10 +55,12 @@ def clip_distortion(clip, camera):
         raise CameraError(f"Footage {clip.name}: {exc}") from None
 
 
-def pinhole_from_blender(scene, camera_obj=None, clip=None):
+def pinhole_from_blender(scene, camera_obj=None, clip=None, size=None, pixel_aspect=None):
     """:class:`~..core.tracking.camera.PinholeCamera` of ``camera_obj`` (default: the scene
     camera) at the current frame, in world coordinates; with ``clip`` (its footage as a movie
-    clip), the clip's lens distortion (:func:`clip_distortion`).
+    clip), the clip's lens distortion (:func:`clip_distortion`). ``size`` (width, height) and
+    ``pixel_aspect`` (x, y): the image the camera made, when not the scene's render (another
+    camera of a multi-camera set, ``cameras.camera_image``).
 
     Raises
     ------
@@ -73,13 +75,14 @@ def pinhole_from_blender(scene, camera_obj=None, clip=None):
     if cam.type != "PERSP":
         raise CameraError(f"Camera {camera_obj.name} is {cam.type.lower()}; tracking needs a "
                           "perspective camera")
-    width, height = render_size(scene)
+    width, height = render_size(scene) if size is None else size
     render = scene.render
+    aspect_x, aspect_y = ((render.pixel_aspect_x, render.pixel_aspect_y) if pixel_aspect is None
+                          else pixel_aspect)
     try:
         pinhole = camera_from_blender(cam.lens, cam.sensor_width, cam.sensor_height,
                                       cam.sensor_fit, cam.shift_x, cam.shift_y, width, height,
-                                      np.array(camera_obj.matrix_world), render.pixel_aspect_x,
-                                      render.pixel_aspect_y)
+                                      np.array(camera_obj.matrix_world), aspect_x, aspect_y)
     except ValueError as exc:
         raise CameraError(f"Camera {camera_obj.name}: {exc}") from None
     if clip is None:

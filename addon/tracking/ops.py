@@ -13,6 +13,9 @@ from .footage import MOVIE_EXTENSIONS, FootageReader
 from ..common.reporting import report_outcome
 from .bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
                      resolve_editable_armature, suggest_markers, track_now)
+from .cameras import register_operators as register_camera_list
+from .cameras import unregister_operators as unregister_camera_list
+from .cameras import uses_camera_list
 from .props import track_settings
 from .setup import (apply_table1_dof, match_render_size, open_footage,
                     show_footage_behind_camera)
@@ -59,6 +62,10 @@ def track_poll_message(context):
         return "Choose the armature to track (Track panel) or make one active"
     if obj.mode == "EDIT":
         return "Leave Edit Mode first"
+    if uses_camera_list(settings):
+        if not any(e.use for e in settings.cameras):
+            return "Switch on a camera in the Cameras list (or Clear the list)"
+        return None
     if (settings.camera or context.scene.camera) is None:
         return "Add the camera that filmed the footage (the scene camera)"
     if not _footage_chosen(settings):
@@ -114,12 +121,14 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def _begin(self, context, request):
-        """State of a modal run: footage read in chunks on timer events, then the job."""
-        footage = request.footage
+        """State of a modal run: footage read in chunks on timer events (camera after
+        camera), then the job."""
+        n = len(request.scene_frames)
         self._request, self._read, self._job, self._timer = request, 0, None, None
-        self._frames = np.empty((len(request.scene_frames), footage.height, footage.width),
-                                dtype=np.float32)
-        self._reader = FootageReader(footage)     # a movie stays open between steps
+        self._view = 0
+        self._frames = [np.empty((n, f.height, f.width), dtype=np.float32)
+                        for f in (request.view_footage(v) for v in range(request.n_views))]
+        self._reader = FootageReader(request.view_footage(0))  # a movie stays open between steps
         self._area = context.area
         context.window_manager.progress_begin(0, 100)
         _RUNNING.append(self)
@@ -180,17 +189,24 @@ class TS_OT_track_keyframes(bpy.types.Operator):
     def _step(self, context):
         request, total = self._request, len(self._request.scene_frames)
         if self._read < total:
-            tic = time.perf_counter()
+            tic, view = time.perf_counter(), self._view
             while self._read < total and time.perf_counter() - tic < _READ_STEP_SECONDS:
                 start = self._read
                 read_footage(request, start, start + 1, self._reader,
-                             out=self._frames[start:start + 1])
+                             out=self._frames[view][start:start + 1], view=view)
                 self._read = start + 1
-            stop = self._read
-            self._status(context, f"reading footage {stop}/{total}", _READ_SHARE * stop / total)
+            stop, views = self._read, request.n_views
+            where = f" of {request.view_names[view]}" if views > 1 else ""
+            self._status(context, f"reading footage{where} {stop}/{total}",
+                         _READ_SHARE * (view * total + stop) / (views * total))
             if stop == total:
                 self._reader.close()
-                self._job = TrackJob(request, self._frames).start()
+                if view + 1 < views:                  # the next camera's footage
+                    self._view, self._read = view + 1, 0
+                    self._reader = FootageReader(request.view_footage(view + 1))
+                    return {"RUNNING_MODAL"}
+                frames = self._frames[0] if views == 1 else self._frames
+                self._job = TrackJob(request, frames).start()
                 self._frames = None
             return {"RUNNING_MODAL"}
         job = self._job
@@ -392,8 +408,10 @@ register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSE
 
 def register():
     register_classes()
+    register_camera_list()
 
 
 def unregister():
     cancel_running()
+    unregister_camera_list()
     unregister_classes()

@@ -1,8 +1,10 @@
 """Scene settings of the Track panel (saved in the .blend)."""
 
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
-                       StringProperty)
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
+                       IntProperty, PointerProperty, StringProperty)
+
+from .cameras import TS_TrackCamera
 
 SETTINGS = "track_and_stride_track"
 
@@ -44,6 +46,12 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         description="The camera that filmed the footage (empty: the scene camera). Lens, "
                     "sensor fit, shift, render size and pixel aspect give its intrinsics; it "
                     "must not move during the clip")
+    cameras: CollectionProperty(
+        type=TS_TrackCamera, name="Cameras",
+        description="Cameras whose footage is tracked together (Find Cameras fills it; empty: "
+                    "the Footage and Camera above)")
+    camera_index: IntProperty(name="Active Camera", default=0, min=0,
+                              description="The camera selected in the Cameras list")
     range_mode: EnumProperty(
         name="Frames", description="Frames searched for keyframes",
         items=(("SCENE", "Scene Range", "The scene's start to end frame"),
@@ -95,7 +103,7 @@ def track_settings(scene):
     return getattr(scene, SETTINGS)
 
 
-CLASSES = (TS_TrackSettings,)
+CLASSES = (TS_TrackCamera, TS_TrackSettings)
 
 
 register_classes, unregister_classes = bpy.utils.register_classes_factory(CLASSES)

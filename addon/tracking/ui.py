@@ -14,6 +14,7 @@ import numpy as np
 from .camera_bridge import render_size
 from ..common.pose_bridge import RigError, rig_from_armature
 from .bridge import envelope_radii, frame_range
+from .cameras import draw_camera_list
 from .keys import PROP_RESIDUAL, classify_frames
 from .ops import track_poll_message
 from .bridge import TrackError, choose_keyframes          # Track Between's preview
@@ -158,6 +159,7 @@ def draw_track_panel(layout, context, in_clip_editor=False):
     obj = _draw_armature(layout, context, settings)
     _draw_footage(layout, context, settings, in_clip_editor)
     _draw_camera(layout, context, settings)
+    draw_camera_list(layout, context, settings)
     _draw_frames(layout, context, settings, obj)
     col = layout.column(align=True)
     row = col.row()

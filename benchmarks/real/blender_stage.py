@@ -24,6 +24,13 @@ key spacing, on a fresh scene, as an animator would set it up:
 5. **Track**: ``bpy.ops.track_and_stride.track_keyframes()`` timed (synchronous, as headless),
    then Blender's evaluation of the written F-curves at every frame.
 
+Several cameras (issue 11's multi-view rows, ``plan["view_sets"]`` with more than one camera):
+step 1 imports every calibrated camera, makes the first of the set the scene camera and switches
+on exactly the set's cameras in the Track panel's *Cameras* list (*Find Cameras*; offsets 0);
+the operator then reads every camera's footage and tracks them in one multi-view run. The
+timed spacing decodes all of them (the speed figure ``tracker_4_views_fps``); the other
+spacings reuse those frames, per camera.
+
 Footage decoding: the operator decodes the movie itself (Blender's FFmpeg, through an Image
 datablock: ``addon/tracking/footage.py``) on the first run of each camera -- the timed
 spacing, ``plan["timed_spacing"]``. At 1080x1920 that costs 40-90 ms per frame here (the
@@ -96,14 +103,38 @@ def _fallback_camera(bpy, scene, calibration_path, name, video):
     return [note] if note else []
 
 
+def setup_several_cameras(bpy, plan, cameras):
+    """Issue 11's multi-view rows, as an animator sets them up: *Import Camera Calibration*
+    (every camera, its video behind it), the first of ``cameras`` made the scene camera
+    (``use_camera``), then the Track panel's *Find Cameras* and only ``cameras`` switched on
+    (offset 0: the Pose2Sim videos are synchronised). Returns (how, notes)."""
+    if plan["camera_setup"] != "import":
+        raise RuntimeError("several cameras are set up through Import Camera Calibration only")
+    result = bpy.ops.import_scene.camera_calibration(filepath=plan["calibration"])
+    if result != {"FINISHED"}:
+        raise RuntimeError(f"Import Camera Calibration returned {result}")
+    calibration = ext("addon.tracking.calibration")
+    made = {o.data[calibration.CALIBRATION_PROP]["camera"]: o for o in bpy.data.objects
+            if o.type == "CAMERA" and calibration.CALIBRATION_PROP in o.data}
+    notes = [calibration.use_camera(bpy.context, made[cameras[0]])]
+    if bpy.ops.track_and_stride.find_cameras() != {"FINISHED"}:
+        raise RuntimeError("Find Cameras failed")
+    settings = bpy.context.scene.track_and_stride_track
+    listed = {e.camera.name: e for e in settings.cameras}
+    for name in cameras:
+        if made[name].name not in listed:
+            raise RuntimeError(f"{name} has no footage after Import Camera Calibration")
+    wanted = {made[name].name for name in cameras}
+    for name, entry in listed.items():
+        entry.use, entry.offset = name in wanted, 0
+    return "import_calibration_operator_camera_list", notes
+
+
 def setup_cameras(bpy, plan, cameras):
     """Scene camera = calibrated camera ``cameras[0]``, its video as the footage; returns
-    (how, notes). Several cameras (issue 11's multi-view rows) need the Track panel's camera
-    list, which the operator does not have yet."""
+    (how, notes). Several cameras: :func:`setup_several_cameras`."""
     if len(cameras) != 1:
-        raise NotImplementedError(
-            f"{'+'.join(cameras)}: tracking several views through the operator needs its "
-            "multi-camera support (issue 11); add the set-up of each camera's footage here")
+        return setup_several_cameras(bpy, plan, cameras)
     name = cameras[0]
     scene = bpy.context.scene
     # (bpy.ops answers hasattr for any name: ask the operator list.)
@@ -242,11 +273,13 @@ class Recorder:
 
     def __init__(self, bridge, frames=None):
         self.bridge, self.saved, self.log, self.frames = bridge, {}, {}, frames
+        self.views_read = {}          # camera index -> frames read (several cameras)
 
-    def _memo_read(self, request, start, stop, reader=None, out=None):
+    def _memo_read(self, request, start, stop, reader=None, out=None, view=0):
+        frames = self.frames[view] if isinstance(self.frames, list) else self.frames
         if out is None:
-            return self.frames[start:stop].copy()
-        out[...] = self.frames[start:stop]
+            return frames[start:stop].copy()
+        out[...] = frames[start:stop]
         return out
 
     def __enter__(self):
@@ -263,6 +296,7 @@ class Recorder:
                 self.log[_name] = out
                 if _name == "read_footage":
                     self.log["footage_checksum"] = checksum(out)
+                    self.views_read[kwargs.get("view", 0)] = out
                 return out
             setattr(self.bridge, name, wrapped)
         return self
@@ -300,7 +334,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
     request = bridge.prepare_tracking(bpy.context, settings)
     slerp_rot, slerp_pos = slerp(request, names)
     radii = [[obj.data.bones[b].head_radius, obj.data.bones[b].tail_radius] for b in names]
-    if frames is not None and len(frames) != len(request.scene_frames):
+    if frames is not None and len(frames[0] if isinstance(frames, list) else frames) != len(
+            request.scene_frames):
         frames = None
     with Recorder(bridge, frames) as rec:
         tic = time.perf_counter()
@@ -333,7 +368,17 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
     record["footage_checksum"] = rec.log.get("footage_checksum")
     if plan.get("dump_core_inputs"):
         dump_core_inputs(Path(plan["dump_core_inputs"]), name, every, rec.log)
+    if len(cameras) > 1:                       # every camera's frames, in the problem's order
+        record["view_names"] = list(request.view_names)
+        record["footage_checksum"] = [checksum(rec.views_read[v])
+                                      for v in sorted(rec.views_read)]
+        return arrays, record, [rec.views_read[v] for v in sorted(rec.views_read)]
     return arrays, record, rec.log.get("read_footage")
+
+
+def _checksums(frames):
+    """:func:`checksum` of one camera's frames, or the list of several cameras'."""
+    return [checksum(f) for f in frames] if isinstance(frames, list) else checksum(frames)
 
 
 def acceptance_record(verdicts):
@@ -389,7 +434,7 @@ def main():
             out, record, read = run_one(bpy, plan, poses, cameras, every, frames)
             if frames is None:
                 frames, decoded = read, record["footage_checksum"]
-            elif checksum(frames) != decoded:
+            elif _checksums(frames) != decoded:
                 raise RuntimeError(f"{name}: the decoded frames changed during tracking")
             record["run_s"] = time.perf_counter() - tic
             print(f"  {name}, keys every {every}: Track Keyframes {record['operator_wall_s']:.1f} s"

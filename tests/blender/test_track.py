@@ -761,7 +761,7 @@ def test_modal_run_ends_cleanly_when_reading_fails_unexpectedly(walk_folder, mon
     request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
     ops = bridge("tracking.ops")
 
-    def broken(request, start, stop, reader=None, out=None):
+    def broken(request, start, stop, reader=None, out=None, view=0):
         raise RuntimeError("decoder crashed")
 
     monkeypatch.setattr(ops, "read_footage", broken)
