@@ -355,13 +355,8 @@ def prepare_tracking(context, settings):
     _check_writable(obj, rig, tracked_bones, tracked_before)
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
-    if len(cameras) > 1:
-        # The acceptance rule's thresholds were chosen on one camera; with several it reverts
-        # parts that were tracked right (bench-real, keys every 10 / 20 / 30, four cameras:
-        # 1.40 / 1.75 / 2.10 cm without it, 1.63 / 1.74 / 2.12 with the whole-body rule, 1.57 /
-        # 2.62 / 3.02 with the per-part one; docs/bench_real.md, *Several cameras*). Its
-        # evidence is still reported (IntervalResult.acceptance); nothing is reverted.
-        options = dataclasses.replace(options, acceptance=None)
+    # With several cameras the acceptance rule is not applied (AcceptanceRule.several_views,
+    # core): its thresholds were chosen on single cameras.
     return TrackRequest(
         obj_name=obj.name, obj_pointer=obj.as_pointer(), rig=rig, problem=problem,
         options=options, processes=settings.processes or preferences().track_processes or None,

@@ -748,7 +748,8 @@ def _accept_parts(problem, options, views, start, end, scores):
                                np.asarray(local, float)[None], interp.roots[-1:],
                                interp.local[-1:], interp.roots[-1:], interp.local[-1:])[0]
     tracked, reasons = np.ones(len(names), dtype=bool), (TRACKED,) * len(names)
-    if options.acceptance is not None:
+    rule = options.acceptance
+    if rule is not None and (len(views) == 1 or rule.several_views):
         tracked, reasons = judge_parts(options.acceptance, drift, departure, seen,
                                        len(interp.roots) - 1)
     if not np.all(tracked):

@@ -206,3 +206,23 @@ def test_track_interval_reports_evidence_and_applies_the_rule(swing):
         rule = AcceptanceRule(scale * drift / 0.8, 0.0, 0.0, torso="own", drift_growth=1.0)
         got = track_interval(problem, frames, start, end, options.replace(acceptance=rule))
         assert got.acceptance.tracked[0] == kept
+
+
+def test_several_cameras_record_the_evidence_but_revert_only_when_asked(swing):
+    """AcceptanceRule.several_views: an interval two cameras filmed keeps its tracking under a
+    rule nothing passes (the thresholds were chosen on single cameras), unless asked."""
+    problem, frames, start, end, n = swing
+    cam = problem.cameras[0]
+    two = TrackingProblem(problem.skeleton, problem.body, [cam, cam])
+    options = TrackingOptions(max_iterations=2)
+    free = track_interval(two, [frames, frames], start, end, options.replace(acceptance=None))
+    strict = AcceptanceRule(0.0, 0.0, 1.01)
+    kept = track_interval(two, [frames, frames], start, end, options.replace(acceptance=strict))
+    assert kept.local_rotations.tobytes() == free.local_rotations.tobytes()
+    assert np.all(kept.acceptance.tracked) and np.all(np.isfinite(kept.acceptance.drift))
+    asked = track_interval(two, [frames, frames], start, end,
+                           options.replace(acceptance=AcceptanceRule(0.0, 0.0, 1.01,
+                                                                     several_views=True)))
+    roots, local = interpolate_poses(problem.skeleton, start, end, n)
+    assert asked.local_rotations.tobytes() == local.tobytes()
+    assert not np.any(asked.acceptance.tracked)
