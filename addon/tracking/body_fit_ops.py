@@ -21,6 +21,7 @@ from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, fram
 from .camera_bridge import render_size
 from .footage import FootageError, FootageReader
 from .keys import classify_frames
+from .ops import armature_or_message
 from .props import track_settings
 
 
@@ -118,15 +119,7 @@ class TS_OT_fit_body_to_footage(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        settings = track_settings(context.scene)
-        obj = settings.armature or context.active_object
-        if obj is None or obj.type != "ARMATURE":
-            cls.poll_message_set("Choose the armature to fit (Track panel) or make one active")
-            return False
-        if obj.mode == "EDIT":
-            cls.poll_message_set("Leave Edit Mode first")
-            return False
-        return True
+        return armature_or_message(cls, context, "fit") is not None
 
     def execute(self, context):
         return report_outcome(self, TrackError,

@@ -9,18 +9,16 @@ import numpy as np
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from .footage import MOVIE_EXTENSIONS, FootageReader
-from ..common.reporting import report_outcome
-from .bridge import (TrackError, TrackJob, apply_result, prepare_tracking, read_footage,
-                     resolve_editable_armature, suggest_markers, track_now)
+from ..common.reporting import one_line, report_outcome
+from .bridge import (TrackError, TrackJob, apply_result, frame_range, prepare_tracking,
+                     read_footage, resolve_editable_armature, suggest_markers, track_now)
 from .cameras import register_operators as register_camera_list
 from .cameras import unregister_operators as unregister_camera_list
 from .cameras import uses_camera_list
+from .footage import MOVIE_EXTENSIONS, FootageReader
 from .props import track_settings
 from .setup import (apply_table1_dof, match_render_size, open_footage,
                     show_footage_behind_camera)
-from ..common.reporting import one_line          # one-line tooltips (issue 14)
-from .bridge import frame_range
 
 # The running tracking operator (one at a time).
 _RUNNING = []
@@ -36,11 +34,13 @@ _READ_SHARE, _WRITE_SHARE = 0.1, 0.05
 _READ_STEP_SECONDS = 0.25
 
 
-def _armature_or_message(cls, context):
+def armature_or_message(cls, context, purpose="track"):
+    """The Track panel's armature (else the active one) for an operator's poll, or None with
+    the reason set as the poll message (``purpose``: the verb in it)."""
     settings = track_settings(context.scene)
     obj = settings.armature or context.active_object
     if obj is None or obj.type != "ARMATURE":
-        cls.poll_message_set("Choose the armature to track (Track panel) or make one active")
+        cls.poll_message_set(f"Choose the armature to {purpose} (Track panel) or make one active")
         return None
     if obj.mode == "EDIT":
         cls.poll_message_set("Leave Edit Mode first")
@@ -244,7 +244,7 @@ class TS_OT_suggest_keyframes(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _armature_or_message(cls, context) is not None
+        return armature_or_message(cls, context) is not None
 
     def execute(self, context):
         return report_outcome(self, TrackError,
@@ -266,7 +266,7 @@ class TS_OT_table1_dof(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _armature_or_message(cls, context) is not None
+        return armature_or_message(cls, context) is not None
 
     def execute(self, context):
         settings = track_settings(context.scene)
@@ -293,7 +293,7 @@ class TS_OT_show_envelopes(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _armature_or_message(cls, context) is not None
+        return armature_or_message(cls, context) is not None
 
     def execute(self, context):
         def show():
