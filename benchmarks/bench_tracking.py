@@ -23,6 +23,7 @@ Prints a table and writes the JSON (shape in issues 4 and 11).
 """
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -402,7 +403,7 @@ def main(argv=None):
     speed["multi_view"] = bench_multi_view_speed(options, args.processes)
     result["speed"] = speed
     result["goals"] = GOALS
-    result["options"] = {k: getattr(options, k) for k in options.__dataclass_fields__}
+    result["options"] = dataclasses.asdict(options)      # nested AcceptanceRule too
     result["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(),
                          "numpy": np.__version__}
     out = Path(args.output)
