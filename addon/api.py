@@ -74,7 +74,8 @@ def _object(name_or_object, kind, error):
 
 
 # ------------------------------------------------------------------------------ tracking
-def track(armature=None, camera=None, frames=None, processes=None, suggest=False, scene=None):
+def track(armature=None, camera=None, frames=None, processes=None, suggest=False, scene=None,
+          between=None, every=None):
     """Track Keyframes on a scene, synchronously (``tracking.batch.track_armature``).
 
     Parameters
@@ -92,6 +93,10 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
         Also mark suggested keyframes (timeline markers at residual spikes).
     scene : str or bpy.types.Scene, optional
         Default: the current scene.
+    between : {'ALL', 'SELECTED', 'NTH', 'MARKERS'}, optional
+        The keyed poses to track between (*Track Between*); default: the Track panel's.
+    every : int, optional
+        N of *Every Nth Key*; default: the Track panel's.
 
     Returns
     -------
@@ -104,7 +109,8 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
     """
     scene = _scene(scene)
     return track_armature(scene, _object(armature, "ARMATURE", TrackError),
-                          _object(camera, "CAMERA", TrackError), frames, processes, suggest)
+                          _object(camera, "CAMERA", TrackError), frames, processes, suggest,
+                          between, every)
 
 
 # ------------------------------------------------------------------------------ gait

@@ -7,7 +7,8 @@ second registration of an id makes it inaccessible), so Track & Stride registers
 extension id ``track_and_stride``, with sub-commands, as Blender's own ``extension`` command
 does::
 
-    blender --command track_and_stride track SHOT.blend [--armature NAME] [--output OUT.blend]
+    blender --command track_and_stride track SHOT.blend [--armature NAME] [--between MODE]
+            [--output OUT.blend]
     blender --command track_and_stride predict SHOT.blend [--model NAME|FILE.npz] [--length S]
     blender --command track_and_stride import-acclaim MOTION.amc --output OUT.blend
 
@@ -45,6 +46,8 @@ from . import api
 COMMAND_ID = "track_and_stride"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
 PROG = f"blender --command {COMMAND_ID}"
+#: ``track --between`` choices → the Track panel's *Track Between* items.
+TRACK_BETWEEN = {"all": "ALL", "selected": "SELECTED", "every-nth": "NTH", "markers": "MARKERS"}
 STATUS_OF_EXIT = {EXIT_FAILED: "failed", EXIT_USAGE: "bad_arguments", EXIT_INTERNAL: "error"}
 
 
@@ -87,6 +90,12 @@ def build_parser():
     track.add_argument("--processes", type=int, metavar="N",
                        help="worker processes (0 = automatic: the add-on preference, else one "
                             "per CPU; default: the Track panel's)")
+    track.add_argument("--between", choices=tuple(TRACK_BETWEEN),
+                       help="the keyed poses to track between (default: the Track panel's): "
+                            "all keys, the selected keys, every Nth key (--every) or the "
+                            "scene's markers; the other keys between them are replaced")
+    track.add_argument("--every", type=int, metavar="N",
+                       help="N of --between every-nth (default: the Track panel's, 10)")
     track.add_argument("--suggest", action="store_true",
                        help="also mark suggested keyframes (timeline markers at residual "
                             "spikes)")
@@ -233,7 +242,11 @@ def run_track(args):
         raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")
     if args.processes is not None and args.processes < 0:
         raise UsageError(f"--processes {args.processes}: give 0 (automatic) or more")
-    return api.track(armature, camera, args.frames, args.processes, args.suggest, scene)
+    if args.every is not None and args.every < 2:
+        raise UsageError(f"--every {args.every}: give 2 or more")
+    between = TRACK_BETWEEN[args.between] if args.between else None
+    return api.track(armature, camera, args.frames, args.processes, args.suggest, scene,
+                     between, args.every)
 
 
 def run_predict(args):

@@ -2,7 +2,7 @@
 (:mod:`..api`) and the command line (:mod:`..cli`) call.
 
 :func:`track_armature` runs the operator's synchronous path (``bridge.prepare_tracking`` →
-``read_footage`` → ``run_core`` → ``apply_result``) on the scene's Track settings, with the
+``read_all_footage`` → ``run_core`` → ``apply_result``) on the scene's Track settings, with the
 armature, camera, frame range and processes given as arguments instead of the panel's (the
 scene's settings are read, never changed). It refuses and changes nothing exactly where the
 operator does (:class:`~.bridge.TrackError`), and returns a summary dict with one entry per
@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from .bridge import (TrackError, apply_result, prepare_tracking, read_footage, run_core,
+from .bridge import (TrackError, apply_result, prepare_tracking, read_all_footage, run_core,
                      suggest_markers)
 from .props import track_settings
 
@@ -41,11 +41,25 @@ class _SettingsView:
         return getattr(self.__dict__["_settings"], name)
 
 
-def batch_settings(scene, armature=None, camera=None, frame_range=None, processes=None):
+#: ``between`` of :func:`track_armature`: the Track panel's *Track Between* items.
+BETWEEN = ("ALL", "SELECTED", "NTH", "MARKERS")
+
+
+def batch_settings(scene, armature=None, camera=None, frame_range=None, processes=None,
+                   between=None, every=None):
     """(context, settings) for the bridge: the scene's Track settings, overridden by the
     arguments that are given (see :func:`track_armature`)."""
     settings = track_settings(scene)
     overrides = {}
+    if between is not None:
+        if between not in BETWEEN:
+            raise TrackError(f"Track Between must be one of {', '.join(BETWEEN)}, got "
+                             f"{between!r}")
+        overrides["track_between"] = between
+    if every is not None:
+        if int(every) < 2:
+            raise TrackError(f"Every Nth Key needs N of 2 or more, got {every}")
+        overrides["key_step"] = int(every)
     if armature is not None:
         if armature.type != "ARMATURE":
             raise TrackError(f"{armature.name} is not an armature")
@@ -123,7 +137,7 @@ def part_summaries(verdicts):
 
 
 def track_armature(scene, armature=None, camera=None, frame_range=None, processes=None,
-                   suggest=False):
+                   suggest=False, between=None, every=None):
     """Track an armature through the scene's footage between its keyframes, synchronously.
 
     Parameters
@@ -143,6 +157,11 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         Default: the Track panel's value.
     suggest : bool
         Also put suggestion markers at residual spikes (*Suggest Keyframes*).
+    between : {'ALL', 'SELECTED', 'NTH', 'MARKERS'}, optional
+        The keyed poses to track between (*Track Between*); the other keys between the first
+        and last of them are replaced. Default: the Track panel's.
+    every : int, optional
+        N of *Every Nth Key* (2 or more). Default: the Track panel's.
 
     Returns
     -------
@@ -163,10 +182,11 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
     TrackError
         The run cannot be carried out (the message says why); nothing was changed.
     """
-    context, settings = batch_settings(scene, armature, camera, frame_range, processes)
+    context, settings = batch_settings(scene, armature, camera, frame_range, processes,
+                                       between, every)
     tic = time.perf_counter()
     request = prepare_tracking(context, settings)
-    frames = read_footage(request, 0, len(request.scene_frames))
+    frames = read_all_footage(request)          # every switched-on camera's (Cameras list)
     read_s = time.perf_counter() - tic
     result = run_core(request, frames)
     del frames
@@ -176,6 +196,7 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         "status": "warning" if warnings else "ok",
         "armature": request.obj_name,
         "camera": (settings.camera or scene.camera).name,
+        "cameras": [str(name) for name in request.view_names],
         "frames": [request.first, request.last],
         "keyframes": [int(f) for f in request.key_frames],
         "intervals": intervals,

@@ -504,12 +504,18 @@ def apply_result(context, request, result):
     return summary, warnings
 
 
+def read_all_footage(request):
+    """Every camera's frames of the request, as :func:`run_core` takes them: one (F, H, W)
+    stack with one camera, a list of stacks (problem order) with several."""
+    frames = [read_footage(request, 0, len(request.scene_frames), view=v)
+              for v in range(request.n_views)]
+    return frames[0] if request.n_views == 1 else frames
+
+
 def track_now(context, settings):
     """The whole run synchronously (background mode, scripts): returns (summary, warnings)."""
     request = prepare_tracking(context, settings)
-    frames = [read_footage(request, 0, len(request.scene_frames), view=v)
-              for v in range(request.n_views)]
-    result = run_core(request, frames[0] if request.n_views == 1 else frames)
+    result = run_core(request, read_all_footage(request))
     return apply_result(context, request, result)
 
 

@@ -99,6 +99,25 @@ def test_track_saves_the_tracked_keys_and_reports_each_interval(walk_folder, tmp
     assert mpjpe < BENCHMARK_MPJPE_CM
 
 
+def test_track_between_every_nth_key_replaces_the_keys_between(walk_folder, tmp_path, capfd):
+    """--between every-nth --every 2 on keys 1, 21, 41: the poses are 1 and 41, the key at 21
+    is replaced by tracked frames; a bad N is a usage error and saves nothing."""
+    cli = module("cli")
+    build_walk_scene(walk_folder)
+    shot = save_scene(tmp_path / "shot.blend")
+    code, summary, _ = run(capfd, "track", shot, "--between", "every-nth", "--every", 1)
+    assert code == cli.EXIT_USAGE and "--every 1" in summary["message"] and not summary["saved"]
+    code, summary, _ = run(capfd, "track", shot, "--between", "sometimes")
+    assert code == cli.EXIT_USAGE and "--between" in summary["message"]
+    out = tmp_path / "tracked.blend"
+    code, summary, _ = run(capfd, "track", shot, "--between", "every-nth", "--every", 2,
+                           "--processes", 1, "--output", out)
+    assert code == 0, summary["message"]
+    assert summary["keyframes"] == [1, 41] and [i["frames"] for i in summary["intervals"]] == [
+        [1, 41]]
+    assert summary["cameras"] == [bpy.context.scene.camera.name]
+
+
 def test_track_failures_save_nothing(walk_folder, tmp_path, capfd):
     cli = module("cli")
     code, summary, _ = run(capfd, "track", tmp_path / "missing.blend")

@@ -184,3 +184,16 @@ def test_find_cameras_keeps_settings_and_the_panel_draws(folders):
     for prop in settings().cameras[0].bl_rna.properties:
         if prop.identifier not in ("rna_type", "name"):
             assert prop.description, prop.identifier
+
+
+def test_the_batch_path_tracks_with_every_camera_like_the_operator(folders):
+    """``track_armature`` (the Python API and the command line) reads every switched-on
+    camera's footage, as the operator does: the same keys, both cameras named."""
+    obj = build_two_camera_scene(folders)
+    summary = bridge("tracking.batch").track_armature(bpy.context.scene, processes=1)
+    assert summary["cameras"] == ["Above", "Footage Camera"] and summary["keys"] > 0
+    by_batch = snapshot(obj)
+    bpy.ops.wm.read_homefile(use_empty=True)            # the same scene again, untracked
+    obj = build_two_camera_scene(folders)
+    assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
+    same_keys(by_batch, snapshot(obj))
