@@ -250,6 +250,31 @@ def photometric_error(problem, frames_level, level, frames_cam, samples, camera=
     return np.where(kept > 0, sums * total / np.maximum(kept, 1.0), 0.0) * samples.strides[:n] ** 2
 
 
+def _allowed_ranges(problem, local_rotations, start, end, margin):
+    """Per limited joint: ``(j, axes, mode, angles, lo, hi)``.
+
+    ``mode`` is the joint's Euler order (its ``dof_axes``, then the other axes), ``angles``
+    (n + 1, 3) its rotations decomposed in it, ``axes`` the estimated axes with finite limits,
+    and ``lo``, ``hi`` (3,) the allowed range: the skeleton's limits widened to include both
+    keyed values, plus ``margin`` (radians); ±inf on the other axes.
+    """
+    sk = problem.skeleton
+    mask = problem.dof_mask
+    for j in range(sk.n_joints):
+        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
+        if not axes:
+            continue
+        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
+        mode = "".join(_AXES[a] for a in order)
+        angles = matrix_to_euler(local_rotations[:, j], mode)
+        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
+        lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
+        for a in axes:
+            lo[a] = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
+            hi[a] = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
+        yield j, axes, mode, angles, lo, hi
+
+
 def limit_violation(problem, local_rotations, start, end, margin):
     """First estimated joint axis outside its limits, or None.
 
@@ -262,25 +287,16 @@ def limit_violation(problem, local_rotations, start, end, margin):
     str or None
         A readable description of the violation.
     """
-    sk = problem.skeleton
-    mask = problem.dof_mask
-    for j in range(sk.n_joints):
-        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
-        if not axes:
-            continue
-        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
-        mode = "".join(_AXES[a] for a in order)
-        angles = matrix_to_euler(local_rotations[:, j], mode)
-        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
+    names = problem.skeleton.names
+    for j, axes, _, angles, lo, hi in _allowed_ranges(problem, local_rotations, start, end,
+                                                      margin):
         for a in axes:
-            lo = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
-            hi = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
-            bad = np.nonzero((angles[:, a] < lo) | (angles[:, a] > hi))[0]
+            bad = np.nonzero((angles[:, a] < lo[a]) | (angles[:, a] > hi[a]))[0]
             if len(bad):
                 f = int(bad[0])
-                return (f"joint {sk.names[j]!r} axis {_AXES[a]} at {np.degrees(angles[f, a]):.1f}"
-                        f" deg outside [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg at "
-                        f"frame {f}")
+                return (f"joint {names[j]!r} axis {_AXES[a]} at {np.degrees(angles[f, a]):.1f}"
+                        f" deg outside [{np.degrees(lo[a]):.1f}, {np.degrees(hi[a]):.1f}] deg "
+                        f"at frame {f}")
     return None
 
 
@@ -297,24 +313,11 @@ def clamp_to_limits(problem, local_rotations, start, end, margin):
     clamped : str or None
         The first violation (as :func:`limit_violation` words it), or None.
     """
-    sk = problem.skeleton
-    mask = problem.dof_mask
     local = np.array(local_rotations, dtype=float)
     first = limit_violation(problem, local, start, end, margin)
     if first is None:
         return local, None
-    for j in range(sk.n_joints):
-        axes = [a for a in range(3) if mask[j, a] and np.all(np.isfinite(sk.limits[j, a]))]
-        if not axes:
-            continue
-        order = list(sk.dof_axes[j]) + [a for a in range(3) if a not in sk.dof_axes[j]]
-        mode = "".join(_AXES[a] for a in order)
-        angles = matrix_to_euler(local[:, j], mode)
-        keys = matrix_to_euler(np.stack([start.local_rotations[j], end.local_rotations[j]]), mode)
-        lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
-        for a in axes:
-            lo[a] = min(sk.limits[j, a, 0], keys[:, a].min()) - margin
-            hi[a] = max(sk.limits[j, a, 1], keys[:, a].max()) + margin
+    for j, _, mode, angles, lo, hi in _allowed_ranges(problem, local, start, end, margin):
         out = np.nonzero(np.any((angles < lo) | (angles > hi), axis=1))[0]
         if len(out):
             local[out, j] = euler_to_matrix(np.clip(angles[out], lo, hi), mode)
