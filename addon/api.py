@@ -29,6 +29,7 @@ from .gait.rigs import GaitError
 from .mocap.acclaim_bridge import AcclaimError, scene_fps
 from .mocap.acclaim_import import AcclaimImport
 from .common.fcurves import object_channelbag
+from .common.pose_bridge import only_armature
 from .preferences import preferences
 from .tracking.batch import track_armature
 from .tracking.bridge import TrackError
@@ -188,14 +189,7 @@ def default_walker(scene):
     active = bpy.context.view_layer.objects.active if scene == bpy.context.scene else None
     if active is not None and active.type == "ARMATURE":
         return active
-    found = [o for o in scene.objects if o.type == "ARMATURE"]
-    if len(found) == 1:
-        return found[0]
-    if not found:
-        raise GaitError(f"Scene {scene.name} has no armature to predict")
-    names = ", ".join(sorted(o.name for o in found))
-    raise GaitError(f"Scene {scene.name} has several armatures ({names}) and none is active: "
-                    "say which one walks")
+    return only_armature(scene, GaitError, "predict", "none is active: say which one walks")
 
 
 # ------------------------------------------------------------------------------ import

@@ -210,3 +210,18 @@ def write_pose_keys(rig, frames, root_translation, local_rotations, bones=None, 
         for i in np.nonzero(rig.root_location_mask)[0]:
             written += insert_keys_preserving(bag, path, int(i), rig.bone_names[0], frames, location[:, i])
     return written
+
+
+def only_armature(scene, error, purpose, none_chosen):
+    """The scene's only armature, for a request that names none.
+
+    Raises ``error`` when the scene has no armature ("… no armature to ``purpose``") or several
+    ("… several armatures (names) and ``none_chosen``").
+    """
+    found = [o for o in scene.objects if o.type == "ARMATURE"]
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise error(f"Scene {scene.name} has no armature to {purpose}")
+    names = ", ".join(sorted(o.name for o in found))
+    raise error(f"Scene {scene.name} has several armatures ({names}) and {none_chosen}")

@@ -7,10 +7,10 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...core.mocap import MocapParseError
-from ..common.reporting import one_line
 from .acclaim_bridge import AcclaimError, export_acclaim
 from .acclaim_import import AcclaimImport
-from ..common.reporting import report_outcome
+from ..common.reporting import (clear_progress_text, one_line, report_outcome,
+                                show_progress)
 from ..preferences import FRAME_RATE_ITEMS, fill_unset, operator_value
 
 # What an import or export reports as "cannot run" (nothing else is caught).
@@ -105,16 +105,9 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         return {"RUNNING_MODAL"}
 
     def _status(self, context, fraction, stage):
-        context.window_manager.progress_update(int(100 * fraction))
         text = (f"Track & Stride: importing {self._import.name}, {stage} "
                 f"({100 * fraction:.0f} %) — Esc cancels")
-        if context.workspace is not None:
-            context.workspace.status_text_set(text)
-        if self._area is not None:
-            try:
-                self._area.header_text_set(text)
-            except ReferenceError:                # the area was closed meanwhile
-                self._area = None
+        self._area = show_progress(context, self._area, fraction, text)
 
     def _finish(self, context):
         """Timer, progress bar, status and header text off (safe to call twice)."""
@@ -124,13 +117,7 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         wm = context.window_manager
         wm.event_timer_remove(self._timer)
         wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        if self._area is not None:
-            try:
-                self._area.header_text_set(None)
-            except ReferenceError:
-                pass
+        clear_progress_text(context, self._area)
 
     def cancel(self, context):
         """Blender ends the operator (file loaded, window closed): undo what was built."""

@@ -15,6 +15,7 @@ import numpy as np
 
 from .bridge import (TrackError, apply_result, prepare_tracking, read_all_footage, run_core,
                      suggest_markers)
+from ..common.pose_bridge import only_armature
 from .props import track_settings
 
 
@@ -85,14 +86,8 @@ def default_armature(scene):
     chosen = track_settings(scene).armature
     if chosen is not None:
         return chosen
-    found = [o for o in scene.objects if o.type == "ARMATURE"]
-    if len(found) == 1:
-        return found[0]
-    if not found:
-        raise TrackError(f"Scene {scene.name} has no armature to track")
-    names = ", ".join(sorted(o.name for o in found))
-    raise TrackError(f"Scene {scene.name} has several armatures ({names}) and its Track panel "
-                     "names none: say which one to track")
+    return only_armature(scene, TrackError, "track",
+                         "its Track panel names none: say which one to track")
 
 
 def interval_summaries(request, result):

@@ -9,7 +9,8 @@ import numpy as np
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from ..common.reporting import one_line, report_outcome
+from ..common.reporting import (clear_progress_text, one_line, report_outcome,
+                                show_progress)
 from .bridge import (TrackError, TrackJob, apply_result, frame_range, prepare_tracking,
                      read_footage, resolve_editable_armature, suggest_markers, track_now)
 from .cameras import register_operators as register_camera_list
@@ -135,13 +136,9 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         self._status(context, "reading footage", 0.0)
 
     def _status(self, context, stage, fraction):
-        context.window_manager.progress_update(int(100 * fraction))
         text = (f"Track & Stride: tracking {self._request.obj_name}, {stage} "
                 f"({100 * fraction:.0f} %) — Esc cancels")
-        if context.workspace is not None:
-            context.workspace.status_text_set(text)
-        if self._area is not None:
-            self._area.header_text_set(text)
+        self._area = show_progress(context, self._area, fraction, text)
 
     def _finish(self, context):
         """Timer, progress bar, status and header text off (safe to call twice)."""
@@ -153,13 +150,7 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
         wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        if self._area is not None:
-            try:
-                self._area.header_text_set(None)
-            except ReferenceError:                # the area was closed meanwhile
-                pass
+        clear_progress_text(context, self._area)
 
     def cancel(self, context):
         """Blender ends the operator (file loaded, window closed): stop the worker too."""
