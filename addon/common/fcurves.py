@@ -311,7 +311,32 @@ def remove_keys_at(fcurve, frames):
     if len(points) == 0 or len(frames) == 0:
         return 0
     at = _keyframe_state(points)["co"][:, 0].astype(np.float64)
-    doomed = np.nonzero(np.min(np.abs(at[:, None] - frames[None, :]), axis=1) < 1e-4)[0]
+    return _remove_points(fcurve, np.min(np.abs(at[:, None] - frames[None, :]), axis=1) < 1e-4)
+
+
+def remove_keys_counting_for(fcurve, frames):
+    """Remove the keys whose nearest whole frame (``np.rint``) is one of ``frames``: a key at
+    21.4 counts for frame 21, as everywhere keyframes are found (``tracking.keys``). Every
+    other key keeps its exact state (handles too).
+
+    Returns
+    -------
+    int
+        Keys removed.
+    """
+    frames = np.asarray(frames, dtype=np.float64)
+    points = fcurve.keyframe_points
+    if len(points) == 0 or len(frames) == 0:
+        return 0
+    at = np.rint(_keyframe_state(points)["co"][:, 0].astype(np.float64))
+    return _remove_points(fcurve, np.isin(at, np.rint(frames)))
+
+
+def _remove_points(fcurve, doomed_mask):
+    """Remove the keys where ``doomed_mask`` (one bool per key) is set, restoring the other
+    keys' handles after Blender recalculates the curve; returns how many were removed."""
+    points = fcurve.keyframe_points
+    doomed = np.nonzero(doomed_mask)[0]
     if len(doomed) == 0:
         return 0
     for index in doomed[::-1]:

@@ -21,7 +21,9 @@ continuity from the keyframe before), on the bones whose rotation was estimated 
 location). A tracked channel without a key at a keyframe gets one holding its value from before
 (so the keyed pose stays the pose). Existing keys keep their exact state. With *Track Between* the keyed frames left out between
 the chosen poses are *replaced*: :func:`remove_replaced_keys` first removes their keys on the
-estimated channels only, then they are written like any in-between frame. Confidence curves
+estimated channels only, then they are written like any in-between frame. Everywhere here a key
+at a fractional frame counts for its nearest whole frame (``np.rint``): for finding keyframes,
+for replacing keys and for removing earlier tracked keys. Confidence curves
 (custom properties of the armature object, visible in the Graph Editor):
 ``track_and_stride_residual`` (eq. 4 residual of the frame pair ``f-1 -> f``, linear) and
 ``track_and_stride_rank`` (rank of ``A`` for that pair, constant; the paper's Fig. 10).
@@ -36,8 +38,8 @@ import numpy as np
 from ...core.pose_channels import channel_property
 from ..common.fcurves import (channelbag, ensure_action, enum_value, insert_keys_preserving,
                               key_frames_and_types, keyframe_state, locked_channels, modified_channels,
-                              object_channelbag, pose_bone_path,
-                              remove_keys_at, set_key_type, update_keeping_handles)
+                              object_channelbag, pose_bone_path, remove_keys_at,
+                              remove_keys_counting_for, set_key_type, update_keeping_handles)
 from ..common.pose_bridge import write_pose_keys
 
 PROP_TRACKED = "track_and_stride_tracked"
@@ -169,15 +171,14 @@ def written_channels(obj, rig, tracked_bones, tracked_before):
     if bag is None:
         return []
     bones = set(tracked_bones)
-    clear = np.asarray(sorted(tracked_before), dtype=float)
+    clear = np.asarray(sorted(tracked_before), dtype=int)
     channels = []
     for path, index, bone in rig_channels(rig):
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is None:
             continue
-        frames = key_frames_and_types(fcurve)[0].astype(float)
-        if bone in bones or (len(clear) and len(frames) and
-                             np.min(np.abs(frames[:, None] - clear[None, :])) < 1e-4):
+        frames = np.rint(key_frames_and_types(fcurve)[0]).astype(int)
+        if bone in bones or np.any(np.isin(frames, clear)):
             channels.append((path, index))
     channels += [(f'["{prop}"]', 0) for prop in (PROP_RESIDUAL, PROP_RANK)]
     return channels
@@ -209,10 +210,12 @@ def evaluate_channels_at(obj, rig, frames):
 
 
 def remove_replaced_keys(rig, tracked_bones, replaced):
-    """Remove the keys at ``replaced`` frames from the estimated channels
+    """Remove the keys counting for ``replaced`` frames from the estimated channels
     (:func:`estimated_channels`), before :func:`write_tracking` keys those frames with tracked
     poses: the keyed frames between the poses that the animator's *Track Between* choice left
-    out. Their keys on other channels stay, exactly.
+    out. A key counts for its nearest whole frame, as when the keyframes are found (a key at
+    11.4 is replaced with frame 11; one at 20.6 is the pose at 21 and stays). Their keys on
+    other channels stay, exactly.
 
     Returns
     -------
@@ -226,7 +229,7 @@ def remove_replaced_keys(rig, tracked_bones, replaced):
     for path, index in estimated_channels(rig, tracked_bones):
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is not None:
-            removed += remove_keys_at(fcurve, replaced)
+            removed += remove_keys_counting_for(fcurve, replaced)
     return removed
 
 
@@ -267,7 +270,7 @@ def write_tracking(rig, key_frames, tracked_before, tracked_bones, frames, roots
     for path, index, _ in channels:
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is not None:
-            remove_keys_at(fcurve, tracked_before)
+            remove_keys_counting_for(fcurve, tracked_before)
     for frame in tracked_before:
         record.pop(str(frame), None)
     before, kept = {}, {}

@@ -203,3 +203,49 @@ def test_the_preview_lines_are_drawn_at_their_frames(tmp_path):
     if "NO-GPU" in done.stdout:
         pytest.skip(done.stdout.strip())
     assert "LIT [10, 40] ROWS 16" in done.stdout, done.stdout + done.stderr[-2000:]
+
+
+def _move_key(fcurve, frame, to):
+    """Move the key at whole ``frame`` to the fractional frame ``to`` (handles with it)."""
+    (key,) = [k for k in fcurve.keyframe_points if abs(k.co[0] - frame) < 1e-3]
+    for point in (key.co, key.handle_left, key.handle_right):
+        point[0] += to - frame
+    fcurve.update()
+
+
+def test_a_replaced_key_at_a_fractional_frame_is_replaced_too(walk_folder):
+    """A key counts for its nearest whole frame, as in choosing the keyframes: on an estimated
+    channel, user keys at 11.4 and at 30 and 30.3 (frames 11 and 30, strictly between the
+    chosen poses 5, 21, 37) are removed and one tracked key per frame takes their place; keys
+    counting for a chosen pose (21.3, 5.2) or outside the span (4.4, and 37.6, which counts for
+    38) survive bit for bit, and no second key is written beside them."""
+    obj = build_walk_scene(walk_folder, step=1)
+    poses = [5, 21, 37]
+    settings().processes, settings().track_between = 1, "SELECTED"
+    _select_keys_at(obj, poses)
+    path = ('pose.bones["rtibia"].rotation_euler', 0)
+    fcurve = channelbag(obj).fcurves.find(path[0], index=path[1])
+    for frame, to in ((11, 11.4), (21, 21.3), (5, 5.2), (4, 4.4), (38, 37.6)):
+        _move_key(fcurve, frame, to)
+    added = fcurve.keyframe_points.insert(30.3, fcurve.evaluate(30.3) + 0.1)
+    added.select_control_point = added.select_left_handle = added.select_right_handle = False
+    fcurve.update()
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    assert request.key_frames.tolist() == poses
+    assert path in bridge("tracking.keys").estimated_channels(request.rig, request.tracked_bones)
+    before = snapshot(obj)
+    co = before[path]["co"][:, 0]
+    kept = [np.float32(f) for f in (1, 2, 3, 4.4, 5.2, 21.3, 37, 37.6, 39, 40, 41)]
+    assert set(kept) <= set(co.tolist()) and {np.float32(f) for f in (11.4, 30, 30.3)} <= set(co.tolist())
+    assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
+    after = snapshot(obj)
+    same_keys(before, after, kept)                          # the poses and the keys outside
+    same_keys({k: v for k, v in before.items() if k != path}, after, poses + [4, 38])
+    frames = after[path]["co"][:, 0]
+    assert frames.tolist() == sorted(frames.tolist())
+    assert np.rint(frames).astype(int).tolist() == list(range(1, N_FRAMES + 1))  # one per frame
+    written = [f for f in range(6, 37) if f != 21]
+    assert [f for f in frames.tolist() if 5.5 < f < 36.5 and f != np.float32(21.3)] == written
+    types = {float(k.co[0]): k.type for k in fcurve.keyframe_points}
+    assert {types[f] for f in written} == {"GENERATED"}
+    assert np.all(np.isfinite(after[path]["co"]))
