@@ -2,8 +2,9 @@
 
 A thin adapter over :func:`core.tracking.body_fit.fit_body_radii`: read the armature, its
 keyframes, the camera (lens included) and the footage at those keys exactly as Track Keyframes
-reads them (:mod:`.bridge`), fit, and write the fitted bones' ``head_radius`` /
-``tail_radius`` (the body the tracker uses, :func:`.bridge.envelope_radii`). Bones without
+reads them (:mod:`.bridge`), fit, and write the radii so that the Envelope display draws the
+fitted body (the body the tracker uses, :func:`.bridge.envelope_radii`; a connected joint has
+one radius, :func:`..common.body_bridge.write_envelope_radii`). Bones without
 clear evidence keep their radii; the report says how many were fitted and why the others were
 not. Any problem is refused before anything changes; the keys are never touched; one undo step
 restores the radii. The user edits the radii afterwards as before (Envelope display, Alt S in
@@ -14,6 +15,7 @@ import bpy
 import numpy as np
 
 from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
+from ..common.body_bridge import connected_bones, write_envelope_radii
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from ..common.reporting import one_line, report_outcome
 from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, frame_range,
@@ -49,7 +51,7 @@ def _describe(names, fit, radii_before):
     for name, reason in zip(names, fit.reasons):
         if reason and reason != "no shape":
             kept.setdefault(reason, []).append(name)
-    change = np.abs(fit.radii - radii_before)[fit.fitted]
+    change = np.abs(fit.radii - radii_before)      # a connected joint moves its other bone too
     text = (f"Body fitted to the footage: {len(fitted)} of {len(fitted) + sum(map(len, kept.values()))} "
             f"bones")
     if fitted:
@@ -95,15 +97,14 @@ def fit_body_to_footage(context, settings):
     before = envelope_radii(rig)
     try:
         fit = fit_body_radii(rig.skeleton, before, camera, frames, key_roots, key_locals,
-                             mirror=mirror_bones(rig.bone_names))
+                             mirror=mirror_bones(rig.bone_names),
+                             connected=connected_bones(obj.data, rig.bone_names))
     except BodyFitError as exc:
         raise TrackError(f"Cannot fit the body: {exc}") from None
     if not np.all(np.isfinite(fit.radii)):      # never write what cannot be stood behind
         raise TrackError("The fit gave no finite radii: nothing was changed")
-    bones = obj.data.bones
-    for name, (head, tail), fitted in zip(rig.bone_names, fit.radii, fit.fitted):
-        if fitted:
-            bones[name].head_radius, bones[name].tail_radius = float(head), float(tail)
+    # Radii the Envelope display draws as fitted (a connected joint: the parent's tail too).
+    write_envelope_radii(obj.data, rig.bone_names, fit.radii)
     return _describe(rig.bone_names, fit, before) + f" from {len(keys)} keyframes"
 
 

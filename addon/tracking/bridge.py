@@ -30,6 +30,7 @@ from ..preferences import preferences
 from .acceptance import interval_notes, write_part_curves
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from .cameras import CameraListError, camera_image, listed_cameras, uses_camera_list
+from ..common.body_bridge import envelope_radii_as_drawn
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
@@ -223,9 +224,10 @@ def _camera_in_armature_space(scene, camera_obj, rig, clip=None, size=None, pixe
 
 
 def envelope_radii(rig):
-    """(B, 2) head and tail envelope radii of the rig's bones, metres."""
-    bones = rig.obj.data.bones
-    return np.array([[bones[n].head_radius, bones[n].tail_radius] for n in rig.bone_names])
+    """(B, 2) head and tail envelope radii of the rig's bones, metres, as the Envelope display
+    draws them (a connected bone's head: its parent's tail radius;
+    :func:`..common.body_bridge.envelope_radii_as_drawn`)."""
+    return envelope_radii_as_drawn(rig.obj.data, rig.bone_names)
 
 
 def _body(rig):

@@ -53,6 +53,11 @@ For every camera, keyed frame ``k``, bone ``b`` with a shape and position ``s`` 
    (a blob whose outline is its ends, not its sides), it keeps its current radii and says why
    (:attr:`BodyFit.reasons`).
 
+6. **Connected joints.** Where a bone's head is its parent's tail (Blender's *Connected*,
+   ``connected``), the joint has one radius -- Blender draws that sphere with the parent's tail
+   radius (:func:`join_connected_radii`): the mean of the fitted radii meeting there, taken by
+   every bone at that joint, fitted or not. Applied after every pass.
+
 Searched radii: ``min_radius`` .. ``search_radius = clip(max(search_factor x the larger
 current radius, length_fraction x bone length), min_search, max_radius)``. Settings chosen on
 rendered clips and the real benchmark: ``docs/tracking.md``, *Fit Body to Footage*.
@@ -65,8 +70,8 @@ import numpy as np
 from .body_model import body_model_from_skeleton, joint_frames_in_camera, part_geometry, ray_cast
 from .image import gaussian_blur, pyr_down, sample_with_gradient
 
-__all__ = ["BodyFit", "BodyFitError", "BodyFitOptions", "fit_body_radii", "mirror_bones",
-           "search_radii"]
+__all__ = ["BodyFit", "BodyFitError", "BodyFitOptions", "fit_body_radii",
+           "join_connected_radii", "mirror_bones", "search_radii"]
 
 # Points closer to the camera plane than this (metres) are not sampled.
 _NEAR = 1e-2
@@ -157,7 +162,9 @@ class BodyFit:
     Attributes
     ----------
     radii : ndarray, shape (B, 2), metres
-        Head and tail radius: fitted where ``fitted``, else the input radii.
+        Head and tail radius: fitted where ``fitted``, else the input radii -- except at a
+        connected joint shared with a fitted bone, whose one radius every bone there takes
+        (:func:`join_connected_radii`).
     fitted : ndarray, shape (B,), bool
     reasons : tuple of str, (B,)
         Why a bone kept its radii ('' where it was fitted): 'no shape', 'shorter than it is
@@ -394,7 +401,7 @@ def _view_votes(model, occluders, camera, frames, rotations, origins, grid, uppe
 
 
 def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, options=None,
-                   mirror=None):
+                   mirror=None, connected=None):
     """Envelope radii that fit the person seen at the keyed frames (module docstring).
 
     Parameters
@@ -417,6 +424,10 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     mirror : array_like, shape (B,), int, optional
         Each bone's mirror image (the other side of the body; -1: none), e.g.
         :func:`mirror_bones`: a bone and its mirror get one shape from both their profiles.
+    connected : array_like, shape (B,), bool, optional
+        Bones whose head is their parent's tail, one joint with one radius (Blender's
+        ``use_connect``; module docstring, step 6). The input radii should already agree
+        there (as Blender draws them); the result does.
 
     Returns
     -------
@@ -440,11 +451,12 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     lengths = np.linalg.norm(model.ends - model.starts, axis=1)
     upper = search_radii(model.radii, lengths, o)
     grid = np.arange(0.0, upper.max() + o.max_offset + 1.5 * o.radius_step, o.radius_step)
-    current = model.radii.copy()
     n = model.n_cylinders
     partner = _partners(model, mirror, skeleton.n_joints)
+    connected = _connected(connected, skeleton)
+    joined = radii
     for _ in range(max(1, int(o.passes))):
-        occluders = body_model_from_skeleton(skeleton, _scatter(radii, model, current))
+        occluders = body_model_from_skeleton(skeleton, joined)
         views = [_view_votes(model, occluders, c, f, rot, org, grid, upper, o)
                  for c, f, (rot, org) in zip(cameras, frames, poses)]
         vote = np.concatenate([v[0] for v in views])                 # (V K, P, S, G)
@@ -474,10 +486,11 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
                 reasons[i] = "no clear edge"
                 continue
             new[i], fitted[i] = np.clip(value, o.min_radius, upper[both].min()), True
-        current = new
-    b = skeleton.n_joints
-    out_fitted = np.zeros(b, dtype=bool)
-    out_fitted[model.joints] = fitted
+        b = skeleton.n_joints
+        out_fitted = np.zeros(b, dtype=bool)
+        out_fitted[model.joints] = fitted
+        joined = join_connected_radii(_scatter(radii, model, new), skeleton.parents, connected,
+                                      out_fitted)
     out_reasons = ["no shape"] * b
     for i, j in enumerate(model.joints):
         out_reasons[j] = reasons[i]
@@ -485,9 +498,57 @@ def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, opti
     out_contrast[model.joints] = contrast
     out_profiles = np.zeros(b, dtype=int)
     out_profiles[model.joints] = voted.sum(axis=(0, 2))
-    return BodyFit(radii=_scatter(radii, model, current), fitted=out_fitted,
+    return BodyFit(radii=joined, fitted=out_fitted,
                    reasons=tuple(out_reasons), contrast=out_contrast, profiles=out_profiles,
                    levels=tuple(v[4] for v in views))
+
+
+def join_connected_radii(radii, parents, connected, fitted):
+    """One radius per connected joint (module docstring, step 6).
+
+    Blender draws a connected bone's head with its parent's tail radius and ignores its own
+    ``head_radius`` (``overlay_armature.cc``, ``bone_draw_envelope``); its own edit tools keep
+    both equal. Here the joint's radius is the mean of the fitted radii meeting there (the
+    parent's tail, each connected child's head); where none was fitted, the parent's tail.
+
+    Parameters
+    ----------
+    radii : array_like, shape (B, 2), metres
+        Head and tail radius per bone.
+    parents : array_like, shape (B,), int
+        Parent index (-1 for the root).
+    connected : array_like, shape (B,), bool
+        Bones whose head is their parent's tail.
+    fitted : array_like, shape (B,), bool
+        Bones whose radii were measured (the others follow them at a shared joint).
+
+    Returns
+    -------
+    ndarray, shape (B, 2)
+        ``radii`` with ``out[b, 0] == out[parents[b], 1]`` for every connected bone ``b``.
+    """
+    out = np.array(radii, dtype=float, copy=True)
+    parents = np.asarray(parents, dtype=int)
+    connected = np.asarray(connected, dtype=bool) & (parents >= 0)
+    fitted = np.asarray(fitted, dtype=bool)
+    for p in np.unique(parents[connected]):
+        children = np.nonzero(connected & (parents == p))[0]
+        measured = ([out[p, 1]] if fitted[p] else []) + [out[c, 0] for c in children if fitted[c]]
+        value = float(np.mean(measured)) if measured else out[p, 1]
+        out[p, 1] = value
+        out[children, 0] = value
+    return out
+
+
+def _connected(connected, skeleton):
+    """``connected`` checked as (B,) bool (all False when None)."""
+    b = skeleton.n_joints
+    if connected is None:
+        return np.zeros(b, dtype=bool)
+    connected = np.asarray(connected)
+    if connected.shape != (b,):
+        raise BodyFitError(f"Expected connected of shape ({b},), got {connected.shape}")
+    return connected.astype(bool) & (np.asarray(skeleton.parents) >= 0)
 
 
 def _partners(model, mirror, n_joints):

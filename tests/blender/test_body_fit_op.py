@@ -115,3 +115,72 @@ def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     assert datablock_counts() == counts
     np.testing.assert_array_equal(radii(obj), start)
     same_keys(keys, snapshot(obj))
+
+
+#: Connected chains of the walk's armature (their heads already sit on the parent's tails).
+CHAINS = ("ltibia", "rtibia", "lfoot", "rfoot", "lradius", "rradius")
+
+
+def connect(obj, names):
+    """Make ``names`` connected to their parents (Edit Mode, then back to Object Mode)."""
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    for name in names:
+        obj.data.edit_bones[name].use_connect = True
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+
+def test_the_tracker_reads_a_connected_bone_as_the_envelope_display_draws_it(walk_folder):
+    """Blender draws a connected bone's head with its parent's tail radius and ignores its own
+    head_radius: the tracker's body (the request's body model), the Body Mesh arrays and the
+    panel read the same."""
+    obj = build_walk_scene(walk_folder)
+    connect(obj, ["ltibia"])
+    bones = obj.data.bones
+    bones["ltibia"].head_radius = 0.2                       # ignored by Blender's drawing
+    bones["lfemur"].tail_radius = 0.055
+    bones["rtibia"].head_radius = 0.2                       # not connected: its own radius
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    body = request.problem.body
+    part = {name: body.radii[i] for i, name in enumerate(body.names)}
+    np.testing.assert_array_equal(part["ltibia"], [np.float32(0.055), bones["ltibia"].tail_radius])
+    np.testing.assert_array_equal(part["lfemur"][1], np.float32(0.055))
+    np.testing.assert_array_equal(part["rtibia"], [np.float32(0.2), bones["rtibia"].tail_radius])
+    names, _, _, drawn = bridge("common.body_bridge").rest_bone_arrays(obj)
+    np.testing.assert_array_equal(drawn[names.index("ltibia")], part["ltibia"])
+
+
+def test_fitting_a_connected_rig_writes_radii_the_envelope_display_draws(walk_folder,
+                                                                         monkeypatch):
+    """Connected knees, ankles and elbows, each bone's own head radius far off: the fit reads
+    the drawn radii, and afterwards the drawn envelope is exactly the fitted body (one radius
+    per joint, the bone's own head radius set to it too), still nearer the rendered body."""
+    obj, true = wrong_scene(walk_folder)
+    connect(obj, CHAINS)
+    bones = obj.data.bones
+    for name in CHAINS:
+        bones[name].head_radius = 0.25                      # what Blender does not draw
+    ops = bridge("tracking.body_fit_ops")
+    real, seen = ops.fit_body_radii, {}
+
+    def recorded(skeleton, radii, *args, **kwargs):
+        seen["radii"], seen["connected"] = np.array(radii), kwargs["connected"]
+        seen["fit"] = real(skeleton, radii, *args, **kwargs)
+        return seen["fit"]
+
+    monkeypatch.setattr(ops, "fit_body_radii", recorded)
+    rig = bridge("common.pose_bridge").rig_from_armature(obj)
+    index = {n: i for i, n in enumerate(rig.bone_names)}
+    parent_tails = {name: bones[name].parent.tail_radius for name in CHAINS}
+    assert bpy.ops.track_and_stride.fit_body_to_footage() == {"FINISHED"}
+    assert sorted(np.array(rig.bone_names)[seen["connected"]]) == sorted(CHAINS)
+    for name in CHAINS:                                      # read as drawn, not 0.25
+        assert seen["radii"][index[name], 0] == parent_tails[name]
+        assert bones[name].head_radius == bones[name].parent.tail_radius   # kept consistent
+    drawn = bridge("tracking.bridge").envelope_radii(rig)
+    np.testing.assert_array_equal(drawn, seen["fit"].radii.astype(np.float32))
+    fitted = radii(obj)[[bones.find(n) for n in rig.bone_names]]
+    truth = true[[bones.find(n) for n in rig.bone_names]]
+    changed = np.any(drawn != seen["radii"], axis=1)
+    assert changed.sum() >= 10
+    assert np.abs(fitted - truth)[changed].mean() < 0.65 * np.abs(seen["radii"] - truth)[changed].mean()

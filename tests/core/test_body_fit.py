@@ -233,3 +233,48 @@ def test_bad_input_is_refused(scene, change, message):
                 key_roots=roots, key_locals=local)
     with pytest.raises(BodyFitError, match=message):
         fit_body_radii(skeleton, **change(args))
+
+
+def test_a_connected_joint_has_one_radius():
+    """join_connected_radii: the mean of the fitted radii meeting at the joint, taken by every
+    bone there; unfitted bones follow; no fitted bone there: the parent's tail (Blender's
+    drawing)."""
+    from core.tracking.body_fit import join_connected_radii
+    radii = np.array([[0.10, 0.08], [0.07, 0.05], [0.04, 0.03], [0.06, 0.02], [0.09, 0.01]])
+    parents = np.array([-1, 0, 1, 1, 0])
+    connected = np.array([False, True, True, True, False])
+    out = join_connected_radii(radii, parents, connected, [True, True, True, False, True])
+    np.testing.assert_array_equal(out[0], [0.10, (0.08 + 0.07) / 2])        # root tail, bone 1
+    np.testing.assert_array_equal(out[1], [(0.08 + 0.07) / 2, (0.05 + 0.04) / 2])
+    np.testing.assert_array_equal(out[2], [(0.05 + 0.04) / 2, 0.03])
+    np.testing.assert_array_equal(out[3], [(0.05 + 0.04) / 2, 0.02])       # unfitted: follows
+    np.testing.assert_array_equal(out[4], radii[4])                          # not connected
+    none = join_connected_radii(radii, parents, connected, np.zeros(5, bool))
+    np.testing.assert_array_equal(none[[1, 2, 3], 0], [0.08, 0.05, 0.05])   # the parents' tails
+    np.testing.assert_array_equal(none[:, 1], radii[:, 1])
+
+
+def test_connected_bones_share_their_joint_radius_and_still_fit(scene, front):
+    """A rig whose limbs are connected chains (knees, ankles, elbows: Blender's use_connect):
+    the result has one radius per joint, and fits as well as the free one."""
+    skeleton, lengths, roots, local, true = scene
+    parents = np.asarray(skeleton.parents)
+    heads = {n: np.array(h) for n, _, h, _ in BONES}
+    tails = {n: np.array(t) for n, _, _, t in BONES}
+    connected = np.array([p >= 0 and np.allclose(heads[n], tails[NAMES[p]])
+                          for n, p in zip(NAMES, parents)])
+    assert connected[[NAMES.index(n) for n in ("ltibia", "lradius", "rfoot", "thorax")]].all()
+    assert not connected[NAMES.index("lfemur")]
+    default = plausible_envelope_radii(NAMES, lengths)
+    default[connected, 0] = default[parents[connected], 1]          # as Blender draws them
+    fit = fit_body_radii(skeleton, default, *front, roots, local, mirror=mirror_bones(NAMES),
+                         connected=connected)
+    np.testing.assert_array_equal(fit.radii[connected, 0], fit.radii[parents[connected], 1])
+    limbs = [i for i, n in enumerate(NAMES) if any(k in n for k in ("femur", "tibia", "humerus",
+                                                                    "radius"))]
+    err = _errors(fit.radii, true)
+    assert fit.fitted[limbs].all(), fit.reasons
+    assert np.median(err[limbs]) < 0.006, dict(zip(NAMES, (100 * err).round(2)))
+    assert np.mean(err) < 0.5 * np.mean(_errors(default, true))
+    with pytest.raises(BodyFitError, match="connected of shape"):
+        fit_body_radii(skeleton, default, *front, roots, local, connected=connected[:-1])
