@@ -2,7 +2,8 @@
 
 A thin adapter over :func:`core.tracking.body_fit.fit_body_radii`: read the armature, its
 keyframes, the camera (lens included) and the footage at those keys exactly as Track Keyframes
-reads them (:mod:`.bridge`), fit, and write the radii so that the Envelope display draws the
+reads them (:mod:`.bridge`) -- every switched-on camera of the Track panel's Cameras list,
+or its one camera when the list is empty --, fit, and write the radii so that the Envelope display draws the
 fitted body (the body the tracker uses, :func:`.bridge.envelope_radii`; a connected joint has
 one radius, :func:`..common.body_bridge.write_envelope_radii`). Bones without
 clear evidence keep their radii; the report says how many were fitted and why the others were
@@ -18,8 +19,9 @@ from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
 from ..common.body_bridge import connected_bones, write_envelope_radii
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature
 from ..common.reporting import one_line, report_outcome
-from .bridge import (TrackError, _camera_in_armature_space, envelope_radii, frame_range,
-                     resolve_camera, resolve_editable_armature, resolve_footage)
+from .bridge import (TrackError, _camera_in_armature_space, _listed_views, envelope_radii,
+                     frame_range, resolve_camera, resolve_editable_armature, resolve_footage)
+from .cameras import uses_camera_list
 from .camera_bridge import render_size
 from .footage import FootageError, FootageReader
 from .keys import classify_frames
@@ -27,8 +29,9 @@ from .ops import armature_or_message
 from .props import track_settings
 
 
-def _keyed_frames(obj, rig, scene, settings, footage):
-    """Keyframes in the Track range that the footage covers (at least one)."""
+def _keyed_frames(obj, rig, scene, settings, footages, names=None):
+    """Keyframes in the Track range that every footage covers (at least one); ``names``: the
+    cameras of the Cameras list (None: the one-camera panel)."""
     first, last = frame_range(scene, settings)
     if obj.animation_data is None or obj.animation_data.action is None:
         raise TrackError(f"{obj.name} has no animation: pose the armature over the person in "
@@ -37,11 +40,39 @@ def _keyed_frames(obj, rig, scene, settings, footage):
     if not keys:
         raise TrackError(f"No keyframes of {obj.name} in frames {first}–{last}: pose the "
                          "armature over the person and key it (I) first")
-    covered = [f for f in keys if footage.covers(f)]
-    if not covered:
+    covered = [f for f in keys if all(footage.covers(f) for footage in footages)]
+    if not covered and names is None:
         raise TrackError(f"The footage covers none of the keyframes ({keys[0]}–{keys[-1]}): "
                          "move the clip's Start Frame or the keyframes")
+    if not covered:
+        spans = ", ".join(f"{name} {f.scene_start - f.offset}–{f.scene_start - f.offset + f.n_frames - 1}"
+                          for name, f in zip(names, footages))
+        raise TrackError(f"No keyframe ({keys[0]}–{keys[-1]}) is filmed by every switched-on "
+                         f"camera (footage at scene frames {spans}): change their Offsets or "
+                         "the clips' Start Frames, or switch cameras off")
     return covered
+
+
+def _views(scene, settings, rig, obj):
+    """Footage, camera (armature space) and name of every camera the fit uses, and the
+    keyframes they all film: every switched-on camera of the Track panel's Cameras list, as
+    Track Keyframes reads them (``bridge._listed_views``), or the panel's one camera when the
+    list is empty."""
+    if uses_camera_list(settings):
+        footages, cameras, names = _listed_views(scene, settings, rig)
+        return footages, cameras, names, _keyed_frames(obj, rig, scene, settings, footages,
+                                                       names)
+    camera_obj = resolve_camera(scene, settings)
+    footage = resolve_footage(settings)
+    width, height = render_size(scene)
+    if (footage.width, footage.height) != (width, height):
+        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
+                         f"is {width}×{height}: set Output › Format to the footage size "
+                         "(Match Render Size) so that the camera sees what was filmed")
+    keys = _keyed_frames(obj, rig, scene, settings, [footage])
+    camera = _camera_in_armature_space(scene, camera_obj, rig,
+                                       settings.clip if settings.source == "CLIP" else None)
+    return [footage], [camera], [camera_obj.name], keys
 
 
 def _describe(names, fit, radii_before):
@@ -78,25 +109,18 @@ def fit_body_to_footage(context, settings):
         rig = rig_from_armature(obj)
     except RigError as exc:
         raise TrackError(str(exc)) from None
-    camera_obj = resolve_camera(scene, settings)
-    footage = resolve_footage(settings)
-    width, height = render_size(scene)
-    if (footage.width, footage.height) != (width, height):
-        raise TrackError(f"The footage is {footage.width}×{footage.height} but the render size "
-                         f"is {width}×{height}: set Output › Format to the footage size "
-                         "(Match Render Size) so that the camera sees what was filmed")
-    keys = _keyed_frames(obj, rig, scene, settings, footage)
-    camera = _camera_in_armature_space(scene, camera_obj, rig,
-                                       settings.clip if settings.source == "CLIP" else None)
+    footages, cameras, names, keys = _views(scene, settings, rig, obj)
     key_roots, key_locals = read_pose(rig, keys)
-    try:
-        with FootageReader(footage) as reader:
-            frames = reader.read(keys)
-    except FootageError as exc:
-        raise TrackError(str(exc)) from None
+    frames = []
+    for footage, name in zip(footages, names):
+        try:
+            with FootageReader(footage) as reader:
+                frames.append(reader.read(keys))
+        except FootageError as exc:
+            raise TrackError(str(exc) if len(names) == 1 else f"Camera {name}: {exc}") from None
     before = envelope_radii(rig)
     try:
-        fit = fit_body_radii(rig.skeleton, before, camera, frames, key_roots, key_locals,
+        fit = fit_body_radii(rig.skeleton, before, cameras, frames, key_roots, key_locals,
                              mirror=mirror_bones(rig.bone_names),
                              connected=connected_bones(obj.data, rig.bone_names))
     except BodyFitError as exc:
@@ -105,7 +129,9 @@ def fit_body_to_footage(context, settings):
         raise TrackError("The fit gave no finite radii: nothing was changed")
     # Radii the Envelope display draws as fitted (a connected joint: the parent's tail too).
     write_envelope_radii(obj.data, rig.bone_names, fit.radii)
-    return _describe(rig.bone_names, fit, before) + f" from {len(keys)} keyframes"
+    seen = (f"1 camera ({names[0]})" if len(names) == 1 else
+            f"{len(names)} cameras ({', '.join(names)})")
+    return _describe(rig.bone_names, fit, before) + f" from {len(keys)} keyframes, {seen}"
 
 
 class TS_OT_fit_body_to_footage(bpy.types.Operator):

@@ -372,13 +372,16 @@ def _check_footage(footage, size, key_frames, camera_name=None):
     """:class:`TrackError` unless ``footage`` has ``size`` (the camera's image: a calibrated
     camera's, or the render size) and covers the first and last keyframe. ``camera_name``:
     a camera of the Cameras list (named in the message); None: the one-camera panel, whose
-    size was checked against the render size already (``render_size_mismatch``)."""
+    size was checked against the render size already (``render_size_mismatch``).
+    ``key_frames`` None: the size only."""
     width, height = size
     who = "" if camera_name is None else f"Camera {camera_name}: "
     if (footage.width, footage.height) != (width, height):
         raise TrackError(f"{who}its footage is {footage.width}×{footage.height} but the camera "
                          f"makes {width}×{height} images (the render size, or its calibration's): "
                          "give it footage of its own size, or switch it off")
+    if key_frames is None:                      # size only (Fit Body: its own keyframe rule)
+        return
     outside = [f for f in (key_frames[0], key_frames[-1]) if not footage.covers(f)]
     if outside:
         fix = "move the clip's Start Frame or the keyframes" if camera_name is None else \
@@ -389,9 +392,10 @@ def _check_footage(footage, size, key_frames, camera_name=None):
                          f"{outside[0]}: {fix}")
 
 
-def _listed_views(scene, settings, rig, key_frames):
+def _listed_views(scene, settings, rig, key_frames=None):
     """Footage, camera (armature space) and name of every switched-on camera of the Cameras
-    list (``cameras.py``), each checked like the single camera (size, range, lens)."""
+    list (``cameras.py``), each checked like the single camera (size, lens, and the range of
+    ``key_frames`` when given)."""
     try:
         listed = listed_cameras(scene, settings)
     except CameraListError as exc:
