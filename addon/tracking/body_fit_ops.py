@@ -3,9 +3,9 @@
 A thin adapter over :func:`core.tracking.body_fit.fit_body_radii`: read the armature, its
 keyframes, the camera (lens included) and the footage at those keys exactly as Track Keyframes
 reads them (:mod:`.bridge`) -- every switched-on camera of the Track panel's Cameras list,
-or its one camera when the list is empty --, fit, and write the radii so that the Envelope display draws the
-fitted body (the body the tracker uses, :func:`.bridge.envelope_radii`; a connected joint has
-one radius, :func:`..common.body_bridge.write_envelope_radii`). Bones without
+or its one camera when the list is empty --, fit, and write the radii so that the Envelope
+display draws the fitted body (the body the tracker uses, :func:`.bridge.envelope_radii`; a
+connected joint has one radius, :func:`..common.body_bridge.write_envelope_radii`). Bones without
 clear evidence keep their radii; the report says how many were fitted and why the others were
 not. Any problem is refused before anything changes; the keys are never touched; one undo step
 restores the radii. The user edits the radii afterwards as before (Envelope display, Alt S in
@@ -45,8 +45,9 @@ def _keyed_frames(obj, rig, scene, settings, footages, names=None):
         raise TrackError(f"The footage covers none of the keyframes ({keys[0]}–{keys[-1]}): "
                          "move the clip's Start Frame or the keyframes")
     if not covered:
-        spans = ", ".join(f"{name} {f.scene_start - f.offset}–{f.scene_start - f.offset + f.n_frames - 1}"
-                          for name, f in zip(names, footages))
+        starts = [f.scene_start - f.offset for f in footages]     # scene frame of frame 0
+        spans = ", ".join(f"{name} {a}–{a + f.n_frames - 1}"
+                          for name, a, f in zip(names, starts, footages))
         raise TrackError(f"No keyframe ({keys[0]}–{keys[-1]}) is filmed by every switched-on "
                          f"camera (footage at scene frames {spans}): change their Offsets or "
                          "the clips' Start Frames, or switch cameras off")

@@ -37,9 +37,10 @@ import numpy as np
 
 from ...core.pose_channels import channel_property
 from ..common.fcurves import (channelbag, ensure_action, enum_value, insert_keys_preserving,
-                              key_frames_and_types, keyframe_state, locked_channels, modified_channels,
-                              object_channelbag, pose_bone_path, remove_keys_at,
-                              remove_keys_counting_for, set_key_type, update_keeping_handles)
+                              key_frames_and_types, keyframe_state, locked_channels,
+                              modified_channels, object_channelbag, pose_bone_path,
+                              remove_keys_at, remove_keys_counting_for, set_key_type,
+                              update_keeping_handles)
 from ..common.pose_bridge import write_pose_keys
 
 PROP_TRACKED = "track_and_stride_tracked"

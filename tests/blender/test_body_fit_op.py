@@ -184,7 +184,8 @@ def test_fitting_a_connected_rig_writes_radii_the_envelope_display_draws(walk_fo
     truth = true[[bones.find(n) for n in rig.bone_names]]
     changed = np.any(drawn != seen["radii"], axis=1)
     assert changed.sum() >= 10
-    assert np.abs(fitted - truth)[changed].mean() < 0.65 * np.abs(seen["radii"] - truth)[changed].mean()
+    error = np.abs(fitted - truth)[changed].mean()
+    assert error < 0.65 * np.abs(seen["radii"] - truth)[changed].mean()
 
 
 def _wrong(obj):
@@ -243,11 +244,11 @@ def test_every_switched_on_camera_of_the_cameras_list_is_used(folders, monkeypat
     assert line.endswith("from 3 keyframes, 1 camera (Footage Camera)"), line
     np.testing.assert_array_equal(radii(obj), one)
     assert not np.array_equal(one, both)
-    print(f"radius error of the changed bones: start {100 * np.abs(start - true)[changed].mean():.2f} cm, "
-          f"two cameras {100 * np.abs(both - true)[changed].mean():.2f} cm, "
-          f"one {100 * np.abs(one - true)[changed].mean():.2f} cm")
+    error = {k: 100 * np.abs(r - true)[changed].mean()
+             for k, r in (("start", start), ("two", both), ("one", one))}
+    print("radius error of the changed bones (cm):", error)
     # measured 0.46 cm with both cameras, 0.85 cm with one (1.95 cm at the start)
-    assert np.abs(both - true)[changed].mean() < 0.8 * np.abs(one - true)[changed].mean()
+    assert error["two"] < 0.8 * error["one"]
 
     # No keyframe filmed by every camera switched on: refused by name, nothing changed.
     assert bpy.ops.track_and_stride.find_cameras() == {"FINISHED"}
