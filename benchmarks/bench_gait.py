@@ -514,7 +514,8 @@ def print_table(report):
           f"{g['rms_deg']:.2f}, adapt_s {g['adapt_s']:.3f} (the glitch alone)")
     sp = report["speed"]
     print(f"\nSpeed: online step (E + M + {HORIZON_S} s forecast) median "
-          f"{sp['online_step_us_median']:.1f} us (p90 {sp['online_step_us_p90']:.1f}; goal <= "
+          f"{sp['online_step_us_median']:.1f} us (p90 {sp['online_step_us_p90']:.1f}) = "
+          f"{sp['online_step_us_nominal']:.1f} nominal us (goal <= "
           f"{GOALS['online_step_us']:.0f}); training (online split) {sp['train_s']:.2f} s "
           f"(goal <= {GOALS['train_s']:.0f})")
 
