@@ -69,10 +69,11 @@ _INV_TWO_PI = 1.0 / (2.0 * math.pi)
 # The LAPACK solver (gesv) behind np.linalg.solve, called without the wrapper's argument checks
 # and error-state context: 2.5 of np.linalg.solve's 10 µs for the J × J M-step system, the largest
 # single item of an online step. Same routine, same result; a NumPy without it (the module is
-# private) falls back to np.linalg.solve.
+# private) falls back to np.linalg.solve, and so does a non-finite result (the M-step's system is
+# positive definite by construction; a singular one would warn here, then raise there).
 try:
     from numpy.linalg._umath_linalg import solve1 as _gesv
-except ImportError:       # pragma: no cover - every NumPy from 1.8 to 2.3 has it
+except ImportError:       # pragma: no cover - NumPy 1.x and 2.x have it
     _gesv = None
 
 

@@ -67,3 +67,23 @@ def test_optimised_step_equals_the_reference_formulation(offset):
     # The stream went through every branch: acquisition, tracking, re-acquisition, gaps.
     assert fast.relocks >= 1 and saw["acquiring"] > 0 and saw["locked"] > 150
     assert saw["missing"] > 0
+
+
+def test_small_solve_equals_numpy_and_falls_back(monkeypatch):
+    """The M-step's J × J solve (LAPACK gufunc without np.linalg's wrapper) gives
+    np.linalg.solve's answer; without the gufunc, or on a singular system, np.linalg.solve
+    itself answers (and raises)."""
+    from core.gait import online
+
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((5, 5))
+    system = np.column_stack([a @ a.T + np.eye(5), rng.standard_normal(5)])
+    expected = np.linalg.solve(system[:, :5], system[:, 5])
+    np.testing.assert_array_equal(online._solve(system), expected)
+    singular = system.copy()
+    singular[:, :5] = 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        with pytest.raises(np.linalg.LinAlgError):
+            online._solve(singular)
+    monkeypatch.setattr(online, "_gesv", None)
+    np.testing.assert_array_equal(online._solve(system), expected)
