@@ -112,7 +112,18 @@ class FilterContext:
         #       β3 sin(φ_i - φ)
         set_(self, "_pair_weights", np.ascontiguousarray(pair.reshape(3, 5 * p)))
         # exponent | β3 x̃ᵀx̃_i only (kernel values), (3, 2P)
-        set_(self, "_rows_weights", np.ascontiguousarray(pair[:, [0, 3]].reshape(3, 2 * p)))
+        rows = pair[:, [0, 3]]
+        set_(self, "_rows_weights", np.ascontiguousarray(rows.reshape(3, 2 * p)))
+        # The same with one more column that evaluates to exactly 1 in k and 0 in ∂k/∂φ
+        # (exponent 0, multiplier 0, constant 1 | 0): with the walker's offset b as one more
+        # row of the GP weights, one product gives μ(x̃) w + b (the online filter, :mod:`.online`).
+        extra = np.zeros((3, 5, 1))
+        extra[2, 3] = 1.0
+        set_(self, "_pair_weights_one", np.ascontiguousarray(
+            np.concatenate((pair, extra), axis=2).reshape(3, 5 * (p + 1))))
+        set_(self, "_rows_weights_one", np.ascontiguousarray(
+            np.concatenate((rows, np.zeros((3, 2, 1))), axis=2).reshape(3, 2 * (p + 1))))
+        set_(self, "n_phases", p)
         set_(self, "w_prior_term", self.w_prec @ self.w_mean)              # Λ w̄
         set_(self, "w_prior_aug", np.concatenate((self.w_prec, self.w_prior_term[:, None]),
                                                  axis=1))                   # [Λ | Λ w̄]
@@ -140,12 +151,12 @@ class FilterContext:
         return self._cache[key]
 
     def online_frames(self, config):
-        """``config.frames(fps)`` cached per configuration."""
-        key = ("frames", config)
-        try:
-            return self._cache[key]
-        except KeyError:
-            return self._cache.setdefault(key, config.frames(self.fps))
+        """``config.frames(fps)``, cached for the last configuration object passed (checked by
+        identity: hashing the frozen dataclass cost more than the lookup saved)."""
+        last = self._cache.get("frames")
+        if last is None or last[0] is not config:
+            last = self._cache["frames"] = (config, config.frames(self.fps))
+        return last[1]
 
     @property
     def n_bases(self):
@@ -172,30 +183,56 @@ class FilterContext:
 
     def kernel_pair(self, phi):
         """``[k; ∂k/∂φ]`` as one (2, P) array (see :meth:`kernel_row`)."""
-        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._pair_weights).reshape(5, -1)
-        # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin]
-        return np.exp(rows[0]) * rows[1:3] + rows[3:5]
+        return _kernel_pair(phi, self._pair_weights)
+
+    def kernel_pair_one(self, phi):
+        """``[k 1; ∂k/∂φ 0]`` (2, P+1): :meth:`kernel_pair` with a constant column, for GP
+        weights with the posture offset as their last row."""
+        return _kernel_pair(phi, self._pair_weights_one)
 
     def kernel_value(self, phi):
         """``k(x̃(φ))`` only, (P,)."""
-        rows = (np.array([math.cos(phi), math.sin(phi), 1.0]) @ self._rows_weights).reshape(2, -1)
-        return np.exp(rows[0]) + rows[1]
+        rows = np.dot((math.cos(phi), math.sin(phi), 1.0), self._rows_weights).reshape(2, -1)
+        k = np.exp(rows[0])
+        k += rows[1]
+        return k
 
     def kernel_rows(self, phis):
         """``k`` for many phases, (n, P)."""
-        phis = np.asarray(phis, dtype=float)
-        query = np.empty((len(phis), 3))
-        query[:, 0] = np.cos(phis)
-        query[:, 1] = np.sin(phis)
-        query[:, 2] = 1.0
-        both = query @ self._rows_weights                   # [exponent | β3 x̃ᵀx̃_i]
-        p = len(self.phases)
-        return np.exp(both[:, :p]) + both[:, p:]
+        return _kernel_rows(phis, self._rows_weights)
+
+    def kernel_rows_one(self, phis):
+        """``[k 1]`` for many phases, (n, P+1) (see :meth:`kernel_pair_one`)."""
+        return _kernel_rows(phis, self._rows_weights_one)
 
     def means(self, phis):
         """``μ(x̃)`` of every basis at many phases, (n, J, Dc), scaled units."""
         k = self.kernel_rows(np.atleast_1d(phis))
         return (k @ self.alpha_flat).reshape(len(k), self.n_bases, -1)
+
+
+def _kernel_pair(phi, weights):
+    """[k; ∂k/∂φ] at one phase from :class:`FilterContext`'s pair weights (3, 5 m); (2, m)."""
+    rows = np.dot((math.cos(phi), math.sin(phi), 1.0), weights).reshape(5, -1)
+    # [k; ∂k/∂φ] = k_rbf [1; β2 sin] + [β3 cos; β3 sin], in place in the fresh rows
+    pair = rows[1:3]
+    pair *= np.exp(rows[0])
+    pair += rows[3:5]
+    return pair
+
+
+def _kernel_rows(phis, weights):
+    """k at many phases from :class:`FilterContext`'s row weights (3, 2 m); (n, m)."""
+    phis = np.asarray(phis, dtype=float)
+    query = np.empty((len(phis), 3))
+    np.cos(phis, out=query[:, 0])
+    np.sin(phis, out=query[:, 1])
+    query[:, 2] = 1.0
+    both = query @ weights                              # [exponent | β3 x̃ᵀx̃_i]
+    m = weights.shape[1] // 2
+    k = np.exp(both[:, :m])
+    k += both[:, m:]
+    return k
 
 
 def make_context(model, fps=None, channels=None, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
@@ -296,7 +333,11 @@ def ekf_predict(x, P, Q):
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     """Scalar core of :func:`ekf_update`: floats, the squared innovation ``eᵀe``, the number of
     channels used and the index of a channel left out as an outlier (-1: none)."""
-    both = ctx.kernel_pair(phi_pred) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g])
+    # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g]); with the offset b as a last row of alpha_comb
+    # (P+1 rows, :mod:`.online`) the first row is μ(x⁻) w + b
+    pair = ctx.kernel_pair(phi_pred) if len(alpha_comb) == ctx.n_phases \
+        else ctx.kernel_pair_one(phi_pred)
+    both = pair @ alpha_comb
     np.subtract(y, both[0], out=both[0])           # innovation e = y - μ(x⁻) w (eq. 21)
     (ee, ge), (_, gg) = (both @ both.T).tolist()
     cols = None

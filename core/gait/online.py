@@ -66,6 +66,16 @@ __all__ = ["OnlineConfig", "OnlineEM", "OnlineState", "online_forecast", "online
 
 _INV_TWO_PI = 1.0 / (2.0 * math.pi)
 
+# The LAPACK solver (gesv) behind np.linalg.solve, called without the wrapper's argument checks
+# and error-state context: 2.5 of np.linalg.solve's 10 µs for the J × J M-step system, the largest
+# single item of an online step. Same routine, same result; a NumPy without it (the module is
+# private) falls back to np.linalg.solve, and so does a non-finite result (the M-step's system is
+# positive definite by construction; a singular one would warn here, then raise there).
+try:
+    from numpy.linalg._umath_linalg import solve1 as _gesv
+except ImportError:       # pragma: no cover - NumPy 1.x and 2.x have it
+    _gesv = None
+
 
 
 @dataclass(frozen=True)
@@ -145,7 +155,7 @@ class OnlineState(NamedTuple):
     eta : float
         η of the discounted averages.
     comb : ndarray, shape (P, Dc)
-        ``Σ_j w_j α_j`` for the current w (cached for the next E-step and the forecast).
+        ``Σ_j w_j α_j`` for the current w (the first P rows of :attr:`comb_b`).
     recent : tuple of ndarray, each shape (Dc,)
         The last K scaled observations, oldest first (the arrays passed to
         :func:`online_step`, not copied: do not modify them afterwards).
@@ -170,6 +180,13 @@ class OnlineState(NamedTuple):
         :attr:`s_y` are its parts.
     b : ndarray, shape (Dc,)
         The walker's posture offset (scaled units; zeros without offset).
+    comb_b : ndarray, shape (P + 1, Dc)
+        ``[Σ_j w_j α_j; b]``: with the kernel row's constant column
+        (:meth:`.FilterContext.kernel_pair_one`) one product gives ``μ(x̃) w + b``, for the next
+        E-step and the forecast.
+    moments : ndarray, shape ((J + 1) Dc + J (J + 1),), or None
+        With a posture offset: :attr:`s_aug` and :attr:`stats` flattened into one array (both
+        are views of it), so that one discounted update (eqs. 25-26) covers all of them.
     """
 
     x: np.ndarray
@@ -189,6 +206,8 @@ class OnlineState(NamedTuple):
     baseline: float = 1.0
     s_aug: np.ndarray = None
     b: np.ndarray = None
+    comb_b: np.ndarray = None
+    moments: np.ndarray = None
 
     @property
     def s_mm(self):
@@ -215,13 +234,35 @@ def online_init(ctx, config):
     """Initial (unlocked) state: mean training cadence, phase 0, mean training style."""
     w = ctx.w_mean.copy()
     offset = ctx.offset_prec is not None
+    b = np.zeros(ctx.n_channels)
+    comb_b, comb = _combined(ctx, w, b)
     return OnlineState(x=np.array([ctx.omega_mean, 0.0]),
                        P=np.diag([(INIT_OMEGA_REL_SD * ctx.omega_mean) ** 2, np.pi**2]),
                        w=w, stats=np.zeros((len(w), len(w) + 1)), eta=1.0,
-                       comb=ctx.combine(w), recent=(), recent_nu=(), frames=0, window=0,
+                       comb=comb, recent=(), recent_nu=(), frames=0, window=0,
                        locked=False, level=1.0, cooldown=0, relocks=0,
                        s_aug=np.zeros((len(w) + 1, ctx.n_channels)) if offset else None,
-                       b=np.zeros(ctx.n_channels))
+                       b=b, comb_b=comb_b)
+
+
+def _combined(ctx, w, b):
+    """``[Σ_j w_j α_j; b]`` (P+1, Dc) and its first P rows (a view), one fresh array."""
+    n = ctx.alpha_w.shape[1]
+    out = np.empty(n + len(b))
+    np.dot(w, ctx.alpha_w, out=out[:n])
+    out[n:] = b
+    out = out.reshape(-1, len(b))
+    return out, out[:-1]
+
+
+def _solve(lhs_rhs):
+    """Solution of ``[A | b]`` (J, J+1): ``A⁻¹ b`` (J,), ``A`` symmetric positive definite."""
+    n = len(lhs_rhs)
+    if _gesv is not None:
+        x = _gesv(lhs_rhs[:, :n], lhs_rhs[:, n])
+        if math.isfinite(x.sum()):
+            return x
+    return np.linalg.solve(lhs_rhs[:, :n], lhs_rhs[:, n])     # raises on a singular system
 
 
 def _offset_solve(ctx, stats, s_aug, eta):
@@ -232,11 +273,16 @@ def _offset_solve(ctx, stats, s_aug, eta):
     diag = ridge * ctx.offset_prec
     diag += 1.0                                                        # D
     n_bases = len(stats)
-    md = s_aug[:n_bases] / diag
+    means = s_aug[:n_bases]
     # [lhs | rhs] = [⟪μᵀμ⟫ + ηrΛ - ⟪μ⟫D⁻¹⟪μ⟫ᵀ | ⟪μᵀy⟫ + ηrΛw̄ - ⟪μ⟫D⁻¹⟪y⟫] in one (J, J+1) array
-    lhs = stats + ridge * ctx.w_prior_aug - md @ s_aug.T
-    w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])
-    return w, (s_aug[n_bases] - w @ s_aug[:n_bases]) / diag
+    lhs = ridge * ctx.w_prior_aug
+    lhs += stats
+    lhs -= (means / diag) @ s_aug.T
+    w = _solve(lhs)                                                    # eq. 24 with the offset
+    b = w @ means
+    np.subtract(s_aug[n_bases], b, out=b)                              # ⟪y⟫ - ⟪μ⟫ᵀ w
+    b /= diag
+    return w, b
 
 
 def _recent(state, n):
@@ -258,10 +304,11 @@ def _from_grid(ctx, grid, state, frames=None):
         s_aug = np.where(ok, np.vstack([ctx.means(phis).mean(axis=0),
                                         np.nan_to_num(frames).mean(axis=0)]), 0.0)
         w, b = _offset_solve(ctx, stats, s_aug, 1.0 / n)
+    comb_b, comb = _combined(ctx, w, b)
     return state._replace(x=np.array([grid.omega, grid.phi_last]),
                           P=np.diag([(INIT_OMEGA_REL_SD * grid.omega) ** 2, INIT_PHI_SD**2]),
-                          w=w, stats=stats, eta=1.0 / n,
-                          comb=ctx.combine(w), level=1.0, baseline=1.0, s_aug=s_aug, b=b)
+                          w=w, stats=stats, eta=1.0 / n, comb=comb, level=1.0, baseline=1.0,
+                          s_aug=s_aug, b=b, comb_b=comb_b, moments=None)
 
 
 def online_step(ctx, config, state, y):
@@ -286,54 +333,90 @@ def online_step(ctx, config, state, y):
         return new._replace(x=res.states[-1], P=res.covariances[-1],
                             locked=new.window >= acquire)
 
-    # E-step: eqs. 17-18 (A = [[1, 0], [1, 1]]), then 19-22 in information form.
+    # E-step: eqs. 17-18 (A = [[1, 0], [1, 1]]), then 19-22 in information form on y - b
+    # (the offset is the last row of comb_b: the innovation is y - (μ(x⁻) w + b)).
     q00, q01, q11 = ctx.q_floats
     omega, phi = state.x.tolist()
     (a, b), (_, c) = state.P.tolist()
     a, b, c = a + q00, a + b + q01, a + 2.0 * b + c + q11
     offset = state.s_aug is not None
-    omega, phi, pa, pb, pc, _, ee, n_obs, outlier = _update(ctx, omega, phi + omega, a, b, c,
-                                                            y - state.b if offset else y,
-                                                            state.comb)
+    comb_b = state.comb_b
+    if comb_b is None:                   # a state built by hand
+        comb_b = _combined(ctx, state.w, state.b if offset else np.zeros(len(y)))[0]
+    omega, phi, pa, pb, pc, _, ee, n_obs, outlier = _update(ctx, omega, phi + omega, a, b, c, y,
+                                                            comb_b)
     r = ctx.r
     nu = ee / (max(n_obs, 1) * r)
     level = (1.0 - config.relock_rate) * state.level + config.relock_rate * nu
     baseline = state.baseline + config.baseline_rate * (nu - state.baseline)
 
     # Online M-step: eqs. 24-27 with μ at the filtered phase (eq. 29).
-    n_bases = len(state.w)
-    mu = (ctx.kernel_value(phi) @ ctx.alpha_flat).reshape(n_bases, -1)      # (J, Dc)
     eta = 1.0 / (1.0 + config.forgetting / state.eta)                         # eq. 27
-    s_aug, b = state.s_aug, state.b
-    muy = np.concatenate((mu, y[None]))                                       # [μ; y] (J+1, Dc)
-    if n_obs < len(y):                   # missing channels and the outlier channel
-        ok = np.isfinite(y)
-        if outlier >= 0:
-            ok[outlier] = False
-        if offset:                       # ⟪μ⟫, ⟪y⟫ of the observed channels only
-            s_aug = s_aug.copy()
-            s_aug[:, ok] += eta * (muy[:, ok] - s_aug[:, ok])
-        mu, muy = mu[:, ok], muy[:, ok]
-    elif offset:
-        s_aug = s_aug + eta * (muy - s_aug)
-    # [⟪μᵀμ⟫ | ⟪μᵀy⟫] as one (J, J+1) array: (1 - η) ⟪f⟫ + η f = ⟪f⟫ + η (f - ⟪f⟫)
-    stats = state.stats + eta * (mu @ muy.T - state.stats)                   # eqs. 25-26
+    stats, s_aug, moments = _discounted_moments(ctx, state, y, phi, eta, n_obs, outlier)
+    b = state.b
     if offset:
         w, b = _offset_solve(ctx, stats, s_aug, eta)
     else:
-        lhs = stats + (eta * r) * ctx.w_prior_aug      # + η r [Λ | Λ w̄]: the prior ridge
-        w = np.linalg.solve(lhs[:, :n_bases], lhs[:, n_bases])                # eq. 24
-    new = OnlineState(x=np.array([omega, phi]), P=np.array([[pa, pb], [pb, pc]]), w=w,
-                      stats=stats, eta=eta,
-                      comb=(w @ ctx.alpha_w).reshape(len(ctx.phases), -1), recent=recent,
+        lhs = (eta * r) * ctx.w_prior_aug      # + η r [Λ | Λ w̄]: the prior ridge
+        lhs += stats
+        w = _solve(lhs)                                                       # eq. 24
+    comb_b, comb = _combined(ctx, w, b)
+    new = OnlineState(x=np.array((omega, phi)), P=np.array(((pa, pb), (pb, pc))), w=w,
+                      stats=stats, eta=eta, comb=comb, recent=recent,
                       recent_nu=state.recent_nu[1 - size:] + (nu,), frames=state.frames + 1,
                       window=state.window + 1, locked=True, level=level,
                       cooldown=max(state.cooldown - 1, 0), relocks=state.relocks,
-                      baseline=baseline, s_aug=s_aug, b=b)
+                      baseline=baseline, s_aug=s_aug, b=b, comb_b=comb_b, moments=moments)
     trigger = config.trigger(state.baseline)
     if level > trigger and new.cooldown == 0:
         new = _try_relock(ctx, config, new, relock, trigger)
     return new
+
+
+def _discounted_moments(ctx, state, y, phi, eta, n_obs, outlier):
+    """The discounted averages after frame ``y`` (eqs. 25-26, and ``⟪μ⟫``, ``⟪y⟫`` with a
+    posture offset) with ``μ`` at the filtered phase ``phi`` (eqs. 28-29).
+
+    Returns
+    -------
+    stats : ndarray, shape (J, J + 1)
+        ``[⟪μᵀμ⟫ | ⟪μᵀy⟫]``.
+    s_aug : ndarray, shape (J + 1, Dc), or None
+        ``[⟪μ⟫; ⟪y⟫]`` (None without offset).
+    moments : ndarray or None
+        The flat array ``s_aug`` and ``stats`` are views of (:class:`OnlineState`).
+    """
+    n_bases, n_ch = len(state.w), len(y)
+    n_aug = (n_bases + 1) * n_ch
+    # f = [μ; y] (J+1, Dc) then μ [μ; y]ᵀ (J, J+1), flat, in the layout of OnlineState.moments
+    f = np.empty(n_aug + n_bases * (n_bases + 1))
+    np.dot(ctx.kernel_value(phi), ctx.alpha_flat, out=f[:n_aug - n_ch])      # μ(x̂_t) (J, Dc)
+    f[n_aug - n_ch:n_aug] = y
+    muy = f[:n_aug].reshape(n_bases + 1, n_ch)
+    mu = muy[:n_bases]
+    old, s_aug = state.moments, state.s_aug
+    if n_obs == n_ch and old is not None and s_aug.base is old and state.stats.base is old:
+        # Every channel observed: ⟪f⟫ + η (f - ⟪f⟫) = (1 - η) ⟪f⟫ + η f for all of them at once.
+        np.matmul(mu, muy.T, out=f[n_aug:].reshape(n_bases, n_bases + 1))
+        f -= old
+        f *= eta
+        f += old
+        return f[n_aug:].reshape(n_bases, n_bases + 1), f[:n_aug].reshape(n_bases + 1, n_ch), f
+    if n_obs < n_ch:                     # missing channels and the outlier channel
+        ok = np.isfinite(y)
+        if outlier >= 0:
+            ok[outlier] = False
+        if s_aug is not None:            # ⟪μ⟫, ⟪y⟫ of the observed channels only
+            s_aug = s_aug.copy()
+            s_aug[:, ok] += eta * (muy[:, ok] - s_aug[:, ok])
+        mu, muy = mu[:, ok], muy[:, ok]
+    elif s_aug is not None:
+        s_aug = s_aug + eta * (muy - s_aug)
+    stats = state.stats + eta * (mu @ muy.T - state.stats)
+    if s_aug is None:
+        return stats, None, None
+    moments = np.concatenate((s_aug.ravel(), stats.ravel()))    # the layout for the next frame
+    return moments[n_aug:].reshape(stats.shape), moments[:n_aug].reshape(s_aug.shape), moments
 
 
 def _try_relock(ctx, config, state, relock, trigger):
@@ -363,20 +446,30 @@ def online_forecast(ctx, state, n_frames, omega_scale=1.0, blend_s=DEFAULT_BLEND
     """
     omega, phi = state.x.tolist()
     step = omega * omega_scale
-    phis = ctx.steps(n_frames + 1) * step + (phi - step)        # φ, φ + ω s, …
-    out = ctx.kernel_rows(phis) @ state.comb                     # scaled units
-    if state.s_aug is not None:
-        out += state.b
+    phis = ctx.steps(n_frames + 1) * step
+    phis += phi - step                                           # φ, φ + ω s, …
+    if state.comb_b is not None:                                 # μ w + b in one product
+        out = ctx.kernel_rows_one(phis) @ state.comb_b           # scaled units
+    else:
+        out = ctx.kernel_rows(phis) @ state.comb
+        if state.s_aug is not None:
+            out += state.b
     if omega_scale != 1.0:
         out[:, ctx.rate_mask] *= omega_scale
+    ahead = out[1:]
     if state.recent and blend_s > 0:
         # Continue from the last frame (angles wrapped; scaled angles are radians).
         diff = state.recent[-1] - out[0]
-        diff -= ctx.turns * np.rint(diff * _INV_TWO_PI)
+        turns = diff * _INV_TWO_PI
+        np.rint(turns, out=turns)
+        turns *= ctx.turns
+        diff -= turns
         if not math.isfinite(diff @ diff):
             diff = np.where(np.isfinite(diff), diff, 0.0)
-        out[1:] += ctx.decay(n_frames, blend_s) * diff
-    return out[1:] * ctx.scale
+        diff = ctx.decay(n_frames, blend_s) * diff
+        ahead += diff
+    ahead *= ctx.scale
+    return ahead
 
 
 class OnlineEM:
