@@ -66,17 +66,6 @@ __all__ = ["OnlineConfig", "OnlineEM", "OnlineState", "online_forecast", "online
 
 _INV_TWO_PI = 1.0 / (2.0 * math.pi)
 
-# The LAPACK solver (gesv) behind np.linalg.solve, called without the wrapper's argument checks
-# and error-state context: 2.5 of np.linalg.solve's 10 µs for the J × J M-step system, the largest
-# single item of an online step. Same routine, same result; a NumPy without it (the module is
-# private) falls back to np.linalg.solve, and so does a non-finite result (the M-step's system is
-# positive definite by construction; a singular one would warn here, then raise there).
-try:
-    from numpy.linalg._umath_linalg import solve1 as _gesv
-except ImportError:       # pragma: no cover - NumPy 1.x and 2.x have it
-    _gesv = None
-
-
 
 @dataclass(frozen=True)
 class OnlineConfig:
@@ -257,11 +246,9 @@ def _combined(ctx, w, b):
 
 def _solve(lhs_rhs):
     """Solution of ``[A | b]`` (J, J+1): ``A⁻¹ b`` (J,), ``A`` symmetric positive definite."""
+    # NumPy's private LAPACK gufunc (numpy.linalg._umath_linalg) would save about 5 % of an
+    # online step; the public np.linalg.solve is kept so that no NumPy release can break it.
     n = len(lhs_rhs)
-    if _gesv is not None:
-        x = _gesv(lhs_rhs[:, :n], lhs_rhs[:, n])
-        if math.isfinite(x.sum()):
-            return x
     return np.linalg.solve(lhs_rhs[:, :n], lhs_rhs[:, n])     # raises on a singular system
 
 
