@@ -1,0 +1,139 @@
+"""Sweep the phase-averaged prediction's calibration on the collected leave-one-walker-out
+pieces (build/exp/lowo_pieces.pkl from lowo_pieces.py): inner-fold scores per outer fold, the strictly nested
+choice and the outer scores (diagnostic)."""
+
+import pickle
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from core.gait.phase_average import averaged_kernel, phase_variances  # noqa: E402
+
+FPS, BLEND = 60.0, 0.15
+SUBJECTS = ("07", "08", "35", "91", "132", "139")
+WINDOWS = (0.5, 1.0, 1.67)
+BINS = ((0, 30), (30, 60), (60, 120), (120, 240))
+
+
+def wrap(x):
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+def variances(d, mode, param):
+    n = len(d["truth"])
+    if mode == "ekf":
+        return phase_variances(d["cov"], d["Q"], n, scale=param)
+    if mode == "mix":   # param = (scale, relative cadence sd)
+        k = np.arange(n + 1)
+        return phase_variances(d["cov"], d["Q"], n, scale=param[0]) + \
+            (param[1] * d["state"][0] * k) ** 2
+    if mode == "rel":   # relative cadence sd param: (param ω k)²
+        k = np.arange(n + 1)
+        return (param * d["state"][0] * k) ** 2
+    raise ValueError(mode)
+
+
+def compose(d, mode, param):
+    n = len(d["truth"])
+    blend = BLEND
+    if mode == "ekfb":
+        mode, param, blend = "ekf", param[0], param[1]
+    omega, phi = d["state"]
+    phis = phi + omega * np.arange(n + 1)
+    if param == 0 or param == (0, 0):
+        frames = d["frames"]
+    else:
+        kern = averaged_kernel(d["beta"], phis, d["gp_phases"], variances(d, mode, param))
+        frames = kern @ d["A"] + d["offset_phys"]
+    diff = d["start"] - frames[0]
+    diff[d["is_angle"]] = wrap(diff[d["is_angle"]])
+    decay = np.exp(-np.arange(1, len(frames)) / (blend * FPS))
+    return frames[1:] + decay[:, None] * diff
+
+
+def rms(pred, truth, a=0, b=None):
+    e = wrap(pred[a:b] - truth[a:b])
+    return float(np.degrees(np.sqrt(np.mean(e**2)))) if e.size else None
+
+
+def score(cases, cand, window, only_lc=False, bin_=None):
+    by = {}
+    for d in cases:
+        if d["window"] != window or (only_lc and d["last_cycle"] is None):
+            continue
+        a, b = (0, None) if bin_ is None else bin_
+        if len(d["truth"]) <= a:
+            continue
+        by.setdefault(d["subject"], []).append(rms(compose(d, *cand), d["truth"], a, b))
+    return float(np.mean([np.mean(v) for v in by.values()])) if by else None
+
+
+def hold(cases, window, bin_=None, only_lc=False):
+    by = {}
+    for d in cases:
+        if d["window"] != window or (only_lc and d["last_cycle"] is None):
+            continue
+        a, b = (0, None) if bin_ is None else bin_
+        if len(d["truth"]) <= a:
+            continue
+        by.setdefault(d["subject"], []).append(rms(np.tile(d["start"], (len(d["truth"]), 1)),
+                                                   d["truth"], a, b))
+    return float(np.mean([np.mean(v) for v in by.values()]))
+
+
+def main(grid):
+    data = pickle.load(open(Path(__file__).resolve().parent.parent / "build" / "exp"
+                            / "lowo_pieces.pkl", "rb"))
+    d = data["outer"]["35"][0]
+    n = len(d["truth"])
+    check = compose(d, "ekf", 1e-30)
+    print("identity check", np.abs(check - compose(d, "ekf", 0)).max())
+    inner = {}
+    for o in SUBJECTS:
+        cases = [d for (oo, s), v in data["inner"].items() if oo == o for d in v]
+        for cand in grid:
+            inner[(o, cand)] = [score(cases, cand, w) for w in WINDOWS]
+    print("inner mean over outer folds (0.5 / 1.0 / 1.67):")
+    for cand in grid:
+        print(cand, np.round(np.mean([inner[(o, cand)] for o in SUBJECTS], axis=0), 3))
+    outer_cases = [d for v in data["outer"].values() for d in v]
+    print("outer (diagnostic): total per window; bins per window")
+    for cand in grid:
+        print(cand, [round(score(outer_cases, cand, w), 3) for w in WINDOWS],
+              [[round(score(outer_cases, cand, w, bin_=b), 2) for b in BINS] for w in WINDOWS],
+              "lc 1.67", round(score(outer_cases, cand, 1.67, True), 3))
+    print("hold", [round(hold(outer_cases, w), 3) for w in WINDOWS],
+          [[round(hold(outer_cases, w, b), 2) for b in BINS] for w in WINDOWS])
+    picks, tot = {}, []
+    for o in SUBJECTS:
+        best = min(grid, key=lambda c: sum(inner[(o, c)]))
+        picks[o] = best
+        tot.append([score(data["outer"][o], best, w) for w in WINDOWS])
+    print("nested, one setting for every window (inner sum over windows):", picks,
+          np.round(np.mean(tot, axis=0), 3))
+    for k, w in enumerate(WINDOWS):
+        picks, tot = {}, []
+        for o in SUBJECTS:
+            best = min(grid, key=lambda c: inner[(o, c)][k])
+            picks[o] = best
+            tot.append(score(data["outer"][o], best, w))
+        print("nested", w, picks, round(float(np.mean(tot)), 3))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "single":
+        main([("ekf", 0.0)] + [("ekf", g) for g in (3, 5, 10, 15, 20, 30)])
+        sys.exit()
+    if len(sys.argv) > 1 and sys.argv[1] == "blend":
+        main([("ekf", 0.0)] + [("ekfb", (g, b)) for g in (10, 20, 30)
+                               for b in (0.1, 0.15, 0.25, 0.4)])
+        sys.exit()
+    if len(sys.argv) > 1 and sys.argv[1] == "mix":
+        main([("ekf", 0.0)] + [("mix", (g, r)) for g in (5, 10, 20, 30)
+                               for r in (0.0, 0.02, 0.04)])
+        sys.exit()
+    g = [("ekf", 0.0)] + [("ekf", s) for s in (1, 3, 10, 30, 100)] + \
+        [("rel", r) for r in (0.02, 0.04, 0.07, 0.1)]
+    main(g)
