@@ -1,6 +1,18 @@
-"""Sweep the phase-averaged prediction's calibration on the collected leave-one-walker-out
-pieces (build/exp/lowo_pieces.pkl from lowo_pieces.py): inner-fold scores per outer fold, the strictly nested
-choice and the outer scores (diagnostic)."""
+"""Rescore settings of the method's prediction on the collected leave-one-walker-out pieces
+(build/exp/lowo_pieces.pkl from ``lowo_pieces.py``), in seconds: the inner-fold scores (mean
+over the six outer folds), the strictly nested choice (each outer fold picks its best inner
+candidate) and the outer scores (diagnostic only, never used to choose). docs/gait.md, *Leave
+one walker out*, second round.
+
+    python benchmarks/phase_sweep.py single   # phase_var_scale (the shipped default: 20)
+    python benchmarks/phase_sweep.py [mix|pq|blend|hold|lc|replay]   # the alternatives tried
+
+Candidates are (mode, parameter): ``ekf`` γ (the filter's phase variance × γ), ``rel`` an
+extra relative cadence spread, ``mix`` both, ``pq`` separate factors for the covariance and the
+process noise, ``ekfb`` γ with another continuation time, ``hold`` a share of the held pose,
+``lc`` a share of the last-cycle baseline, ``replay`` the walker's last cycle read at the
+model's phases with weight ``a (1 - exp(-k / (τ fps)))``.
+"""
 
 import pickle
 import sys
@@ -25,6 +37,10 @@ def variances(d, mode, param):
     n = len(d["truth"])
     if mode == "ekf":
         return phase_variances(d["cov"], d["Q"], n, scale=param)
+    if mode == "pq":    # param = (scale of A^k P A^kᵀ, scale of the process-noise sum)
+        return phase_variances(d["cov"], d["Q"], n, scale=param[0]) + \
+            phase_variances(np.zeros((2, 2)), d["Q"], n, scale=param[1]) - \
+            phase_variances(np.zeros((2, 2)), d["Q"], n, scale=param[0])
     if mode == "mix":   # param = (scale, relative cadence sd)
         k = np.arange(n + 1)
         return phase_variances(d["cov"], d["Q"], n, scale=param[0]) + \
@@ -38,6 +54,28 @@ def variances(d, mode, param):
 def compose(d, mode, param):
     n = len(d["truth"])
     blend = BLEND
+    if mode == "hold":  # param = (scale, weight of the held pose)
+        out = compose(d, "ekf", param[0])
+        diff = d["start"] - out
+        diff[:, d["is_angle"]] = wrap(diff[:, d["is_angle"]])
+        return out + param[1] * diff
+    if mode == "replay":  # param = (scale, weight, tau_s): a_k = weight (1 - exp(-k/(tau fps)))
+        out = compose(d, "ekf", param[0])
+        if d["replay"] is None:
+            return out
+        k = np.arange(1, len(out) + 1)
+        a = param[1] * (1.0 - np.exp(-k / (param[2] * FPS))) if param[2] > 0 \
+            else np.full(len(k), param[1])
+        diff = d["replay"][1:] - out
+        diff[:, d["is_angle"]] = wrap(diff[:, d["is_angle"]])
+        return out + a[:, None] * diff
+    if mode == "lc":    # param = (scale, weight of the last-cycle baseline where it runs)
+        out = compose(d, "ekf", param[0])
+        if d["last_cycle"] is None:
+            return out
+        diff = d["last_cycle"] - out
+        diff[:, d["is_angle"]] = wrap(diff[:, d["is_angle"]])
+        return out + param[1] * diff
     if mode == "ekfb":
         mode, param, blend = "ekf", param[0], param[1]
     omega, phi = d["state"]
@@ -123,6 +161,20 @@ def main(grid):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "replay":
+        main([("ekf", 0.0), ("ekf", 20.0)] + [("replay", (g, a, t)) for g in (0.0, 20.0)
+                                               for a in (0.25, 0.5) for t in (0.0, 0.5)])
+        sys.exit()
+    if len(sys.argv) > 1 and sys.argv[1] == "lc":
+        main([("ekf", 0.0), ("ekf", 20.0)] + [("lc", (20.0, b)) for b in (0.15, 0.3, 0.5)])
+        sys.exit()
+    if len(sys.argv) > 1 and sys.argv[1] == "hold":
+        main([("ekf", 0.0), ("ekf", 20.0)] + [("hold", (20.0, b)) for b in (0.1, 0.2, 0.3)])
+        sys.exit()
+    if len(sys.argv) > 1 and sys.argv[1] == "pq":
+        main([("ekf", 0.0), ("ekf", 20.0)] + [("pq", (a, b)) for a in (10, 30, 100)
+                                               for b in (0.0, 3.0, 10.0, 30.0)])
+        sys.exit()
     if len(sys.argv) > 1 and sys.argv[1] == "single":
         main([("ekf", 0.0)] + [("ekf", g) for g in (3, 5, 10, 15, 20, 30)])
         sys.exit()
