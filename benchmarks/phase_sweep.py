@@ -5,11 +5,12 @@ candidate) and the outer scores (diagnostic only, never used to choose). docs/ga
 one walker out*, second round.
 
     python benchmarks/phase_sweep.py single   # phase_var_scale (the shipped default: 20)
-    python benchmarks/phase_sweep.py [mix|pq|blend|hold|lc|replay]   # the alternatives tried
+    python benchmarks/phase_sweep.py [mix|pq|span|blend|hold|lc|replay]   # alternatives tried
 
 Candidates are (mode, parameter): ``ekf`` γ (the filter's phase variance × γ), ``rel`` an
 extra relative cadence spread, ``mix`` both, ``pq`` separate factors for the covariance and the
-process noise, ``ekfb`` γ with another continuation time, ``hold`` a share of the held pose,
+process noise, ``span`` γ growing with the unobserved part of the first cycle, ``ekfb`` γ with
+another continuation time, ``hold`` a share of the held pose,
 ``lc`` a share of the last-cycle baseline, ``replay`` the walker's last cycle read at the
 model's phases with weight ``a (1 - exp(-k / (τ fps)))``.
 """
@@ -37,6 +38,10 @@ def variances(d, mode, param):
     n = len(d["truth"])
     if mode == "ekf":
         return phase_variances(d["cov"], d["Q"], n, scale=param)
+    if mode == "span":  # param = (γ0, p): γ = γ0 max(1, 2π / observed phase span)^p
+        span = d["state"][0] * d["window"] * FPS
+        g = param[0] * max(1.0, 2.0 * np.pi / span) ** param[1]
+        return phase_variances(d["cov"], d["Q"], n, scale=g)
     if mode == "pq":    # param = (scale of A^k P A^kᵀ, scale of the process-noise sum)
         return phase_variances(d["cov"], d["Q"], n, scale=param[0]) + \
             phase_variances(np.zeros((2, 2)), d["Q"], n, scale=param[1]) - \
@@ -161,6 +166,10 @@ def main(grid):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "span":
+        main([("ekf", 0.0), ("ekf", 20.0)] + [("span", (g, p)) for g in (10.0, 15.0, 20.0)
+                                               for p in (1.0, 2.0)])
+        sys.exit()
     if len(sys.argv) > 1 and sys.argv[1] == "replay":
         main([("ekf", 0.0), ("ekf", 20.0)] + [("replay", (g, a, t)) for g in (0.0, 20.0)
                                                for a in (0.25, 0.5) for t in (0.0, 0.5)])
