@@ -385,8 +385,8 @@ def print_lowo(block):
                         for k in bases)
         mlc, klc = b["method_on_last_cycle_cases"], b.get("method_keyed_on_last_cycle_cases")
         keyed = b.get("method_keyed")
-        print(f"{w + ' s':10s}{b['method']:9.2f}{'—' if keyed is None else format(keyed, '.2f'):>8s}"
-              f"{cells}"
+        keyed = "—" if keyed is None else format(keyed, ".2f")
+        print(f"{w + ' s':10s}{b['method']:9.2f}{keyed:>8s}{cells}"
               f"{'—' if mlc is None else format(mlc, '.2f'):>11s}"
               f"{'—' if klc is None else format(klc, '.2f'):>10s}"
               f"{'/'.join(map(str, b['last_cycle_cases'])):>10s}"

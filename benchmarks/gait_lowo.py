@@ -41,6 +41,7 @@ import numpy as np
 
 from core.gait import OnlineEM, adapt, learn_model, observations_from_dofs, predict
 from core.gait.alignment import estimate_period
+from core.gait.phase_average import forecast_scale
 from core.gait.segments import _moving_average, _runs, steady_segments
 from core.gait.root_travel import RootFrame, heading_angles, root_rotations
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
@@ -150,8 +151,9 @@ class Method:
 
     ``learn``: keyword arguments of ``learn_model``; ``adapt``: of ``adapt``; ``segment``: of
     ``steady_segments`` (``False``: trials whole); ``residual``: add the walker's residual
-    table to the prediction; ``phase_average``: the phase-averaged forecast
-    (``predict(..., covariance=)``; False: the confident cycle that Predict Gait keys)."""
+    table to the prediction; ``phase_average``: the phase-averaged forecast calibrated on the
+    window (``predict(..., covariance=, phase_var_scale=forecast_scale(...))``; False: the
+    confident cycle that Predict Gait keys)."""
 
     name: str = "method"
     learn: dict = field(default_factory=dict)
@@ -195,8 +197,11 @@ def method_prediction(model, method, window, n, keyed=False):
     res = adapt(model, window, residual=method.residual, **method.adapt)
     kw = dict(residual=res.residual, offset=res.offset, start=res.last_observation, fps=FPS)
     kw.update(method.predict)
-    pred = predict(model, res.state, res.w, n,
-                   covariance=res.covariance if method.phase_average else None, **kw)
+    forecast = {}
+    if method.phase_average:
+        forecast = dict(covariance=res.covariance,
+                        phase_var_scale=forecast_scale(model, res, window))
+    pred = predict(model, res.state, res.w, n, **forecast, **kw)
     if not keyed:
         return pred
     return pred, (predict(model, res.state, res.w, n, **kw) if method.phase_average else pred)

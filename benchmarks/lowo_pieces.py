@@ -124,6 +124,16 @@ def pieces_of(model, res, win, n):
     scaled = scaled + model.gp.kernel(phis) @ residual_weights(model, res.residual)
     scaled = scaled + res.offset
     frames = model.to_physical(scaled)[:, :L.N_ANGLES]
+    # Normalised innovation of the window: mean squared residual of the adapted walker (style,
+    # table, offset at the filtered phases) over the model's noise r.
+    ph = res.states[:, 1]
+    fit = model.gp.observation_mean(ph, res.w) + model.gp.kernel(ph) @ residual_weights(
+        model, res.residual) + res.offset
+    err = win / model.channel_scale - fit
+    err[:, model.is_angle] = (err[:, model.is_angle] * model.channel_scale[model.is_angle]
+                              + np.pi) % (2 * np.pi) - np.pi
+    err[:, model.is_angle] /= model.channel_scale[model.is_angle]
+    nu = float(np.nanmean(err**2) / model.r)
     cyc = observed_cycle(win, res.states[:, 1], model.is_angle)
     rep = None if cyc is None else replay_cycle(cyc, res.state[0], n)[:, :L.N_ANGLES]
     try:
@@ -136,7 +146,8 @@ def pieces_of(model, res, win, n):
                 offset_phys=(res.offset * model.channel_scale)[:L.N_ANGLES],
                 state=res.state, cov=res.covariance, Q=model.process_noise(L.FPS),
                 beta=model.gp.beta, gp_phases=model.gp.phases, frames=frames, replay=rep,
-                start=win[-1, :L.N_ANGLES], omega=res.state[0], period=period, is_angle=model.is_angle[:L.N_ANGLES])
+                start=win[-1, :L.N_ANGLES], omega=res.state[0], period=period, nu=nu,
+                is_angle=model.is_angle[:L.N_ANGLES])
 
 
 def collect(model, subject):

@@ -5,13 +5,13 @@ candidate) and the outer scores (diagnostic only, never used to choose). docs/ga
 one walker out*, second round.
 
     python benchmarks/phase_sweep.py single   # phase_var_scale (the shipped default: 20)
-    python benchmarks/phase_sweep.py [mix|pq|span|blend|hold|lc|replay]   # alternatives tried
+    python benchmarks/phase_sweep.py [mix|pq|nu|span|blend|hold|lc|replay]   # alternatives tried
 
 Candidates are (mode, parameter): ``ekf`` γ (the filter's phase variance × γ), ``rel`` an
 extra relative cadence spread, ``mix`` both, ``pq`` separate factors for the covariance and the
-process noise, ``span`` γ growing with the unobserved part of the first cycle, ``ekfb`` γ with
-another continuation time, ``hold`` a share of the held pose,
-``lc`` a share of the last-cycle baseline, ``replay`` the walker's last cycle read at the
+process noise, ``nu`` γ growing with the window's normalised innovation, ``span`` γ growing
+with the unobserved part of the first cycle, ``ekfb`` γ with another continuation time,
+``hold`` a share of the held pose, ``lc`` a share of the last-cycle baseline, ``replay`` the walker's last cycle read at the
 model's phases with weight ``a (1 - exp(-k / (τ fps)))``.
 """
 
@@ -42,6 +42,8 @@ def variances(d, mode, param):
         span = d["state"][0] * d["window"] * FPS
         g = param[0] * max(1.0, 2.0 * np.pi / span) ** param[1]
         return phase_variances(d["cov"], d["Q"], n, scale=g)
+    if mode == "nu":    # param = (γ0, p): γ = γ0 ν^p, ν the window's normalised innovation
+        return phase_variances(d["cov"], d["Q"], n, scale=param[0] * d["nu"] ** param[1])
     if mode == "pq":    # param = (scale of A^k P A^kᵀ, scale of the process-noise sum)
         return phase_variances(d["cov"], d["Q"], n, scale=param[0]) + \
             phase_variances(np.zeros((2, 2)), d["Q"], n, scale=param[1]) - \
@@ -166,6 +168,17 @@ def main(grid):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "nu":
+        data = pickle.load(open(Path(__file__).resolve().parent.parent / "build" / "exp"
+                                / "lowo_pieces.pkl", "rb"))
+        for w in WINDOWS:
+            nus = [d["nu"] for v in data["inner"].values() for d in v if d["window"] == w]
+            print("inner nu", w, np.percentile(nus, [10, 50, 90]).round(2))
+        grid = [("ekf", 0.0)] + [("nu", (c, 1.0)) for c in (50, 100, 150, 200, 300, 500)]
+        if len(sys.argv) > 2:       # "nu all": also ν^0.5 and the fixed factor
+            grid += [("nu", (c, 0.5)) for c in (30, 50, 80)] + [("ekf", 20.0)]
+        main(grid)
+        sys.exit()
     if len(sys.argv) > 1 and sys.argv[1] == "span":
         main([("ekf", 0.0), ("ekf", 20.0)] + [("span", (g, p)) for g in (10.0, 15.0, 20.0)
                                                for p in (1.0, 2.0)])

@@ -22,19 +22,28 @@ residual table goes through the same weights, so it is averaged alike.
 
 The filter's covariance is overconfident on a walker the model has never seen (its likelihood
 treats the frames as independent and the bases as exact), so the variance is multiplied by a
-calibration factor (``scale``, chosen on the leave-one-walker-out inner folds).
+calibration factor (``scale``). The factor that fits the observed window is proportional to how
+badly the adapted walker explains it — the classical inflation of a least-squares covariance
+by the reduced χ²: :func:`forecast_scale` = ``c ν``, ``ν`` the window's mean squared residual
+(style, residual table and offset at the filtered phases) over the model's noise ``r``
+(:func:`innovation_ratio`). ``c`` and the fixed factor used without a window were chosen on the
+leave-one-walker-out inner folds (docs/gait.md).
 """
 
 import numpy as np
 
-from .residual import kernel_spectrum
+from .residual import kernel_spectrum, residual_weights
 
-__all__ = ["DEFAULT_PHASE_VAR_SCALE", "averaged_kernel", "phase_variances"]
+__all__ = ["DEFAULT_INNOVATION_FACTOR", "DEFAULT_PHASE_VAR_SCALE", "averaged_kernel",
+           "forecast_scale", "innovation_ratio", "phase_variances"]
 
-# Calibration of the filter's phase variance: chosen on the leave-one-walker-out inner folds
+# Calibration of the filter's phase variance, chosen on the leave-one-walker-out inner folds
 # (mean over the six outer folds of the inner scores, summed over the 0.5, 1.0 and 1.67 s
-# windows; candidates 3-30: 20 best, 15 and 30 within 0.03°; docs/gait.md).
+# windows; docs/gait.md). Fixed factor (no window at hand): candidates 3-30, 20 best, 15 and
+# 30 within 0.03°. Per unit of the window's normalised innovation ν: candidates 50-500, 150
+# best (200 within 0.01°); 150 × the median ν of the inner folds (0.14) ≈ the fixed 20.
 DEFAULT_PHASE_VAR_SCALE = 20.0
+DEFAULT_INNOVATION_FACTOR = 150.0
 
 
 def phase_variances(covariance, process_noise, n_frames, omega_scale=1.0,
@@ -108,3 +117,47 @@ def averaged_kernel(beta, phis, phases, variances):
     query = np.multiply.outer(phis, n)
     train = np.multiply.outer(np.asarray(phases, dtype=float), n)
     return (damp * np.cos(query)) @ np.cos(train).T + (damp * np.sin(query)) @ np.sin(train).T
+
+
+def innovation_ratio(model, result, observations):
+    """ν: mean squared residual of the adapted walker on its window over the model's noise r.
+
+    ``e_t = y_t − (μ(φ_t) ŵ + k(φ_t)ᵀ K⁻¹ T + b)`` in scaled units at the filtered phases
+    (angles wrapped), averaged over the observed entries (NaN = unobserved skipped).
+
+    Parameters
+    ----------
+    model : GaitModel
+    result : AdaptResult
+        ``adapt(model, observations, ...)`` (``states``, ``w``, ``residual``, ``offset``).
+    observations : array_like, shape (N, D)
+        The window it was adapted on, physical units, all model channels.
+
+    Returns
+    -------
+    float
+    """
+    obs = np.asarray(observations, dtype=float)
+    phis = np.asarray(result.states, dtype=float)[:, 1]
+    if obs.shape != (len(phis), model.n_channels):
+        raise ValueError(f"observations must be ({len(phis)}, {model.n_channels}) (the adapted "
+                         f"window), got {obs.shape}")
+    fit = model.gp.observation_mean(phis, result.w)
+    if result.residual is not None:
+        fit = fit + model.gp.kernel(phis) @ residual_weights(model, result.residual)
+    if result.offset is not None:
+        fit = fit + np.asarray(result.offset)
+    diff = obs - model.to_physical(fit)
+    diff[:, model.is_angle] = (diff[:, model.is_angle] + np.pi) % (2.0 * np.pi) - np.pi
+    scaled = diff / model.channel_scale
+    ok = np.isfinite(scaled)
+    if not ok.any():
+        raise ValueError("the window has no observed value")
+    return float(np.mean(scaled[ok] ** 2) / model.r)
+
+
+def forecast_scale(model, result, observations, factor=DEFAULT_INNOVATION_FACTOR):
+    """``phase_var_scale`` for :func:`.predict` calibrated on the window: ``factor · ν``."""
+    if not (np.isfinite(factor) and factor >= 0):
+        raise ValueError(f"factor must be non-negative, got {factor}")
+    return float(factor) * innovation_ratio(model, result, observations)

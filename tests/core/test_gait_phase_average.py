@@ -86,3 +86,32 @@ def test_unknown_phase_forecasts_the_mean_pose_and_continuation_still_starts_at_
     np.testing.assert_allclose(far[-1], mean_pose, rtol=0, atol=1e-9)
     # Frame 1 carries most of the gap between the last observed frame and the model's value.
     assert np.linalg.norm(far[0] - start) < np.linalg.norm(mean_pose - start)
+
+
+def test_innovation_ratio_is_the_mean_squared_residual_over_r():
+    from types import SimpleNamespace
+
+    from core.gait.phase_average import forecast_scale, innovation_ratio
+
+    model = small_model()
+    rng = np.random.default_rng(5)
+    n = 50
+    phis = 0.3 + 0.1 * np.arange(n)
+    w = model.styles[2]
+    table = 0.02 * rng.standard_normal((len(model.gp.phases), model.n_channels))
+    offset = 0.05 * rng.standard_normal(model.n_channels)
+    fit = model.gp.observation_mean(phis, w) + model.gp.kernel(phis) @ residual_weights(
+        model, table) + offset
+    noise = 0.01 * rng.standard_normal(fit.shape)                  # scaled units
+    obs = model.to_physical(fit + noise)
+    obs[:, model.is_angle] += 2.0 * np.pi * rng.integers(-1, 2, size=model.is_angle.sum())
+    obs[3, 5] = np.nan
+    result = SimpleNamespace(states=np.column_stack([np.full(n, 0.1), phis % (2 * np.pi)]),
+                             w=w, residual=table, offset=offset)
+    ok = np.isfinite(obs)
+    expected = np.mean(noise[ok] ** 2) / model.r
+    np.testing.assert_allclose(innovation_ratio(model, result, obs), expected, rtol=1e-9)
+    np.testing.assert_allclose(forecast_scale(model, result, obs, factor=150.0),
+                               150.0 * expected, rtol=1e-9)
+    with pytest.raises(ValueError):
+        innovation_ratio(model, result, obs[1:])
