@@ -41,6 +41,7 @@ import numpy as np
 
 from core.gait import OnlineEM, adapt, learn_model, observations_from_dofs, predict
 from core.gait.alignment import estimate_period
+from core.gait.phase_average import forecast_scale
 from core.gait.segments import _moving_average, _runs, steady_segments
 from core.gait.root_travel import RootFrame, heading_angles, root_rotations
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
@@ -150,7 +151,9 @@ class Method:
 
     ``learn``: keyword arguments of ``learn_model``; ``adapt``: of ``adapt``; ``segment``: of
     ``steady_segments`` (``False``: trials whole); ``residual``: add the walker's residual
-    table to the prediction."""
+    table to the prediction; ``phase_average``: the phase-averaged forecast calibrated on the
+    window (``predict(..., covariance=, phase_var_scale=forecast_scale(...))``; False: the
+    confident cycle that Predict Gait keys)."""
 
     name: str = "method"
     learn: dict = field(default_factory=dict)
@@ -158,6 +161,7 @@ class Method:
     predict: dict = field(default_factory=dict)
     segment: object = None
     residual: bool = True
+    phase_average: bool = True
 
     def key(self):
         return (tuple(sorted(self.learn.items())), repr(self.segment))
@@ -187,11 +191,20 @@ def fold_model(method, subjects, exclude=()):
     return _MODELS[key]
 
 
-def method_prediction(model, method, window, n):
-    """(n, D) predicted observations of the method from a window (N, D)."""
+def method_prediction(model, method, window, n, keyed=False):
+    """(n, D) predicted observations of the method from a window (N, D); with ``keyed`` also
+    the confident cycle (no phase averaging: what Predict Gait keys) as a second array."""
     res = adapt(model, window, residual=method.residual, **method.adapt)
-    return predict(model, res.state, res.w, n, residual=res.residual, offset=res.offset,
-                   start=res.last_observation, fps=FPS, **method.predict)
+    kw = dict(residual=res.residual, offset=res.offset, start=res.last_observation, fps=FPS)
+    kw.update(method.predict)
+    forecast = {}
+    if method.phase_average:
+        forecast = dict(covariance=res.covariance,
+                        phase_var_scale=forecast_scale(model, res, window))
+    pred = predict(model, res.state, res.w, n, **forecast, **kw)
+    if not keyed:
+        return pred
+    return pred, (predict(model, res.state, res.w, n, **kw) if method.phase_average else pred)
 
 
 def baseline_predictions(model, window, n):
@@ -295,9 +308,12 @@ def evaluate_subject(method, subject, train_subjects, windows=WINDOWS, baselines
         n = len(truth)
         for w in windows:
             win = obs[t0 - round(w * FPS):t0]
-            preds = {"method": method_prediction(model, method, win, n)}
             if baselines:
+                pred, keyed = method_prediction(model, method, win, n, keyed=True)
+                preds = {"method": pred, "method_keyed": keyed}
                 preds.update(baseline_predictions(model, win, n))
+            else:
+                preds = {"method": method_prediction(model, method, win, n)}
             scores.append(score_case(subject, trial, t0, w, preds, truth))
     return scores
 
@@ -347,14 +363,15 @@ def headline(scores, predictor, window, getter=lambda c, p: c.total.get(p), subj
     return _mean(by.values())
 
 
-def summarise(scores, joint_names, predictors=("method",) + BASELINES):
+def summarise(scores, joint_names, predictors=("method", "method_keyed") + BASELINES):
     """The ``leave_one_walker_out`` JSON block (issue 12) plus extra diagnostics."""
     windows = {}
     per_subject = {}
     for w in sorted({c.window for c in scores}):
         key = f"{w:g}"
         have = {p for c in scores if c.window == w for p in c.total}
-        block = {"method": headline(scores, "method", w), "baselines": {}}
+        block = {"method": headline(scores, "method", w), "baselines": {},
+                 "method_keyed": headline(scores, "method_keyed", w)}
         for b in BASELINES:
             block["baselines"][b] = headline(scores, b, w) if b in have else None
         # last cycle runs only where the window holds a period: compare on those cases.
@@ -363,6 +380,8 @@ def summarise(scores, joint_names, predictors=("method",) + BASELINES):
         block["last_cycle_cases"] = [len(lc_cases), n_cases]
         block["method_on_last_cycle_cases"] = headline(lc_cases, "method", w) if lc_cases \
             else None
+        block["method_keyed_on_last_cycle_cases"] = headline(lc_cases, "method_keyed", w) \
+            if lc_cases else None
         if block["baselines"].get("last_cycle") is not None and n_cases and \
                 len(lc_cases) < n_cases:
             # A baseline that can run on only part of the cases: reported on its own cases.
@@ -381,12 +400,25 @@ def summarise(scores, joint_names, predictors=("method",) + BASELINES):
             base = {b: headline(scores, b, w, get) for b in BASELINES if b in have}
             base = {b: v for b, v in base.items() if v is not None}
             bb = min(base, key=base.get) if base else None
+            # Each baseline against the method on the cases where that baseline runs (last
+            # cycle: only where the window yields a period), as for the whole-horizon ratio.
+            same = {b: headline([c for c in scores if c.window == w and b in c.total],
+                                "method", w, get) for b in base}
+            same_keyed = {b: headline([c for c in scores if c.window == w and b in c.total],
+                                      "method_keyed", w, get) for b in base}
+            ratios = {b: same[b] / base[b] for b in base if same[b] is not None}
+            worst = max(ratios, key=ratios.get) if ratios else None
             block["horizons"][label] = {"method": m,
+                                        "method_keyed": headline(scores, "method_keyed", w, get),
                                         "best_baseline": base[bb] if bb else None,
                                         "best_baseline_name": bb,
-                                        "baselines": base}
+                                        "baselines": base,
+                                        "method_on_baseline_cases": same,
+                                        "method_keyed_on_baseline_cases": same_keyed,
+                                        "ratio_to_best_baseline": ratios.get(worst),
+                                        "ratio_baseline": worst}
         block["phase_error_at_2s_ms"] = {}
-        for p in ("method", "nearest_style", "mean_style"):
+        for p in ("method", "method_keyed", "nearest_style", "mean_style", "last_cycle"):
             if p in have:
                 vals = [c.phase_s.get(p) for c in scores if c.window == w]
                 vals = [v for v in vals if v is not None]

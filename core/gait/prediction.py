@@ -20,10 +20,18 @@ From a state ``x̂_t = [ω, φ]`` and a style ``w``: ``x_{t+k|t} = A^k x̂_t``, 
   8.53° → 8.35°, 1.67 s 5.68° → 5.48°; docs/gait.md). The model's value at the current frame is
   a smooth template, the walker's frame carries this cycle's deviation, which persists for a
   fraction of a cycle.
+* **Phase-averaged forecast** (optional, ``covariance=`` the filter's covariance of ``[ω, φ]``,
+  ``adapt(...).covariance``): the expected pose under the phase's growing uncertainty
+  (:mod:`.phase_average`) instead of the pose at the most likely phase. The cycle's harmonics
+  shrink as the timing becomes uncertain, so far ahead (and after a short observation) the
+  forecast relaxes towards the walker's mean pose: smaller RMS error, but a damped-looking
+  motion — a forecast, not an animation (the Blender operator keys the confident cycle;
+  docs/gait.md, *Phase-averaged forecast*).
 """
 
 import numpy as np
 
+from .phase_average import DEFAULT_PHASE_VAR_SCALE, averaged_kernel, phase_variances
 from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
@@ -58,7 +66,8 @@ def predicted_phases(state, n_frames, omega_scale=1.0):
 
 
 def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=None,
-            offset=None, start=None, fps=None, blend_s=DEFAULT_BLEND_S):
+            offset=None, start=None, fps=None, blend_s=DEFAULT_BLEND_S, covariance=None,
+            phase_var_scale=DEFAULT_PHASE_VAR_SCALE):
     """Predicted observations of the next ``n_frames`` frames.
 
     Parameters
@@ -86,6 +95,11 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=
         model's).
     blend_s : float
         Decay time of the continuation, seconds (0: none).
+    covariance : array_like, shape (2, 2), optional
+        The filter's covariance of ``[ω, φ]`` at the last observed frame
+        (``adapt(...).covariance``): return the phase-averaged forecast (module docstring).
+    phase_var_scale : float
+        Calibration factor of the phase variance (with ``covariance``).
 
     Returns
     -------
@@ -97,9 +111,22 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=
     index = np.arange(model.n_channels) if channels is None else model.channel_index(channels)
     if start is not None and len(phis):
         phis = np.concatenate(([float(np.asarray(state, dtype=float)[1])], phis))
-    scaled = model.gp.observation_mean(phis, w) if len(phis) else np.zeros((0, model.n_channels))
-    if residual is not None and len(phis):
-        scaled = scaled + model.gp.kernel(phis) @ residual_weights(model, residual)
+    if covariance is not None and len(phis):
+        rate = model.fps if fps is None else float(fps)
+        var = phase_variances(covariance, model.process_noise(rate), n_frames, omega_scale,
+                              phase_var_scale)
+        kern = averaged_kernel(model.gp.beta, phis, model.gp.phases,
+                               var if start is not None else var[1:])
+        scaled = np.einsum("njd,j->nd", (kern @ model.gp.alpha_flat).reshape(
+            len(phis), model.n_bases, model.n_channels), w)
+        if residual is not None:
+            scaled = scaled + kern @ residual_weights(model, residual)
+    elif len(phis):
+        scaled = model.gp.observation_mean(phis, w)
+        if residual is not None:
+            scaled = scaled + model.gp.kernel(phis) @ residual_weights(model, residual)
+    else:
+        scaled = np.zeros((0, model.n_channels))
     if offset is not None:
         scaled = scaled + _check_vector(model, offset, "offset")
     out = model.to_physical(scaled)
@@ -136,7 +163,8 @@ def _continue_from(model, frames, start, fps, blend_s):
 
 
 def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, stride=1.0,
-                 travel=True, residual=None, offset=None, start=None, blend_s=DEFAULT_BLEND_S):
+                 travel=True, residual=None, offset=None, start=None, blend_s=DEFAULT_BLEND_S,
+                 covariance=None, phase_var_scale=DEFAULT_PHASE_VAR_SCALE):
     """Predicted DOF frames in the training layout (``model.dof_names``).
 
     Joint angles come from :func:`predict`, moved by whole turns onto the branch of the last
@@ -153,7 +181,8 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
     Parameters
     ----------
     model : GaitModel
-    state, w, n_frames, omega_scale, residual, offset, start, blend_s
+    state, w, n_frames, omega_scale, residual, offset, start, blend_s, covariance, \
+    phase_var_scale
         As in :func:`predict`.
     last_dofs : array_like, shape (n_dofs,)
         The last observed DOF frame, metres and radians, in ``model.dof_names`` order.
@@ -176,7 +205,8 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
         raise ValueError(f"last_dofs must be {len(names)} finite values in the model's DOF "
                          f"layout, got shape {last.shape}")
     pred = predict(model, state, w, n_frames, omega_scale, residual=residual, offset=offset,
-                   start=start, fps=fps, blend_s=blend_s)
+                   start=start, fps=fps, blend_s=blend_s, covariance=covariance,
+                   phase_var_scale=phase_var_scale)
     out = np.tile(last, (len(pred), 1))
     lookup = {n: i for i, n in enumerate(names)}
     angle_cols = np.array([lookup[n] for n in model.angle_names], dtype=int)
