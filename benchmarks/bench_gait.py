@@ -408,25 +408,26 @@ def print_lowo(block):
     print("\nLeave one walker out (mean over held-out subjects of the subject means; RMS over the "
           "56 angles, degrees)")
     bases = gait_lowo.BASELINES
-    print("method: phase-averaged forecast; keyed: the confident cycle Predict Gait keys")
-    print(f"{'observed':10s}{'method':>9s}{'keyed':>8s}" + "".join(f"{b:>15s}" for b in bases)
-          + f"{'method@lc':>11s}{'keyed@lc':>10s}{'lc cases':>10s}{'ratio':>8s}  best")
+    print("method: the confident cycle Predict Gait keys; forecast: the phase-averaged forecast "
+          "(core API only, not keyed)")
+    print(f"{'observed':10s}{'method':>9s}{'forecast':>9s}" + "".join(f"{b:>15s}" for b in bases)
+          + f"{'method@lc':>11s}{'fcast@lc':>10s}{'lc cases':>10s}{'ratio':>8s}  best")
     for w, b in block["windows"].items():
         cells = "".join(f"{'—' if b['baselines'][k] is None else format(b['baselines'][k], '.2f'):>15s}"
                         for k in bases)
-        mlc, klc = b["method_on_last_cycle_cases"], b.get("method_keyed_on_last_cycle_cases")
-        keyed = b.get("method_keyed")
+        mlc, klc = b["method_on_last_cycle_cases"], b.get("method_forecast_on_last_cycle_cases")
+        keyed = b.get("method_forecast")
         keyed = "—" if keyed is None else format(keyed, ".2f")
-        print(f"{w + ' s':10s}{b['method']:9.2f}{keyed:>8s}{cells}"
+        print(f"{w + ' s':10s}{b['method']:9.2f}{keyed:>9s}{cells}"
               f"{'—' if mlc is None else format(mlc, '.2f'):>11s}"
               f"{'—' if klc is None else format(klc, '.2f'):>10s}"
               f"{'/'.join(map(str, b['last_cycle_cases'])):>10s}"
               f"{b['ratio_to_best_baseline']:8.2f}  {b['best_baseline']}")
-    print("horizon bins (method [keyed] / best baseline; ratio: method / baseline on that "
+    print("horizon bins (method [forecast] / best baseline; ratio: method / baseline on that "
           "baseline's cases, the worst baseline):")
     for w, b in block["windows"].items():
         print(f"  {w + ' s':8s}" + "  ".join(
-            f"{k} s: {v['method']:.2f} [{v['method_keyed']:.2f}]/{v['best_baseline']:.2f} "
+            f"{k} s: {v['method']:.2f} [{v['method_forecast']:.2f}]/{v['best_baseline']:.2f} "
             f"({v['best_baseline_name']}) {v['ratio_to_best_baseline']:.2f} "
             f"vs {v['ratio_baseline']}"
             for k, v in b["horizons"].items()))
@@ -434,13 +435,13 @@ def print_lowo(block):
     for w, b in block["windows"].items():
         print(f"  {w + ' s':8s}" + "  ".join(f"{p} {v['mean_abs']:.0f}/{v['mean_signed']:+.0f}"
                                              for p, v in b["phase_error_at_2s_ms"].items()))
-    print("per subject (method / keyed / hold / mean / nearest / last cycle):")
+    print("per subject (method / forecast / hold / mean / nearest / last cycle):")
     for s, v in block["per_subject"].items():
         cells = []
         for w in block["windows"]:
             d = v.get(w, {})
             cells.append(f"{w} s " + "/".join("—" if d.get(k) is None else f"{d[k]:.2f}"
-                                              for k in ("method", "method_keyed") + bases))
+                                              for k in ("method", "method_forecast") + bases))
         print(f"  {s:4s} ({v['cases']:2d} cases)  " + "   ".join(cells))
     on = block["online"]
     print("online streams (walk → run → walk), adapt_s per segment:")

@@ -310,7 +310,7 @@ def evaluate_subject(method, subject, train_subjects, windows=WINDOWS, baselines
             win = obs[t0 - round(w * FPS):t0]
             if baselines:
                 pred, keyed = method_prediction(model, method, win, n, keyed=True)
-                preds = {"method": pred, "method_keyed": keyed}
+                preds = {"method": keyed, "method_forecast": pred}   # method: what Predict Gait keys
                 preds.update(baseline_predictions(model, win, n))
             else:
                 preds = {"method": method_prediction(model, method, win, n)}
@@ -363,7 +363,7 @@ def headline(scores, predictor, window, getter=lambda c, p: c.total.get(p), subj
     return _mean(by.values())
 
 
-def summarise(scores, joint_names, predictors=("method", "method_keyed") + BASELINES):
+def summarise(scores, joint_names, predictors=("method", "method_forecast") + BASELINES):
     """The ``leave_one_walker_out`` JSON block (issue 12) plus extra diagnostics."""
     windows = {}
     per_subject = {}
@@ -371,7 +371,7 @@ def summarise(scores, joint_names, predictors=("method", "method_keyed") + BASEL
         key = f"{w:g}"
         have = {p for c in scores if c.window == w for p in c.total}
         block = {"method": headline(scores, "method", w), "baselines": {},
-                 "method_keyed": headline(scores, "method_keyed", w)}
+                 "method_forecast": headline(scores, "method_forecast", w)}
         for b in BASELINES:
             block["baselines"][b] = headline(scores, b, w) if b in have else None
         # last cycle runs only where the window holds a period: compare on those cases.
@@ -380,7 +380,7 @@ def summarise(scores, joint_names, predictors=("method", "method_keyed") + BASEL
         block["last_cycle_cases"] = [len(lc_cases), n_cases]
         block["method_on_last_cycle_cases"] = headline(lc_cases, "method", w) if lc_cases \
             else None
-        block["method_keyed_on_last_cycle_cases"] = headline(lc_cases, "method_keyed", w) \
+        block["method_forecast_on_last_cycle_cases"] = headline(lc_cases, "method_forecast", w) \
             if lc_cases else None
         if block["baselines"].get("last_cycle") is not None and n_cases and \
                 len(lc_cases) < n_cases:
@@ -405,20 +405,20 @@ def summarise(scores, joint_names, predictors=("method", "method_keyed") + BASEL
             same = {b: headline([c for c in scores if c.window == w and b in c.total],
                                 "method", w, get) for b in base}
             same_keyed = {b: headline([c for c in scores if c.window == w and b in c.total],
-                                      "method_keyed", w, get) for b in base}
+                                      "method_forecast", w, get) for b in base}
             ratios = {b: same[b] / base[b] for b in base if same[b] is not None}
             worst = max(ratios, key=ratios.get) if ratios else None
             block["horizons"][label] = {"method": m,
-                                        "method_keyed": headline(scores, "method_keyed", w, get),
+                                        "method_forecast": headline(scores, "method_forecast", w, get),
                                         "best_baseline": base[bb] if bb else None,
                                         "best_baseline_name": bb,
                                         "baselines": base,
                                         "method_on_baseline_cases": same,
-                                        "method_keyed_on_baseline_cases": same_keyed,
+                                        "method_forecast_on_baseline_cases": same_keyed,
                                         "ratio_to_best_baseline": ratios.get(worst),
                                         "ratio_baseline": worst}
         block["phase_error_at_2s_ms"] = {}
-        for p in ("method", "method_keyed", "nearest_style", "mean_style", "last_cycle"):
+        for p in ("method", "method_forecast", "nearest_style", "mean_style", "last_cycle"):
             if p in have:
                 vals = [c.phase_s.get(p) for c in scores if c.window == w]
                 vals = [v for v in vals if v is not None]

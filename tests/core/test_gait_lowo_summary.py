@@ -11,7 +11,7 @@ import gait_lowo  # noqa: E402
 
 
 def _case(subject, t0, method, keyed, hold, last=None):
-    total = {"method": method, "method_keyed": keyed, "hold": hold}
+    total = {"method": method, "method_forecast": keyed, "hold": hold}
     if last is not None:
         total["last_cycle"] = last
     bins = {p: {gait_lowo.bin_label(*h): v for h in gait_lowo.HORIZONS} for p, v in total.items()}
@@ -28,13 +28,13 @@ def test_baselines_are_compared_on_their_own_cases():
     block = gait_lowo.summarise(scores, names)["windows"]["1.67"]
     # Means over subjects of subject means: method (6 + 6) / 2, on last cycle's cases (2 + 6) / 2.
     assert np.isclose(block["method"], 6.0)
-    assert np.isclose(block["method_keyed"], (6.75 + 5.0) / 2)
+    assert np.isclose(block["method_forecast"], (6.75 + 5.0) / 2)
     assert np.isclose(block["method_on_last_cycle_cases"], 4.0)
     assert np.isclose(block["baselines"]["last_cycle"], 4.5)
     assert np.isclose(block["ratio_to_best_baseline"], max(6.0 / 8.5, 4.0 / 4.5))
     for b in block["horizons"].values():
         assert np.isclose(b["method_on_baseline_cases"]["last_cycle"], 4.0)
-        assert np.isclose(b["method_keyed_on_baseline_cases"]["last_cycle"], 3.75)
+        assert np.isclose(b["method_forecast_on_baseline_cases"]["last_cycle"], 3.75)
         assert np.isclose(b["method_on_baseline_cases"]["hold"], 6.0)
         assert np.isclose(b["ratio_to_best_baseline"], 4.0 / 4.5)
         assert b["ratio_baseline"] == "last_cycle"
