@@ -50,7 +50,7 @@ tracking found (the synthetic clips: drift about 0.13 of the departure, ``w`` 0.
 falls toward 0 as the drift dominates. The torso and head, which carries every limb, keeps the
 smaller of the shares its own evidence and the whole body's (mean drift and departure over
 the parts) give (``blend_torso='min'``). The binary reverts above are off by default
-(``max_drift`` infinite): chosen by the same cross-validation, the blend did better without
+(``max_drift`` None): chosen by the same cross-validation, the blend did better without
 them; they stay selectable and, when on, act first (a reverted part keeps nothing).
 
 Plain arrays in and out; the bridge turns :class:`PartVerdicts` into the animator's words.
@@ -80,9 +80,9 @@ class AcceptanceRule:
 
     Attributes
     ----------
-    max_drift : float, metres
+    max_drift : float or None, metres
         Drift below this never rejects a part (for an interval of ``10`` frames; see
-        ``drift_growth``). Default infinite: no binary reverts, the blend alone (the second
+        ``drift_growth``). None (default): no binary reverts, the blend alone (the second
         version's reverts: ``max_drift=0.03, drift_ratio=1.5, torso='whole',
         drift_growth=2.0, blend_drift=0``).
     drift_ratio : float
@@ -114,7 +114,7 @@ class AcceptanceRule:
         the whole body's (mean drift and departure over the parts).
     """
 
-    max_drift: float = float("inf")
+    max_drift: float = None
     drift_ratio: float = 1.5
     min_seen: float = 0.0
     torso: str = "whole"
@@ -286,7 +286,10 @@ def judge_parts(rule, drift, departure, seen, frames=10):
     drift = np.asarray(drift, dtype=float)
     departure = np.asarray(departure, dtype=float)
     seen = np.asarray(seen, dtype=float)
-    limit = rule.max_drift * (frames / 10.0) ** rule.drift_growth
+    if rule.max_drift is None:                      # no binary reverts (the default)
+        limit = np.inf
+    else:
+        limit = rule.max_drift * (frames / 10.0) ** rule.drift_growth
     drifted = (drift > limit) & (drift > rule.drift_ratio * departure)
     if rule.torso == "whole":                       # the torso moves the body it carries
         body = drift.mean() > limit and drift.mean() > rule.drift_ratio * departure.mean()

@@ -6,7 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from core.kinematics import exp_so3
-from core.tracking.acceptance import AcceptanceRule, blend_trajectories, blend_weights
+from core.tracking.acceptance import (AcceptanceRule, blend_trajectories, blend_weights,
+                                      judge_parts)
 
 RNG = np.random.default_rng(7)
 N_FRAMES, N_BONES = 9, 5
@@ -106,3 +107,12 @@ def test_the_torso_keeps_the_smaller_of_its_own_and_the_whole_bodys_share():
         assert shares[t][1:] == pytest.approx(1 / (1 + (0.4 * 2) ** 2))
     with pytest.raises(ValueError, match="blend_torso"):
         AcceptanceRule(blend_torso="body")
+
+
+def test_the_default_rule_reverts_nothing_and_blends():
+    """max_drift None (the default): no drift is large enough for a binary revert."""
+    rule = AcceptanceRule()
+    drift, departure = np.array([5.0, 5.0, 5.0]), np.array([0.01, 0.01, 0.01])
+    tracked, _ = judge_parts(rule, drift, departure, np.ones(3), frames=30)
+    assert np.all(tracked)
+    assert np.all(blend_weights(rule, drift, departure, tracked) < 0.001)
