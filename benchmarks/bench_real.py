@@ -384,7 +384,8 @@ def main():
     if len(args.cameras) < 2:
         raise SystemExit("the reference needs two cameras or more")
     view_sets = [[c] for c in args.cameras] + [
-        list(args.cameras) if v == "all" else v.split("+") for v in args.multi_view]
+        list(args.cameras) if v == "all" else v.split("+") for v in args.multi_view
+        if v != "none"]
 
     print("1/5 MediaPipe Pose on each video (3 passes)", flush=True)
     stages, tic = {}, time.perf_counter()
