@@ -721,10 +721,12 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
 
 
 def _accept_parts(problem, options, views, start, end, scores):
-    """Per body part, keep the tracked motion or the interpolation (:mod:`.acceptance`).
+    """Per body part, the share of the tracked motion kept on top of the interpolation
+    (:mod:`.acceptance`: binary reverts, then the blend).
 
-    Replaces ``scores.best``'s trajectory (and its eq. 4 residuals) with the mixed one when a
-    part keeps the interpolation. Returns the :class:`~.acceptance.PartVerdicts`.
+    Replaces ``scores.best``'s trajectory (and its eq. 4 residuals) with the blended one when a
+    part keeps less than all of its tracked motion. Returns the
+    :class:`~.acceptance.PartVerdicts`.
     """
     sk = problem.skeleton
     names, part_of = body_parts(sk.names, sk.parents)
@@ -753,12 +755,10 @@ def _accept_parts(problem, options, views, start, end, scores):
                                np.asarray(local, float)[None], interp.roots[-1:],
                                interp.local[-1:], interp.roots[-1:], interp.local[-1:])[0]
     tracked, reasons = np.ones(len(names), dtype=bool), (TRACKED,) * len(names)
+    shares = np.ones(len(names))
     rule = options.acceptance
     if rule is not None and (len(views) == 1 or rule.several_views):
-        tracked, reasons = judge_parts(options.acceptance, drift, departure, seen,
-                                       len(interp.roots) - 1)
-    shares = tracked.astype(float)
-    if rule is not None and (len(views) == 1 or rule.several_views):
+        tracked, reasons = judge_parts(rule, drift, departure, seen, len(interp.roots) - 1)
         shares = blend_weights(rule, drift, departure, tracked)
     if np.any(shares < 1):
         roots, local = keep_interpolation(part_of, tracked, traj.roots, traj.local,

@@ -365,14 +365,19 @@ def test_suggestions_mark_a_damaged_frame(walk_folder, tmp_path):
     bpy.context.scene.timeline_markers.new("Key? z 9.9", frame=12)    # named before issue 14
     assert bpy.ops.track_and_stride.suggest_keyframes() == {"FINISHED"}
     markers = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key here? ")]
-    assert markers and all(abs(m.frame - 31) <= 1 for m in markers)
     # Plain names: the frame's residual over the clip's median residual.
     curve = bridge("common.fcurves").keyframe_state(
         channelbag(obj).fcurves.find('["track_and_stride_residual"]'))["co"]
     usual = np.median(curve[:, 1])
+    ratios = []
     for m in markers:
-        ratio = curve[curve[:, 0] == m.frame, 1][0] / usual
-        assert m.name == f"Key here? (mismatch {ratio:.1f}× usual)"
+        ratios.append(curve[curve[:, 0] == m.frame, 1][0] / usual)
+        assert m.name == f"Key here? (mismatch {ratios[-1]:.1f}× usual)"
+    # The strongest suggestion lands on the damaged frame. The interval around it kept only
+    # part of its tracked motion (the acceptance blend), so a neighbour may mismatch too.
+    found = [(m.frame, m.name) for m in markers]
+    assert markers and abs(markers[int(np.argmax(ratios))].frame - 31) <= 1, found
+    assert all(abs(m.frame - 31) <= 2 for m in markers), found
     # Running it again replaces its markers (and those named the old way). The rerun frees the
     # old marker structs, so compare plain (frame, name) pairs copied before it.
     first = [(m.frame, m.name) for m in markers]
