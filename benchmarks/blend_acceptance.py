@@ -3,19 +3,26 @@ acceptance.blend_trajectories``; docs/tracking.md *Never worse than the interpol
 *Blend*).
 
 Reads ``tune_acceptance.py --raw`` pickles (every interval's tracked trajectory with the
-acceptance off, its interpolation, the per-part evidence and a scorer), applies the binary
-rule (``AcceptanceRule`` reverts) and then a candidate blend weight to the parts that kept the
-tracking, and scores the in-between frames. Nothing is re-tracked.
+acceptance off, its interpolation, the per-part evidence and a scorer), applies a candidate:
+the second version's binary reverts or none, then a share of the tracked motion per part
+(``blend_trajectories``), and scores the in-between frames. Nothing is re-tracked; the replay
+gives the operator's figures (``make bench-real``) to the hundredth.
 
-* ``--sweep``: per case, the error of a uniform weight w = 0, 0.1, ..., 1 (every part, every
-  interval): what a blend can reach at each spacing;
-* default: leave-one-camera-out choice of the blend's parameters (as ``acceptance_cv.py``):
-  for each real camera, the parameters with the lowest mean ratio (blend / binary rule alone)
-  over the other cameras' cases, among those that keep the validation clips within
-  ``--synthetic-slack`` of the binary rule, scored on the held-out camera.
+* ``--sweep``: per case, the error of a uniform share w = 0, 0.1, ..., 1 (every part, every
+  interval, after the reverts): what a blend can reach at each spacing;
+* default: leave-one-camera-out choice (as ``acceptance_cv.py``) in each family of
+  :func:`candidates`: for each real camera, the candidate with the lowest mean ratio
+  (candidate / the second version's binary rule) over the other cameras' nine cases, among
+  those that keep the validation clips' mean ratio within ``--synthetic-slack``, scored on the
+  held-out camera; then the same choice on all four cameras (the default's).
 
-::
+To make the inputs (a few minutes; the dump from ``bench_real.py --dump-core-inputs``)::
 
+    .venv/bin/python benchmarks/tune_acceptance.py --dump build/dump \\
+        --cameras cam01,cam02,cam03,cam04 --cache build/tune_cams.pkl --raw build/raw_cams.pkl
+    .venv/bin/python benchmarks/tune_acceptance.py --cache build/tune_clips.pkl \\
+        --clips cmu_08_04,cmu_35_02,cmu_35_05,cmu_35_08,cmu_08_07_v20,cmu_35_20 \\
+        --raw build/raw_clips.pkl
     .venv/bin/python benchmarks/blend_acceptance.py --raw build/raw_cams.pkl \\
         --raw build/raw_clips.pkl
 """
