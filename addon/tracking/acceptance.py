@@ -55,7 +55,8 @@ def _partly_note(span, verdicts, partly):
 
 
 def interval_notes(key_frames, intervals):
-    """One plain-words line per interval where a body part kept the in-between of the keys.
+    """Plain-words lines per interval where a body part kept the in-between of the keys
+    (binary reverts, when switched on) or less than half of its tracked motion (the blend).
 
     Parameters
     ----------
