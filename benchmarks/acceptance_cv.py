@@ -5,6 +5,8 @@ Reads ``tune_acceptance.py`` caches (every interval's per-part evidence and the 
 combination of reverted parts; the real cameras from ``--dump``, the validation clips), and
 for each real camera in turn chooses a variant and its thresholds on the validation clips and
 the *other* cameras, then scores the choice on the held-out camera. Nothing is re-tracked.
+Binary reverts only (the second version); the blend that replaced them as the default is
+chosen by the same protocol in ``blend_acceptance.py``.
 
 Variants (``torso``): ``'own'`` the torso judged like a limb (the first rule); ``'whole'`` the
 torso is judged on the whole body it carries (mean drift and departure over the parts) and
@@ -72,7 +74,7 @@ def grid():
             ("own", "whole", "never"), (0.02, 0.03, 0.04, 0.05, 0.06, 0.08, 0.10),
             (1.5, 1.75, 2.0, 2.5, 3.0, 4.0), (0.0, 0.5, 1.0, 1.5, 2.0)):
         rules.append(AcceptanceRule(max_drift=drift, drift_ratio=ratio, min_seen=0.0,
-                                    torso=torso, drift_growth=growth))
+                                    torso=torso, drift_growth=growth, blend_drift=0.0))
     return rules
 
 
@@ -139,7 +141,7 @@ def main(argv=None):
         print("mean: " + "  ".join(
             f"k{k} " + "/".join(f"{x:.2f}" for x in np.mean(sums[k], axis=0))
             for k in SPACINGS))
-    first = AcceptanceRule(0.03, 2.0, 0.0)
+    first = AcceptanceRule(0.03, 2.0, 0.0, torso="own", drift_growth=0.0, blend_drift=0.0)
     print("\n== the first rule (own 3cm x2), cm: " + "  ".join(
         f"{n} {case_error(cases[n], first):.2f}" for n in names if n.startswith("cam")))
     print("\n== all four cameras and the validation clips (not cross-validated), best per family")

@@ -384,7 +384,8 @@ def main():
     if len(args.cameras) < 2:
         raise SystemExit("the reference needs two cameras or more")
     view_sets = [[c] for c in args.cameras] + [
-        list(args.cameras) if v == "all" else v.split("+") for v in args.multi_view]
+        list(args.cameras) if v == "all" else v.split("+") for v in args.multi_view
+        if v != "none"]
 
     print("1/5 MediaPipe Pose on each video (3 passes)", flush=True)
     stages, tic = {}, time.perf_counter()
@@ -580,7 +581,8 @@ def multi_view_speed(runs, detections, cameras, every):
 def acceptance_summary(single, cameras, spacings):
     """The acceptance rule's per-interval, per-part results (core.tracking.acceptance): the rule,
     and per camera and spacing the parts that kept the interpolation, with reason and evidence,
-    and the share of (interval, part) pairs that kept the tracking."""
+    the share of (interval, part) pairs that kept the tracking, and the mean share of the
+    tracked motion kept (the blend; 1 without it)."""
     from dataclasses import asdict
     from core.tracking.acceptance import AcceptanceRule
     out = {"rule": asdict(AcceptanceRule()), "per_camera": {}}
@@ -589,15 +591,17 @@ def acceptance_summary(single, cameras, spacings):
             run = single.get(c, {}).get(f"keys_every_{every}")
             if run is None:
                 continue
-            kept, total, rows = 0, 0, []
+            kept, total, rows, shares = 0, 0, [], []
             for iv in run["intervals"]:
                 for part, v in (iv.get("acceptance") or {}).items():
                     total += 1
                     kept += bool(v["tracked"])
+                    shares.append(v.get("share", float(v["tracked"])))
                     if not v["tracked"]:
                         rows.append({"frames": iv["frames"], "part": part} | v)
             out["per_camera"].setdefault(c, {})[f"keys_every_{every}"] = {
                 "tracked_share": kept / total if total else None,
+                "mean_share_of_tracked_motion": float(np.mean(shares)) if shares else None,
                 "kept_interpolation": rows}
     return out
 

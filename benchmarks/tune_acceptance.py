@@ -18,7 +18,8 @@ candidate rules offline (the rule only mixes the two trajectories, so no re-trac
 
 Prints, per case, MPJPE (cm) of slerp, the raw tracking and each rule; with ``--parts``, per
 interval and part the evidence and what reverting that part alone changes (cm, negative =
-reverting helps).
+reverting helps). Only the binary reverts (``judge_parts``) are replayed here; ``--raw FILE``
+also keeps the trajectories, for the blend (``blend_acceptance.py``).
 """
 
 import argparse
@@ -31,6 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from core.kinematics import forward_kinematics  # noqa: E402
 from core.tracking import TrackingOptions, interpolate_poses, Pose, track_keyframes  # noqa: E402
 from core.tracking.acceptance import (AcceptanceRule, body_parts, judge_parts,  # noqa: E402
                                       keep_interpolation)
@@ -63,8 +65,7 @@ def collect_real(dump, cameras, spacings, processes):
                                   processes=processes)
             recs = _interval_record(problem, seq, keys, case["key_roots"], case["key_locals"])
 
-            def score(roots, local, frames, case=case):
-                return ref.errors(case, np.asarray(frames) + 1, roots, local)
+            score = RealScorer(ref, case)
             cases[f"{cam} k{every}"] = dict(skeleton=problem.skeleton, keys=keys,
                                             intervals=recs, score=score)
             print(f"tracked {cam} k{every}", flush=True)
@@ -72,7 +73,6 @@ def collect_real(dump, cameras, spacings, processes):
 
 
 def collect_synthetic(clips, spacings, processes):
-    from benchmarks.validate_tracking import joint_errors
     from benchmarks.bench_tracking import problem_for
     from sample_scenes.footage_scenes import ensure_footage, load_footage
     cases = {}
@@ -87,12 +87,55 @@ def collect_synthetic(clips, spacings, processes):
             recs = _interval_record(problem, seq, keys, fp.root_translation[keys],
                                     fp.local_rotations[keys])
 
-            def score(roots, local, frames, fp=fp):
-                return joint_errors(fp, roots, local, np.asarray(frames))
+            score = ClipScorer(fp)
             cases[f"{clip} k{every}"] = dict(skeleton=problem.skeleton, keys=keys,
                                              intervals=recs, score=score)
             print(f"tracked {clip} k{every}", flush=True)
     return cases
+
+
+class RealScorer:
+    """Joint distances (F, J), metres, of core poses of a real case against the benchmark's
+    reference (``core_replay.Reference.errors``), picklable (no frames kept)."""
+
+    def __init__(self, ref, case):
+        self.skeleton = case["problem"].skeleton
+        self.order = [case["bone_names"].index(ref.bone_names[b]) for b in ref.joint_bones]
+        self.a2w = np.asarray(case["armature2world"], dtype=float)
+        self.joint_offsets = ref.joint_offsets
+        self.joints = ref.joints                                  # scene frames 1..N
+
+    def __call__(self, roots, local, frames):
+        rot, pos = forward_kinematics(self.skeleton, np.asarray(local), np.asarray(roots))
+        rot = np.einsum("ij,fbjk->fbik", self.a2w[:3, :3], rot)[:, self.order]
+        pos = (pos @ self.a2w[:3, :3].T + self.a2w[:3, 3])[:, self.order]
+        est = pos + np.einsum("fjab,jb->fja", rot, self.joint_offsets)
+        return np.linalg.norm(est - self.joints[np.asarray(frames)], axis=-1)
+
+
+class ClipScorer:
+    """Joint distances (F, J), cm, against a validation clip's ground truth
+    (``validate_tracking.joint_errors``), picklable."""
+
+    def __init__(self, fp):
+        from benchmarks.validate_tracking import H36M_JOINTS
+        self.skeleton = fp.skeleton
+        self.joint_ids = [fp.skeleton.index(n) for n in H36M_JOINTS]
+        _, self.truth = forward_kinematics(fp.skeleton, fp.local_rotations, fp.root_translation)
+
+    def __call__(self, roots, local, frames):
+        _, p = forward_kinematics(self.skeleton, np.asarray(local), np.asarray(roots))
+        q = self.truth[np.asarray(frames)]
+        return 100 * np.linalg.norm(p[:, self.joint_ids] - q[:, self.joint_ids], axis=-1)
+
+
+def save_raw(cases, path):
+    """Every case's intervals with their trajectories and scorer (``blend_acceptance.py``)."""
+    raw = {name: dict(keys=c["keys"], skeleton=c["skeleton"], score=c["score"],
+                      intervals=[dict(r) for r in c["intervals"]]) for name, c in cases.items()}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as f:
+        pickle.dump(raw, f)
 
 
 def precompute(case):
@@ -171,6 +214,9 @@ def main(argv=None):
     ap.add_argument("--processes", type=int, default=1)
     ap.add_argument("--cache", default=str(ROOT / "build" / "tune_acceptance.pkl"))
     ap.add_argument("--reuse", action="store_true", help="use the cache, track nothing")
+    ap.add_argument("--raw", default="",
+                    help="also save every interval's tracked and interpolated trajectories "
+                         "(with the scorer's inputs) to this pickle, for blend_acceptance.py")
     ap.add_argument("--rule", action="append", default=[],
                     help="max_drift_m,drift_ratio,min_seen[,torso,drift_growth] (repeatable; "
                          "torso and drift_growth default to AcceptanceRule's)")
@@ -188,12 +234,16 @@ def main(argv=None):
                                       args.processes))
         if args.clips:
             cases.update(collect_synthetic(args.clips.split(","), spacings, args.processes))
+        if args.raw:
+            save_raw(cases, args.raw)
         cases = {k: precompute(v) for k, v in cases.items()}
         cache.parent.mkdir(parents=True, exist_ok=True)
         with open(cache, "wb") as f:
             pickle.dump(cases, f)
     rules = [_rule(r) for r in args.rule]
-    rules = rules or [AcceptanceRule()]
+    # The default rule reverts nothing (its blend is scored by blend_acceptance.py): compare
+    # with the second version's binary rule.
+    rules = rules or [AcceptanceRule(0.03, 1.5, 0.0, "whole", 2.0, blend_drift=0.0)]
     header = "case".rjust(16) + " slerp  track " + " ".join(
         f"{r.max_drift:.3f}/{r.drift_ratio:.2f}/{r.min_seen:.2f}/{r.torso}/{r.drift_growth:g}"
         for r in rules)

@@ -1,13 +1,15 @@
 """What Track Keyframes kept, per interval and body part, shown to the animator.
 
 The core decides, per interval between two keys and per body part (torso and head, arms,
-legs), whether the tracked motion is kept or the in-between of the keys
-(``core.tracking.acceptance``). This module words that for the operator's report
-(:func:`interval_notes`) and writes it as curves the Graph Editor shows
-(:func:`write_part_curves`): one custom property of the armature object per part,
-``Tracked: <part>``, 1 where the part follows the footage, 0 where it kept the in-between of
-the keys, keyed at every interval's first frame with constant interpolation, in the channel
-group *Track & Stride* beside the residual and rank curves.
+legs), how much of the tracked motion is kept on top of the in-between of the keys
+(``core.tracking.acceptance``: a share from 0, the in-between, to 1, the tracked motion
+whole). This module words that for the operator's report (:func:`interval_notes`: parts that
+kept the in-between, or less than half of the tracked motion) and writes it as curves the
+Graph Editor shows (:func:`write_part_curves`): one custom property of the armature object per
+part, ``Tracked: <part>``, the share of the tracked motion kept (1 where the part follows the
+footage, 0 where it kept the in-between of the keys, 0.6: 60 % of the way from the in-between
+to the tracked motion), keyed at every interval's first frame with constant interpolation, in
+the channel group *Track & Stride* beside the residual and rank curves.
 """
 
 import bpy
@@ -16,6 +18,8 @@ import numpy as np
 from ...core.tracking.acceptance import DRIFTED, HIDDEN, NOT_TRACKED
 from ..common.fcurves import enum_value, insert_keys_preserving, remove_keys_at, set_key_type
 
+#: A part that kept less than this share of the tracked motion gets a report line.
+PARTLY = 0.5
 #: Custom property (and F-curve) name prefix of the per-part result curves.
 PART_CURVE_PREFIX = "Tracked: "
 GROUP = "Track & Stride"
@@ -35,8 +39,24 @@ def _why(reason, drift, seen):
     return ""
 
 
+def _and(words):
+    return ", ".join(words[:-1]) + (" and " if len(words) > 1 else "") + words[-1]
+
+
+def _partly_note(span, verdicts, partly):
+    """One line for the parts that kept less than half of the tracked motion."""
+    whats = _and([f"{100.0 * float(verdicts.shares[p]):.0f} % for the {verdicts.parts[p]}"
+                  for p in partly])
+    whys = "; ".join((f"{verdicts.parts[p]}: " if len(partly) > 1 else "")
+                     + f"drift {_cm(verdicts.drift[p])} cm at the end key against "
+                     f"{_cm(verdicts.departure[p])} cm of tracked motion" for p in partly)
+    return (f"{span}: kept only part of the tracked motion on top of the in-between of your "
+            f"keys — {whats}; the footage only partly supported it ({whys})")
+
+
 def interval_notes(key_frames, intervals):
-    """One plain-words line per interval where a body part kept the in-between of the keys.
+    """Plain-words lines per interval where a body part kept the in-between of the keys
+    (binary reverts, when switched on) or less than half of its tracked motion (the blend).
 
     Parameters
     ----------
@@ -49,7 +69,10 @@ def interval_notes(key_frames, intervals):
     -------
     list of str
         e.g. ``"Frames 40–60, left leg: kept the in-between of your keys — the footage did
-        not support the tracked motion (drift 6.0 cm at the end key)"``.
+        not support the tracked motion (drift 6.0 cm at the end key)"`` or ``"Frames 1–11:
+        kept only part of the tracked motion on top of the in-between of your keys — 35 %
+        for the left leg; the footage only partly supported it (drift 2.1 cm at the end key
+        against 0.9 cm of tracked motion)"``.
     """
     notes = []
     for i, r in enumerate(intervals):
@@ -61,6 +84,10 @@ def interval_notes(key_frames, intervals):
                              "matched the footage better")
             continue
         kept = [p for p, ok in enumerate(verdicts.tracked) if not ok]
+        partly = [p for p, ok in enumerate(verdicts.tracked)
+                  if ok and verdicts.shares[p] < PARTLY]
+        if partly:
+            notes.append(_partly_note(span, verdicts, partly))
         if not kept:
             continue
         if len(kept) == len(verdicts.parts) and all(x == DRIFTED for x in verdicts.reasons):
@@ -69,8 +96,7 @@ def interval_notes(key_frames, intervals):
                          "did not support the tracked motion (drift "
                          f"{_cm(np.mean(verdicts.drift))} cm on average at the end key)")
             continue
-        parts = [verdicts.parts[p] for p in kept]
-        names = ", ".join(parts[:-1]) + (" and " if len(parts) > 1 else "") + parts[-1]
+        names = _and([verdicts.parts[p] for p in kept])
         whys = "; ".join((f"{verdicts.parts[p]}: " if len(kept) > 1 else "")
                          + _why(verdicts.reasons[p], verdicts.drift[p], verdicts.seen[p])
                          for p in kept)
@@ -80,7 +106,8 @@ def interval_notes(key_frames, intervals):
 
 
 def part_results(key_frames, intervals):
-    """Per part name, 1.0 / 0.0 per interval (tracked / kept the in-between).
+    """Per part name, the share of the tracked motion kept per interval (1.0: tracked,
+    0.0: kept the in-between, between: a blend; ``PartVerdicts.shares``).
 
     Returns
     -------
@@ -94,8 +121,8 @@ def part_results(key_frames, intervals):
     for i, r in enumerate(intervals):
         if r.acceptance is None:
             continue
-        for name, ok in zip(r.acceptance.parts, r.acceptance.tracked):
-            out[name][i] = float(ok)
+        for name, share in zip(r.acceptance.parts, r.acceptance.shares):
+            out[name][i] = float(share)
     return out
 
 
@@ -107,12 +134,14 @@ def write_part_curves(obj, bag, key_frames, intervals):
     constant = enum_value(bpy.types.Keyframe, "interpolation", "CONSTANT")
     for name, values in results.items():
         prop = PART_CURVE_PREFIX + name
-        if prop not in obj.keys():
-            obj[prop] = 1
+        if not isinstance(obj.get(prop), float):      # a share (earlier versions: int 0/1)
+            obj[prop] = 1.0
         obj.id_properties_ui(prop).update(min=0, max=1, description=(
-            f"Track & Stride: 1 where the {name} follows the footage, 0 where it kept the "
-            "in-between of your keys because the footage did not support the tracked motion "
-            "(the reason per interval is in Track Keyframes' report, Info editor)"))
+            f"Track & Stride: share of the tracked motion the {name} kept: 1 where it "
+            "follows the footage, 0 where it kept the in-between of your keys because the "
+            "footage did not support the tracked motion, between: that share of the way from "
+            "the in-between to the tracked motion (the reason per interval is in Track "
+            "Keyframes' report, Info editor)"))
         path = f'["{prop}"]'
         fcurve = bag.fcurves.find(path, index=0)
         span = np.arange(key_frames[0], key_frames[-1] + 1)

@@ -117,7 +117,8 @@ def interval_summaries(request, result):
 
 def part_summaries(verdicts):
     """Per body part of one interval: ``result`` 'tracked' or 'in-between' (kept the keys'
-    interpolation), the core's ``reason`` code and the evidence in cm (``drift_cm``,
+    interpolation), ``share_tracked`` (share of the tracked motion kept on top of the
+    interpolation, 0..1), the core's ``reason`` code and the evidence in cm (``drift_cm``,
     ``departure_cm``; None where not measured) and ``seen`` (share in view)."""
     if verdicts is None:
         return {}
@@ -125,6 +126,7 @@ def part_summaries(verdicts):
     def cm(value):
         return round(100.0 * float(value), 2) if np.isfinite(value) else None
     return {part: {"result": "tracked" if verdicts.tracked[p] else "in-between",
+                   "share_tracked": round(float(verdicts.shares[p]), 3),
                    "reason": str(verdicts.reasons[p]), "drift_cm": cm(verdicts.drift[p]),
                    "departure_cm": cm(verdicts.departure[p]),
                    "seen": round(float(verdicts.seen[p]), 3)}

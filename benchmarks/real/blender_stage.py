@@ -382,10 +382,12 @@ def _checksums(frames):
 
 
 def acceptance_record(verdicts):
-    """Per body part: kept the tracking or the interpolation, why, and the evidence (cm)."""
+    """Per body part: kept the tracking or the interpolation, the share of the tracked motion
+    kept (the blend), why, and the evidence (cm)."""
     if verdicts is None:
         return None
-    return {part: {"tracked": bool(verdicts.tracked[p]), "reason": str(verdicts.reasons[p]),
+    return {part: {"tracked": bool(verdicts.tracked[p]), "share": float(verdicts.shares[p]),
+                   "reason": str(verdicts.reasons[p]),
                    "drift_cm": _cm(verdicts.drift[p]), "gap_cm": _cm(verdicts.gap[p]),
                    "departure_cm": _cm(verdicts.departure[p]), "seen": float(verdicts.seen[p])}
             for p, part in enumerate(verdicts.parts)}

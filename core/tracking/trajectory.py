@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
-from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, body_parts, judge_parts,
-                         keep_interpolation, part_distances, seen_shares)
+from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, blend_trajectories,
+                         blend_weights, body_parts, judge_parts, keep_interpolation,
+                         part_distances, seen_shares)
 from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_geometry,
                          sample_silhouette)
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
@@ -720,10 +721,12 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
 
 
 def _accept_parts(problem, options, views, start, end, scores):
-    """Per body part, keep the tracked motion or the interpolation (:mod:`.acceptance`).
+    """Per body part, the share of the tracked motion kept on top of the interpolation
+    (:mod:`.acceptance`: binary reverts, then the blend).
 
-    Replaces ``scores.best``'s trajectory (and its eq. 4 residuals) with the mixed one when a
-    part keeps the interpolation. Returns the :class:`~.acceptance.PartVerdicts`.
+    Replaces ``scores.best``'s trajectory (and its eq. 4 residuals) with the blended one when a
+    part keeps less than all of its tracked motion. Returns the
+    :class:`~.acceptance.PartVerdicts`.
     """
     sk = problem.skeleton
     names, part_of = body_parts(sk.names, sk.parents)
@@ -741,7 +744,8 @@ def _accept_parts(problem, options, views, start, end, scores):
     seen = _seen_shares(problem, options, views, traj, part_of)
     if best["iteration"] == 0:
         return PartVerdicts(names, nan.copy(), gap, np.zeros(len(names)), seen,
-                            np.zeros(len(names), dtype=bool), (NOT_TRACKED,) * len(names))
+                            np.zeros(len(names), dtype=bool), (NOT_TRACKED,) * len(names),
+                            np.zeros(len(names)))
     departure = part_distances(sk, part_of, traj.roots, traj.local, interp.roots, interp.local,
                                interp.roots, interp.local).max(axis=0)
     drift = gap.copy()
@@ -751,16 +755,19 @@ def _accept_parts(problem, options, views, start, end, scores):
                                np.asarray(local, float)[None], interp.roots[-1:],
                                interp.local[-1:], interp.roots[-1:], interp.local[-1:])[0]
     tracked, reasons = np.ones(len(names), dtype=bool), (TRACKED,) * len(names)
+    shares = np.ones(len(names))
     rule = options.acceptance
     if rule is not None and (len(views) == 1 or rule.several_views):
-        tracked, reasons = judge_parts(options.acceptance, drift, departure, seen,
-                                       len(interp.roots) - 1)
-    if not np.all(tracked):
+        tracked, reasons = judge_parts(rule, drift, departure, seen, len(interp.roots) - 1)
+        shares = blend_weights(rule, drift, departure, tracked)
+    if np.any(shares < 1):
         roots, local = keep_interpolation(part_of, tracked, traj.roots, traj.local,
                                           interp.roots, interp.local)
+        roots, local = blend_trajectories(part_of, shares, roots, local, interp.roots,
+                                          interp.local)
         mixed = _Trajectory(problem, options, views, roots, local)
         best["traj"], best["residuals"] = mixed, _eq4(problem, views, mixed, scores.weights)
-    return PartVerdicts(names, drift, gap, departure, seen, tracked, reasons)
+    return PartVerdicts(names, drift, gap, departure, seen, tracked, reasons, shares)
 
 
 def _seen_shares(problem, options, views, traj, part_of):

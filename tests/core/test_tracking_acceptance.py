@@ -5,7 +5,8 @@ import pytest
 
 from core.kinematics import Skeleton, exp_so3
 from core.tracking.acceptance import (DRIFTED, HIDDEN, LEFT_ARM, LEFT_LEG, RIGHT_ARM,
-                                      RIGHT_LEG, TORSO, TRACKED, AcceptanceRule, body_parts,
+                                      RIGHT_LEG, TORSO, TRACKED, AcceptanceRule,
+                                      blend_trajectories, blend_weights, body_parts,
                                       judge_parts, keep_interpolation, part_distances,
                                       seen_shares, side_of)
 from core.tracking.problem import TrackingOptions, TrackingProblem
@@ -195,7 +196,8 @@ def test_track_interval_reports_evidence_and_applies_the_rule(swing):
     assert np.all(np.isfinite(strict.residuals))
     # A rule everything passes changes nothing.
     lenient = track_interval(problem, frames, start, end,
-                             options.replace(acceptance=AcceptanceRule(np.inf, 1.0, 0.0)))
+                             options.replace(acceptance=AcceptanceRule(np.inf, 1.0, 0.0,
+                                                                       blend_drift=0.0)))
     assert lenient.local_rotations.tobytes() == free.local_rotations.tobytes()
     assert lenient.residuals.tobytes() == free.residuals.tobytes()
     # The interval's length reaches the rule: with drift_growth 1 the threshold of this
@@ -226,3 +228,29 @@ def test_several_cameras_record_the_evidence_but_revert_only_when_asked(swing):
     roots, local = interpolate_poses(problem.skeleton, start, end, n)
     assert asked.local_rotations.tobytes() == local.tobytes()
     assert not np.any(asked.acceptance.tracked)
+
+
+def test_track_interval_blends_each_part_by_its_share_and_keeps_the_keys(swing):
+    """The default rule: every part keeps its share of the tracked motion on top of the
+    interpolation (blend_trajectories of the raw tracking), the keys bit for bit."""
+    problem, frames, start, end, n = swing
+    options = TrackingOptions(max_iterations=2)
+    free = track_interval(problem, frames, start, end, options.replace(acceptance=None))
+    rule = AcceptanceRule(blend_drift=4.0)          # strong enough to move every part here
+    got = track_interval(problem, frames, start, end, options.replace(acceptance=rule))
+    v = got.acceptance
+    assert np.all(v.tracked)
+    assert np.all((v.shares > 0) & (v.shares < 1))
+    assert v.shares == pytest.approx(blend_weights(rule, v.drift, v.departure, v.tracked))
+    interp_roots, interp_local = interpolate_poses(problem.skeleton, start, end, n)
+    _, part_of = body_parts(problem.skeleton.names, problem.skeleton.parents)
+    roots, local = blend_trajectories(part_of, v.shares, free.root_translations,
+                                      free.local_rotations, interp_roots, interp_local)
+    assert got.local_rotations.tobytes() == local.tobytes()
+    assert got.root_translations.tobytes() == roots.tobytes()
+    for end_frame, key in ((0, start), (n, end)):
+        assert got.local_rotations[end_frame].tobytes() == np.asarray(
+            key.local_rotations, float).tobytes()
+        assert got.root_translations[end_frame].tobytes() == np.asarray(
+            key.root_translation, float).tobytes()
+    assert np.all(np.isfinite(got.residuals))

@@ -27,13 +27,14 @@ def _single_view_runs(wrap=lambda camera: camera, all_runs=True):
     """One camera: two intervals through ``track_keyframes`` (bidirectional seed), one interval
     with the forward seed and depth estimation, and one in a region of interest (only the first
     unless ``all_runs``). ``wrap`` turns the camera into what the problem is given (the camera,
-    or a list of one)."""
+    or a list of one). Acceptance off: the frozen results predate it (it blends the tracked
+    motion with the interpolation afterwards, ``test_tracking_acceptance*.py``)."""
     out = {}
     sk, body, cam, roots, local, frames = _sequence(10)
     problem = TrackingProblem(sk, body, wrap(cam))
     keys = [0, 4, 10]
     seq = track_keyframes(problem, frames, keys, roots[keys], local[keys],
-                          TrackingOptions(max_iterations=2), processes=1)
+                          TrackingOptions(max_iterations=2, acceptance=None), processes=1)
     out["keys_roots"], out["keys_local"] = seq.root_translations, seq.local_rotations
     for i, r in enumerate(seq.intervals):
         for f in ("residuals", "ranks", "n_samples", "errors"):
@@ -42,14 +43,15 @@ def _single_view_runs(wrap=lambda camera: camera, all_runs=True):
     if not all_runs:
         return out
     r = track_interval(problem, frames, Pose(roots[0], local[0]), Pose(roots[-1], local[-1]),
-                       TrackingOptions(max_iterations=2, seed="forward", estimate_depth=True))
+                       TrackingOptions(max_iterations=2, seed="forward", estimate_depth=True,
+                                       acceptance=None))
     for f in _FIELDS:
         out[f"depth_{f}"] = getattr(r, f)
     out["depth_kept"] = r.kept_iteration
     sk, body, cam, roots, local, frames = _walker(480, 400)
     problem = TrackingProblem(sk, body, wrap(cam))
     r = track_interval(problem, frames, Pose(roots[0], local[0]), Pose(roots[-1], local[-1]),
-                       TrackingOptions(max_iterations=2))
+                       TrackingOptions(max_iterations=2, acceptance=None))
     for f in _FIELDS:
         out[f"roi_{f}"] = getattr(r, f)
     out["roi_kept"] = r.kept_iteration
