@@ -20,6 +20,9 @@ from ..common.fcurves import enum_value, insert_keys_preserving, remove_keys_at,
 
 #: A part that kept less than this share of the tracked motion gets a report line.
 PARTLY = 0.5
+#: More intervals than this with such parts: one summary line instead of one line each (on
+#: real footage with keys every 10 frames a third of the (interval, part) pairs are under half).
+MAX_PARTLY_LINES = 3
 #: Custom property (and F-curve) name prefix of the per-part result curves.
 PART_CURVE_PREFIX = "Tracked: "
 GROUP = "Track & Stride"
@@ -72,9 +75,10 @@ def interval_notes(key_frames, intervals):
         not support the tracked motion (drift 6.0 cm at the end key)"`` or ``"Frames 1–11:
         kept only part of the tracked motion on top of the in-between of your keys — 35 %
         for the left leg; the footage only partly supported it (drift 2.1 cm at the end key
-        against 0.9 cm of tracked motion)"``.
+        against 0.9 cm of tracked motion)"``; more than :data:`MAX_PARTLY_LINES` intervals
+        of the latter make one summary line (first) instead.
     """
-    notes = []
+    notes, partly_lines, partly_parts = [], [], {}
     for i, r in enumerate(intervals):
         span = f"Frames {int(key_frames[i])}–{int(key_frames[i + 1])}"
         verdicts = r.acceptance
@@ -87,7 +91,9 @@ def interval_notes(key_frames, intervals):
         partly = [p for p, ok in enumerate(verdicts.tracked)
                   if ok and verdicts.shares[p] < PARTLY]
         if partly:
-            notes.append(_partly_note(span, verdicts, partly))
+            partly_lines.append((len(notes), _partly_note(span, verdicts, partly)))
+            for p in partly:
+                partly_parts[verdicts.parts[p]] = partly_parts.get(verdicts.parts[p], 0) + 1
         if not kept:
             continue
         if len(kept) == len(verdicts.parts) and all(x == DRIFTED for x in verdicts.reasons):
@@ -102,7 +108,15 @@ def interval_notes(key_frames, intervals):
                          for p in kept)
         notes.append(f"{span}, {names}: kept the in-between of your keys — the footage did not "
                      f"support the tracked motion ({whys})")
-    return notes
+    if len(partly_lines) <= MAX_PARTLY_LINES:
+        for at, line in reversed(partly_lines):
+            notes.insert(at, line)
+        return notes
+    counts = _and([f"the {name} in {n}" for name, n in partly_parts.items()])
+    return [f"{len(partly_lines)} of {len(intervals)} intervals kept only part of the tracked "
+            f"motion on top of the in-between of your keys, where the footage only partly "
+            f"supported it (less than half: {counts}); the 'Tracked: <body part>' curves in "
+            "the Graph Editor show the share kept per interval"] + notes
 
 
 def part_results(key_frames, intervals):

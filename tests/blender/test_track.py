@@ -832,3 +832,38 @@ def test_report_names_parts_that_kept_less_than_half_of_the_tracked_motion():
         f"motion; {parts[4]}: drift 3.0 cm at the end key against 2.0 cm of tracked motion)"]
     verdicts.shares = np.full(5, 0.5)
     assert notes_of([1, 11], [SimpleNamespace(acceptance=verdicts, kept_iteration=3)]) == []
+
+
+def test_report_sums_up_many_intervals_that_kept_part_of_the_tracked_motion():
+    """More than MAX_PARTLY_LINES intervals with parts under half: one summary line that counts
+    them per part (first), the other notes kept; up to the limit, one line each."""
+    from types import SimpleNamespace
+    acceptance = bridge("tracking.acceptance")
+    core = importlib.import_module(f"{MODULE}.core.tracking.acceptance")
+    parts = core.PART_NAMES
+    limit = acceptance.MAX_PARTLY_LINES
+
+    def result(shares, tracked=(True,) * 5):
+        v = core.PartVerdicts(parts, np.full(5, 0.02), np.full(5, 0.02), np.full(5, 0.01),
+                              np.ones(5), np.array(tracked),
+                              tuple(core.TRACKED if t else core.DRIFTED for t in tracked),
+                              np.array(shares, dtype=float))
+        return SimpleNamespace(acceptance=v, kept_iteration=3)
+
+    leg = [1, 1, 1, 1, 0.3]                         # the right leg under half
+    both = [1, 1, 0.2, 1, 0.3]                      # and the right arm
+    reverted = result([1, 1, 1, 0, 1], tracked=(True, True, True, False, True))
+    few = [result(leg)] * (limit - 1) + [reverted]
+    keys = list(range(1, 10 * len(few) + 2, 10))
+    notes = acceptance.interval_notes(keys, few)
+    assert len(notes) == limit and notes[0].startswith("Frames 1–11: kept only part")
+    assert notes[-1].startswith(f"Frames {keys[-2]}–{keys[-1]}, {parts[3]}: kept the in-between")
+    many = [result(both)] + [result(leg)] * limit + [reverted, result([1] * 5)]
+    keys = list(range(1, 10 * len(many) + 2, 10))
+    notes = acceptance.interval_notes(keys, many)
+    assert notes == [
+        f"{limit + 1} of {len(many)} intervals kept only part of the tracked motion on top of "
+        f"the in-between of your keys, where the footage only partly supported it (less than "
+        f"half: the {parts[2]} in 1 and the {parts[4]} in {limit + 1}); the 'Tracked: <body "
+        f"part>' curves in the Graph Editor show the share kept per interval",
+        acceptance.interval_notes(keys[-3:-1], [reverted])[0]]
