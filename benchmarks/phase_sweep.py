@@ -103,7 +103,8 @@ def rms(pred, truth, a=0, b=None):
     return float(np.degrees(np.sqrt(np.mean(e**2)))) if e.size else None
 
 
-def score(cases, cand, window, only_lc=False, bin_=None):
+def _subject_mean(cases, predict, window, only_lc=False, bin_=None):
+    """Mean over subjects of the per-case RMS of ``predict(case)`` in ``window``."""
     by = {}
     for d in cases:
         if d["window"] != window or (only_lc and d["last_cycle"] is None):
@@ -111,21 +112,17 @@ def score(cases, cand, window, only_lc=False, bin_=None):
         a, b = (0, None) if bin_ is None else bin_
         if len(d["truth"]) <= a:
             continue
-        by.setdefault(d["subject"], []).append(rms(compose(d, *cand), d["truth"], a, b))
+        by.setdefault(d["subject"], []).append(rms(predict(d), d["truth"], a, b))
     return float(np.mean([np.mean(v) for v in by.values()])) if by else None
 
 
+def score(cases, cand, window, only_lc=False, bin_=None):
+    return _subject_mean(cases, lambda d: compose(d, *cand), window, only_lc, bin_)
+
+
 def hold(cases, window, bin_=None, only_lc=False):
-    by = {}
-    for d in cases:
-        if d["window"] != window or (only_lc and d["last_cycle"] is None):
-            continue
-        a, b = (0, None) if bin_ is None else bin_
-        if len(d["truth"]) <= a:
-            continue
-        by.setdefault(d["subject"], []).append(rms(np.tile(d["start"], (len(d["truth"]), 1)),
-                                                   d["truth"], a, b))
-    return float(np.mean([np.mean(v) for v in by.values()]))
+    return _subject_mean(cases, lambda d: np.tile(d["start"], (len(d["truth"]), 1)), window,
+                         only_lc, bin_)
 
 
 def main(grid):

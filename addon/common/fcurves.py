@@ -306,12 +306,8 @@ def remove_keys_at(fcurve, frames):
     int
         Keys removed.
     """
-    frames = np.asarray(frames, dtype=np.float64)
-    points = fcurve.keyframe_points
-    if len(points) == 0 or len(frames) == 0:
-        return 0
-    at = _keyframe_state(points)["co"][:, 0].astype(np.float64)
-    return _remove_points(fcurve, np.min(np.abs(at[:, None] - frames[None, :]), axis=1) < 1e-4)
+    return _remove_matching(fcurve, frames, lambda at, frames: np.min(
+        np.abs(at[:, None] - frames[None, :]), axis=1) < 1e-4)
 
 
 def remove_keys_counting_for(fcurve, frames):
@@ -324,12 +320,19 @@ def remove_keys_counting_for(fcurve, frames):
     int
         Keys removed.
     """
+    return _remove_matching(fcurve, frames,
+                            lambda at, frames: np.isin(np.rint(at), np.rint(frames)))
+
+
+def _remove_matching(fcurve, frames, doomed):
+    """:func:`_remove_points` of the keys where ``doomed(key_frames, frames)`` (two float64
+    arrays) is set; nothing to do without keys or frames."""
     frames = np.asarray(frames, dtype=np.float64)
     points = fcurve.keyframe_points
     if len(points) == 0 or len(frames) == 0:
         return 0
-    at = np.rint(_keyframe_state(points)["co"][:, 0].astype(np.float64))
-    return _remove_points(fcurve, np.isin(at, np.rint(frames)))
+    at = _keyframe_state(points)["co"][:, 0].astype(np.float64)
+    return _remove_points(fcurve, doomed(at, frames))
 
 
 def _remove_points(fcurve, doomed_mask):

@@ -11,7 +11,7 @@ from core.tracking.acceptance import (DRIFTED, HIDDEN, LEFT_ARM, LEFT_LEG, RIGHT
                                       seen_shares, side_of)
 from core.tracking.problem import TrackingOptions, TrackingProblem
 from core.tracking.trajectory import Pose, interpolate_poses, track_interval
-from tests.core.tracking_fixtures import front_camera, render, two_arm_body
+from tests.core.tracking_fixtures import front_camera, render, two_arm_body, two_arm_skeleton
 
 #: The benchmark rig of the real footage (benchmarks/real/rig.py) and CMU's ASF names.
 REAL_RIG = (("root", -1), ("lfemur", 0), ("ltibia", 1), ("lfoot", 2), ("rfemur", 0),
@@ -148,14 +148,7 @@ def test_seen_shares_by_part():
 def _left_right_arm_skeleton():
     """tests.core.tracking_fixtures' two-arm body with sided names (both arms hang from the
     root, so they count as legs)."""
-    down = np.array([[0.0, 0.0, -0.3]])
-    return Skeleton(names=("torso", "l_arm", "l_forearm", "r_arm", "r_forearm"),
-                    parents=[-1, 0, 1, 0, 3],
-                    offsets=[[0.0, 0.0, 1.0], [0.0, -0.15, 0.0], [0.0, 0.0, -0.3],
-                             [0.0, 0.15, 0.0], [0.0, 0.0, -0.3]],
-                    rest_rotations=np.broadcast_to(np.eye(3), (5, 3, 3)),
-                    tails=np.concatenate([[[0.0, 0.0, 0.4]], down, down, down, down]),
-                    dof_axes=((0, 1, 2),) * 5, limits=None, root_translation=True)
+    return two_arm_skeleton(("torso", "l_arm", "l_forearm", "r_arm", "r_forearm"))
 
 
 @pytest.fixture(scope="module")

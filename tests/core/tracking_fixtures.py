@@ -43,7 +43,7 @@ def random_pose(rng, skeleton, scale=0.4):
     return rng.normal(0, 0.1, 3), local
 
 
-def two_arm_skeleton():
+def two_arm_skeleton(names=("torso", "front", "front2", "back", "back2")):
     """A torso (root, a box) with a front arm and a back arm, both hinged at the shoulder.
 
     Seen by :func:`front_camera` the back arm can be put exactly behind the front arm.
@@ -51,8 +51,7 @@ def two_arm_skeleton():
     Arm bones hang along -Z (world); the camera looks along +Y.
     """
     down = np.array([[0.0, 0.0, -0.3]])
-    return Skeleton(names=("torso", "front", "front2", "back", "back2"),
-                    parents=[-1, 0, 1, 0, 3],
+    return Skeleton(names=tuple(names), parents=[-1, 0, 1, 0, 3],
                     offsets=[[0.0, 0.0, 1.0], [0.0, -0.15, 0.0], [0.0, 0.0, -0.3],
                              [0.0, 0.15, 0.0], [0.0, 0.0, -0.3]],
                     rest_rotations=np.broadcast_to(np.eye(3), (5, 3, 3)),
