@@ -11,7 +11,8 @@ coarse-to-fine, one or several cameras), ``drift`` (eqs. 11-24), ``trajectory`` 
 loop), ``parallel`` (several intervals), ``acceptance`` (per body part: the tracked motion or the
 interpolation), ``presets`` (Table 1), ``problem`` (inputs and
 options), ``suggest`` (where one more keyframe pays off), ``overlay`` (the body model drawn over
-frames, contact sheets).
+frames, contact sheets), ``robust`` (M-estimators: IRLS weights, eq. 4's loss), ``occluders``
+and ``bodies`` (several people tracked together, each hiding the others).
 """
 
 from .acceptance import AcceptanceRule, PartVerdicts, body_parts
@@ -56,5 +57,7 @@ __all__ = [
 ]
 
 from .key_choice import PoseChoice, choose_poses  # noqa: E402  (Track Between)
+from .bodies import BodyTrack, track_bodies  # noqa: E402  (several people, issue 20)
+from .occluders import Occluder  # noqa: E402
 
-__all__ += ["PoseChoice", "choose_poses"]
+__all__ += ["PoseChoice", "choose_poses", "BodyTrack", "track_bodies", "Occluder"]

@@ -152,6 +152,16 @@ class PartVerdicts:
         Share of the tracked motion the part kept on top of the interpolation
         (:func:`blend_weights`): 0 where it kept the interpolation, 1 where it kept the
         tracked motion whole. None (older results): ``tracked`` as 0 / 1.
+    behind : ndarray, shape (P,)
+        Share of the part's outline hidden behind another tracked body (several bodies,
+        ``core.tracking.bodies``), mean over the frames, in the camera that shows it best; 0
+        with no other body. ``seen`` does not count those hidden points.
+    behind_frames : ndarray, shape (n + 1, P), or None
+        The same per frame of the interval (None with no other body).
+    outliers : ndarray, shape (P,)
+        Share of the part's model points that the robust estimate (``core.tracking.robust``)
+        set aside as not matching the body -- something else in front of it, clutter it
+        overlaps -- in the tracking pass that made the kept trajectory (NaN: none ran).
     """
 
     parts: tuple
@@ -162,10 +172,18 @@ class PartVerdicts:
     tracked: np.ndarray
     reasons: tuple = field(default_factory=tuple)
     shares: np.ndarray = None
+    behind: np.ndarray = None
+    behind_frames: np.ndarray = None
+    outliers: np.ndarray = None
 
     def __post_init__(self):
         if self.shares is None:
             self.shares = np.asarray(self.tracked, dtype=float)
+        n = len(self.parts)
+        if self.behind is None:
+            self.behind = np.zeros(n)
+        if self.outliers is None:
+            self.outliers = np.full(n, np.nan)
 
 
 def side_of(name):
@@ -326,7 +344,7 @@ def keep_interpolation(part_of, tracked, roots, local, interp_roots, interp_loca
     return roots, local
 
 
-def seen_shares(part_of, seen_joints, whole_joints):
+def seen_shares(part_of, seen_joints, whole_joints, per_frame=False):
     """Share of each part's outline in view from per-bone pixel areas.
 
     Parameters
@@ -337,9 +355,12 @@ def seen_shares(part_of, seen_joints, whole_joints):
     whole_joints : ndarray, shape (F, B)
         Area every bone's shape would cover on its own, pixels.
 
+    per_frame : bool
+        Return every frame's share instead of the mean.
+
     Returns
     -------
-    ndarray, shape (P,)
+    ndarray, shape (P,) (or (F, P) with ``per_frame``)
         Mean over frames of seen / whole (1 for a part without shape: nothing to hide).
     """
     n_parts = int(part_of.max()) + 1
@@ -347,7 +368,28 @@ def seen_shares(part_of, seen_joints, whole_joints):
     seen = np.asarray(seen_joints, dtype=float) @ onehot
     whole = np.asarray(whole_joints, dtype=float) @ onehot
     share = np.where(whole > 0, np.minimum(seen / np.where(whole > 0, whole, 1.0), 1.0), 1.0)
-    return share.mean(axis=0)
+    return share if per_frame else share.mean(axis=0)
+
+
+def outlier_shares(part_of, joint_weights, joint_points):
+    """Share of each part's model points set aside by the robust weights (1 - sum of their
+    weights / their number, over all frames; NaN for a part without points).
+
+    Parameters
+    ----------
+    part_of : ndarray, shape (B,), int
+    joint_weights, joint_points : ndarray, shape (n, B)
+        ``FrameMotions.joint_weights`` and ``joint_points``.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+    """
+    n_parts = int(part_of.max()) + 1
+    onehot = np.eye(n_parts)[part_of]
+    weights = np.asarray(joint_weights, dtype=float).sum(axis=0) @ onehot
+    points = np.asarray(joint_points, dtype=float).sum(axis=0) @ onehot
+    return np.where(points > 0, 1.0 - weights / np.where(points > 0, points, 1.0), np.nan)
 
 
 def blend_trajectories(part_of, weights, roots, local, interp_roots, interp_local):

@@ -537,6 +537,9 @@ class SilhouetteSamples:
         Part seen at every grid node (-1: background).
     node_depth : ndarray, shape (G,)
         Depth at every grid node (inf: background).
+    occluded : ndarray, shape (M,), bool, or None
+        Samples hidden behind another body (:func:`.occluders.hide_behind`; None: not
+        tested). They are not ``interior`` and their nodes read as background.
     """
 
     frames: np.ndarray
@@ -551,6 +554,7 @@ class SilhouetteSamples:
     grid_start: np.ndarray
     node_parts: np.ndarray
     node_depth: np.ndarray
+    occluded: np.ndarray = None
 
     @property
     def count(self):
@@ -575,7 +579,8 @@ class SilhouetteSamples:
             strides=self.strides[first:stop], grid_origin=self.grid_origin[first:stop],
             grid_shape=self.grid_shape[first:stop],
             grid_start=self.grid_start[first:stop] - g0, node_parts=self.node_parts[g0:g1],
-            node_depth=self.node_depth[g0:g1])
+            node_depth=self.node_depth[g0:g1],
+            occluded=None if self.occluded is None else self.occluded[a:b])
 
     def subset(self, index):
         """Only the samples ``index`` (grids kept)."""
@@ -583,7 +588,8 @@ class SilhouetteSamples:
             frames=self.frames[index], pixels=self.pixels[index], points=self.points[index],
             joints=self.joints[index], parts=self.parts[index], interior=self.interior[index],
             strides=self.strides, grid_origin=self.grid_origin, grid_shape=self.grid_shape,
-            grid_start=self.grid_start, node_parts=self.node_parts, node_depth=self.node_depth)
+            grid_start=self.grid_start, node_parts=self.node_parts, node_depth=self.node_depth,
+            occluded=None if self.occluded is None else self.occluded[index])
 
     def lookup(self, poses, pixels):
         """Part and depth at the grid node nearest to each pixel (-1 / inf outside the grid).

@@ -54,6 +54,7 @@ import numpy as np
 from .body_model import joint_frames_in_camera
 from .image import bilinear, sample_with_gradient
 from .jacobians import apply_motion, image_gradient_rows
+from .robust import irls_weights
 
 @dataclass(frozen=True, eq=False)
 class RankedSystems:
@@ -171,6 +172,11 @@ class FrameMotions:
         RMS photometric residual after the last update (intensity units; NaN: no measurement).
     view_samples : ndarray, shape (V, n), int
         Model points used per view (they add up to ``n_samples``).
+    joint_weights, joint_points : ndarray, shape (n, B)
+        Per frame and joint, on the finest level after the last update: the sum of the robust
+        weights (:mod:`.robust`, in [0, 1] each) of the points on the joint's own parts, and
+        their number (all views). ``1 - weights / points`` is the share of the joint's points
+        the estimate set aside as not matching the body (another person in front, clutter).
     """
 
     translations: np.ndarray
@@ -179,6 +185,8 @@ class FrameMotions:
     n_samples: np.ndarray
     residuals: np.ndarray
     view_samples: np.ndarray = None
+    joint_weights: np.ndarray = None
+    joint_points: np.ndarray = None
 
 
 def still_visible(samples, frames_cam, next_cam, next_samples, camera, tolerance=0.02):
@@ -430,12 +438,15 @@ def estimate_view_motions(problem, options, views, poses, predictions):
     if len(views) > 1 and options.view_tau is not None:
         stacked = (view_samples >= options.min_samples).sum(axis=0) >= 2
         tau = np.where(stacked, options.view_tau, options.tau)
-    x_s, ranks, rms = _coarse_to_fine(problem, options, views, points, (roots, local), y * scales,
-                                      measured, cols, column_factor, full_motion, tau)
+    x_s, ranks, rms, support = _coarse_to_fine(problem, options, views, points, (roots, local),
+                                               y * scales, measured, cols, column_factor,
+                                               full_motion, tau)
     t, r = full_motion(x_s / scales)
     return FrameMotions(translations=t, rotvecs=r, ranks=np.where(measured, ranks, 0),
                         n_samples=view_samples.sum(axis=0) * measured, residuals=rms,
-                        view_samples=view_samples * measured)
+                        view_samples=view_samples * measured,
+                        joint_weights=support[0] * measured[:, None],
+                        joint_points=support[1] * measured[:, None])
 
 
 @dataclass(frozen=True, eq=False)
@@ -661,9 +672,13 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     Each view walks its own pyramid from its top level down to its finest (views with fewer
     levels stay on their top level at the first steps). Per level: every view's rows (built
     once, :func:`_level_template`); per re-linearisation: every view's residuals at the
-    current estimate, robustly clipped per view, weighted (:func:`view_weights`) and stacked
-    under each other, one rank-revealing solve per frame pair (eqs. 6-7) with eq. 10 for the
-    update. One view: exactly the single-camera tracker (no weighting, nothing stacked).
+    current estimate, their robust weights (``options.robust_loss``: IRLS, each view's scale
+    per frame, :mod:`.robust`), the views weighted (:func:`view_weights`) and stacked under
+    each other, one rank-revealing solve per frame pair (eqs. 6-7) with eq. 10 for the update.
+    One view: exactly the single-camera tracker (no view weighting, nothing stacked).
+
+    ``'clip'`` (the tracker before issue 20): residuals clipped per view, rows unweighted, the
+    system decomposed once per level.
 
     Returns
     -------
@@ -673,6 +688,10 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
         Rank of the stacked system on the finest levels.
     rms : ndarray, shape (n,)
         RMS residual over all views after the last update (NaN: no measurement).
+    support : ndarray, shape (2, n, B)
+        Per frame and joint, on the finest levels at the last re-linearisation: the sum of the
+        robust weights of the joint's own points (all views) and their number
+        (:class:`FrameMotions`).
     """
     sk = problem.skeleton
     roots, local = poses
@@ -681,9 +700,11 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     levels = [view.levels(options) for view in views]
     steps = max(top - finest for finest, top in levels)
     single = len(views) == 1
+    clip = options.robust_loss == "clip"
     x_s = y_s.copy()
     ranks = np.zeros(n, dtype=int)
     rms = np.full(n, np.nan)
+    support = np.zeros((2, n, sk.n_joints))
     for step_index in range(steps, -1, -1):
         templates = [_level_template(problem, view, pts, min(finest + step_index, top), cols,
                                      column_factor)
@@ -694,19 +715,35 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
             warped = [_warped_residuals(sk, view, t, moved_pose)
                       for view, t in zip(views, templates)]
             rms = _rms(warped, measured)
-            clipped = [_robust_clip(r, inside, options.robust_clip) for r, inside in warped]
+            if clip:
+                clipped = [_robust_clip(r, inside, options.robust_clip) for r, inside in warped]
+                rows, scale = [None] * len(views), np.stack([c[1] for c in clipped])
+                b_views = [c[0] for c in clipped]
+            else:
+                # IRLS (robust.py): weights at the current estimate, each view's own scale.
+                per_joint = options.robust_scale == "joint"
+                robust = [irls_weights(r, inside, options.robust_threshold, options.robust_loss,
+                                       groups=t.joints if per_joint else None,
+                                       n_groups=sk.n_joints)
+                          for (r, inside), t in zip(warped, templates)]
+                rows = [np.sqrt(w) for w, _ in robust]
+                scale = np.stack([s for _, s in robust])
+                b_views = [root * r for root, (r, _) in zip(rows, warped)]
+                system = None                        # the weights changed: decompose again
             if system is None:
+                a_views = [t.a if root is None else root[..., None] * t.a
+                           for root, t in zip(rows, templates)]
                 if single:
-                    a = templates[0].a
+                    a = a_views[0]
                 else:
-                    weights = view_weights(options.view_weighting, templates,
-                                           np.stack([c[1] for c in clipped]))
-                    a = np.concatenate([w[:, None, None] * t.a
-                                        for w, t in zip(weights, templates)], axis=1)
+                    if weights is None or not clip:
+                        weights = view_weights(options.view_weighting, templates, scale)
+                    a = np.concatenate([w[:, None, None] * av
+                                        for w, av in zip(weights, a_views)], axis=1)
                 system = rank_decompositions(a, tau)
                 ranks = system.rank
-            b = clipped[0][0] if single else np.concatenate(
-                [w[:, None] * c[0] for w, c in zip(weights, clipped)], axis=1)
+            b = b_views[0] if single else np.concatenate(
+                [w[:, None] * bv for w, bv in zip(weights, b_views)], axis=1)
             particular = system.pseudo_inverse_solve(b)
             # eq. 10 for the update: the null-space part of x is pulled to the prediction.
             step = particular + system.null_projection(y_s - x_s)
@@ -714,7 +751,22 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
             x_s = x_s + step
             if not np.all(np.isfinite(x_s)) or np.max(np.abs(step)) < options.step_tol:
                 break
-    return x_s, ranks, rms
+        if step_index == 0:
+            support = _support(sk.n_joints, templates, rows, warped)
+    return x_s, ranks, rms, support
+
+
+def _support(b, templates, rows, warped):
+    """(2, n, B): per frame and joint, the sum of the points' robust weights and their count
+    (points inside the images; 'clip': every such point counts with weight 1)."""
+    n = len(templates[0].value)
+    out = np.zeros((2, n * b))
+    for t, root, (_, inside) in zip(templates, rows, warped):
+        flat = (np.arange(n)[:, None] * b + t.joints)[inside]
+        w = inside if root is None else root ** 2
+        out[0] += np.bincount(flat, weights=w[inside].astype(float), minlength=n * b)
+        out[1] += np.bincount(flat, minlength=n * b)
+    return out.reshape(2, n, b)
 
 
 def _rms(warped, measured):

@@ -51,7 +51,7 @@ import sys
 import tempfile
 import threading
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -172,22 +172,28 @@ def view_frames(stack, offset, a, b):
     return out
 
 
-def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None):
+def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None,
+              occluders=()):
     a, b = keys[i], keys[i + 1]
     start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
     stacks = [view_frames(f, o, a, b) for f, o in zip(frames, offsets)]
+    # Other bodies, their frames counted from this interval's start key.
+    occluders = [replace(occ, first=occ.first - int(a)) for occ in occluders or ()]
     if problem.n_views == 1:
-        return track_interval(problem, stacks[0], start, end, options, progress=progress)
+        return track_interval(problem, stacks[0], start, end, options, progress=progress,
+                              occluders=occluders)
     if all(s is None for s in stacks):
         if progress is not None:
             progress(1.0)
         return interpolated_interval(problem, start, end, int(b - a),
                                      f"no camera filmed frames {a}..{b}: the interpolation is kept")
-    return track_interval(problem, stacks, start, end, options, progress=progress)
+    return track_interval(problem, stacks, start, end, options, progress=progress,
+                          occluders=occluders)
 
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
-                    processes=None, progress=None, cancel=None, frame_offsets=None):
+                    processes=None, progress=None, cancel=None, frame_offsets=None,
+                    occluders=()):
     """Track every interval between consecutive keyframes.
 
     Parameters
@@ -218,6 +224,10 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         ``f - frame_offsets[v]`` of camera ``v``'s stack. Default all 0. Frames a camera did
         not film give no measurement in that view; an interval no camera filmed keeps the
         interpolation (its ``reason`` says so).
+    occluders : sequence of Occluder, optional
+        Other bodies in the footage, their poses in clip frames (:mod:`.occluders`; several
+        bodies are tracked together by :func:`~.bodies.track_bodies`): model points hidden
+        behind them are not used.
 
     Returns
     -------
@@ -252,10 +262,10 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                 report(min(1.0, done + weight * fraction))
 
             results.append(_interval(problem, options, frames, offsets, keys, roots, local, i,
-                                     hook))
+                                     hook, occluders))
     else:
-        results = _run_pool((problem, options, offsets, keys, roots, local), frames, workers,
-                            weights, report, stop_requested)
+        results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders)),
+                            frames, workers, weights, report, stop_requested)
     return _assemble(keys, results)
 
 
@@ -288,7 +298,7 @@ def serve(channel_in, channel_out):
     setup = _receive(channel_in)
     if setup is None:
         return
-    frames_paths, (problem, options, offsets, keys, roots, local) = setup
+    frames_paths, (problem, options, offsets, keys, roots, local, occluders) = setup
     frames = [np.load(path, mmap_mode="r") for path in frames_paths]
     while True:
         i = _receive(channel_in)
@@ -296,7 +306,8 @@ def serve(channel_in, channel_out):
             return
         try:
             result = _interval(problem, options, frames, offsets, keys, roots, local, i,
-                               lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)))
+                               lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)),
+                               occluders)
         except Exception as exc:  # reported to the parent, which re-raises it
             try:
                 pickle.dumps(exc)
@@ -330,7 +341,7 @@ def _start_worker():
 
 def _local_worker(work, frames, todo, lock, inbox, stop):
     """The calling process's share: a thread taking intervals from ``todo`` like a worker."""
-    problem, options, offsets, keys, roots, local = work
+    problem, options, offsets, keys, roots, local, occluders = work
     while not stop.is_set():
         with lock:
             if not todo:
@@ -343,7 +354,8 @@ def _local_worker(work, frames, todo, lock, inbox, stop):
             inbox.put((-1, ("progress", i, fraction)))
 
         try:
-            result = _interval(problem, options, frames, offsets, keys, roots, local, i, hook)
+            result = _interval(problem, options, frames, offsets, keys, roots, local, i, hook,
+                               occluders)
         except TrackingCancelled:
             return
         except Exception as exc:  # reported to the caller's loop, which re-raises it

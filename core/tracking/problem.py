@@ -9,6 +9,7 @@ from .body_model import BodyModel
 from .camera import PinholeCamera
 from ..kinematics import rest_pose
 from .jacobians import ancestor_matrix, motion_layout
+from .robust import LOSSES
 
 
 class TrackingError(ValueError):
@@ -144,9 +145,22 @@ class TrackingOptions:
         Re-linearisations (warp, re-solve) per pyramid level.
     step_tol : float
         Stop a level's iterations when the largest update is below this (radians / metres).
+    robust_loss : {'tukey', 'huber', 'clip'}
+        How samples that do not match the body (another person in front, clutter, occluders,
+        highlights) are kept from pulling the estimate (``core.tracking.robust``, issue 20):
+        ``'tukey'`` (Tukey's biweight) or ``'huber'`` M-estimators, by iteratively reweighted
+        least squares on the rows of eq. 5 (each view's threshold from its own residuals'
+        scale, ``1.4826 median |r|`` per frame), and the same loss summed in eq. 4 (the
+        trajectory judge). ``'clip'``: the tracker before issue 20 (residuals clipped at
+        ``robust_clip`` standard deviations of the mean absolute residual, rows unweighted,
+        eq. 4 a sum of squares).
+    robust_threshold : float
+        The M-estimator's threshold ``c`` in units of that scale (Tukey: a residual beyond
+        ``c`` scales has no weight; Huber: its weight falls as ``c / |u|``). Chosen by
+        cross-validation across clips and conditions (docs/tracking.md, *Robust estimation*).
     robust_clip : float
-        Photometric residuals are clipped at this many standard deviations (estimated per frame
-        from the mean absolute residual).
+        ``robust_loss='clip'`` only: photometric residuals are clipped at this many standard
+        deviations (estimated per frame from the mean absolute residual).
     max_iterations : int
         Trajectory iterations (track, accumulate, correct, score).
     patience : int
@@ -217,6 +231,9 @@ class TrackingOptions:
         the trajectory is scored like any other. None: ``'reject'`` with one camera (the
         single-camera tracker as it was), ``'clamp'`` with several (chosen on the validation
         clips, docs/tracking.md *Several cameras*).
+    occluder_margin : float, metres
+        Several bodies (``core.tracking.bodies``): another body's envelopes are widened by this
+        much before the points hidden behind them are left out (its pose is an estimate too).
     acceptance : AcceptanceRule or None
         Never worse than the interpolation: per interval and body part, the tracked motion is
         kept only where the footage supports it, else the part keeps the keys' interpolation
@@ -234,6 +251,9 @@ class TrackingOptions:
     min_body_pixels: float = 50.0
     warp_iterations: int = 3
     step_tol: float = 1e-4
+    robust_loss: str = "tukey"
+    robust_threshold: float = 4.685
+    robust_scale: str = "joint"
     robust_clip: float = 3.0
     max_iterations: int = 4
     patience: int = 2
@@ -253,6 +273,7 @@ class TrackingOptions:
     depth_from_views: bool = True
     view_tau: float = 0.01
     limit_action: str = None
+    occluder_margin: float = 0.03
     acceptance: AcceptanceRule = AcceptanceRule()
 
     def __post_init__(self):
@@ -264,6 +285,11 @@ class TrackingOptions:
                              f"{self.root_displacement!r}")
         if self.roi_margin is not None and not self.roi_margin >= 0.0:
             raise ValueError(f"roi_margin must be >= 0 or None, got {self.roi_margin}")
+        if self.robust_loss not in LOSSES:
+            raise ValueError(f"robust_loss must be one of {', '.join(map(repr, LOSSES))}, got "
+                             f"{self.robust_loss!r}")
+        if not self.robust_threshold > 0.0:
+            raise ValueError(f"robust_threshold must be > 0, got {self.robust_threshold}")
         if self.view_weighting not in VIEW_WEIGHTINGS:
             raise ValueError(f"view_weighting must be one of "
                              f"{', '.join(map(repr, VIEW_WEIGHTINGS))}, got "

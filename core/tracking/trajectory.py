@@ -23,14 +23,14 @@ eq. 4 over the views, each view's term scaled to the same silhouette area
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
 from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, blend_trajectories,
                          blend_weights, body_parts, judge_parts, keep_interpolation,
-                         part_distances, seen_shares)
+                         outlier_shares, part_distances, seen_shares)
 from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_geometry,
                          sample_silhouette)
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
@@ -38,7 +38,9 @@ from .drift import (accumulate_rotations, accumulate_root_positions, correct_roo
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
 from .motion import MotionView, estimate_view_motions
+from .occluders import hide_behind, view_occluders
 from .problem import TrackingError, TrackingOptions
+from .robust import SCALE_FLOOR, robust_loss, robust_scale
 
 _AXES = "XYZ"
 
@@ -199,7 +201,8 @@ def _frames_in_camera(problem, roots, local, camera=None):
     return joint_frames_in_camera(problem.skeleton, camera.world2camera, roots, local)
 
 
-def photometric_error(problem, frames_level, level, frames_cam, samples, camera=None):
+def photometric_error(problem, frames_level, level, frames_cam, samples, camera=None,
+                      loss="square", threshold=None):
     """Eq. 4 per frame pair: model points seen at frame j, moved to j+1 by the trajectory.
 
     ``sum_{X,Y} (E(X', Y', j+1) - E(X, Y, j))^2`` over the silhouette of frame ``j``, sampled on
@@ -208,7 +211,11 @@ def photometric_error(problem, frames_level, level, frames_cam, samples, camera=
     edges (not ``interior``) and points hidden at frame j+1 (another part in front, looked up in
     frame j+1's silhouette grid) or moved outside image j+1 are left out. Each frame's sum is
     rescaled to the whole silhouette (divided by the fraction of samples kept), so that a
-    trajectory cannot lower its score by hiding parts.
+    trajectory cannot lower its score by hiding parts. With a robust ``loss`` (issue 20) each
+    squared difference is replaced by the M-estimator's ``2 rho`` (:func:`.robust.robust_loss`:
+    the square for small differences, bounded (Tukey) or linear (Huber) beyond ``threshold``),
+    so that points seeing something else than the body (another person, clutter) weigh no
+    more than a threshold's worth.
 
     Parameters
     ----------
@@ -222,11 +229,35 @@ def photometric_error(problem, frames_level, level, frames_cam, samples, camera=
         Silhouette samples of the n + 1 trajectory poses on that level's grid.
     camera : PinholeCamera, optional
         The camera (level 0) of these frames; default ``problem.camera``.
+    loss : {'square', 'tukey', 'huber'}
+    threshold : float, optional
+        ``c s`` in intensity units (robust losses only; :func:`photometric_scale` gives ``s``).
 
     Returns
     -------
     ndarray, shape (n,)
     """
+    n = len(frames_cam[0]) - 1
+    f, diff, total = _photometric_differences(problem, frames_level, level, frames_cam, samples,
+                                              camera)
+    kept = np.bincount(f, minlength=n).astype(float)
+    sums = np.bincount(f, weights=robust_loss(diff, threshold, loss), minlength=n)
+    return np.where(kept > 0, sums * total / np.maximum(kept, 1.0), 0.0) * samples.strides[:n] ** 2
+
+
+def photometric_scale(problem, frames_level, level, frames_cam, samples, camera=None,
+                      floor=SCALE_FLOOR):
+    """Robust scale (:func:`.robust.robust_scale`) of eq. 4's differences over every frame pair
+    of a trajectory: ``1.4826 median |E(X', Y', j+1) - E(X, Y, j)|``, pooled (arguments as
+    :func:`photometric_error`)."""
+    _, diff, _ = _photometric_differences(problem, frames_level, level, frames_cam, samples,
+                                          camera)
+    return float(robust_scale(diff[None], np.ones((1, len(diff)), dtype=bool), floor)[0])
+
+
+def _photometric_differences(problem, frames_level, level, frames_cam, samples, camera=None):
+    """Eq. 4's differences: frame pair of each kept sample (K,), ``E(X', Y', j+1) - E(X, Y, j)``
+    (K,) and the interior samples of every frame (n,) (see :func:`photometric_error`)."""
     rot, org = frames_cam
     n = len(rot) - 1
     camera = (problem.camera if camera is None else camera).at_level(level)
@@ -245,10 +276,7 @@ def photometric_error(problem, frames_level, level, frames_cam, samples, camera=
     e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
                   frames=f[ok])
     finite = np.isfinite(e1) & np.isfinite(e0)           # masked (non-finite) pixels: left out
-    fk = f[ok][finite]
-    kept = np.bincount(fk, minlength=n).astype(float)
-    sums = np.bincount(fk, weights=(e1 - e0)[finite] ** 2, minlength=n)
-    return np.where(kept > 0, sums * total / np.maximum(kept, 1.0), 0.0) * samples.strides[:n] ** 2
+    return f[ok][finite], (e1 - e0)[finite], total
 
 
 def _allowed_ranges(problem, local_rotations, start, end, margin):
@@ -425,6 +453,9 @@ class ViewInterval:
     available : ndarray, shape (n + 1,), bool, or None
         Several cameras: frames this camera filmed (a frame without a finite pixel in the
         window was not filmed, e.g. before an unsynchronised start); None: all (one camera).
+    occluders : tuple of ViewOccluder
+        Other bodies in this camera over the interval (:mod:`.occluders`): samples hidden
+        behind them are not used.
     """
 
     index: int
@@ -434,6 +465,16 @@ class ViewInterval:
     top: int
     exponent: int
     available: np.ndarray = None
+    occluders: tuple = ()
+
+    def silhouette(self, problem, options, rotations, origins, pose_frames):
+        """The body's silhouette samples on this view's finest level at N poses (joint frames
+        in this camera), the points hidden behind another body marked (``pose_frames`` (N,):
+        the interval frame of each pose)."""
+        camera = self.camera.at_level(self.finest)
+        samples = sample_silhouette(problem.body, camera, rotations, origins,
+                                    options.candidate_budget)
+        return hide_behind(samples, camera, self.occluders, pose_frames)
 
     @property
     def levels(self):
@@ -469,7 +510,8 @@ def _one_pyramid(pyramid):
     return bool(len(pyramid)) and isinstance(pyramid[0], np.ndarray) and pyramid[0].ndim == 3
 
 
-def prepare_views(problem, frames, start, end, options, pyramid=None, initial=None):
+def prepare_views(problem, frames, start, end, options, pyramid=None, initial=None,
+                  occluders=None):
     """Checked keys and every camera's :class:`ViewInterval` for one interval.
 
     Parameters
@@ -483,6 +525,8 @@ def prepare_views(problem, frames, start, end, options, pyramid=None, initial=No
         Precomputed pyramids instead of ``frames`` (whole frames, no region of interest).
     initial : tuple (roots, local), optional
         Initial trajectory (it widens the region of interest).
+    occluders : sequence of Occluder, optional
+        Other bodies over the interval's frames (``first`` relative to the start key).
 
     Returns
     -------
@@ -507,6 +551,9 @@ def prepare_views(problem, frames, start, end, options, pyramid=None, initial=No
                 raise TrackingError("no frames given")
             continue
         view = _prepare_view(problem, index, stack, start, end, options, pyr, initial)
+        if occluders:
+            view = replace(view, occluders=tuple(view_occluders(
+                occluders, index, 0, len(view.pyramid[0]) - 1, options.occluder_margin)))
         lengths.add(len(view.pyramid[0]))
         views.append(view)
     if not views:
@@ -617,8 +664,7 @@ class _Trajectory:
         for view in views:
             cam = _frames_in_camera(problem, roots, local, view.camera)
             self.cams.append(cam)
-            self.samples.append(sample_silhouette(problem.body, view.camera.at_level(view.finest),
-                                                  *cam, options.candidate_budget))
+            self.samples.append(view.silhouette(problem, options, *cam, np.arange(len(roots))))
 
     def motion_views(self, views):
         """:class:`~.motion.MotionView` of every view for the frame pairs ``j -> j+1``."""
@@ -650,21 +696,38 @@ def eq4_view_weights(trajectory):
     return np.where(areas > 0, mean / np.where(areas > 0, areas, 1.0), 0.0)
 
 
-def _eq4(problem, views, trajectory, weights):
-    """Eq. 4 per frame pair (n,), summed over the views with ``weights``."""
+def _eq4(problem, views, trajectory, weights, thresholds=None, loss="square"):
+    """Eq. 4 per frame pair (n,), summed over the views with ``weights``; ``thresholds`` (V,):
+    each view's robust threshold (intensity units) when ``loss`` is robust."""
+    if thresholds is None:
+        thresholds = [None] * len(views)
     terms = [photometric_error(problem, view.pyramid[view.finest], view.finest, cam, samples,
-                               view.camera)
-             for view, cam, samples in zip(views, trajectory.cams, trajectory.samples)]
+                               view.camera, loss, threshold)
+             for view, cam, samples, threshold in zip(views, trajectory.cams, trajectory.samples,
+                                                      thresholds)]
     if len(terms) == 1:
         return terms[0]
     return sum(w * t for w, t in zip(weights, terms))
+
+
+def eq4_thresholds(problem, options, views, trajectory):
+    """Each view's robust eq. 4 threshold (V,), intensity units: ``robust_threshold`` times the
+    scale of eq. 4's differences along ``trajectory`` (:func:`photometric_scale`; the
+    interval's initial trajectory, kept fixed so that every trajectory of the interval is
+    judged with the same loss). None for ``robust_loss='clip'`` (eq. 4 as printed: squares)."""
+    if options.robust_loss == "clip":
+        return None
+    return [options.robust_threshold
+            * photometric_scale(problem, view.pyramid[view.finest], view.finest, cam, samples,
+                                view.camera)
+            for view, cam, samples in zip(views, trajectory.cams, trajectory.samples)]
 
 
 #: Share of an interval's work done after the pyramid and after the seed (progress reports).
 _PROGRESS_PYRAMID, _PROGRESS_SEED = 0.05, 0.35
 
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
-                   initial=None, progress=None):
+                   initial=None, progress=None, occluders=None):
     """Track one interval between two keyed poses (the whole of §2.2-§3).
 
     Parameters
@@ -691,6 +754,9 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         pyramid, the seed and every loop iteration (an estimate: the loop may stop before
         ``max_iterations``, and the last call says 1). An exception it raises (e.g.
         :class:`~.problem.TrackingCancelled`) stops the interval and propagates.
+    occluders : sequence of Occluder, optional
+        Other bodies in the footage (:mod:`.occluders`; their ``first`` frame counted from the
+        start key): model points hidden behind them are not used.
 
     Returns
     -------
@@ -701,13 +767,14 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     options = options or TrackingOptions()
     report = progress if progress is not None else (lambda fraction: None)
     tic = time.perf_counter()
-    start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial)
+    start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial,
+                                      occluders)
     report(_PROGRESS_PYRAMID)
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
     roots, local = _initial_trajectory(problem, start, end, len(views[0].pyramid[0]) - 1,
                                        initial)
     traj = _Trajectory(problem, options, views, roots, local)
-    scores = _Scores(problem, views, traj, keep_history)
+    scores = _Scores(problem, options, views, traj, keep_history)
     if options.seed != "interpolation" and initial is None:
         traj = _add_seed(problem, options, views, start, end, scores, timings) or traj
     report(_PROGRESS_SEED)
@@ -741,11 +808,16 @@ def _accept_parts(problem, options, views, start, end, scores):
                              backward.local_rotations[None], interp.roots[m:m + 1],
                              interp.local[m:m + 1])[0]
     traj = best["traj"]
-    seen = _seen_shares(problem, options, views, traj, part_of)
+    seen, behind, behind_frames = _seen_shares(problem, options, views, traj, part_of)
+    motions = best["motions"] or scores.first_pass
+    outliers = nan.copy()
+    if motions is not None and motions.joint_points is not None:
+        outliers = outlier_shares(part_of, motions.joint_weights, motions.joint_points)
+    evidence = dict(behind=behind, behind_frames=behind_frames, outliers=outliers)
     if best["iteration"] == 0:
         return PartVerdicts(names, nan.copy(), gap, np.zeros(len(names)), seen,
                             np.zeros(len(names), dtype=bool), (NOT_TRACKED,) * len(names),
-                            np.zeros(len(names)))
+                            np.zeros(len(names)), **evidence)
     departure = part_distances(sk, part_of, traj.roots, traj.local, interp.roots, interp.local,
                                interp.roots, interp.local).max(axis=0)
     drift = gap.copy()
@@ -766,25 +838,36 @@ def _accept_parts(problem, options, views, start, end, scores):
         roots, local = blend_trajectories(part_of, shares, roots, local, interp.roots,
                                           interp.local)
         mixed = _Trajectory(problem, options, views, roots, local)
-        best["traj"], best["residuals"] = mixed, _eq4(problem, views, mixed, scores.weights)
-    return PartVerdicts(names, drift, gap, departure, seen, tracked, reasons, shares)
+        best["traj"], best["residuals"] = mixed, scores.eq4(problem, views, mixed)
+    return PartVerdicts(names, drift, gap, departure, seen, tracked, reasons, shares, **evidence)
 
 
 def _seen_shares(problem, options, views, traj, part_of):
-    """(P,) share of every body part's outline in view along ``traj`` (best camera)."""
+    """Per body part: the share of its outline in view along ``traj`` (best camera; points
+    hidden behind another body do not count), (P,); the share hidden behind other bodies in
+    the camera that hides it least, mean (P,) and per frame (n + 1, P), or None without other
+    bodies."""
     body, b = problem.body, problem.skeleton.n_joints
-    best = None
+    best, behind = None, None
     for view, (rot, org), samples in zip(views, traj.cams, traj.samples):
         n = len(rot)
         camera = view.camera.at_level(view.finest)
-        seen = np.bincount(samples.frames * b + samples.joints, minlength=n * b).reshape(n, b)
-        seen = seen * samples.strides[:, None] ** 2
         areas = part_areas(body, camera, part_geometry(body, rot, org))       # (n, P + Q)
         whole = np.zeros((n, b))
         np.add.at(whole, (slice(None), body.part_joints), areas)
+        unit = samples.strides[:, None] ** 2
+        occluded = samples.occluded if samples.occluded is not None \
+            else np.zeros(samples.count, dtype=bool)
+        seen = np.bincount((samples.frames * b + samples.joints)[~occluded],
+                           minlength=n * b).reshape(n, b) * unit
         share = seen_shares(part_of, seen, whole)
         best = share if best is None else np.maximum(best, share)
-    return best
+        if view.occluders:
+            hidden = np.bincount((samples.frames * b + samples.joints)[occluded],
+                                 minlength=n * b).reshape(n, b) * unit
+            frames = seen_shares(part_of, hidden, whole, per_frame=True)
+            behind = frames if behind is None else np.minimum(behind, frames)
+    return best, (None if behind is None else behind.mean(axis=0)), behind
 
 
 def _initial_trajectory(problem, start, end, n, initial):
@@ -807,12 +890,14 @@ class _Scores:
     """Every scored trajectory of an interval (eq. 4 totals, ``errors[0]`` the initial one),
     the kept minimum and the tracking pass that produced it."""
 
-    def __init__(self, problem, views, initial, keep_history):
+    def __init__(self, problem, options, views, initial, keep_history):
         self.weights = eq4_view_weights(initial)
+        self.thresholds = eq4_thresholds(problem, options, views, initial)
+        self.loss = "square" if self.thresholds is None else options.robust_loss
         self.initial = initial
         self.seed_middles = None
         self.keep_history = keep_history
-        per_frame = _eq4(problem, views, initial, self.weights)
+        per_frame = self.eq4(problem, views, initial)
         self.initial_counts = initial.counts().astype(float)
         self.errors = [float(per_frame.sum())]
         self.history = [(initial.roots, initial.local)] if keep_history else []
@@ -822,11 +907,15 @@ class _Scores:
 
     def score(self, problem, views, traj):
         """Eq. 4 of ``traj`` appended to ``errors``; returns (total, per frame)."""
-        per_frame = _eq4(problem, views, traj, self.weights)
+        per_frame = self.eq4(problem, views, traj)
         self.errors.append(float(per_frame.sum()))
         if self.keep_history:
             self.history.append((traj.roots, traj.local))
         return self.errors[-1], per_frame
+
+    def eq4(self, problem, views, traj):
+        """Eq. 4 per frame pair of ``traj`` with this interval's view weights and loss."""
+        return _eq4(problem, views, traj, self.weights, self.thresholds, self.loss)
 
     def best_error(self):
         return self.errors[self.best["iteration"]]
@@ -1146,8 +1235,7 @@ def _step_view(problem, options, view, t0, l0, t1, l1, pairs):
     c = len(t0)
     rot, org = _frames_in_camera(problem, np.concatenate([t0, t1]), np.concatenate([l0, l1]),
                                  view.camera)
-    both = sample_silhouette(problem.body, view.camera.at_level(view.finest), rot, org,
-                             options.candidate_budget)
+    both = view.silhouette(problem, options, rot, org, np.concatenate([pairs[:, 0], pairs[:, 1]]))
     return MotionView(camera=view.camera, pyramid=view.pyramid, finest_level=view.finest,
                       image_pairs=pairs, frames_cam=(rot[:c], org[:c]), samples=both.poses(0, c),
                       next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),

@@ -20,6 +20,8 @@ from tests.core.tracking_fixtures import front_camera, render, two_arm_body, two
 
 #: Results of main's tracker (commit c3f7243, before several cameras) on :func:`_single_view_runs`.
 REFERENCE = Path(__file__).parent / "data" / "tracking_single_view_main.npz"
+#: The options the frozen results were made with (everything added since switched off).
+_FROZEN = TrackingOptions(acceptance=None, robust_loss="clip")
 _FIELDS = ("root_translations", "local_rotations", "residuals", "ranks", "n_samples", "errors")
 
 
@@ -27,14 +29,15 @@ def _single_view_runs(wrap=lambda camera: camera, all_runs=True):
     """One camera: two intervals through ``track_keyframes`` (bidirectional seed), one interval
     with the forward seed and depth estimation, and one in a region of interest (only the first
     unless ``all_runs``). ``wrap`` turns the camera into what the problem is given (the camera,
-    or a list of one). Acceptance off: the frozen results predate it (it blends the tracked
-    motion with the interpolation afterwards, ``test_tracking_acceptance*.py``)."""
+    or a list of one). Acceptance off and the robust loss of before issue 20 (``'clip'``): the
+    frozen results predate both (the blend, ``test_tracking_acceptance*.py``; the M-estimators,
+    ``test_tracking_robust.py``)."""
     out = {}
     sk, body, cam, roots, local, frames = _sequence(10)
     problem = TrackingProblem(sk, body, wrap(cam))
     keys = [0, 4, 10]
     seq = track_keyframes(problem, frames, keys, roots[keys], local[keys],
-                          TrackingOptions(max_iterations=2, acceptance=None), processes=1)
+                          _FROZEN.replace(max_iterations=2), processes=1)
     out["keys_roots"], out["keys_local"] = seq.root_translations, seq.local_rotations
     for i, r in enumerate(seq.intervals):
         for f in ("residuals", "ranks", "n_samples", "errors"):
@@ -43,15 +46,14 @@ def _single_view_runs(wrap=lambda camera: camera, all_runs=True):
     if not all_runs:
         return out
     r = track_interval(problem, frames, Pose(roots[0], local[0]), Pose(roots[-1], local[-1]),
-                       TrackingOptions(max_iterations=2, seed="forward", estimate_depth=True,
-                                       acceptance=None))
+                       _FROZEN.replace(max_iterations=2, seed="forward", estimate_depth=True))
     for f in _FIELDS:
         out[f"depth_{f}"] = getattr(r, f)
     out["depth_kept"] = r.kept_iteration
     sk, body, cam, roots, local, frames = _walker(480, 400)
     problem = TrackingProblem(sk, body, wrap(cam))
     r = track_interval(problem, frames, Pose(roots[0], local[0]), Pose(roots[-1], local[-1]),
-                       TrackingOptions(max_iterations=2, acceptance=None))
+                       _FROZEN.replace(max_iterations=2))
     for f in _FIELDS:
         out[f"roi_{f}"] = getattr(r, f)
     out["roi_kept"] = r.kept_iteration

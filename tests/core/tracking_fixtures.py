@@ -101,3 +101,34 @@ def render(skeleton, body, cam, roots, local):
         img[h] = _texture(local_pts, hits.parts[h])
         out[f] = img.reshape(cam.height, cam.width)
     return out
+
+
+def render_bodies(people, cam, seeds=None):
+    """Grayscale frames (N, H, W) float32 of several bodies over the static background of
+    :func:`render`, each pixel showing the nearest body's surface (people hide each other).
+
+    ``people``: sequence of (skeleton, body, roots (N, 3), local (N, B, 3, 3)); ``seeds``: per
+    body, an offset of its texture's part numbers (default 0, 10, 20, ...), so that the bodies
+    look different.
+    """
+    seeds = range(0, 10 * len(people), 10) if seeds is None else seeds
+    n = len(people[0][2])
+    v, u = np.mgrid[0:cam.height, 0:cam.width]
+    pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(float)
+    background = 0.5 + 0.2 * np.sin(0.21 * u + 0.3) * np.cos(0.17 * v) + 0.1 * np.sin(0.05 * (u + 2 * v))
+    out = np.empty((n, cam.height, cam.width), dtype=np.float32)
+    frames_cam = [joint_frames_in_camera(sk, cam.world2camera, np.atleast_2d(roots),
+                                         local.reshape(-1, sk.n_joints, 3, 3))
+                  for sk, _, roots, local in people]
+    for f in range(n):
+        img = background.ravel().copy()
+        depth = np.full(len(pixels), np.inf)
+        for (sk, body, _, _), (rot, org), seed in zip(people, frames_cam, seeds):
+            hits = ray_cast(body, cam, rot[f], org[f], pixels)
+            h = np.nonzero(hits.hit & (hits.points[:, 2] < depth))[0]
+            j = hits.joints[h]
+            local_pts = np.einsum("mji,mj->mi", rot[f, j], hits.points[h] - org[f, j])
+            img[h] = _texture(local_pts, hits.parts[h] + seed)
+            depth[h] = hits.points[h, 2]
+        out[f] = img.reshape(cam.height, cam.width)
+    return out
