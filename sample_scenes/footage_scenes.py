@@ -171,52 +171,107 @@ def _body_points(sk, body, root_translation, local):
     return (ends[:, :, None, :] + radius[None, :, None, None] * pad).reshape(-1, 3)
 
 
+def _cmu_values(trial, fps):
+    """(skeleton, DOF values (M, D) resampled to ``fps``) of a CMU trial."""
+    asf = read_asf(CMU / f"{trial.split('_')[0]}.asf")
+    sk = asf_to_skeleton(asf)
+    values = read_amc(CMU / f"{trial}.amc", asf).values
+    _, _, trans = sk.dof_table()
+    return sk, resample(values, 120.0, fps, angle_columns=np.nonzero(~trans)[0])
+
+
+def _cmu_body(sk):
+    lengths = np.linalg.norm(sk.tails, axis=1)
+    radii = plausible_envelope_radii(sk.names, lengths)
+    return body_model_from_skeleton(sk, radii, min_length=MIN_PART_LENGTH)
+
+
+def _frame_indices(motion, frames, step, start, n_values):
+    idx = start + step * np.arange(frames)
+    if idx[-1] >= n_values:
+        raise ValueError(f"{motion}: {frames} frames with step {step} need {idx[-1] + 1} samples, "
+                         f"the trial has {n_values}")
+    return idx
+
+
 def cmu_scene(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
     """Skeleton, body and poses of a CMU trial (see the module docstring); ``view``: a camera of
     :data:`VIEWS` (None: the scene's usual camera)."""
     trial, fps, view_angle = motion_spec(motion)
-    asf = read_asf(CMU / f"{trial.split('_')[0]}.asf")
-    sk = asf_to_skeleton(asf)
-    values = read_amc(CMU / f"{trial}.amc", asf).values
-    joint, axis, trans = sk.dof_table()
-    values = resample(values, 120.0, fps, angle_columns=np.nonzero(~trans)[0])
-    idx = start + step * np.arange(frames)
-    if idx[-1] >= len(values):
-        raise ValueError(f"{motion}: {frames} frames with step {step} need {idx[-1] + 1} samples, "
-                         f"the trial has {len(values)}")
+    sk, values = _cmu_values(trial, fps)
+    idx = _frame_indices(motion, frames, step, start, len(values))
     root_translation, local = local_rotations_from_dofs(sk, values[idx])
-    lengths = np.linalg.norm(sk.tails, axis=1)
-    radii = plausible_envelope_radii(sk.names, lengths)
-    body = body_model_from_skeleton(sk, radii, min_length=MIN_PART_LENGTH)
-    # Path of the root (ground projection) -> camera.
+    body = _cmu_body(sk)
     path = root_translation[:, :2]
-    centre = np.r_[path.mean(axis=0), 0.95]
-    heading = path[-1] - path[0]
-    heading /= np.linalg.norm(heading)
-    side = np.array([-heading[1], heading[0]])
     if view is not None and view not in VIEWS:
         raise ValueError(f"unknown view {view!r}: one of {', '.join(VIEWS)}")
     if view is not None and VIEWS[view] is not None:
         cam = view_camera(view, path, _body_points(sk, body, root_translation, local), aspect)
-    elif aspect < 1.0:
+    else:
+        cam = usual_camera(path, aspect, view_angle)
+    return sk, body, root_translation, local, cam, fps / step
+
+
+def usual_camera(path, aspect, view_angle=VIEW_ANGLE):
+    """Blender camera dict of a CMU scene's usual camera around a walked path (N, 2)."""
+    centre = np.r_[path.mean(axis=0), 0.95]
+    heading = path[-1] - path[0]
+    heading /= np.linalg.norm(heading)
+    side = np.array([-heading[1], heading[0]])
+    if aspect < 1.0:
         # In front of the walker, a little to the side: the body approaches the camera.
         end = np.r_[path[-1], 0.95]
         eye = end + np.r_[2.6 * heading + 0.9 * side, 0.35]
         target = np.r_[path.mean(axis=0) + 0.3 * heading, 0.85]
-        cam = dict(lens=35.0, sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
-                   shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, target))
-    else:
-        # Oblique view (VIEW_ANGLE off the perpendicular), slightly from above; the focal
-        # length frames the walked path (or the body's height, whichever needs more room).
-        span = float(np.linalg.norm(path[-1] - path[0]))
-        dist = 4.5
-        ang = np.radians(view_angle)
-        view = np.cos(ang) * side + np.sin(ang) * heading
-        eye = centre + np.r_[dist * view, 0.35]
-        visible = max((span * np.cos(ang) + 0.7) / 0.85, 2.2 * aspect)
-        cam = dict(lens=36.0 * dist / visible, sensor_width=36.0, sensor_height=24.0,
-                   sensor_fit="AUTO", shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, centre))
-    return sk, body, root_translation, local, cam, fps / step
+        return dict(lens=35.0, sensor_width=36.0, sensor_height=24.0, sensor_fit="AUTO",
+                    shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, target))
+    # Oblique view (VIEW_ANGLE off the perpendicular), slightly from above; the focal length
+    # frames the walked path (or the body's height, whichever needs more room).
+    span = float(np.linalg.norm(path[-1] - path[0]))
+    dist = 4.5
+    ang = np.radians(view_angle)
+    direction = np.cos(ang) * side + np.sin(ang) * heading
+    eye = centre + np.r_[dist * direction, 0.35]
+    visible = max((span * np.cos(ang) + 0.7) / 0.85, 2.2 * aspect)
+    return dict(lens=36.0 * dist / visible, sensor_width=36.0, sensor_height=24.0,
+                sensor_fit="AUTO", shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, centre))
+
+
+def condition_arrays(motion, frames, step, start, aspect, condition, root_translation):
+    """The extra ground truth of a hard condition (``conditions.py``), arrays by name:
+    ``two_people``: the second walker (``second_skeleton_*``, ``second_body_*``,
+    ``second_root_translation``, ``second_local_rotations``); ``motion_blur``: the poses of
+    every frame's sub-frames (``blur_root_translation`` (N, S, 3), ``blur_local_rotations``
+    (N, S, B, 3, 3)); others: none."""
+    from sample_scenes import conditions
+    trial, fps, view_angle = motion_spec(motion)
+    out = {}
+    if condition == "motion_blur":
+        sub = len(conditions.BLUR_OFFSETS)
+        sk, values = _cmu_values(trial, fps * sub)
+        idx = _frame_indices(motion, frames, step, start, len(values) // sub)
+        times = sub * idx[:, None] + np.rint(np.array(conditions.BLUR_OFFSETS) * sub)[None]
+        times = np.clip(times.astype(int), 0, len(values) - 1)
+        roots, local = local_rotations_from_dofs(sk, values[times.ravel()])
+        out["blur_root_translation"] = roots.reshape(frames, sub, 3)
+        out["blur_local_rotations"] = local.reshape((frames, sub) + local.shape[1:])
+    elif condition == "two_people":
+        own = conditions.second_walker_trial(trial)
+        sk2, values = _cmu_values(own, fps)
+        idx = _frame_indices(f"cmu_{own}", frames, step, start, len(values))
+        roots2, local2 = local_rotations_from_dofs(sk2, values[idx])
+        path = root_translation[:, :2]
+        eye = np.asarray(usual_camera(path, aspect, view_angle)["matrix_world"])[:3, 3]
+        rotation, translation = conditions.crossing_placement(path, roots2[:, :2], eye,
+                                                              frames // 2)
+        roots2, local2 = conditions.move_motion(sk2, roots2, local2, rotation, translation)
+        body2 = _cmu_body(sk2)
+        out.update({f"second_skeleton_{k}": v for k, v in _skeleton_arrays(sk2).items()})
+        out.update(second_body_joints=body2.joints, second_body_starts=body2.starts,
+                   second_body_ends=body2.ends, second_body_radii=body2.radii,
+                   second_body_names=np.array(body2.names), second_root_translation=roots2,
+                   second_local_rotations=local2, second_trial=np.array(own))
+    return out
 
 
 def box_scene(frames=41):
@@ -280,8 +335,12 @@ def build_scene(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
     return cmu_scene(motion, frames, step, start, aspect, view)
 
 
-def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
-    """Everything ``ground_truth.npz`` stores except the camera intrinsics (set by the renderer)."""
+def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9, view=None, condition=None):
+    """Everything ``ground_truth.npz`` stores except the camera intrinsics (set by the
+    renderer); a hard ``condition`` (``conditions.py``) adds its own arrays."""
+    from sample_scenes.conditions import check_condition
+    if check_condition(condition) is not None and motion in ("box", "calib"):
+        raise ValueError(f"the {motion} scene has no hard conditions")
     sk, body, root, local, cam, fps = build_scene(motion, frames, step, start, aspect, view)
     out = {f"skeleton_{k}": v for k, v in _skeleton_arrays(sk).items()}
     out.update(body_joints=body.joints, body_starts=body.starts, body_ends=body.ends,
@@ -290,6 +349,13 @@ def scene_arrays(motion, frames, step=1, start=0, aspect=16 / 9, view=None):
                body_names=np.array(body.names), root_translation=root, local_rotations=local,
                fps=np.array(fps), motion=np.array(motion), view=np.array(view or ""))
     out.update({f"camera_{k}": np.array(v) for k, v in cam.items()})
+    if condition is not None:
+        extra = condition_arrays(motion, frames, step, start, aspect, condition, root)
+        if condition == "motion_blur":       # the middle sub-frame is the frame's pose
+            middle = extra["blur_root_translation"].shape[1] // 2
+            out.update(root_translation=extra["blur_root_translation"][:, middle],
+                       local_rotations=extra["blur_local_rotations"][:, middle])
+        out.update(extra, condition=np.array(condition))
     return out, sk, body, cam
 
 
@@ -298,43 +364,52 @@ def _view_name(view, width, height):
     return None if view is None or (view == "oblique" and width >= height) else view
 
 
-def render_params(motion, width, height, frames, step=1, start=0, view=None):
+def render_params(motion, width, height, frames, step=1, start=0, view=None, condition=None):
     params = dict(motion=motion, width=int(width), height=int(height), frames=int(frames),
                   step=int(step), start=int(start), version=10)
     view = _view_name(view, width, height)
     if view is not None:
         params["view"] = view
+    if condition is not None:
+        params["condition"] = condition
+        params["condition_version"] = 1
     return params
 
 
-def footage_dir(motion, width, height, frames, step=1, start=0, root=None, view=None):
-    """Default output folder under ``build/footage`` (``_<view>`` appended for another camera)."""
+def footage_dir(motion, width, height, frames, step=1, start=0, root=None, view=None,
+                condition=None):
+    """Default output folder under ``build/footage`` (``_<view>`` appended for another camera,
+    ``_<condition>`` for a hard condition)."""
     root = Path(root) if root is not None else ROOT / "build" / "footage"
     view = _view_name(view, width, height)
     suffix = f"_{view}" if view is not None else ""
+    suffix += f"_{condition}" if condition is not None else ""
     return root / f"{motion}_{width}x{height}_n{frames}_s{step}_o{start}{suffix}"
 
 
 def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, python=None,
-                   view=None):
+                   view=None, condition=None):
     """Render the footage in a subprocess (bpy) unless an up-to-date copy is cached.
 
-    ``view``: a camera of :data:`VIEWS` (None: the scene's usual camera). Returns the output
-    folder.
+    ``view``: a camera of :data:`VIEWS` (None: the scene's usual camera). ``condition``: a hard
+    condition of ``conditions.CONDITIONS`` (None: the plain scene). Returns the output folder.
     """
     import subprocess
     import sys
 
+    from sample_scenes.conditions import check_condition
     view = _view_name(view, width, height)
-    out = footage_dir(motion, width, height, frames, step, start, root, view)
-    params = render_params(motion, width, height, frames, step, start, view)
+    check_condition(condition)
+    out = footage_dir(motion, width, height, frames, step, start, root, view, condition)
+    params = render_params(motion, width, height, frames, step, start, view, condition)
     stamp = out / "params.json"
     if stamp.exists() and json.loads(stamp.read_text()) == params and (out / "ground_truth.npz").exists():
         return out
     cmd = [python or sys.executable, str(ROOT / "sample_scenes" / "render_footage.py"),
            "--motion", motion, "--width", str(width), "--height", str(height),
            "--frames", str(frames), "--step", str(step), "--start", str(start),
-           "--output", str(out)] + (["--view", view] if view is not None else [])
+           "--output", str(out)] + (["--view", view] if view is not None else []) \
+        + (["--condition", condition] if condition is not None else [])
     result = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
     if result.returncode != 0:
         raise RuntimeError(f"rendering failed ({' '.join(cmd)}):\n{result.stdout[-3000:]}\n"
@@ -342,9 +417,11 @@ def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, py
     return out
 
 
-def ensure_views(motion, views, width, height, frames, step=1, start=0, root=None, python=None):
+def ensure_views(motion, views, width, height, frames, step=1, start=0, root=None, python=None,
+                 condition=None):
     """:func:`ensure_footage` of every camera in ``views`` (names of :data:`VIEWS`); folders."""
-    return [ensure_footage(motion, width, height, frames, step, start, root, python, view)
+    return [ensure_footage(motion, width, height, frames, step, start, root, python, view,
+                           condition)
             for view in views]
 
 
@@ -354,7 +431,8 @@ def load_views(folders, color=False, names=None):
     Returns
     -------
     SimpleNamespace
-        As :func:`load_footage`, with ``frames`` a list of (N, H_v, W_v) stacks and ``camera``
+        As :func:`load_footage` (``second``: the first view's), with ``frames`` a list of
+        (N, H_v, W_v) stacks and ``camera``
         a list of PinholeCamera (one per view, in order: ``TrackingProblem(sk, body,
         clip.camera)`` and ``track_keyframes(problem, clip.frames, ...)`` take them as they
         are), ``views`` the per-view namespaces and ``view_names`` (``names``, default the
@@ -371,6 +449,7 @@ def load_views(folders, color=False, names=None):
                            root_translation=first.root_translation,
                            local_rotations=first.local_rotations, fps=first.fps,
                            motion=first.motion, folder=first.folder, views=views,
+                           condition=first.condition, second=first.second,
                            view_names=list(names) if names is not None
                            else [v.view or "default" for v in views])
 
@@ -383,7 +462,9 @@ def load_footage(folder, color=False):
     SimpleNamespace
         ``frames`` (N, H, W) float32 grayscale (Rec. 709) in [0, 1] (``rgb`` (N, H, W, 3) uint8
         too when ``color``), ``skeleton``, ``body``, ``camera`` (PinholeCamera),
-        ``root_translation`` (N, 3), ``local_rotations`` (N, B, 3, 3), ``fps``, ``motion``.
+        ``root_translation`` (N, 3), ``local_rotations`` (N, B, 3, 3), ``fps``, ``motion``,
+        ``condition`` (None: the plain scene) and ``second`` (``two_people``: the second
+        walker's ``skeleton``, ``body``, ``root_translation``, ``local_rotations``; else None).
     """
     from PIL import Image
 
@@ -407,7 +488,26 @@ def load_footage(folder, color=False):
                           root_translation=d["root_translation"],
                           local_rotations=d["local_rotations"], fps=float(d["fps"]),
                           motion=str(d["motion"]), folder=folder,
-                          view=str(d["view"]) if "view" in d else "")
+                          view=str(d["view"]) if "view" in d else "",
+                          condition=str(d["condition"]) if "condition" in d else None,
+                          second=_second_walker(d, camera))
     if color:
         out.rgb = rgb
     return out
+
+
+def _second_walker(d, camera):
+    """The ``two_people`` condition's second walker as a namespace (``skeleton``, ``body``,
+    ``root_translation``, ``local_rotations``, ``trial``), or None."""
+    if "second_root_translation" not in d:
+        return None
+    sk = skeleton_from_arrays({k[len("second_skeleton_"):]: v for k, v in d.items()
+                               if k.startswith("second_skeleton_")})
+    body = BodyModel(n_joints=sk.n_joints, joints=d["second_body_joints"],
+                     starts=d["second_body_starts"], ends=d["second_body_ends"],
+                     radii=d["second_body_radii"],
+                     names=tuple(str(n) for n in d["second_body_names"]))
+    return SimpleNamespace(skeleton=sk, body=body, camera=camera,
+                           root_translation=d["second_root_translation"],
+                           local_rotations=d["second_local_rotations"],
+                           trial=str(d["second_trial"]))

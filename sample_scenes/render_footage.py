@@ -16,7 +16,9 @@ the background. Workbench with flat lighting and texture colour: a pixel's colou
 texture colour (brightness constancy holds), anti-aliasing off (deterministic, no jitter).
 Portrait resolutions (height > width) use a camera in front of the walker. ``--view`` renders
 the same motion from another camera of ``footage_scenes.VIEWS`` (side, front, oblique, above):
-multi-view ground truth, one folder per camera.
+multi-view ground truth, one folder per camera. ``--condition`` renders a hard condition
+(``conditions.py``: a second person crossing in front, a photographed cluttered background,
+clothing, motion blur, compression, a backlit low-contrast subject).
 """
 
 import argparse
@@ -33,8 +35,9 @@ import bpy  # noqa: E402
 from mathutils import Matrix  # noqa: E402
 
 from core.kinematics import forward_kinematics  # noqa: E402
+from sample_scenes import conditions  # noqa: E402
 from sample_scenes.footage_scenes import (part_texture, render_params,  # noqa: E402
-                                          scene_arrays)
+                                          scene_arrays, skeleton_from_arrays)
 
 SEGMENTS = 48
 # Metres covered by one texture tile on the body parts.
@@ -127,11 +130,44 @@ def _box(centre, half):
     return verts, faces, uvs
 
 
-def _plane(corner, du, dv, name, seed, repeat):
+def _plane(corner, du, dv, name, seed, repeat, rgba=None):
+    """A textured quad; ``repeat``: texture tiles along each side, or (along du, along dv)."""
     verts = np.array([corner, corner + du, corner + du + dv, corner + dv])
-    rgba = part_texture(seed, 256)
-    return _mesh_object(name, verts, [(0, 1, 2, 3)], [[(0, 0), (repeat, 0), (repeat, repeat),
-                                                      (0, repeat)]], _material(name, rgba))
+    rgba = part_texture(seed, 256) if rgba is None else rgba
+    ru, rv = (repeat, repeat) if np.ndim(repeat) == 0 else repeat
+    return _mesh_object(name, verts, [(0, 1, 2, 3)], [[(0, 0), (ru, 0), (ru, rv),
+                                                      (0, rv)]], _material(name, rgba))
+
+
+def _texture(condition, name, seed, body, size=None):
+    """A part's or the background's texture under a hard condition (``conditions.py``)."""
+    if condition == "clothing" and body:
+        return conditions.garment(name, seed)
+    rgba = part_texture(seed) if size is None else part_texture(seed, size)
+    if condition == "low_contrast":
+        return conditions.backlit(rgba, body)
+    return rgba
+
+
+def _body_parts(body, condition, seed0):
+    """Mesh objects of a body's cylinders under a condition: [(object, joint)]."""
+    out = []
+    for p in range(body.n_cylinders):
+        verts, faces, uvs = _cylinder(body.starts[p], body.ends[p], *body.radii[p])
+        name = body.names[p] if seed0 == 1000 else f"{body.names[p]}.second"
+        obj = _mesh_object(name, verts, faces, uvs,
+                           _material(name, _texture(condition, body.names[p], seed0 + p, True)))
+        out.append((obj, int(body.joints[p])))
+    return out
+
+
+def _pose_parts(parts, rot, pos):
+    """Place every (object, joint) at its joint's world frame (rot (B, 3, 3), pos (B, 3))."""
+    for obj, j in parts:
+        mw = np.eye(4)
+        mw[:3, :3] = rot[j]
+        mw[:3, 3] = pos[j]
+        obj.matrix_world = Matrix(mw.tolist())
 
 
 def setup_render(scene, width, height, out_dir):
@@ -163,6 +199,8 @@ def main(argv=None):
     ap.add_argument("--start", type=int, default=0, help="first resampled frame")
     ap.add_argument("--view", default=None,
                     help="another camera of footage_scenes.VIEWS (side, front, oblique, above)")
+    ap.add_argument("--condition", default=None, choices=conditions.CONDITIONS,
+                    help="a hard condition (sample_scenes/conditions.py)")
     ap.add_argument("--output", required=True)
     args = ap.parse_args(argv)
     out_dir = Path(args.output)
@@ -170,8 +208,10 @@ def main(argv=None):
     for old in out_dir.glob("frame_*.png"):
         old.unlink()
 
+    condition = args.condition
     arrays, sk, body, cam = scene_arrays(args.motion, args.frames, args.step, args.start,
-                                         aspect=args.width / args.height, view=args.view)
+                                         aspect=args.width / args.height, view=args.view,
+                                         condition=condition)
     root, local = arrays["root_translation"], arrays["local_rotations"]
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -192,12 +232,15 @@ def main(argv=None):
     cam_obj.matrix_world = Matrix(np.asarray(cam["matrix_world"]).tolist())
     scene.camera = cam_obj
 
-    parts = []
-    for p in range(body.n_cylinders):
-        verts, faces, uvs = _cylinder(body.starts[p], body.ends[p], *body.radii[p])
-        obj = _mesh_object(body.names[p], verts, faces, uvs,
-                           _material(body.names[p], part_texture(1000 + p)))
-        parts.append((obj, int(body.joints[p])))
+    if condition is None:
+        parts = []
+        for p in range(body.n_cylinders):
+            verts, faces, uvs = _cylinder(body.starts[p], body.ends[p], *body.radii[p])
+            obj = _mesh_object(body.names[p], verts, faces, uvs,
+                               _material(body.names[p], part_texture(1000 + p)))
+            parts.append((obj, int(body.joints[p])))
+    else:
+        parts = _body_parts(body, condition, 1000)
     for q in range(len(body.box_joints)):
         verts, faces, uvs = _box(body.box_centres[q], body.box_half_sizes[q])
         name = body.names[body.n_cylinders + q]
@@ -218,25 +261,70 @@ def main(argv=None):
         focus = pos.reshape(-1, 3).mean(axis=0)
         wall_centre = eye + flat * (float(np.dot(focus - eye, flat)) + 3.0)
         side = np.cross(flat, [0.0, 0.0, 1.0])
-        _plane(np.r_[wall_centre[:2] - 12.0 * side[:2], -0.01], 24.0 * side,
-               np.array([0, 0, 8.0]), "wall", 7, 6)
-        if args.motion != "box":
-            _plane(np.array([eye[0] - 15.0, eye[1] - 15.0, 0.0]), np.array([30.0, 0, 0]),
-                   np.array([0, 30.0, 0]), "floor", 8, 10)
+        wall = (np.r_[wall_centre[:2] - 12.0 * side[:2], -0.01], 24.0 * side,
+                np.array([0, 0, 8.0]), "wall")
+        floor = (np.array([eye[0] - 15.0, eye[1] - 15.0, 0.0]), np.array([30.0, 0, 0]),
+                 np.array([0, 30.0, 0]), "floor")
+        if condition == "clutter":
+            # The photograph (rows from the top) as Blender's pixels (rows from the bottom).
+            photo = conditions.background_photo()[::-1]
+            width_m = conditions.PHOTO_HEIGHT_M * photo.shape[1] / photo.shape[0]
+            _plane(*wall, 7, (24.0 / width_m, 8.0 / conditions.PHOTO_HEIGHT_M), rgba=photo)
+            if args.motion != "box":
+                tile = 30.0 / conditions.FLOOR_TILE_M
+                _plane(*floor, 8, (tile, tile * photo.shape[1] / photo.shape[0]), rgba=photo)
+        else:
+            _plane(*wall, 7, 6, rgba=_texture(condition, "wall", 7, False, 256))
+            if args.motion != "box":
+                _plane(*floor, 8, 10, rgba=_texture(condition, "floor", 8, False, 256))
 
+    second = None
+    if condition == "two_people":
+        from core.tracking.body_model import BodyModel
+        sk2 = skeleton_from_arrays({k[len("second_skeleton_"):]: v for k, v in arrays.items()
+                                    if k.startswith("second_skeleton_")})
+        body2 = BodyModel(n_joints=sk2.n_joints, joints=arrays["second_body_joints"],
+                          starts=arrays["second_body_starts"], ends=arrays["second_body_ends"],
+                          radii=arrays["second_body_radii"],
+                          names=tuple(str(n) for n in arrays["second_body_names"]))
+        second = (_body_parts(body2, condition, 3000),
+                  forward_kinematics(sk2, arrays["second_local_rotations"],
+                                     arrays["second_root_translation"]))
+    if condition == "motion_blur":
+        blur_root, blur_local = arrays["blur_root_translation"], arrays["blur_local_rotations"]
+        sub = blur_root.shape[1]
+        blur_rot, blur_pos = forward_kinematics(sk, blur_local.reshape((-1,) + local.shape[1:]),
+                                                blur_root.reshape(-1, 3))
+        blur_rot = blur_rot.reshape((len(root), sub) + blur_rot.shape[1:])
+        blur_pos = blur_pos.reshape((len(root), sub) + blur_pos.shape[1:])
+
+    from PIL import Image
+    scratch = out_dir / "render_scratch.png"
     for f in range(len(root)):
-        for obj, j in parts:
-            mw = np.eye(4)
-            mw[:3, :3] = rot[f, j]
-            mw[:3, 3] = pos[f, j]
-            obj.matrix_world = Matrix(mw.tolist())
-        scene.render.filepath = str(out_dir / f"frame_{f:04d}.png")
-        bpy.ops.render.render(write_still=True)
+        target = out_dir / f"frame_{f:04d}.png"
+        if condition is None:
+            _pose_parts(parts, rot[f], pos[f])
+            scene.render.filepath = str(target)
+            bpy.ops.render.render(write_still=True)
+            continue
+        if second is not None:
+            _pose_parts(second[0], second[1][0][f], second[1][1][f])
+        poses = ([(blur_rot[f, s], blur_pos[f, s]) for s in range(sub)]
+                 if condition == "motion_blur" else [(rot[f], pos[f])])
+        renders = []
+        for r, p in poses:
+            _pose_parts(parts, r, p)
+            scene.render.filepath = str(scratch)
+            bpy.ops.render.render(write_still=True)
+            renders.append(np.asarray(Image.open(scratch).convert("RGB")))
+        Image.fromarray(conditions.finish_frame(condition, renders, f)).save(target)
+    if scratch.exists():
+        scratch.unlink()
 
     arrays.update(width=np.array(args.width), height=np.array(args.height))
     np.savez_compressed(out_dir / "ground_truth.npz", **arrays)
     params = render_params(args.motion, args.width, args.height, args.frames, args.step, args.start,
-                           args.view)
+                           args.view, condition)
     (out_dir / "params.json").write_text(json.dumps(params))
     print(f"rendered {len(root)} frames to {out_dir}")
 
