@@ -10,6 +10,13 @@ part, ``Tracked: <part>``, the share of the tracked motion kept (1 where the par
 footage, 0 where it kept the in-between of the keys, 0.6: 60 % of the way from the in-between
 to the tracked motion), keyed at every interval's first frame with constant interpolation, in
 the channel group *Track & Stride* beside the residual and rank curves.
+
+Under hard conditions (issue 20) the report also says, per interval and part, where the part
+was hidden behind another armature tracked in the same run (:func:`hidden_notes`: those frames
+are not measured, the part follows the tracked frames either side and the keys) and where much
+of what the footage shows on the part did not match it (:func:`unmatched_notes`: the robust
+estimate set those points aside -- someone or something in front of it that is not tracked,
+or background inside the envelope).
 """
 
 import bpy
@@ -23,6 +30,12 @@ PARTLY = 0.5
 #: More intervals than this with such parts: one summary line instead of one line each (on
 #: real footage with keys every 10 frames a third of the (interval, part) pairs are under half).
 MAX_PARTLY_LINES = 3
+#: A frame counts as hidden behind another armature for a part when at least this share of
+#: the part's outline is behind it.
+HIDDEN_SHARE = 0.5
+#: A part gets an "did not match" line when the robust estimate set aside more than this share
+#: of its points over an interval.
+UNMATCHED_SHARE = 0.3
 #: Custom property (and F-curve) name prefix of the per-part result curves.
 PART_CURVE_PREFIX = "Tracked: "
 GROUP = "Track & Stride"
@@ -117,6 +130,87 @@ def interval_notes(key_frames, intervals):
             f"motion on top of the in-between of your keys, where the footage only partly "
             f"supported it (less than half: {counts}); the 'Tracked: <body part>' curves in "
             "the Graph Editor show the share kept per interval"] + notes
+
+
+def _runs(mask):
+    """(first, last) index of every run of True in a 1-D bool array."""
+    mask = np.asarray(mask, dtype=bool)
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0] - 1))
+
+
+def _frames(first, runs):
+    return ", ".join(f"{first + a}" if a == b else f"{first + a}–{first + b}" for a, b in runs)
+
+
+def _summarised(lines, intervals, what):
+    """``lines`` as they are, or one summary line when there are more than
+    :data:`MAX_PARTLY_LINES` (``what``: the summary's words, given the count)."""
+    if len(lines) <= MAX_PARTLY_LINES:
+        return lines
+    return [what(len(lines), len(intervals))]
+
+
+def hidden_notes(key_frames, intervals, others=()):
+    """Plain-words lines per interval and part hidden behind another armature tracked in the
+    same run (``PartVerdicts.behind_frames``): which frames.
+
+    Parameters
+    ----------
+    key_frames : sequence of int
+        Scene frames of the keys (K,).
+    intervals : sequence of IntervalResult
+    others : sequence of str
+        The names of the other armatures tracked in the run.
+
+    Returns
+    -------
+    list of str
+        e.g. ``"Frames 20–40, left arm: hidden behind Walker.001 in frames 27–33 — not
+        measured there; it follows the tracked frames on either side and your keys"``; more than
+        :data:`MAX_PARTLY_LINES` make one summary line.
+    """
+    who = _and(list(others)) if others else "another tracked armature"
+    lines = []
+    for i, r in enumerate(intervals):
+        v = r.acceptance
+        if v is None or v.behind_frames is None:
+            continue
+        first = int(key_frames[i])
+        for p, part in enumerate(v.parts):
+            runs = _runs(v.behind_frames[:, p] >= HIDDEN_SHARE)
+            if runs:
+                lines.append(f"Frames {first}–{int(key_frames[i + 1])}, {part}: hidden behind "
+                             f"{who} in frame{'s' * (len(runs) > 1 or runs[0][0] != runs[0][1])} "
+                             f"{_frames(first, runs)} — not measured there; it follows the "
+                             "tracked frames on either side and your keys")
+    return _summarised(lines, intervals, lambda n, total: (
+        f"{n} times a body part was hidden behind {who} (in {total} intervals): those frames "
+        "are not measured, the part follows the tracked frames on either side and your keys; "
+        "key it there if it matters"))
+
+
+def unmatched_notes(key_frames, intervals):
+    """Plain-words lines per interval and part where the robust estimate set aside more than
+    :data:`UNMATCHED_SHARE` of the part's points (``PartVerdicts.outliers``)."""
+    lines = []
+    for i, r in enumerate(intervals):
+        v = r.acceptance
+        if v is None or v.outliers is None:
+            continue
+        parts = [p for p, share in enumerate(v.outliers)
+                 if np.isfinite(share) and share > UNMATCHED_SHARE]
+        if parts:
+            whats = _and([f"{100.0 * float(v.outliers[p]):.0f} % of the {v.parts[p]}'s"
+                          for p in parts])
+            lines.append(f"Frames {int(key_frames[i])}–{int(key_frames[i + 1])}: {whats} "
+                         "points did not match the footage and were set aside (someone or "
+                         "something in front of it that is not tracked, or background inside "
+                         "the envelope); the tracked motion leans on the rest")
+    return _summarised(lines, intervals, lambda n, total: (
+        f"In {n} of {total} intervals over {100 * UNMATCHED_SHARE:.0f} % of a body part's "
+        "points did not match the footage and were set aside (someone or something in front "
+        "that is not tracked, or background inside the envelopes)"))
 
 
 def part_results(key_frames, intervals):

@@ -119,7 +119,10 @@ def part_summaries(verdicts):
     """Per body part of one interval: ``result`` 'tracked' or 'in-between' (kept the keys'
     interpolation), ``share_tracked`` (share of the tracked motion kept on top of the
     interpolation, 0..1), the core's ``reason`` code and the evidence in cm (``drift_cm``,
-    ``departure_cm``; None where not measured) and ``seen`` (share in view)."""
+    ``departure_cm``; None where not measured), ``seen`` (share in view), ``hidden_behind``
+    (share of its outline hidden behind other armatures tracked in the same run) and
+    ``unmatched`` (share of its points the robust estimate set aside; None where not
+    measured)."""
     if verdicts is None:
         return {}
 
@@ -129,7 +132,10 @@ def part_summaries(verdicts):
                    "share_tracked": round(float(verdicts.shares[p]), 3),
                    "reason": str(verdicts.reasons[p]), "drift_cm": cm(verdicts.drift[p]),
                    "departure_cm": cm(verdicts.departure[p]),
-                   "seen": round(float(verdicts.seen[p]), 3)}
+                   "seen": round(float(verdicts.seen[p]), 3),
+                   "hidden_behind": round(float(verdicts.behind[p]), 3),
+                   "unmatched": round(float(verdicts.outliers[p]), 3)
+                   if np.isfinite(verdicts.outliers[p]) else None}
             for p, part in enumerate(verdicts.parts)}
 
 

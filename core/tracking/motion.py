@@ -54,7 +54,7 @@ import numpy as np
 from .body_model import joint_frames_in_camera
 from .image import bilinear, sample_with_gradient
 from .jacobians import apply_motion, image_gradient_rows
-from .robust import irls_weights
+from .robust import irls_weights, masked_median
 
 @dataclass(frozen=True, eq=False)
 class RankedSystems:
@@ -567,6 +567,7 @@ class _LevelTemplate:
     joints: np.ndarray
     local_points: np.ndarray
     next_images: np.ndarray
+    gradient: np.ndarray = None
 
 
 def _level_template(problem, view, points, level, cols, column_factor):
@@ -591,9 +592,10 @@ def _level_template(problem, view, points, level, cols, column_factor):
     anc = problem.ancestors[jts][..., problem.layout.rotation_joints]      # (n, S_l, C)
     a = _jacobian(problem.layout, rot, org, pts, g, cols, anc)
     a *= column_factor
+    gradient = np.where(ok_l, np.hypot(e_u, e_v).reshape(n, s_l), 0.0)
     return _LevelTemplate(camera=camera, level=level, a=a, value=value, ok=ok_l, joints=jts,
                           local_points=points.local_points[:, :s_l],
-                          next_images=np.repeat(view.image_pairs[:, 1], s_l))
+                          next_images=np.repeat(view.image_pairs[:, 1], s_l), gradient=gradient)
 
 
 def _warped_residuals(skeleton, view, template, moved_pose):
@@ -721,11 +723,7 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                 b_views = [c[0] for c in clipped]
             else:
                 # IRLS (robust.py): weights at the current estimate, each view's own scale.
-                per_joint = options.robust_scale == "joint"
-                robust = [irls_weights(r, inside, options.robust_threshold, options.robust_loss,
-                                       groups=t.joints if per_joint else None,
-                                       n_groups=sk.n_joints)
-                          for (r, inside), t in zip(warped, templates)]
+                robust = _irls(options, warped, templates, sk.n_joints)
                 rows = [np.sqrt(w) for w, _ in robust]
                 scale = np.stack([s for _, s in robust])
                 b_views = [root * r for root, (r, _) in zip(rows, warped)]
@@ -754,6 +752,45 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
         if step_index == 0:
             support = _support(sk.n_joints, templates, rows, warped)
     return x_s, ranks, rms, support
+
+
+def _irls(options, warped, templates, n_joints):
+    """Every view's IRLS weights (n, S_v) and row scales (n,) (:mod:`.robust`).
+
+    ``options.robust_scale``: where the scale is measured -- ``'frame'``: per frame pair and
+    view; ``'joint'``: per frame pair, view and joint (a limb still converging is judged
+    against its own residuals, not the torso's); ``'pooled'``: per joint over every frame pair
+    and view of the call (a frame where something covers a part, or a view where it does, is
+    judged against the others). ``options.robust_gradient``: residuals are first divided by
+    ``sqrt(1 + (|grad E| / g0)^2)`` (``g0``: the median gradient of the view's points): a
+    misaligned point's residual grows with its image gradient (``r ~ grad E . delta``), so the
+    points that measure the motion best are not the ones set aside.
+    """
+    kind = options.robust_scale
+    c, loss = options.robust_threshold, options.robust_loss
+    if options.robust_gradient:
+        warped = [(r / _gradient_factor(t, inside), inside)
+                  for (r, inside), t in zip(warped, templates)]
+    rows = [irls_weights(r, inside, c, loss, groups=t.joints if kind == "joint" else None,
+                         n_groups=n_joints)
+            for (r, inside), t in zip(warped, templates)]
+    if kind != "pooled":
+        return rows
+    residual = np.concatenate([r.ravel() for r, _ in warped])[None]
+    inside = np.concatenate([i.ravel() for _, i in warped])[None]
+    joints = np.concatenate([t.joints.ravel() for t in templates])[None]
+    w = irls_weights(residual, inside, c, loss, groups=joints, n_groups=n_joints)[0][0]
+    split = np.cumsum([r.size for r, _ in warped])[:-1]
+    return [(wv.reshape(r.shape), scale)
+            for wv, (r, _), (_, scale) in zip(np.split(w, split), warped, rows)]
+
+
+def _gradient_factor(template, inside):
+    """``sqrt(1 + (|grad E| / g0)^2)`` per point (n, S), ``g0`` the median gradient of the
+    frame's points inside the image (``robust_gradient``)."""
+    g0 = masked_median(template.gradient, inside)
+    g0 = np.where(g0 > 0, g0, 1.0)[:, None]
+    return np.sqrt(1.0 + (template.gradient / g0) ** 2)
 
 
 def _support(b, templates, rows, warped):

@@ -158,6 +158,12 @@ class TrackingOptions:
         The M-estimator's threshold ``c`` in units of that scale (Tukey: a residual beyond
         ``c`` scales has no weight; Huber: its weight falls as ``c / |u|``). Chosen by
         cross-validation across clips and conditions (docs/tracking.md, *Robust estimation*).
+    robust_scale : {'frame', 'joint', 'pooled'}
+        Where the IRLS scale is measured (``motion._irls``): per frame pair and view, per frame
+        pair, view and joint, or per joint over every frame pair and view of a pass.
+    robust_gradient : bool
+        Standardise each residual by its image gradient before it is weighted
+        (``motion._irls``): a misaligned point's residual grows with its gradient.
     robust_clip : float
         ``robust_loss='clip'`` only: photometric residuals are clipped at this many standard
         deviations (estimated per frame from the mean absolute residual).
@@ -254,6 +260,7 @@ class TrackingOptions:
     robust_loss: str = "tukey"
     robust_threshold: float = 4.685
     robust_scale: str = "joint"
+    robust_gradient: bool = False
     robust_clip: float = 3.0
     max_iterations: int = 4
     patience: int = 2
@@ -288,6 +295,9 @@ class TrackingOptions:
         if self.robust_loss not in LOSSES:
             raise ValueError(f"robust_loss must be one of {', '.join(map(repr, LOSSES))}, got "
                              f"{self.robust_loss!r}")
+        if self.robust_scale not in ("frame", "joint", "pooled"):
+            raise ValueError(f"robust_scale must be 'frame', 'joint' or 'pooled', got "
+                             f"{self.robust_scale!r}")
         if not self.robust_threshold > 0.0:
             raise ValueError(f"robust_threshold must be > 0, got {self.robust_threshold}")
         if self.view_weighting not in VIEW_WEIGHTINGS:

@@ -22,6 +22,15 @@ Rule (:func:`suggest_keyframes`)
 4. A suggestion closer than ``min_gap`` frames to an existing keyframe is dropped (that key
    already pins the motion there), and of two suggestions closer than ``min_gap`` to each
    other only the higher one is kept.
+
+Several people tracked together (issue 20): where a body part is hidden behind another
+tracked body, the tracker does not measure it (``core.tracking.occluders``) and its residual
+says nothing about it -- it may even drop, since the hidden points are left out. So ``hidden``
+(per frame, the largest share of any part's outline behind another body) adds its own
+suggestions: every run of at least ``min_hidden`` frames where some part is at least half
+hidden suggests its middle frame (``reason`` ``'hidden'``), unless a key or a residual
+suggestion already lies within the run. A residual suggestion on a frame where a part is
+hidden keeps ``'mismatch'`` as its reason and carries the share, so the marker can say both.
 """
 
 from dataclasses import dataclass
@@ -43,11 +52,17 @@ class KeySuggestion:
         Robust z-score of its residual.
     residual : float
         Its eq. 4 residual.
+    reason : {'mismatch', 'hidden'}
+        The residual spikes there, or a body part is hidden behind another tracked body.
+    hidden : float
+        The largest share of a part's outline hidden behind another body at that frame.
     """
 
     frame: int
     z: float
     residual: float
+    reason: str = "mismatch"
+    hidden: float = 0.0
 
 
 def robust_z_scores(values):
@@ -75,7 +90,13 @@ def robust_z_scores(values):
     return (x - median) / scale
 
 
-def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2):
+#: A frame counts as hidden when some part has at least this share of its outline behind
+#: another tracked body.
+HIDDEN_SHARE = 0.5
+
+
+def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2, hidden=None,
+                      min_hidden=3):
     """Frames where the residual spikes (see the module docstring for the rule).
 
     Parameters
@@ -90,6 +111,11 @@ def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2):
         z-score above which a frame counts as a spike.
     min_gap : int
         Frames: suggestions this close to a key (or to a higher suggestion) are dropped.
+    hidden : array_like, shape (N,), optional
+        Per frame, the largest share of a body part's outline hidden behind another tracked
+        body (0..1; several bodies tracked together).
+    min_hidden : int
+        Frames: shorter hidden runs suggest nothing.
 
     Returns
     -------
@@ -101,10 +127,14 @@ def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2):
     if frames.shape != residuals.shape or frames.ndim != 1:
         raise ValueError(f"frames and residuals must be 1-D of equal length, got {frames.shape} "
                          f"and {residuals.shape}")
+    hidden = np.zeros(len(frames)) if hidden is None else np.asarray(hidden, dtype=float)
+    if hidden.shape != frames.shape or not np.all(np.isfinite(hidden)):
+        raise ValueError(f"hidden must be finite, one value per frame ({frames.shape}), got "
+                         f"{hidden.shape}")
     if len(frames) == 0:
         return []
     order = np.argsort(frames)
-    frames, residuals = frames[order], residuals[order]
+    frames, residuals, hidden = frames[order], residuals[order], hidden[order]
     z = robust_z_scores(residuals)
     spike = z > threshold
     peaks = []
@@ -126,5 +156,31 @@ def suggest_keyframes(frames, residuals, key_frames, threshold=3.5, min_gap=2):
     for p in sorted(peaks, key=lambda p: -z[p]):
         if all(abs(frames[p] - frames[q]) >= min_gap for q in kept):
             kept.append(p)
-    return [KeySuggestion(frame=int(frames[p]), z=float(z[p]), residual=float(residuals[p]))
-            for p in sorted(kept)]
+    out = [KeySuggestion(frame=int(frames[p]), z=float(z[p]), residual=float(residuals[p]),
+                         hidden=float(hidden[p])) for p in kept]
+    covered = np.concatenate([keys, [s.frame for s in out]]).astype(int)
+    for a, b in _hidden_runs(frames, hidden >= HIDDEN_SHARE, min_hidden):
+        if np.any((covered >= frames[a]) & (covered <= frames[b])):
+            continue
+        m = (a + b) // 2
+        out.append(KeySuggestion(frame=int(frames[m]), z=float(z[m]),
+                                 residual=float(residuals[m]), reason="hidden",
+                                 hidden=float(hidden[m])))
+    return sorted(out, key=lambda s: s.frame)
+
+
+def _hidden_runs(frames, mask, min_length):
+    """(first, last) indices of the runs of consecutive frames with ``mask``, at least
+    ``min_length`` frames long."""
+    runs, k = [], 0
+    while k < len(frames):
+        if not mask[k]:
+            k += 1
+            continue
+        end = k
+        while end + 1 < len(frames) and mask[end + 1] and frames[end + 1] == frames[end] + 1:
+            end += 1
+        if end - k + 1 >= min_length:
+            runs.append((k, end))
+        k = end + 1
+    return runs

@@ -59,3 +59,24 @@ def test_spike_among_zero_residuals_has_a_finite_score(spike):
     assert out[0].z == pytest.approx(robust_z_scores(residuals / spike)[17], rel=1e-12)
     assert np.all(np.isfinite(robust_z_scores(residuals)))
     assert np.all(robust_z_scores(np.zeros(5)) == 0.0)
+
+
+def test_a_part_hidden_behind_another_body_suggests_a_key_in_the_middle_of_the_run():
+    """Issue 20: frames where a part is hidden behind another tracked body are not measured;
+    a run of them suggests its middle frame (reason 'hidden'), unless a key or a residual
+    spike already lies in it; a residual suggestion says how hidden its frame is."""
+    frames = np.arange(1, 61)
+    residuals = 1.0 + 0.05 * RNG.standard_normal(60)
+    hidden = np.zeros(60)
+    hidden[24:33] = 0.8                             # frames 25..33
+    hidden[49:51] = 0.9                             # frames 50..51: too short
+    out = suggest_keyframes(frames, residuals, [1, 60], hidden=hidden)
+    assert [(s.frame, s.reason) for s in out] == [(29, "hidden")]
+    assert out[0].hidden == pytest.approx(0.8)
+    residuals[26] = 6.0                             # a spike at frame 27, inside the run
+    out = suggest_keyframes(frames, residuals, [1, 60], hidden=hidden)
+    assert [(s.frame, s.reason) for s in out] == [(27, "mismatch")]
+    assert out[0].hidden == pytest.approx(0.8)
+    assert suggest_keyframes(frames, residuals * 0 + 1, [1, 30, 60], hidden=hidden) == []
+    with pytest.raises(ValueError, match="hidden"):
+        suggest_keyframes(frames, residuals, [1, 60], hidden=hidden[:10])
