@@ -31,7 +31,7 @@ from .mocap.acclaim_import import AcclaimImport
 from .common.fcurves import object_channelbag
 from .common.pose_bridge import only_armature
 from .preferences import preferences
-from .tracking.batch import track_armature
+from .tracking.batch import track_armature, track_armatures
 from .tracking.bridge import TrackError
 
 __all__ = ["track", "predict", "import_acclaim", "learn", "export_model", "import_model",
@@ -81,8 +81,10 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
 
     Parameters
     ----------
-    armature : str or bpy.types.Object, optional
-        Default: the Track panel's armature, else the scene's only armature.
+    armature : str or bpy.types.Object, or a list of them, optional
+        Default: the Track panel's armature, else the scene's only armature. A list of two or
+        more: those armatures are tracked together, each hiding the others (several people in
+        the footage; the summary then has one entry per armature, ``track_armatures``).
     camera : str or bpy.types.Object, optional
         Default: the Track panel's camera, else the scene camera.
     frames : (int, int), optional
@@ -109,6 +111,13 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
     TrackError
     """
     scene = _scene(scene)
+    if isinstance(armature, (list, tuple)):
+        objects = [_object(a, "ARMATURE", TrackError) for a in armature]
+        if len(objects) == 1:
+            armature = objects[0]
+        else:
+            return track_armatures(scene, objects, _object(camera, "CAMERA", TrackError),
+                                   frames, processes, suggest, between, every)
     return track_armature(scene, _object(armature, "ARMATURE", TrackError),
                           _object(camera, "CAMERA", TrackError), frames, processes, suggest,
                           between, every)

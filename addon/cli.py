@@ -7,7 +7,7 @@ second registration of an id makes it inaccessible), so Track & Stride registers
 extension id ``track_and_stride``, with sub-commands, as Blender's own ``extension`` command
 does::
 
-    blender --command track_and_stride track SHOT.blend [--armature NAME] [--between MODE]
+    blender --command track_and_stride track SHOT.blend [--armature NAME ...] [--between MODE]
             [--output OUT.blend]
     blender --command track_and_stride predict SHOT.blend [--model NAME|FILE.npz] [--length S]
     blender --command track_and_stride import-acclaim MOTION.amc --output OUT.blend
@@ -80,8 +80,10 @@ def build_parser():
                     "keys are saved into the .blend (or --output).")
     track.add_argument("blend", metavar="SHOT.blend", help="the .blend to track in")
     _scene_args(track)
-    track.add_argument("--armature", metavar="NAME",
-                       help="the armature (default: the Track panel's, else the only one)")
+    track.add_argument("--armature", metavar="NAME", action="append",
+                       help="the armature (default: the Track panel's, else the only one); "
+                            "give it more than once to track several people together, each "
+                            "hiding the others")
     track.add_argument("--camera", metavar="NAME",
                        help="the camera that filmed the footage (default: the Track panel's, "
                             "else the scene camera)")
@@ -234,9 +236,13 @@ def _known_styles(model_name, model, names):
 # ------------------------------------------------------------------------------ commands
 def run_track(args):
     """``track``: (summary dict, output path)."""
+    names = args.armature or []
+    if len(set(names)) != len(names):
+        raise UsageError(f"--armature: {', '.join(names)} names an armature twice")
     _open(args.blend)
     scene = _scene(args.scene)
-    armature = _named("--armature", args.armature, "ARMATURE")
+    armatures = [_named("--armature", name, "ARMATURE") for name in names]
+    armature = armatures if len(armatures) > 1 else (armatures[0] if armatures else None)
     camera = _named("--camera", args.camera, "CAMERA")
     if args.frames is not None and args.frames[1] < args.frames[0]:
         raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")

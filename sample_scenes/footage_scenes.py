@@ -51,10 +51,11 @@ VIEW_ANGLE = 45.0
 #: (``VIEW_ANGLE`` = 45 degrees, built as before: the benchmark's single view). ``'above'``
 #: stands high on the other diagonal (behind the start of the path): its line of sight is
 #: perpendicular to the oblique camera's. ``'front'``: ahead of the walker, who walks towards
-#: it. The others are framed automatically: the lens keeps the whole body on every frame
-#: inside 85 % of the image.
+#: it. ``'opposite'``: the oblique camera's mirror across the path (what one person hides from
+#: the oblique camera, the other hides from this one: the two-person tests). The others are
+#: framed automatically: the lens keeps the whole body on every frame inside 85 % of the image.
 VIEWS = {"oblique": None, "side": (0.0, 5.0, 4.5), "front": (90.0, 5.0, 5.5),
-         "above": (-45.0, 45.0, 4.5)}
+         "above": (-45.0, 45.0, 4.5), "opposite": (225.0, 5.0, 4.5)}
 TEXTURE_SIZE = 128
 
 
@@ -237,6 +238,23 @@ def usual_camera(path, aspect, view_angle=VIEW_ANGLE):
                 sensor_fit="AUTO", shift_x=0.0, shift_y=0.0, matrix_world=look_at(eye, centre))
 
 
+def second_walker(motion, frames, step, start, aspect, root_translation):
+    """The ``two_people`` condition's second walker before it is moved into place: (trial,
+    skeleton, roots (N, 3), local (N, B, 3, 3)) as the trial has them, and the rigid move
+    (rotation (3, 3) about Z, translation (3,)) that puts it there (``conditions.py``; Blender:
+    the second armature's object transform)."""
+    from sample_scenes import conditions
+    trial, fps, view_angle = motion_spec(motion)
+    own = conditions.second_walker_trial(trial)
+    sk2, values = _cmu_values(own, fps)
+    idx = _frame_indices(f"cmu_{own}", frames, step, start, len(values))
+    roots2, local2 = local_rotations_from_dofs(sk2, values[idx])
+    path = np.asarray(root_translation)[:, :2]
+    eye = np.asarray(usual_camera(path, aspect, view_angle)["matrix_world"])[:3, 3]
+    rotation, translation = conditions.crossing_placement(path, roots2[:, :2], eye, frames // 2)
+    return own, sk2, roots2, local2, rotation, translation
+
+
 def condition_arrays(motion, frames, step, start, aspect, condition, root_translation):
     """The extra ground truth of a hard condition (``conditions.py``), arrays by name:
     ``two_people``: the second walker (``second_skeleton_*``, ``second_body_*``,
@@ -256,14 +274,8 @@ def condition_arrays(motion, frames, step, start, aspect, condition, root_transl
         out["blur_root_translation"] = roots.reshape(frames, sub, 3)
         out["blur_local_rotations"] = local.reshape((frames, sub) + local.shape[1:])
     elif condition == "two_people":
-        own = conditions.second_walker_trial(trial)
-        sk2, values = _cmu_values(own, fps)
-        idx = _frame_indices(f"cmu_{own}", frames, step, start, len(values))
-        roots2, local2 = local_rotations_from_dofs(sk2, values[idx])
-        path = root_translation[:, :2]
-        eye = np.asarray(usual_camera(path, aspect, view_angle)["matrix_world"])[:3, 3]
-        rotation, translation = conditions.crossing_placement(path, roots2[:, :2], eye,
-                                                              frames // 2)
+        own, sk2, roots2, local2, rotation, translation = second_walker(
+            motion, frames, step, start, aspect, root_translation)
         roots2, local2 = conditions.move_motion(sk2, roots2, local2, rotation, translation)
         body2 = _cmu_body(sk2)
         out.update({f"second_skeleton_{k}": v for k, v in _skeleton_arrays(sk2).items()})

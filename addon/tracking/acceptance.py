@@ -140,7 +140,8 @@ def _runs(mask):
 
 
 def _frames(first, runs):
-    return ", ".join(f"{first + a}" if a == b else f"{first + a}–{first + b}" for a, b in runs)
+    return ", ".join(f"{first + int(a)}" if a == b else f"{first + int(a)}–{first + int(b)}"
+                     for a, b in runs)
 
 
 def _summarised(lines, intervals, what):
@@ -152,8 +153,9 @@ def _summarised(lines, intervals, what):
 
 
 def hidden_notes(key_frames, intervals, others=()):
-    """Plain-words lines per interval and part hidden behind another armature tracked in the
-    same run (``PartVerdicts.behind_frames``): which frames.
+    """Plain-words lines, one per interval where body parts were hidden behind another
+    armature tracked in the same run (``PartVerdicts.behind_frames``): which parts, which
+    frames.
 
     Parameters
     ----------
@@ -166,9 +168,10 @@ def hidden_notes(key_frames, intervals, others=()):
     Returns
     -------
     list of str
-        e.g. ``"Frames 20–40, left arm: hidden behind Walker.001 in frames 27–33 — not
-        measured there; it follows the tracked frames on either side and your keys"``; more than
-        :data:`MAX_PARTLY_LINES` make one summary line.
+        e.g. ``"Frames 21–41: hidden behind Walker.001 — the left arm in frames 27–33 and the
+        torso and head in frames 29–31; not measured there, they follow the tracked frames on
+        either side and your keys"``; more than :data:`MAX_PARTLY_LINES` make one summary
+        line.
     """
     who = _and(list(others)) if others else "another tracked armature"
     lines = []
@@ -177,17 +180,22 @@ def hidden_notes(key_frames, intervals, others=()):
         if v is None or v.behind_frames is None:
             continue
         first = int(key_frames[i])
+        hidden = []
         for p, part in enumerate(v.parts):
             runs = _runs(v.behind_frames[:, p] >= HIDDEN_SHARE)
             if runs:
-                lines.append(f"Frames {first}–{int(key_frames[i + 1])}, {part}: hidden behind "
-                             f"{who} in frame{'s' * (len(runs) > 1 or runs[0][0] != runs[0][1])} "
-                             f"{_frames(first, runs)} — not measured there; it follows the "
-                             "tracked frames on either side and your keys")
+                several = len(runs) > 1 or int(runs[0][0]) != int(runs[0][1])
+                hidden.append(f"the {part} in frame{'s' if several else ''} "
+                              f"{_frames(first, runs)}")
+        if hidden:
+            one = len(hidden) == 1
+            lines.append(f"Frames {first}–{int(key_frames[i + 1])}: hidden behind {who} — "
+                         f"{_and(hidden)}; not measured there, {'it follows' if one else 'they follow'} "
+                         "the tracked frames on either side and your keys")
     return _summarised(lines, intervals, lambda n, total: (
-        f"{n} times a body part was hidden behind {who} (in {total} intervals): those frames "
-        "are not measured, the part follows the tracked frames on either side and your keys; "
-        "key it there if it matters"))
+        f"In {n} of {total} intervals body parts were hidden behind {who}: those frames are "
+        "not measured, the parts follow the tracked frames on either side and your keys; key "
+        "them there if it matters"))
 
 
 def unmatched_notes(key_frames, intervals):

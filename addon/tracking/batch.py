@@ -15,6 +15,7 @@ import numpy as np
 
 from .bridge import (TrackError, apply_result, prepare_tracking, read_all_footage, run_core,
                      suggest_markers)
+from .group import apply_group, prepare_group, read_group_footage, run_group_core
 from ..common.pose_bridge import only_armature
 from .props import track_settings
 
@@ -215,3 +216,75 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         summary["suggested"] = [int(f) for f in suggested]
         summary["message"] += f". {line}"
     return summary
+
+
+def track_armatures(scene, armatures, camera=None, frame_range=None, processes=None,
+                    suggest=False, between=None, every=None):
+    """Track several armatures together through the scene's footage, each hiding the others
+    (several people in the footage; ``group.py``), synchronously.
+
+    Parameters
+    ----------
+    armatures : sequence of bpy.types.Object
+        Two or more armatures, each keyed over the same footage.
+    camera, frame_range, processes, suggest, between, every
+        As :func:`track_armature` (the same for every armature).
+
+    Returns
+    -------
+    dict
+        ``status`` ('ok' or 'warning'), ``armatures`` (one dict per armature, as
+        :func:`track_armature` returns for one: ``armature``, ``frames``, ``keyframes``,
+        ``intervals`` with ``parts`` that also say ``hidden_behind`` …, ``keys``,
+        ``warnings``, and ``suggested`` with ``suggest``), ``cameras``, ``seconds``
+        ({'read', 'track', 'write'}), ``warnings`` (every armature's, prefixed with its name),
+        ``message``.
+
+    Raises
+    ------
+    TrackError
+        An armature cannot be tracked (the message names it and says why); nothing changed.
+    """
+    armatures = list(armatures)
+    if len(armatures) < 2:
+        raise TrackError("Tracking together needs two armatures or more")
+    for obj in armatures:
+        if obj.type != "ARMATURE":
+            raise TrackError(f"{obj.name} is not an armature")
+    context, settings = batch_settings(scene, armatures[0], camera, frame_range, processes,
+                                       between, every)
+    tic = time.perf_counter()
+    group = prepare_group(context, settings, armatures)
+    frames = read_group_footage(group)
+    read_s = time.perf_counter() - tic
+    results = run_group_core(group, frames)
+    del frames
+    tic = time.perf_counter()
+    message, warnings = apply_group(context, group, results)
+    write_s = time.perf_counter() - tic
+    per = []
+    for request, result in zip(group.requests, results):
+        entry = {"armature": request.obj_name, "frames": [request.first, request.last],
+                 "keyframes": [int(f) for f in request.key_frames],
+                 "intervals": interval_summaries(request, result),
+                 "bones": len(request.tracked_bones), "keys": int(request.written),
+                 "warnings": [w[len(request.obj_name) + 2:] for w in warnings
+                              if w.startswith(f"{request.obj_name}: ")]}
+        if suggest:
+            line, suggested = suggest_markers(_BatchContext(scene, bpy_object(request)),
+                                              _SettingsView(settings,
+                                                            armature=bpy_object(request)))
+            entry["suggested"] = [int(f) for f in suggested]
+            message += f" {request.obj_name}: {line}."
+        per.append(entry)
+    return {"status": "warning" if warnings else "ok", "armatures": per,
+            "cameras": [str(name) for name in group.view_names],
+            "seconds": {"read": read_s, "track": group.requests[0].timings.get("track", 0.0),
+                        "write": write_s},
+            "warnings": list(warnings), "message": message}
+
+
+def bpy_object(request):
+    """The armature object of a request."""
+    import bpy
+    return bpy.data.objects[request.obj_name]

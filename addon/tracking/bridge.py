@@ -27,7 +27,7 @@ import numpy as np
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
-from .acceptance import interval_notes, write_part_curves
+from .acceptance import interval_notes, unmatched_notes, write_part_curves
 from .camera_bridge import CameraError, pinhole_from_blender, render_size
 from .cameras import CameraListError, camera_image, listed_cameras, uses_camera_list
 from ..common.body_bridge import envelope_radii_as_drawn
@@ -461,7 +461,8 @@ def apply_result(context, request, result):
     summary : str
     warnings : list of str
         One per interval where a body part kept the in-between of the keys, in plain words
-        (``acceptance.interval_notes``).
+        (``acceptance.interval_notes``), and where much of a part's points did not match the
+        footage (``acceptance.unmatched_notes``).
 
     Raises
     ------
@@ -496,7 +497,8 @@ def apply_result(context, request, result):
                       result.intervals)
     request.timings["write"] = time.perf_counter() - tic
     request.written = int(written)
-    warnings = interval_notes(request.key_frames.tolist(), result.intervals)
+    warnings = interval_notes(request.key_frames.tolist(), result.intervals) \
+        + unmatched_notes(request.key_frames.tolist(), result.intervals)
     n_int = len(result.intervals)
     views = (f", {request.n_views} cameras: {', '.join(request.view_names)}"
              if request.n_views > 1 else "")
@@ -530,11 +532,17 @@ SUGGESTION_PREFIX = "Key here? "
 _OLD_SUGGESTION_PREFIX = "Key? "
 
 
-def suggestion_name(residual, usual):
+def suggestion_name(residual, usual, reason="mismatch", hidden=0.0):
     """A suggestion marker's name: how many times the usual mismatch this frame shows
-    (``Key here? (mismatch 4.2× usual)``; usual = the median residual of the tracked frames)."""
+    (``Key here? (mismatch 4.2× usual)``; usual = the median residual of the tracked frames),
+    or that a body part is hidden behind another armature there (several armatures tracked
+    together: ``Key here? (a body part hidden behind another armature)``; a mismatch on such a
+    frame says so too)."""
+    if reason == "hidden":
+        return f"{SUGGESTION_PREFIX}(a body part hidden behind another armature)"
     ratio = residual / usual if usual > 0 else float("inf")
-    return f"{SUGGESTION_PREFIX}(mismatch {ratio:.1f}× usual)"
+    behind = f"; {100 * hidden:.0f} % of a part hidden" if hidden >= 0.5 else ""
+    return f"{SUGGESTION_PREFIX}(mismatch {ratio:.1f}× usual{behind})"
 
 
 def suggest_markers(context, settings):
@@ -559,7 +567,9 @@ def suggest_markers(context, settings):
         raise TrackError(f"{obj.name} has no residual curve in frames {first}–{last}: run "
                          "Track Keyframes first")
     keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
-    found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)
+    from .group import read_hidden                 # several armatures tracked together
+    found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold,
+                              hidden=read_hidden(obj, frames))
     markers = scene.timeline_markers
     for marker in [m for m in markers
                    if m.name.startswith((SUGGESTION_PREFIX, _OLD_SUGGESTION_PREFIX))
@@ -567,18 +577,28 @@ def suggest_markers(context, settings):
         markers.remove(marker)
     usual = float(np.median(residuals))
     for s in found:
-        markers.new(suggestion_name(s.residual, usual), frame=s.frame)
+        markers.new(suggestion_name(s.residual, usual, s.reason, s.hidden), frame=s.frame)
     if not found:
         return (f"No frame stands out (spike threshold {settings.suggest_threshold:g}) in "
                 f"frames {first}–{last}: the keyframes suffice"), []
     listed = ", ".join(str(s.frame) for s in found)
+    hidden = [s.frame for s in found if s.reason == "hidden"]
+    if not hidden:
+        where = "where the footage matches the body worst"
+    elif len(hidden) == len(found):
+        where = "where a body part stays hidden behind another armature"
+    else:
+        where = ("where the footage matches the body worst or a body part stays hidden behind "
+                 "another armature")
     return (f"Suggested {len(found)} keyframe{'s' * (len(found) != 1)} at frame"
-            f"{'s' * (len(found) != 1)} {listed}, where the footage matches the body worst "
+            f"{'s' * (len(found) != 1)} {listed}, {where} "
             f"(markers '{SUGGESTION_PREFIX}…')"), [s.frame for s in found]
 
 
 class TrackJob:
-    """:func:`run_core` in a worker thread (the modal operator polls it on a timer).
+    """:func:`run_core` in a worker thread (the modal operator polls it on a timer); ``runner``:
+    another function of (request, frames, progress, cancel), e.g. several armatures'
+    (``group.run_group_core``).
 
     Attributes
     ----------
@@ -589,8 +609,9 @@ class TrackJob:
         What :func:`run_core` raised (``TrackingCancelled`` after :meth:`cancel`).
     """
 
-    def __init__(self, request, frames):
+    def __init__(self, request, frames, runner=None):
         self.request, self.frames = request, frames
+        self.runner = run_core if runner is None else runner
         self.fraction, self.result, self.error = 0.0, None, None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="Track & Stride tracking",
@@ -598,8 +619,8 @@ class TrackJob:
 
     def _run(self):
         try:
-            self.result = run_core(self.request, self.frames, progress=self._progress,
-                                   cancel=self._stop)
+            self.result = self.runner(self.request, self.frames, progress=self._progress,
+                                      cancel=self._stop)
         except BaseException as exc:  # handed to the main thread, which reports it
             self.error = exc
         finally:

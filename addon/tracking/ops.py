@@ -17,6 +17,8 @@ from .cameras import register_operators as register_camera_list
 from .cameras import unregister_operators as unregister_camera_list
 from .cameras import uses_camera_list
 from .footage import MOVIE_EXTENSIONS, FootageReader
+from .group import (TrackGroup, apply_group, prepare_group, run_group_core, selected_armatures,
+                    track_group_now)
 from .props import track_settings
 from .setup import (apply_table1_dof, match_render_size, open_footage,
                     show_footage_behind_camera)
@@ -58,11 +60,17 @@ def track_poll_message(context):
     settings = track_settings(context.scene)
     if _RUNNING:
         return "Tracking is running: Esc cancels it"
-    obj = settings.armature or context.active_object
-    if obj is None or obj.type != "ARMATURE":
-        return "Choose the armature to track (Track panel) or make one active"
-    if obj.mode == "EDIT":
-        return "Leave Edit Mode first"
+    several = selected_armatures(context)
+    if several:
+        editing = [o.name for o in several if o.mode == "EDIT"]
+        if editing:
+            return f"Leave Edit Mode first ({', '.join(editing)})"
+    else:
+        obj = settings.armature or context.active_object
+        if obj is None or obj.type != "ARMATURE":
+            return "Choose the armature to track (Track panel) or make one active"
+        if obj.mode == "EDIT":
+            return "Leave Edit Mode first"
     if uses_camera_list(settings):
         if not any(e.use for e in settings.cameras):
             return "Switch on a camera in the Cameras list (or Clear the list)"
@@ -77,7 +85,8 @@ def track_poll_message(context):
 class TS_OT_track_keyframes(bpy.types.Operator):
     """Track the armature through the footage between its keyframes: keys every in-between
     frame (drift-corrected) and adds residual and rank curves showing where it is unsure.
-    Esc cancels and leaves everything as it was"""
+    With several armatures selected (several people in the footage), tracks them together,
+    each hiding the others. Esc cancels and leaves everything as it was"""
 
     bl_idname = "track_and_stride.track_keyframes"
     bl_description = one_line(__doc__)
@@ -100,7 +109,12 @@ class TS_OT_track_keyframes(bpy.types.Operator):
     def execute(self, context):
         """Synchronous run (background mode, scripts)."""
         try:
-            summary, warnings = track_now(context, track_settings(context.scene))
+            several = selected_armatures(context)
+            if several:
+                summary, warnings = track_group_now(context, track_settings(context.scene),
+                                                    several)[:2]
+            else:
+                summary, warnings = track_now(context, track_settings(context.scene))
         except TrackError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -111,7 +125,10 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            request = prepare_tracking(context, track_settings(context.scene))
+            several = selected_armatures(context)
+            settings = track_settings(context.scene)
+            request = prepare_group(context, settings, several) if several else \
+                prepare_tracking(context, settings)
         except TrackError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -123,7 +140,8 @@ class TS_OT_track_keyframes(bpy.types.Operator):
 
     def _begin(self, context, request):
         """State of a modal run: footage read in chunks on timer events (camera after
-        camera), then the job."""
+        camera), then the job. ``request``: one armature's, or a :class:`.group.TrackGroup`
+        (its footage is read once, over every armature's span)."""
         n = len(request.scene_frames)
         self._request, self._read, self._job, self._timer = request, 0, None, None
         self._view = 0
@@ -197,7 +215,9 @@ class TS_OT_track_keyframes(bpy.types.Operator):
                     self._reader = FootageReader(request.view_footage(view + 1))
                     return {"RUNNING_MODAL"}
                 frames = self._frames[0] if views == 1 else self._frames
-                self._job = TrackJob(request, frames).start()
+                self._job = (TrackJob(request, frames, run_group_core)
+                             if isinstance(request, TrackGroup) else
+                             TrackJob(request, frames)).start()
                 self._frames = None
             return {"RUNNING_MODAL"}
         job = self._job
@@ -210,7 +230,10 @@ class TS_OT_track_keyframes(bpy.types.Operator):
                 raise job.error
             raise TrackError(f"Tracking failed: {type(job.error).__name__}: {job.error}")
         self._status(context, "writing keys", 1.0 - _WRITE_SHARE)
-        summary, warnings = apply_result(context, request, job.result)
+        if isinstance(request, TrackGroup):
+            summary, warnings = apply_group(context, request, job.result)
+        else:
+            summary, warnings = apply_result(context, request, job.result)
         self._finish(context)
         self._report_done(summary, warnings)
         return {"FINISHED"}
