@@ -70,6 +70,7 @@ CANDIDATES = {
         "huber_1.345": _robust("huber", 1.345),
         "tukey_4.685_pooled": _robust("tukey", 4.685, "pooled"),
         "huber_3_joint": _robust("huber", 3.0, "joint"),
+        "tukey_4.685_joint": _robust("tukey", 4.685, "joint"),   # the default's scale
     },
 }
 #: Blends replayed on every candidate (blend_drift k, blend_power q); (0, 2): no blend.
@@ -179,12 +180,9 @@ def load_scores(candidates, cases, blends):
     def fp_cache(clip, condition):
         return load_case_clip(clip, condition)
 
-    out = {}
-    for name in candidates:
-        if not all(_path(name, k).exists() for k in cases):
-            continue
-        out[name] = {b: [] for b in blends}
-        for key in sorted(cases, key=lambda k: k.split("|")[:2]):
+    names = [n for n in candidates if all(_path(n, k).exists() for k in cases)]
+    for key in sorted(cases, key=lambda k: k.split("|")[:2]):    # each clip loaded once
+        for name in names:
             entry = cache.setdefault(name, {}).setdefault(key, {})
             todo = [b for b in blends if str(b) not in entry]
             if todo:
@@ -192,6 +190,9 @@ def load_scores(candidates, cases, blends):
                 entry.update({str(b): r for b, r in case_scores(fp_cache, raw, key,
                                                                  todo).items()})
                 cache_path.write_text(json.dumps(cache))
+    out = {}
+    for name in names:
+        out[name] = {}
         for b in blends:
             out[name][b] = np.array([cache[name][k][str(b)] for k in cases])
     return out
@@ -218,7 +219,12 @@ def cross_validate(scores, cases):
 
 def report(candidates, clips, conditions, steps, blends):
     import json
-    cases = [f"{clip}|{cond}|{step}" for clip in clips for cond in conditions for step in steps]
+    grid = [f"{clip}|{cond}|{step}" for clip in clips for cond in conditions for step in steps]
+    # Only the cases every candidate has tracked (a run that stopped early leaves gaps).
+    cases = [k for k in grid if all(_path(n, k).exists() for n in candidates)]
+    if len(cases) < len(grid):
+        print(f"{len(grid) - len(cases)} of {len(grid)} cases not tracked by every candidate "
+              f"are left out: {', '.join(sorted(set(grid) - set(cases)))}")
     scores = load_scores(candidates, cases, blends)
     cv = cross_validate(scores, cases)
     print(f"\n{len(cases)} cases ({len(clips)} clips x {len(conditions)} conditions x keys "
