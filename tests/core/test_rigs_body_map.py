@@ -9,7 +9,7 @@ import pytest
 from core.rigs import (OPTIONAL, PARTS, REQUIRED, BodyMapError, BoneConstraint, RigBones,
                        body_map_from_json, body_map_to_json, pattern_body_map,
                        read_body_map, recognise_body_map, write_body_map)
-from rig_fixtures import arp_rig, cmu_acclaim_rig, cmu_bvh_rig, mixamo_rig, stored_rig
+from rig_bone_lists import arp_rig, cmu_acclaim_rig, cmu_bvh_rig, mixamo_rig, stored_rig
 
 
 def test_generated_rigify_maps_deforming_bones_pose_bones_controls_and_ik():

@@ -14,7 +14,7 @@ from core.rigs import (RIGID, ROTATE, TRANSLATE, axis_rotation, basis_from_pose,
                        pose_from_basis, recognise_body_map, rest_alignment, skeleton_pose,
                        solve_two_bone, split_basis, to_model_frames, to_rig_frames,
                        world_change, world_poses)
-from rig_fixtures import cmu_acclaim_rig
+from rig_bone_lists import cmu_acclaim_rig
 
 RNG = np.random.default_rng(18)
 
