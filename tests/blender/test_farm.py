@@ -74,9 +74,10 @@ def make_shots(folder):
         bpy.ops.wm.read_homefile(use_empty=True)
         obj = build_walk_scene(footage)
         keep_keys_at(obj, keys)
-        camera = bpy.context.scene.camera
-        camera.matrix_world.translation += camera.matrix_world.col[0].xyz * camera_error
-        bpy.context.view_layer.update()
+        if camera_error:                           # along the camera's own x axis
+            camera = bpy.context.scene.camera
+            camera.matrix_world.translation += camera.matrix_world.col[0].xyz * camera_error
+            bpy.context.view_layer.update()
         paths[name] = folder / f"{name}.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(paths[name]))
     bpy.ops.wm.read_homefile(use_empty=True)
