@@ -389,7 +389,9 @@ def hard_goal_check(table_):
              for c, v in rows.items() if "1_view" in v}
     at20 = [v["1_view"]["keys_every_20"]["tracker_over_slerp"] for v in rows.values()
             if "keys_every_20" in v.get("1_view", {})]
-    out = {"one_view_worst_ratio": worst,
+    spacings = sorted({int(k.split("_")[-1]) for v in rows.values()
+                       for k in v.get("1_view", {})})
+    out = {"one_view_worst_ratio": worst, "one_view_spacings": spacings,
            "one_view_every_spacing_met": bool(worst)
            and max(worst.values()) <= HARD_GOALS["one_view_every_spacing"],
            "one_view_mean_ratio_at_20": float(np.mean(at20)) if at20 else None}
@@ -426,7 +428,9 @@ def hard_conditions_table(table_):
     if g and g["one_view_worst_ratio"] and g["one_view_mean_ratio_at_20"] is not None:
         lines.append(f"  goals: one view <= 1.0x slerp everywhere: "
                      f"{'met' if g['one_view_every_spacing_met'] else 'missed'} (worst "
-                     f"x{max(g['one_view_worst_ratio'].values()):.2f}); one-view mean at keys "
+                     f"x{max(g['one_view_worst_ratio'].values()):.2f}; keys every "
+                     f"{', '.join(map(str, g.get('one_view_spacings', [])))} measured); "
+                     f"one-view mean at keys "
                      f"every 20 <= 0.8x: {'met' if g['one_view_mean_at_20_met'] else 'missed'} "
                      f"(x{g['one_view_mean_ratio_at_20']:.2f})"
                      + (f"; two people, 4 views, keys every 20 <= 0.6x: "
