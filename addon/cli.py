@@ -42,6 +42,7 @@ from pathlib import Path
 import bpy
 
 from . import api
+from ..core import limits
 
 COMMAND_ID = "track_and_stride"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -63,6 +64,10 @@ class _Parser(argparse.ArgumentParser):
 
 
 # ------------------------------------------------------------------------------ arguments
+def _range(key):
+    return limits.BOUNDS[key].range_text()
+
+
 def build_parser():
     """The argument parser of every sub-command."""
     parser = _Parser(prog=PROG, description="Track & Stride batch commands: each prints one "
@@ -85,16 +90,16 @@ def build_parser():
     track.add_argument("--camera", metavar="NAME",
                        help="the camera that filmed the footage (default: the Track panel's, "
                             "else the scene camera)")
-    track.add_argument("--frames", nargs=2, type=int, metavar=("FIRST", "LAST"),
+    track.add_argument("--frames", nargs=2, metavar=("FIRST", "LAST"),
                        help="frames searched for keyframes (default: the Track panel's range)")
-    track.add_argument("--processes", type=int, metavar="N",
+    track.add_argument("--processes", metavar="N",
                        help="worker processes (0 = automatic: the add-on preference, else one "
                             "per CPU; default: the Track panel's)")
     track.add_argument("--between", choices=tuple(TRACK_BETWEEN),
                        help="the keyed poses to track between (default: the Track panel's): "
                             "all keys, the selected keys, every Nth key (--every) or the "
                             "scene's markers; the other keys between them are replaced")
-    track.add_argument("--every", type=int, metavar="N",
+    track.add_argument("--every", metavar="N",
                        help="N of --between every-nth (default: the Track panel's, 10)")
     track.add_argument("--suggest", action="store_true",
                        help="also mark suggested keyframes (timeline markers at residual "
@@ -111,21 +116,23 @@ def build_parser():
     predict.add_argument("--model", default="", metavar="NAME|FILE.npz",
                          help="a gait model of the file, 'Stock Gaits' (built in) or a model "
                               "file (default: the file's active model)")
-    predict.add_argument("--frames", nargs=2, type=int, metavar=("FIRST", "LAST"),
+    predict.add_argument("--frames", nargs=2, metavar=("FIRST", "LAST"),
                          help="the observed frames (default: the keyed range)")
-    predict.add_argument("--length", type=float, metavar="SECONDS",
-                         help="how long to predict (default: the add-on preference, 2 s)")
-    predict.add_argument("--cadence", type=float, default=1.0,
-                         help="steps per second × this (default 1)")
+    predict.add_argument("--length", metavar="SECONDS",
+                         help=f"how long to predict, {_range('length')} (default: the add-on "
+                              "preference, 2 s)")
+    predict.add_argument("--cadence", default=1.0, metavar="X",
+                         help=f"steps per second × this, {_range('cadence')} (default 1)")
     style = predict.add_mutually_exclusive_group()
     style.add_argument("--style", metavar="NAME",
                        help="walk exactly in the model's named style (e.g. normal, brisk)")
     style.add_argument("--restyle", nargs=2, metavar=("FROM", "TO"),
                        help="move the walker's own style from one named style towards another")
-    predict.add_argument("--amount", type=float, default=1.0,
-                         help="how far --restyle moves (default 1: the whole difference)")
-    predict.add_argument("--stride", type=float, default=1.0,
-                         help="scale of the forward speed (default 1)")
+    predict.add_argument("--amount", default=1.0, metavar="A",
+                         help=f"how far --restyle moves, {_range('restyle_amount')} (default 1: the "
+                              "whole difference)")
+    predict.add_argument("--stride", default=1.0, metavar="X",
+                         help=f"scale of the forward speed, {_range('stride')} (default 1)")
     predict.add_argument("--on-the-spot", action="store_true",
                          help="walk on the spot (no root travel)")
     predict.add_argument("--let-feet-slide", action="store_true",
@@ -149,19 +156,19 @@ def build_parser():
                               "file)")
     acclaim.add_argument("--output", metavar="OUT.blend",
                          help="where to save (default: --blend itself; required without it)")
-    acclaim.add_argument("--fps", type=float,
+    acclaim.add_argument("--fps", metavar="F",
                          help="the scene's frames per second to resample to (default: the "
                               "file's; a new file: 24)")
     acclaim.add_argument("--frame-rate", choices=("resample", "keep"),
                          help="resample to the scene's rate or keep the capture's (default: "
                               "the add-on preference, resample)")
-    acclaim.add_argument("--capture-rate", type=float, metavar="HZ",
+    acclaim.add_argument("--capture-rate", metavar="HZ",
                          help="samples per second of a motion that records none (default: "
                               "the add-on preference, 120)")
     acclaim.add_argument("--ignore-file-rate", action="store_true",
                          help="use --capture-rate even when the .amc records its rate")
-    acclaim.add_argument("--start-frame", type=int, default=1,
-                         help="scene frame of the first sample (default 1)")
+    acclaim.add_argument("--start-frame", default=1, metavar="N",
+                         help=f"scene frame of the first sample, {_range('start_frame')} (default 1)")
     acclaim.add_argument("--keep-frame-range", action="store_true",
                          help="leave the scene's frame range as it is")
     return parser
@@ -174,6 +181,33 @@ def _scene_args(parser):
 
 
 # ------------------------------------------------------------------------------ checks
+#: Every number option of each command: (attribute, bound key of ``core.limits``).
+NUMBERS = {
+    "track": (("processes", "processes"), ("every", "every")),
+    "predict": (("length", "length"), ("cadence", "cadence"), ("amount", "restyle_amount"),
+                ("stride", "stride")),
+    "import-acclaim": (("fps", "fps"), ("capture_rate", "capture_rate"),
+                       ("start_frame", "start_frame")),
+}
+#: Commands whose --frames FIRST LAST are frames of that bound.
+FRAMES = {"track": "track_frame", "predict": "predict_frame"}
+
+
+def check_numbers(args):
+    """Every number option of ``args`` read and checked against ``core.limits`` (in place):
+    :class:`UsageError` naming the option, the value and the range. Runs before any work."""
+    try:
+        for attr, key in NUMBERS.get(args.command, ()):
+            value = getattr(args, attr)
+            if value is not None:
+                setattr(args, attr, limits.check(key, value, "cli"))
+        if args.command in FRAMES and args.frames is not None:
+            args.frames = list(limits.check_frame_range(FRAMES[args.command], *args.frames,
+                                                        "cli"))
+    except limits.OutOfBounds as exc:
+        raise UsageError(str(exc)) from None
+
+
 def _existing_file(path, what):
     p = Path(path)
     if not p.is_file():
@@ -238,12 +272,6 @@ def run_track(args):
     scene = _scene(args.scene)
     armature = _named("--armature", args.armature, "ARMATURE")
     camera = _named("--camera", args.camera, "CAMERA")
-    if args.frames is not None and args.frames[1] < args.frames[0]:
-        raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")
-    if args.processes is not None and args.processes < 0:
-        raise UsageError(f"--processes {args.processes}: give 0 (automatic) or more")
-    if args.every is not None and args.every < 2:
-        raise UsageError(f"--every {args.every}: give 2 or more")
     between = TRACK_BETWEEN[args.between] if args.between else None
     return api.track(armature, camera, args.frames, args.processes, args.suggest, scene,
                      between, args.every)
@@ -258,12 +286,6 @@ def run_predict(args):
         model_name, model = api.find_model(args.model)
     except api.GaitError as exc:
         raise UsageError(f"--model {args.model}: {exc}") from None
-    if args.frames is not None and args.frames[1] < args.frames[0]:
-        raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")
-    for option in ("length", "cadence", "stride"):
-        value = getattr(args, option)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise UsageError(f"--{option} {value}: give a positive number")
     options = {"cadence": args.cadence, "stride": args.stride,
                "root_travel": not args.on_the_spot, "plant_feet": not args.let_feet_slide,
                "mannerisms": not args.no_mannerisms,
@@ -286,11 +308,6 @@ def run_import_acclaim(args):
     if args.frame_rate == "keep" and args.fps is not None:
         raise UsageError("--fps and --frame-rate keep contradict each other: keeping the "
                          "capture rate sets the scene's frames per second to it")
-    for option in ("fps", "capture_rate"):
-        value = getattr(args, option)
-        if value is not None and not (math.isfinite(value) and 0.01 <= value <= 10000):
-            raise UsageError(f"--{option.replace('_', '-')} {value}: give frames per second "
-                             "between 0.01 and 10000")
     if args.blend:
         _open(args.blend)
     else:
@@ -328,6 +345,7 @@ def execute(args):
     source = getattr(args, "blend", None) or getattr(args, "motion", None)
     summary["input"] = str(Path(source).resolve()) if source else None
     try:
+        check_numbers(args)
         output = output_of(args)
         summary["output"] = str(output)
         result = COMMANDS[args.command](args)
@@ -366,7 +384,7 @@ def main(argv):
         return EXIT_USAGE
     except SystemExit as exc:                       # --help printed the help
         return int(exc.code or 0)
-    with stdout_to_stderr():
+    with stdout_to_stderr(), limits.naming("cli"):
         summary, code = execute(args)
     emit(_stamp(summary, tic), args.summary_path)
     return code

@@ -4,6 +4,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
                        IntProperty, PointerProperty, StringProperty)
 
+from ...core.limits import hard
 from .cameras import TS_TrackCamera
 
 SETTINGS = "track_and_stride_track"
@@ -57,8 +58,10 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         items=(("SCENE", "Scene Range", "The scene's start to end frame"),
                ("CUSTOM", "Custom", "The frames set below")),
         default="SCENE")
-    frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)")
-    frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)")
+    frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)",
+                             **hard("track_frame"))
+    frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)",
+                           **hard("track_frame"))
     track_between: EnumProperty(
         name="Track Between",
         description="The keyed poses to track between. The other keys between the first and "
@@ -72,7 +75,7 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
                ("MARKERS", "Markers", "The keyed frames at the scene's timeline markers")),
         default="ALL")
     key_step: IntProperty(
-        name="N", default=10, min=2, soft_max=100,
+        name="N", default=10, soft_max=100, **hard("every"),
         description="Every Nth Key: track between every Nth keyed frame (10 on a capture keyed "
                     "at every frame = a pose every 10 frames)")
     iterations: IntProperty(
@@ -80,7 +83,7 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         description="Drift-correction passes per interval (track, accumulate, correct, score; "
                     "the pass with the smallest photometric error is kept)")
     processes: IntProperty(
-        name="Processes", default=0, min=0, max=64,
+        name="Processes", default=0, **hard("processes"),
         description="Worker processes for the intervals (0 = automatic: Tracking Processes of "
                     "the add-on's preferences, one per CPU unless set there; at most one per "
                     "interval; 1 = all in Blender's process)")
