@@ -35,6 +35,7 @@ import json
 import math
 import os
 import sys
+import tempfile
 import time
 import traceback
 from pathlib import Path
@@ -209,22 +210,52 @@ def check_numbers(args):
 
 
 def _existing_file(path, what):
-    p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"{what} {path} does not exist")
-    return p.resolve()
+    try:
+        p = Path(path)
+        if not p.is_file():
+            raise UsageError(f"{what} {path} does not exist")
+        return p.resolve()
+    except (OSError, ValueError) as exc:          # a NUL byte, a name too long, a loop …
+        raise UsageError(f"{what} {path}: not a usable path ({_reason(exc)})") from None
+
+
+def _reason(exc):
+    return getattr(exc, "strerror", None) or str(exc)
+
+
+def writable_file(path, option):
+    """``path`` resolved, checked writable before any work: its folder exists, it is not a
+    folder, and a file can be created there (or the existing file opened for writing) -- a
+    real probe, which also holds for root and read-only file systems. :class:`UsageError`
+    naming the option otherwise. Leaves nothing behind."""
+    try:
+        p = Path(path).resolve()
+        if p.is_dir():
+            raise UsageError(f"{option} {path}: that is a folder; give a file name")
+        if not p.parent.is_dir():
+            raise UsageError(f"{option} {path}: the folder {p.parent} does not exist")
+        if p.exists():
+            with open(p, "ab"):
+                pass
+        else:
+            handle, probe = tempfile.mkstemp(dir=p.parent, prefix=".track_and_stride-")
+            os.close(handle)
+            os.unlink(probe)
+            with open(p, "xb"):             # the name itself (length, characters) works here
+                pass
+            os.unlink(p)
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"{option} {path}: cannot write there ({_reason(exc)})") from None
+    return p
 
 
 def _output_path(path):
-    """An output .blend path whose folder exists (None stays None)."""
+    """An output .blend path, writable (None stays None)."""
     if path is None:
         return None
-    p = Path(path).resolve()
-    if p.suffix.lower() != ".blend":
+    if not str(path).lower().endswith(".blend"):
         raise UsageError(f"--output {path}: the output must be a .blend file")
-    if not p.parent.is_dir():
-        raise UsageError(f"--output {path}: the folder {p.parent} does not exist")
-    return p
+    return writable_file(path, "--output")
 
 
 def _open(path):
@@ -333,7 +364,7 @@ def output_of(args):
         if base is None:
             raise UsageError("--output: say where to save the imported motion (or --blend to "
                              "import into an existing .blend)")
-        output = _existing_file(base, "The .blend file")
+        output = writable_file(_existing_file(base, "The .blend file"), "SHOT.blend")
     return output
 
 
@@ -343,15 +374,18 @@ def execute(args):
     summary = {"command": args.command, "status": None, "exit_code": None, "message": "",
                "warnings": [], "input": None, "output": None, "saved": False}
     source = getattr(args, "blend", None) or getattr(args, "motion", None)
-    summary["input"] = str(Path(source).resolve()) if source else None
+    summary["input"] = _shown_path(source)
+    args.new_output = None
     try:
         check_numbers(args)
         output = output_of(args)
         summary["output"] = str(output)
         result = COMMANDS[args.command](args)
         summary.update(result)
+        existed = output.exists()
         summary["output"] = api.save_blend(output)
         summary["saved"] = True
+        args.new_output = None if existed else output
         code = EXIT_OK
     except UsageError as exc:
         summary["message"], code = str(exc), EXIT_USAGE
@@ -384,10 +418,50 @@ def main(argv):
         return EXIT_USAGE
     except SystemExit as exc:                       # --help printed the help
         return int(exc.code or 0)
+    try:
+        if args.summary_path is not None:
+            writable_file(args.summary_path, "--summary")
+    except UsageError as exc:
+        summary = {"command": args.command, "status": "bad_arguments", "exit_code": EXIT_USAGE,
+                   "message": str(exc), "warnings": [], "input": None, "output": None,
+                   "saved": False}
+        emit(_stamp(summary, tic), None)
+        return EXIT_USAGE
     with stdout_to_stderr(), limits.naming("cli"):
         summary, code = execute(args)
-    emit(_stamp(summary, tic), args.summary_path)
+    summary = _stamp(summary, tic)
+    problem = write_summary(summary, args.summary_path)
+    if problem:
+        code = _summary_failed(summary, args, problem)
+    emit(summary)
     return code
+
+
+def _summary_failed(summary, args, problem):
+    """The summary file could not be written: the run fails (exit 1); an output .blend this
+    run created is removed (one that was there before keeps the saved work, and says so)."""
+    note = ""
+    if summary.get("saved") and args.new_output is not None:
+        with contextlib.suppress(OSError):
+            args.new_output.unlink()
+        summary["saved"] = False
+        note = "; the saved .blend was removed"
+    elif summary.get("saved"):
+        note = f"; the work was saved into {summary['output']}"
+    summary.update(status="failed", exit_code=EXIT_FAILED,
+                   message=f"--summary {args.summary_path}: cannot write the summary "
+                           f"({problem}){note}. Before: {summary['message']}")
+    return EXIT_FAILED
+
+
+def _shown_path(path):
+    """``path`` resolved for the summary (as given when it cannot be resolved)."""
+    if not path:
+        return None
+    try:
+        return str(Path(path).resolve())
+    except (OSError, ValueError):
+        return str(path)
 
 
 def _guess_command(argv):
@@ -402,15 +476,24 @@ def _stamp(summary, tic):
 
 
 def emit(summary, path=None):
-    """Print the summary as one JSON line on stdout (and write it to ``path``)."""
-    line = json.dumps(jsonable(summary), allow_nan=False)
-    sys.stdout.write(line + "\n")
+    """Print the summary as one JSON line on stdout (and write it to ``path``); returns what
+    went wrong writing ``path`` ('' when nothing did)."""
+    problem = write_summary(summary, path)
+    sys.stdout.write(json.dumps(jsonable(summary), allow_nan=False) + "\n")
     sys.stdout.flush()
-    if path:
-        try:
-            Path(path).write_text(line + "\n", encoding="utf-8")
-        except OSError as exc:
-            print(f"Track & Stride: cannot write the summary to {path}: {exc}", file=sys.stderr)
+    return problem
+
+
+def write_summary(summary, path):
+    """Write the summary's JSON line to ``path`` (None: nowhere); '' or why it failed."""
+    if not path:
+        return ""
+    try:
+        Path(path).write_text(json.dumps(jsonable(summary), allow_nan=False) + "\n",
+                              encoding="utf-8")
+    except (OSError, ValueError) as exc:
+        return _reason(exc)
+    return ""
 
 
 def jsonable(value):
