@@ -242,10 +242,10 @@ class TS_OT_predict_gait(bpy.types.Operator):
         "frames: the walker's residual table); Whole Range fit only", default=True)
     adaptation: EnumProperty(
         name="Fit", description="How the model fits the reference frames",
-        items=(("BATCH", "Whole Range", "Fit all reference frames together (batch EM: the best "
-                "estimate)"),
+        items=(("BATCH", "Whole Range", "Fit all reference frames together: the best estimate "
+                "(the paper's batch EM)"),
                ("ONLINE", "Frame by Frame", "Fit frame by frame as the live preview does "
-                "(online EM)")),
+                "(the paper's online EM)")),
         default="BATCH")
     target: EnumProperty(
         name="Target", description="Where the predicted keys go",

@@ -57,7 +57,7 @@ def _draw_armature(layout, context, settings):
     row.operator("track_and_stride.add_envelope_body", text="Body Mesh")
     col.operator("track_and_stride.fit_body_to_footage", icon="MOD_SHRINKWRAP")
     axes = int(np.count_nonzero(rig.dof_mask))
-    col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
+    col.label(text=f"Tracks {axes} joint rotations (locked axes follow the keys)",
               icon="CON_ROTLIMIT")
     return obj
 
@@ -116,7 +116,7 @@ def _draw_frames(layout, context, settings, obj):
         row.prop(settings, "frame_start")
         row.prop(settings, "frame_end")
     row = col.row(align=True)
-    row.prop(settings, "track_between", text="")
+    row.prop(settings, "track_between", text="Between")
     if settings.track_between == "NTH":
         row.prop(settings, "key_step")
     first, last = frame_range(context.scene, settings)

@@ -137,7 +137,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
             observed.append(dof_observations(seq, cols, model_fps, angle_names, root_travel,
                                              frame))
         except ValueError as exc:
-            raise ValueError(f"training sequence {i} ({names[i]}): {exc}") from None
+            raise ValueError(f"the walk {names[i]}: {exc}") from None
 
     n_angles = len(angle_names)
     stacked = np.vstack(observed)
@@ -163,7 +163,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         message = str(exc)
         if message.startswith("sequence "):
             index = int(message.split()[1].rstrip(":"))
-            message = f"training sequence {index} ({names[index]}):" + message.split(":", 1)[1]
+            message = f"the walk {names[index]}:" + message.split(":", 1)[1]
         raise ValueError(message) from None
     styles, bases, singular = factorize(aligned.cycles, n_styles, energy)
     if refinement == "map":

@@ -120,8 +120,9 @@ def find_table1_parts(bone_names):
     n_found = sum(b is not None for b in found.values())
     if found["Waist"] is None or n_found < MIN_TABLE1_PARTS:
         missing = [bone for bone in preset.values() if bone not in names]
-        raise ValueError(f"not a humanoid rig the Table 1 preset knows (CMU, CMU BVH, Mixamo, "
-                         f"Blender metarig); closest: {best}, missing {', '.join(missing)}")
+        raise ValueError(f"Simplified Joints knows the bone names of CMU, CMU BVH, Mixamo and "
+                         f"Blender's metarig, and this rig is none of them (closest: {best}, "
+                         f"missing {', '.join(missing)})")
     return best, found
 
 

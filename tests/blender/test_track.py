@@ -421,7 +421,7 @@ def test_table1_dof_locks_the_papers_axes(walk_folder):
     data.edit_bones.new("Boom").tail = (0, 1, 0)
     bpy.ops.object.mode_set(mode="OBJECT")
     settings().armature = crane
-    with pytest.raises(RuntimeError, match="not a humanoid rig"):
+    with pytest.raises(RuntimeError, match="this rig is none of them"):
         bpy.ops.track_and_stride.table1_dof()
 
 

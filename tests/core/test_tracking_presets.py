@@ -62,5 +62,7 @@ def test_non_humanoid_rigs_are_refused_with_the_missing_names():
     with pytest.raises(ValueError, match="closest: Mixamo, missing .*mixamorig:LeftLeg"):
         find_table1_parts(["mixamorig:Hips", "mixamorig:Spine", "mixamorig:Head",
                            "mixamorig:LeftUpLeg", "Tail"])
-    with pytest.raises(ValueError, match="not a humanoid rig"):
+    with pytest.raises(ValueError, match="^Simplified Joints knows the bone names of CMU, CMU "
+                                         "BVH, Mixamo and Blender's metarig, and this rig is "
+                                         "none of them"):
         find_table1_parts(["Bone", "Bone.001"])
