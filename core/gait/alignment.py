@@ -302,7 +302,7 @@ def align_sequences(sequences, fps, n_phase=51, mode="mean", lag_range=(0.5, 2.0
         Naming the sequence that is shorter than one cycle or has mismatched channels.
     """
     if len(sequences) == 0:
-        raise ValueError("need at least one training sequence")
+        raise ValueError("need at least one walk")
     seqs = [np.asarray(s, dtype=float) for s in sequences]
     width = seqs[0].shape[1] if seqs[0].ndim == 2 else None
     for i, s in enumerate(seqs):

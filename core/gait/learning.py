@@ -106,7 +106,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         Naming the sequence that is too short, has mismatched columns or misses channels.
     """
     if len(sequences) == 0:
-        raise ValueError("need at least one training sequence")
+        raise ValueError("need at least one walk")
     count = len(sequences)
     if alignment not in ALIGNMENT_MODES:
         raise ValueError(f"alignment must be one of {ALIGNMENT_MODES}, got {alignment!r}")

@@ -162,7 +162,7 @@ def table1_dof_mask(skeleton, parts=None):
     parts = CMU_PARTS if parts is None else parts
     unknown = set(parts) - set(TABLE1)
     if unknown:
-        raise ValueError(f"not Table 1 parts: {sorted(unknown)}; known: {list(TABLE1)}")
+        raise ValueError(f"unknown body parts {sorted(unknown)}; known: {list(TABLE1)}")
     mask = np.zeros((skeleton.n_joints, 3), dtype=bool)
     translation = np.zeros(3, dtype=bool)
     for part, joint in parts.items():

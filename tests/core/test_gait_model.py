@@ -194,3 +194,25 @@ def test_model_lookups():
     lo, hi = model.omega_range(120.0)
     np.testing.assert_allclose([lo, hi], [2 * np.pi / 240, 2 * np.pi / 60])
     np.testing.assert_allclose(model.process_noise(30.0)[0, 0], model.Q[0, 0] * 8)
+
+
+@pytest.mark.parametrize("content, reason", [
+    (b"", "the file is empty"),
+    (b"hello, not a model", "it is another kind of file"),
+    (None, "it holds Python objects"),                      # an .npz of object arrays
+    (b"PK\x03\x04 cut short", "the archive is damaged or cut short"),
+])
+def test_a_corrupt_model_file_says_what_is_wrong_once(tmp_path, content, reason):
+    """Not NumPy's advice to load it "unsafely using allow_pickle", and the path once."""
+    path = tmp_path / "walks.npz"
+    if content is None:
+        np.savez(path, a=np.array([{"x": 1}], dtype=object))
+    else:
+        path.write_bytes(content)
+    with pytest.raises(GaitModelFileError) as err:
+        GaitModel.load(path)
+    message = str(err.value)
+    assert message == f"{path}: not a gait model file: " + message.split(": ", 2)[2]
+    assert reason in message and message.count(str(path)) == 1 and "walks.npz" not in \
+        message.replace(str(path), "")
+    assert "pickle" not in message.replace("Python objects", "") and "allow" not in message
