@@ -31,6 +31,7 @@ Nothing is saved unless the status is 'ok' or 'warning'. The work itself is :mod
 
 import argparse
 import contextlib
+import functools
 import json
 import math
 import os
@@ -173,6 +174,12 @@ def build_parser():
     acclaim.add_argument("--keep-frame-range", action="store_true",
                          help="leave the scene's frame range as it is")
     return parser
+
+
+@functools.lru_cache(maxsize=1)
+def _parser():
+    """The parser, built once (argparse parses with it any number of times)."""
+    return build_parser()
 
 
 def _scene_args(parser):
@@ -407,7 +414,7 @@ def main(argv):
     JSON line and returns the exit status (see the module docstring)."""
     tic = time.perf_counter()
     try:
-        args = build_parser().parse_args(list(argv))
+        args = _parser().parse_args(list(argv))
         if args.command is None:
             raise UsageError(f"{PROG}: choose a command: {', '.join(COMMANDS)} (--help)")
     except UsageError as exc:
@@ -509,6 +516,7 @@ def jsonable(value):
     return value
 
 
+@functools.lru_cache(maxsize=1)
 def extension_version():
     """The version in the extension's manifest (None when it cannot be read)."""
     import tomllib
