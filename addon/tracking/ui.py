@@ -15,7 +15,7 @@ from .camera_bridge import render_size
 from ..common.pose_bridge import RigError, rig_from_armature
 from .bridge import envelope_radii, frame_range
 from .cameras import draw_camera_list
-from .keys import PROP_RESIDUAL, classify_frames
+from .keys import PROP_RANK, PROP_RESIDUAL, classify_frames, has_confidence
 from .ops import track_poll_message
 from .bridge import TrackError, choose_keyframes          # Track Between's preview
 from . import preview
@@ -170,8 +170,9 @@ def draw_track_panel(layout, context, in_clip_editor=False):
         col.label(text=message, icon="INFO")
     col = layout.column(align=True)
     col.label(text="Where is tracking unsure?", icon="GRAPH")
-    if obj is not None and PROP_RESIDUAL in obj.keys():
-        col.label(text="Graph Editor: residual, rank and 'Tracked: <body part>' curves")
+    if obj is not None and has_confidence(obj):
+        col.label(text=f"Graph Editor: '{PROP_RESIDUAL}' (lower is better), "
+                       f"'{PROP_RANK}' (higher is better), 'Tracked: <body part>'")
     col.operator("track_and_stride.suggest_keyframes", icon="MARKER_HLT")
     col.prop(settings, "suggest_threshold")
 

@@ -166,3 +166,34 @@ def test_error_messages_use_an_animators_words(folder):
            for path in sorted((Path(ROOT) / folder).rglob("*.py"))
            for line, text in _raised_messages(path) if words.search(text)]
     assert not bad, bad
+
+
+def test_confidence_curves_have_names_an_animator_reads_and_old_files_still_work():
+    """The Graph Editor showed ``track_and_stride_residual`` / ``_rank`` (issue 26); files
+    tracked then keep working: the old curve is read, and replaced when tracked again."""
+    import importlib
+
+    import numpy as np
+
+    keys = importlib.import_module(f"{MODULE}.addon.tracking.keys")
+    fcurves = importlib.import_module(f"{MODULE}.addon.common.fcurves")
+    obj = bpy.data.objects.new("Walker", None)
+    bpy.context.scene.collection.objects.link(obj)
+    action, slot = fcurves.ensure_action(obj, "Walker")
+    bag = fcurves.channelbag(action, slot, ensure=True)
+    obj["track_and_stride_residual"] = 0.0                        # as an earlier version wrote
+    old = bag.fcurves.new('["track_and_stride_residual"]', index=0)
+    old.keyframe_points.add(2)
+    old.keyframe_points.foreach_set("co", [2.0, 0.5, 3.0, 0.7])
+    frames, values = keys.read_residuals(obj, 1, 10)
+    assert frames.tolist() == [2, 3] and np.allclose(values, [0.5, 0.7])
+    assert keys.has_confidence(obj)
+    keys.write_confidence(obj, bag, [2, 3, 4], [0.1, 0.2, 0.3], [5, 6, 4], 6)
+    paths = sorted(f.data_path for f in bag.fcurves)
+    assert paths == ['["Footage Mismatch"]', '["Movements Seen"]']
+    assert not any(k.startswith("track_and_stride_") for k in obj.keys())
+    assert keys.read_residuals(obj, 1, 10)[0].tolist() == [2, 3, 4]
+    for name, better in (("Footage Mismatch", "lower is better"),
+                         ("Movements Seen", "higher is better")):
+        tooltip = obj.id_properties_ui(name).as_dict()["description"]
+        assert better in tooltip and not JARGON.search(_outside_parentheses(tooltip)), tooltip
