@@ -36,9 +36,24 @@ MODULES = {
     "ekf": ("core/gait/ekf.py", ["tests/core/test_gait_ekf.py"]),
 }
 
-#: Survivors that are equivalent mutants (same behaviour), by mutant name, with why
-#: (docs/testing.md explains each). Names are mutmut's: module.x_function__mutmut_N.
+#: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
+#: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
 EQUIVALENT = {}
+
+#: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
+#: (each removed line against its added line): (name, pattern of the removed text, pattern of
+#: the added text, why). Reviewed by hand for these modules (docs/testing.md); a survivor of
+#: another kind is never counted as equivalent.
+EQUIVALENT_KINDS = (
+    ("dtype", r"dtype=float\)", r"(dtype=None\)|(?<=, )\))",
+     "np.asarray(x, dtype=float) -> np.asarray(x): every input is numbers that the "
+     "float arithmetic right after promotes to float64 the same way (no in-place integer "
+     "arithmetic follows)"),
+    ("einsum-case", r'np\.einsum\("[a-z,>-]+"', r'np\.einsum\("[A-Z,>-]+"',
+     "einsum subscripts in capitals: the same contraction"),
+    ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
+     'float("-INF") is float("-inf")'),
+)
 
 COPY = ("core", "tests", "sample_scenes", "pytest.ini")
 
@@ -78,6 +93,47 @@ def _results(folder):
     return out
 
 
+def mutant_diffs(folder, module):
+    """{mutant name: [(removed line, added line), ...]} of the mutants file mutmut wrote."""
+    import ast
+    import difflib
+    path = folder / "mutants" / module
+    source = path.read_text()
+    functions = {node.name: ast.get_source_segment(source, node)
+                 for node in ast.walk(ast.parse(source)) if isinstance(node, ast.FunctionDef)}
+    prefix = module[:-3].replace("/", ".")
+    out = {}
+    for name, text in functions.items():
+        if "__mutmut_" not in name or name.endswith("__mutmut_orig"):
+            continue
+        original = functions.get(name.rsplit("__mutmut_", 1)[0] + "__mutmut_orig")
+        if original is None:
+            continue
+        a, b = original.splitlines()[1:], text.splitlines()[1:]
+        removed, added = [], []
+        for line in difflib.unified_diff(a, b, lineterm="", n=0):
+            if line.startswith("-") and not line.startswith("---"):
+                removed.append(line[1:])
+            elif line.startswith("+") and not line.startswith("+++"):
+                added.append(line[1:])
+        out[f"{prefix}.{name}"] = list(zip(removed, added)) if len(removed) == len(added) \
+            else None
+    return out
+
+
+def equivalent_kind(diff):
+    """The :data:`EQUIVALENT_KINDS` name of a mutant's diff when every changed line is of
+    that one kind, else None."""
+    if not diff:
+        return None
+    for kind, old, new, _ in EQUIVALENT_KINDS:
+        if all(re.search(old, a) and re.search(new, b)
+               and re.sub(new, "", b, count=1) == re.sub(old, "", a, count=1)
+               for a, b in diff):
+            return kind
+    return None
+
+
 def run_module(name, module, tests, jobs):
     folder = _scratch(name, module, tests)
     tic = time.perf_counter()
@@ -85,11 +141,14 @@ def run_module(name, module, tests, jobs):
                    cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     statuses = _results(folder)
     survived = sorted(k for k, v in statuses.items() if v == "survived")
-    equivalent = [k for k in survived if k in EQUIVALENT]
+    diffs = mutant_diffs(folder, module)
+    kinds = {k: EQUIVALENT.get(k) or equivalent_kind(diffs.get(k)) for k in survived}
+    equivalent = {k: v for k, v in kinds.items() if v}
     counted = len(statuses) - len(equivalent)
     killed = sum(v == "killed" for v in statuses.values())
     return {"module": module, "tests": tests, "mutants": len(statuses), "killed": killed,
-            "survived": [k for k in survived if k not in EQUIVALENT],
+            "survived": [k for k in survived if k not in equivalent],
+            "survived_diffs": {k: diffs.get(k) for k in survived if k not in equivalent},
             "equivalent": equivalent,
             "other": {k: v for k, v in statuses.items() if v not in ("killed", "survived")},
             "score": round(killed / counted, 4) if counted else None,
