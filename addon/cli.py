@@ -125,6 +125,12 @@ def build_parser():
                               "preference, 2 s)")
     predict.add_argument("--cadence", default=1.0, metavar="X",
                          help=f"steps per second × this, {_range('cadence')} (default 1)")
+    predict.add_argument("--retime", choices=("natural", "fast-forward"), default="natural",
+                         help="a new cadence changes the walk as a person's would (longer "
+                              "strides when quicker; default) or plays it faster")
+    predict.add_argument("--turn", default=0.0, metavar="DEG_PER_S",
+                         help=f"turn while walking, degrees per second, {_range('turn')} "
+                              "(positive: left; default 0: straight on)")
     style = predict.add_mutually_exclusive_group()
     style.add_argument("--style", metavar="NAME",
                        help="walk exactly in the model's named style (e.g. normal, brisk)")
@@ -138,7 +144,8 @@ def build_parser():
     predict.add_argument("--on-the-spot", action="store_true",
                          help="walk on the spot (no root travel)")
     predict.add_argument("--let-feet-slide", action="store_true",
-                         help="do not scale the stride to keep the standing foot planted")
+                         help="move the hips at the model's own speed instead of as the "
+                              "standing leg carries them")
     predict.add_argument("--no-mannerisms", action="store_true",
                          help="leave out the walker's own details the styles cannot express")
     predict.add_argument("--fit", choices=("whole", "frame-by-frame"), default="whole",
@@ -193,7 +200,7 @@ def _scene_args(parser):
 NUMBERS = {
     "track": (("processes", "processes"), ("every", "every")),
     "predict": (("length", "length"), ("cadence", "cadence"), ("amount", "restyle_amount"),
-                ("stride", "stride")),
+                ("stride", "stride"), ("turn", "turn")),
     "import-acclaim": (("fps", "fps"), ("capture_rate", "capture_rate"),
                        ("start_frame", "start_frame")),
 }
@@ -325,6 +332,8 @@ def run_predict(args):
     except api.GaitError as exc:
         raise UsageError(f"--model {args.model}: {exc}") from None
     options = {"cadence": args.cadence, "stride": args.stride,
+               "retime": "FAST_FORWARD" if args.retime == "fast-forward" else "NATURAL",
+               "turn": args.turn,
                "root_travel": not args.on_the_spot, "plant_feet": not args.let_feet_slide,
                "mannerisms": not args.no_mannerisms,
                "adaptation": "ONLINE" if args.fit == "frame-by-frame" else "BATCH",

@@ -16,7 +16,8 @@ Why these numbers (``docs/pipeline.md`` has the table):
   (``docs/conventions.md``).
 * **Predict Gait**: Length 0.05 .. 60 s, Cadence 0.25 .. 4, Stride Scale 0 .. 4 (the panel's
   limits); Restyle Amount -1 .. 2: up to one whole difference between the two styles beyond
-  either end (further than that extrapolates joint angles past anything the styles show).
+  either end (further than that extrapolates joint angles past anything the styles show);
+  Turn -360 .. 360 degrees per second (a full turn each second is already a spin).
 * **Angles in motion files**: at most 10 000 degrees in magnitude (28 turns): a joint angle
   is a rotation of a few turns at most, a larger number is a corrupt or mis-scaled file.
 
@@ -105,6 +106,7 @@ BOUNDS = {
     "stride": _bound("Stride Scale", "--stride", "stride", 0.0, 4.0, what="a factor"),
     "restyle_amount": _bound("Amount", "--amount", "restyle_amount", -1.0, 2.0,
                              what="an amount"),
+    "turn": _bound("Turn", "--turn", "turn", -360.0, 360.0, what="degrees per second"),
     "predict_frame": _bound("Reference Frames", "--frames", "frames", MINAFRAME, MAXFRAME,
                             integer=True, what="a frame"),
     # Track Keyframes
