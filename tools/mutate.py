@@ -38,7 +38,26 @@ MODULES = {
 
 #: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
 #: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
-EQUIVALENT = {}
+_EKF = "core.gait.ekf."
+_EKF_INPUTS = ("FilterContext keeps ctx.inputs (the GP inputs [cos, sin] of the training phases) "
+               "that no code reads (core/, addon/, tests/): setting it to None, under another "
+               "name or flattened changes nothing")
+_EKF_CACHE_KEY = ("the cache key's string only keeps steps() and decay() entries apart; "
+                  "('XXsteps', n) / ('STEPS', n) do that as well (and their tuples differ in "
+                  "length)")
+EQUIVALENT = {
+    **{f"{_EKF}xǁFilterContextǁ__post_init____mutmut_{i}": _EKF_INPUTS for i in (7, 11, 12, 16)},
+    **{f"{_EKF}xǁFilterContextǁ{name}__mutmut_{i}": _EKF_CACHE_KEY
+       for name in ("steps", "decay") for i in (2, 3)},
+    f"{_EKF}x__kernel_pair__mutmut_26":
+        "rows[3:5] -> rows[3:6] of an array of 5 rows: the same slice",
+    f"{_EKF}x_ekf_filter__mutmut_26":
+        "the initial value of outliers (-1 -> +1) is overwritten for every frame by _update",
+    f"{_EKF}x_ekf_filter__mutmut_27":
+        "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
+    f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
+        "ys[...] = None on a float array stores NaN, the same as = np.nan",
+}
 
 #: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
 #: (each removed line against its added line): (name, pattern of the removed text, pattern of
@@ -53,6 +72,10 @@ EQUIVALENT_KINDS = (
      "einsum subscripts in capitals: the same contraction"),
     ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
      'float("-INF") is float("-inf")'),
+    ("reshape-negative", r"\.reshape\((?:[^()]|\([^()]*\))*-1\)",
+     r"\.reshape\((?:[^()]|\([^()]*\))*-2\)",
+     "reshape(..., -1) -> reshape(..., -2): NumPy takes any negative size as the one inferred "
+     "dimension"),
 )
 
 COPY = ("core", "tests", "sample_scenes", "pytest.ini")

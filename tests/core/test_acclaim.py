@@ -1,5 +1,6 @@
 """ASF/AMC reading and writing on the real CMU files."""
 
+import dataclasses
 import re
 
 import numpy as np
@@ -493,3 +494,98 @@ def test_asf_infinite_limits_mean_no_limit(asf_lines):
     lines[i] = "    limits (-inf inf)"
     asf = parse_asf(lines)
     assert any(np.all(np.isinf(b.limits[0])) for b in asf.bones if len(b.limits))
+
+
+# --------------------------------------------------------------------------- writing: units, header, checks
+
+def _quarter_turn_motion(asf, n_frames=3, **fields):
+    """Zero motion except lfemur.rx = a quarter turn (π/2 rad = 90°)."""
+    names = asf_to_skeleton(asf).dof_names()
+    values = np.zeros((n_frames, len(names)))
+    values[:, names.index("lfemur.rx")] = np.pi / 2
+    return AmcMotion(values=values, **{"frame_numbers": None, "bone_order": (), **fields})
+
+
+@pytest.mark.parametrize("unit, header, written", [("deg", ":DEGREES", 90.0),
+                                                   ("rad", ":RADIANS", np.pi / 2)])
+def test_written_angles_are_in_the_skeletons_unit(unit, header, written):
+    """A skeleton in degrees gets a :DEGREES file with 90 for a quarter turn, one in radians a
+    :RADIANS file with π/2; both read back to the same motion."""
+    asf = dataclasses.replace(read_asf(cmu_path("08.asf")), angle_unit=unit)
+    motion = _quarter_turn_motion(asf)
+    lines = format_amc(asf, motion).splitlines()
+    assert lines[:3] == ["# frames per second: 120", ":FULLY-SPECIFIED", header]
+    femur = next(line for line in lines if line.startswith("lfemur "))
+    assert float(femur.split()[1]) == pytest.approx(written, rel=1e-12)
+    np.testing.assert_allclose(parse_amc(lines, asf).values, motion.values, atol=1e-12)
+
+
+def test_written_frames_are_numbered_from_one_in_the_layout_bone_order():
+    """Without frame numbers the frames are 1..N; a bone order that is not the skeleton's
+    bones is replaced by the skeleton's order."""
+    asf = read_asf(cmu_path("08.asf"))
+    motion = _quarter_turn_motion(asf, n_frames=4, bone_order=("nosuchbone",))
+    lines = format_amc(asf, motion).splitlines()
+    assert [line for line in lines if line.isdigit()] == ["1", "2", "3", "4"]
+    bones = list(channel_layout(asf).bones)
+    assert [line.split()[0] for line in lines[4:4 + len(bones)]] == bones
+    again = parse_amc(lines, asf)
+    np.testing.assert_array_equal(again.frame_numbers, [1, 2, 3, 4])
+    np.testing.assert_allclose(again.values, motion.values, atol=1e-12)
+
+
+def test_format_amc_refuses_what_it_cannot_write():
+    asf = read_asf(cmu_path("08.asf"))
+    good = _quarter_turn_motion(asf)
+    for values, shape in ((good.values[0], "(62,)"), (good.values[:, :61], "(3, 61)")):
+        with pytest.raises(ValueError, match=re.escape(f"(N, 62), got {shape}")):
+            format_amc(asf, dataclasses.replace(good, values=values))
+    bad = good.values.copy()
+    bad[1, 7] = np.nan
+    with pytest.raises(ValueError, match="^motion values must be finite$"):
+        format_amc(asf, dataclasses.replace(good, values=bad))
+    for fps in amc_module.FPS_RANGE:                        # the bounds themselves are allowed
+        text = format_amc(asf, dataclasses.replace(good, fps=fps))
+        assert parse_amc(text, asf).recorded_fps == fps
+    for fps in (0.005, 20000.0):
+        with pytest.raises(ValueError, match=re.escape(f"{fps!r} is outside 0.01..10000")):
+            format_amc(asf, dataclasses.replace(good, fps=fps))
+
+
+def test_read_amc_names_the_file_and_takes_the_callers_rate(tmp_path):
+    asf = read_asf(cmu_path("08.asf"))
+    motion = dataclasses.replace(_quarter_turn_motion(asf), fps=24.0)
+    path = tmp_path / "walk.amc"
+    amc_module.write_amc(path, asf, motion, asf_name="08.asf")
+    assert path.read_text().startswith("#!OML:ASF 08.asf\n# frames per second: 24\n")
+    again = read_amc(path, asf)
+    assert again.path == str(path) and again.fps == 24.0
+    np.testing.assert_allclose(again.values, motion.values, atol=1e-12)
+    assert read_amc(path, asf, fps=30.0).fps == 30.0
+    path.write_text(path.read_text().replace("lfemur 90", "lfemur ninety", 1))
+    with pytest.raises(MocapParseError) as info:
+        read_amc(path, asf)
+    assert info.value.path == str(path)
+
+
+def test_recorded_rate_bounds_and_message(walk):
+    asf, lines = walk
+    for token, value in (("0.01", 0.01), ("10000", 10000.0)):     # the bounds are allowed
+        motion = parse_amc(lines[:1] + [f"# frames per second: {token}"] + lines[1:], asf)
+        assert motion.recorded_fps == value
+    err = amc_error(lines[:1] + ["# frames per second: 10001"] + lines[1:], asf)
+    assert (err.path, err.line) == ("walk.amc", 2)
+    assert err.reason == "frames per second 10001 is outside 0.01..10000"
+    err = amc_error(lines[:1] + ["# frames per second: fast"] + lines[1:], asf)
+    assert (err.path, err.line) == ("walk.amc", 2)
+    assert err.reason == "frames per second: 'fast' is not a number"
+
+
+def test_text_lines_in_pieces_are_the_lines():
+    """The line-by-line parser's lazy split gives str.split('\\n') of the range whatever the
+    piece size (pieces end at a newline)."""
+    data = b"ab\ncdef\n\ng h\ni"
+    for begin in (0, 3):
+        for piece in range(1, len(data) + 1):
+            got = list(amc_module._text_lines(data, begin, len(data), piece=piece))
+            assert got == data[begin:].decode().split("\n"), (begin, piece)

@@ -138,6 +138,11 @@ def test_innovation_sq_counts_only_the_observed_channels(ctx):
     x_pred = ekf_predict(res.states[0], res.covariances[0], ctx.Q)[0]
     innovation = ys[1] - observation_mean(ctx, x_pred[1], w)
     np.testing.assert_allclose(res.innovation_sq[1], np.nanmean(innovation**2), rtol=1e-10)
+    one = make_context(small_model(), channels=["lfemur.rx"])        # one channel: e² itself
+    y = observations("35_01")[:1, :1] / one.scale
+    res = ekf_filter(one, y, w, x0, p0)
+    np.testing.assert_allclose(res.innovation_sq[0],
+                               (y[0, 0] - observation_mean(one, x0[1], w)[0])**2, rtol=1e-10)
 
 
 def test_posture_offset_row_is_added_to_the_mean(ctx):
@@ -322,7 +327,7 @@ def test_context_arguments_at_and_beyond_their_bounds():
         with pytest.raises(ValueError, match="style_prior_scale must be positive"):
             make_context(model, style_prior_scale=bad)
     make_context(model, outlier_ratio=0.5)                  # any positive ratio
-    with pytest.raises(ValueError, match="at least one channel must be observed"):
+    with pytest.raises(ValueError, match="^at least one channel must be observed$"):
         make_context(model, channels=[])
     one = make_context(model, channels=["lfemur.rx"])
     assert one.n_channels == 1
