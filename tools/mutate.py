@@ -157,11 +157,16 @@ def equivalent_kind(diff):
     return None
 
 
-def run_module(name, module, tests, jobs):
-    folder = _scratch(name, module, tests)
+def run_module(name, module, tests, jobs, run=True):
+    """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
+    already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
+    ``mutmut run NAME...``)."""
+    folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
-                   cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    if run:
+        folder = _scratch(name, module, tests)
+        subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
+                       cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     statuses = _results(folder)
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
@@ -183,11 +188,13 @@ def main(argv=None):
     parser.add_argument("--only", nargs="+", choices=sorted(MODULES))
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
+    parser.add_argument("--no-run", action="store_true",
+                        help="score the results of an earlier run (build/mutate/<module>/)")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
         module, tests = MODULES[name]
-        row = run_module(name, module, tests, args.jobs)
+        row = run_module(name, module, tests, args.jobs, run=not args.no_run)
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "
