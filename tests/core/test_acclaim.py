@@ -589,3 +589,80 @@ def test_text_lines_in_pieces_are_the_lines():
         for piece in range(1, len(data) + 1):
             got = list(amc_module._text_lines(data, begin, len(data), piece=piece))
             assert got == data[begin:].decode().split("\n"), (begin, piece)
+
+
+def test_given_frame_numbers_are_written():
+    asf = read_asf(cmu_path("08.asf"))
+    motion = _quarter_turn_motion(asf, frame_numbers=np.arange(7, 10))
+    lines = format_amc(asf, motion).splitlines()
+    assert [line for line in lines if line.isdigit()] == ["7", "8", "9"]
+    np.testing.assert_array_equal(parse_amc(lines, asf).frame_numbers, [7, 8, 9])
+
+
+def test_progress_of_the_line_by_line_parser_rises_within_zero_to_one(monkeypatch):
+    """Regular frames, then a tail in another bone order (line-by-line parser, reporting every
+    50 lines): the fractions reported rise from 0 to 1 and never leave [0, 1]."""
+    asf = read_asf(cmu_path("08.asf"))
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), 60))
+    out = list(head)
+    for k, frame in enumerate(frames):
+        out += [frame[0]] + (frame[1:][::-1] if k >= 30 else frame[1:])
+    monkeypatch.setattr(amc_module, "_SLOW_STEP_LINES", 50)
+    steps = amc_module.parse_amc_steps("\n".join(out), asf)
+    fractions = []
+    while True:
+        try:
+            fractions.append(next(steps))
+        except StopIteration as finished:
+            motion = finished.value
+            break
+    assert motion.n_frames == 60
+    tail = [f for f in fractions if f > 0.45]     # the line-by-line half: ~900 lines, 50 a step
+    assert 10 <= len(tail) <= 25
+    assert all(0.0 <= f <= 1.0 for f in fractions), fractions
+    assert all(a <= b for a, b in zip(fractions, fractions[1:])), fractions
+    assert fractions[-1] > 0.95
+
+
+def _regular_then_reversed(frames_total=40, regular=20):
+    """08_01's first frames as lines: the first ``regular`` frames as in the file (vectorised
+    parser), the rest with the bones in reverse order (line-by-line parser)."""
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), frames_total))
+    out = list(head)
+    for k, frame in enumerate(frames):
+        out += [frame[0]] + (frame[1:][::-1] if k >= regular else frame[1:])
+    return out
+
+
+def test_line_by_line_errors_name_the_file_and_line(walk):
+    asf, _ = walk
+    lines = _regular_then_reversed()
+    frame = {int(l): i for i, l in enumerate(lines) if l.isdigit()}     # frame -> list index
+    i = frame[25]
+    cases = [
+        (lines[:i + 1] + [""] + lines[i + 1:], i + 2, "blank line inside the motion data"),
+        (lines[:i] + ["25 extra text"] + lines[i + 1:], i + 1,
+         "frame number line has extra text: 'extra text'"),
+        (lines[:frame[21]] + ["22"] + lines[frame[21] + 1:], frame[21] + 1,
+         "frame 22 follows frame 20: frames must be consecutive"),
+    ]
+    bones = [lines[i + 1].split()[0], lines[i + 2].split()[0]]            # two bones dropped
+    cases.append((lines[:i + 1] + lines[i + 3:], i + 1,
+                  f"frame 25 is truncated: it lacks {', '.join(sorted(bones, key=list(channel_layout(asf).bones).index))}"))
+    for bad, line, reason in cases:
+        err = amc_error(bad, asf)
+        assert (err.path, err.line, err.reason) == ("walk.amc", line, reason)
+
+
+def test_bone_order_of_a_file_read_line_by_line_is_its_first_frames(walk):
+    """A first frame only the line-by-line parser reads ('1_0'), the last frame in another
+    order: the motion keeps the first frame's bone order (the writer's order)."""
+    asf, _ = walk
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), 5))
+    first = frames[0][1:]
+    parts = first[0].split()
+    parts[1] = "1_0" if parts[1] == "10" else parts[1] + "_0"
+    frames[0] = [frames[0][0], " ".join(parts)] + first[1:]
+    frames[-1] = [frames[-1][0]] + frames[-1][1:][::-1]
+    motion = parse_amc(head + [l for f in frames for l in f], asf)
+    assert motion.bone_order == tuple(l.split()[0] for l in first)
