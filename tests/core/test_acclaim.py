@@ -619,6 +619,7 @@ def test_progress_of_the_line_by_line_parser_rises_within_zero_to_one(monkeypatc
     assert motion.n_frames == 60
     tail = [f for f in fractions if f > 0.45]     # the line-by-line half: ~900 lines, 50 a step
     assert 10 <= len(tail) <= 25
+    assert all(a < b for a, b in zip(tail, tail[1:])), tail        # 50 more lines each
     assert all(0.0 <= f <= 1.0 for f in fractions), fractions
     assert all(a <= b for a, b in zip(fractions, fractions[1:])), fractions
     assert fractions[-1] > 0.95
@@ -645,6 +646,8 @@ def test_line_by_line_errors_name_the_file_and_line(walk):
          "frame number line has extra text: 'extra text'"),
         (lines[:frame[21]] + ["22"] + lines[frame[21] + 1:], frame[21] + 1,
          "frame 22 follows frame 20: frames must be consecutive"),
+        (lines[:frame[30]] + ["31"] + lines[frame[30] + 1:], frame[30] + 1,
+         "frame 31 follows frame 29: frames must be consecutive"),
     ]
     bones = [lines[i + 1].split()[0], lines[i + 2].split()[0]]            # two bones dropped
     cases.append((lines[:i + 1] + lines[i + 3:], i + 1,
