@@ -57,6 +57,15 @@ EQUIVALENT = {
         "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
     f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
         "ys[...] = None on a float array stores NaN, the same as = np.nan",
+    "core.mocap.amc.x_format_amc__mutmut_65":
+        "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
+    "core.mocap.amc.x__scaled_progress__mutmut_12":
+        "min(2.0, count / lines) -> the same: the parser counts at most the lines it was given",
+    "core.mocap.amc.x__scaled_progress__mutmut_18":
+        "max(lines, 2) for max(lines, 1): the line-by-line parser reports only after "
+        "_SLOW_STEP_LINES lines, so lines > 1 whenever a fraction is computed",
+    "core.mocap.amc.x_write_amc__mutmut_12":
+        'encoding="UTF-8" is encoding="utf-8" (codec names ignore case)',
 }
 
 #: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
