@@ -227,9 +227,25 @@ class TS_OT_body_map_clear(_ArmatureOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+_SEEN = {}
+
+
 def _current_body_map(obj):
-    from .rig_bridge import resolve_body_map
-    return resolve_body_map(obj)[0]
+    """The armature's stored or recognised body map (recomputed only when the armature
+    changes, for the panel's redraws)."""
+    from .rig_bridge import _signature, resolve_body_map
+    key = _signature(obj)
+    hit = _SEEN.get(obj.as_pointer())
+    if hit is None or hit[0] != key:
+        try:
+            found = resolve_body_map(obj)[0]
+        except BodyMapError as exc:
+            found = exc
+        _SEEN.clear()
+        _SEEN[obj.as_pointer()] = hit = (key, found)
+    if isinstance(hit[1], Exception):
+        raise hit[1]
+    return hit[1]
 
 
 class TS_OT_body_map_export(bpy.types.Operator, ExportHelper):

@@ -42,7 +42,6 @@ TWIST = "twist"
 ANGLE_TOLERANCE = 2e-4          # radians
 DISTANCE_TOLERANCE = 1e-4       # metres
 MAX_STEPS = 12
-DEBUG = False
 
 
 class RigMapError(RigError):
@@ -461,8 +460,7 @@ class MappedRig:
                   tuple(pb[n].rotation_euler), tuple(pb[n].rotation_axis_angle)) for n in names]
         n_frames = len(frames)
         loc_out = np.zeros((n_frames, len(steps), 3))
-        rot_out = np.zeros((n_frames, len(steps), 3, 3))
-        euler_out = {}
+        rotation_out = {}
         errors = np.zeros((n_frames, 2))
         keep = (scene.frame_current, scene.frame_subframe)
         view_layer = bpy.context.view_layer
@@ -474,15 +472,11 @@ class MappedRig:
                 target = targets[k].copy()
                 target[:, :3, 3] /= s                          # armature units
                 last = np.full(2, np.inf)
-                for it in range(MAX_STEPS + 1):
+                for _ in range(MAX_STEPS + 1):
                     m = current_matrices(self.obj)
                     joints = m[pose_idx] @ offsets
                     errors[k] = step_errors(steps, joints, target)
                     errors[k, 1] *= s
-                    if DEBUG:
-                        print("frame", f, "step", it, errors[k], [
-                            (st.control, np.round(step_errors([st], joints, target), 4))
-                            for st in steps])
                     if errors[k, 0] < ANGLE_TOLERANCE and errors[k, 1] < DISTANCE_TOLERANCE:
                         break
                     tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
@@ -499,13 +493,12 @@ class MappedRig:
                     mode = modes[c]
                     prop, count = channel_property(mode)
                     value = np.array(getattr(pb[name], prop))
-                    euler_out.setdefault(c, np.zeros((n_frames, count)))[k] = value
+                    rotation_out.setdefault(c, np.zeros((n_frames, count)))[k] = value
         finally:
             for name, (loc, quat, euler, axis_angle) in zip(names, saved):
                 pb[name].location, pb[name].rotation_quaternion = loc, quat
                 pb[name].rotation_euler, pb[name].rotation_axis_angle = euler, axis_angle
             scene.frame_set(keep[0], subframe=keep[1])
-        del rot_out
         values = {}
         bag = self._bag()
         before = np.asarray(frames, dtype=float)[:1] - 1.0
@@ -517,7 +510,7 @@ class MappedRig:
                 path = pose_bone_path(st.control, prop)
                 previous, _ = evaluate_fcurves(bag, [(path, i) for i in range(count)], before,
                                                list(getattr(pb[st.control], prop)))
-                series = _continuous(euler_out[c], mode, previous[0])
+                series = _continuous(rotation_out[c], mode, previous[0])
                 for i in range(count):
                     if (path, i) in paths:
                         values[(path, i)] = series[:, i]
@@ -773,6 +766,57 @@ def mapped_rig(obj, body_map=None, stored=False):
                      dof_mask=mask, root_location_mask=root_mask,
                      armature2world=np.array(obj.matrix_world), metres_per_unit=unit,
                      excluded=excluded)
+
+
+_SWITCHES = ("IK_FK", "pole_vector", "ik_fk_switch")
+_CACHE = {}
+
+
+def _signature(obj):
+    """What a cached :func:`tracking_rig` depends on: the bones, the stored map, the object's
+    scale, the IK/FK switches and IK constraints' states."""
+    from .body_map_ui import body_map_settings
+    bones = obj.data.bones
+    settings = body_map_settings(obj.data)
+    stored = ()
+    if settings is not None and settings.stored:
+        stored = tuple((p.part, p.bone, p.segments, p.pose, p.control, p.ik_control)
+                       for p in settings.parts) + (settings.travel, settings.rig) + tuple(
+            tuple(getattr(l, k) for k in l.bl_rna.properties.keys() if k != "rna_type")
+            for l in settings.limbs)
+    switches = []
+    for pb in obj.pose.bones:
+        for key in _SWITCHES:
+            if key in pb:
+                switches.append((pb.name, key, pb[key]))
+        for c in pb.constraints:
+            if c.type == "IK":
+                switches.append((pb.name, c.name, c.mute, round(c.influence, 3)))
+    return (obj.name, obj.data.name, tuple(bones.keys()), stored,
+            tuple(round(v, 6) for v in obj.matrix_world.to_scale()), tuple(switches),
+            bool(obj.data.get(PROP_ASF)))
+
+
+def cached_tracking_rig(obj):
+    """:func:`tracking_rig` for panels and draw handlers: recomputed only when the armature's
+    bones, body map, scale or switches change (a generated Rigify rig takes a tenth of a
+    second to read)."""
+    key = _signature(obj)
+    hit = _CACHE.get(obj.as_pointer())
+    if hit is not None and hit[0] == key:
+        if isinstance(hit[1], Exception):
+            raise hit[1]
+        return hit[1]
+    try:
+        rig = tracking_rig(obj)
+    except RigError as exc:
+        _CACHE.clear()
+        _CACHE[obj.as_pointer()] = (key, exc)
+        raise
+    if len(_CACHE) > 8:
+        _CACHE.clear()
+    _CACHE[obj.as_pointer()] = (key, rig)
+    return rig
 
 
 def tracking_rig(obj):

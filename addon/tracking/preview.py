@@ -9,7 +9,7 @@ import bpy
 
 from ..common.drawing import draw_vertical_lines
 from ..common.pose_bridge import RigError
-from ..common.rig_bridge import tracking_rig
+from ..common.rig_bridge import cached_tracking_rig
 from .bridge import TrackError, choose_keyframes, frame_range
 from .props import track_settings
 
@@ -33,7 +33,7 @@ def preview_frames(context):
     if anim is None or anim.action is None:
         return []
     try:
-        rig = tracking_rig(obj)
+        rig = cached_tracking_rig(obj)
         first, last = frame_range(scene, settings)
         choice, _ = choose_keyframes(scene, obj, rig, settings, first, last)
     except (RigError, TrackError):
