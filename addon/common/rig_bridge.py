@@ -273,6 +273,7 @@ def control_plan(obj, body_map, model):
             add(ControlStep(lm.pole, POLE, joints[1], limb=joints))
         elif lm.twist:
             add(ControlStep(lm.twist, TWIST, joints[0], limb=joints))
+    chain = set(int(p) for p in model.skeleton.parents if p >= 0)
     for j, part in enumerate(model.parts):
         pmap = body_map.parts[part]
         limb = _ik_limb_of(part)
@@ -290,9 +291,21 @@ def control_plan(obj, body_map, model):
                 control = pmap.control
             if control:
                 add(ControlStep(control, ROTATE, j))
-        elif pmap.control and pmap.control == pmap.bones[0]:
-            # A plain rig: each segment is a bone the animator keys.
+        elif pmap.control and pmap.control == pmap.bones[0] and j in chain:
+            # A plain rig: a segment on the way to the next part (a metarig's spine.002) is a
+            # bone the animator keys; one off the chain (its pelvis and breast bones) is
+            # carried by its part.
             add(ControlStep(model.bones[j], ROTATE, j))
+    # A part the rig carries between parts it controls (Rigify's spine, bent by the hips and
+    # chest controls through their pivot) is estimated too: its children's places depend on it.
+    # It gets no keys; the rig bends it its own way.
+    controlled = {s.joint for s in steps if s.rule in (ROTATE, RIGID)}
+    for j in range(model.n_joints):
+        if model.primary[j] and not estimated[j] and j != hips and any(
+                model.skeleton.parents[c] == j or model.skeleton.parents[
+                    model.skeleton.parents[c]] == j
+                for c in controlled if model.skeleton.parents[c] >= 0):
+            estimated[j] = True
     # Compensation candidates: a rotated control and the control of its nearest controlled
     # model ancestor; whether it really turns with it is measured on the rig
     # (MappedRig.measure_inheritance).
