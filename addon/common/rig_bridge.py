@@ -369,6 +369,7 @@ class MappedRig:
     rotation_modes: tuple = field(default=())
     #: Correction steps taken by :meth:`control_values` so far (for the benchmark).
     correction_steps: int = 0
+    last_errors: object = None
 
     @property
     def controls(self):
@@ -577,6 +578,40 @@ class MappedRig:
                 else ControlStep(st.control, st.rule, st.joint, st.limb, compensate=-1)
                 for st in steps]
 
+    def prepare_keys(self, frames, root_translation, local_rotations, bones=None):
+        """Find the control values of poses now (:meth:`control_values`), before anything is
+        written: :meth:`write_pose_keys` of any of these frames then keys them as found. A
+        failure (a non-finite value) is raised here, while the file is unchanged.
+
+        Raises
+        ------
+        ValueError
+        """
+        root_translation = np.asarray(root_translation, dtype=float)
+        local = np.asarray(local_rotations, dtype=float)
+        if not (np.all(np.isfinite(root_translation)) and np.all(np.isfinite(local))):
+            raise ValueError("refusing to key non-finite poses")
+        wanted = set(self.controls if bones is None else bones)
+        steps = [s for s in self.steps if s.control in wanted]
+        frames = np.asarray(frames, dtype=float)
+        values, errors = self.control_values(frames, root_translation, local, steps)
+        if not all(np.all(np.isfinite(v)) for v in values.values()):
+            raise ValueError("refusing to key non-finite control values")
+        self.last_errors = errors
+        self._prepared = (frames, values, tuple(s.control for s in steps))
+
+    def _prepared_values(self, frames, steps):
+        """The values :meth:`prepare_keys` found for ``frames`` (None when it did not)."""
+        prepared = getattr(self, "_prepared", None)
+        if prepared is None or tuple(s.control for s in steps) != prepared[2]:
+            return None
+        all_frames, values, _ = prepared
+        where = {float(f): i for i, f in enumerate(all_frames)}
+        if not all(float(f) in where for f in frames):
+            return None
+        sel = np.array([where[float(f)] for f in frames])
+        return {key: series[sel] for key, series in values.items()}
+
     def _bag(self):
         anim = self.obj.animation_data
         if anim is None or anim.action is None or anim.action_slot is None:
@@ -644,8 +679,10 @@ class MappedRig:
         steps = [s for s in self.steps if s.control in wanted]
         if not steps or not len(frames):
             return 0
-        values, errors = self.control_values(frames, root_translation, local, steps)
-        self.last_errors = errors
+        values = self._prepared_values(frames, steps)
+        if values is None:
+            values, errors = self.control_values(frames, root_translation, local, steps)
+            self.last_errors = errors
         if not all(np.all(np.isfinite(v)) for v in values.values()):
             raise ValueError("refusing to key non-finite control values")
         action, slot = ensure_action(self.obj, action_name or f"{self.obj.name}Action")

@@ -497,6 +497,17 @@ def apply_result(context, request, result):
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
                                      and not request.options.estimate_depth
                                      and request.n_views == 1)    # views measure depth
+    if isinstance(request.rig, MappedRig):
+        # The controls' values of every written frame, found on the evaluated rig before
+        # anything changes (a failure leaves the file as it was).
+        keys = set(int(k) for k in request.key_frames)
+        between = np.array([int(f) not in keys for f in frames])
+        try:
+            request.rig.prepare_keys(frames[between], result.root_translations[between],
+                                     result.local_rotations[between],
+                                     bones=request.tracked_bones)
+        except ValueError as exc:
+            raise TrackError(f"{exc}; nothing was written") from None
     remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
