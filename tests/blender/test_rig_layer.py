@@ -131,14 +131,19 @@ def addon_log(r):
     return log_so3(r)
 
 
-@pytest.mark.parametrize("mode", ["FK", "IK"])
+@pytest.mark.parametrize("mode", ["FK", "IK", "IK with poles"])
 def test_rigify_controls_are_keyed_onto_a_pose_and_nothing_else(mode):
     """Target poses (the pose at frame 6 turned at the hips, chest, head, a thigh, a knee, a
     forearm and moved forward) keyed on Rigify's controls: the evaluated rig lands on them;
     keys only on the controls the mode keys; the animator's keys bit for bit."""
     rig_bridge = addon("common.rig_bridge")
     obj = append_rig("rig")
-    set_limbs(obj, mode)
+    set_limbs(obj, mode[:2])
+    if mode == "IK with poles":
+        for bone in ("thigh_parent.L", "thigh_parent.R", "upper_arm_parent.L",
+                     "upper_arm_parent.R"):
+            obj.pose.bones[bone]["pole_vector"] = True
+        bpy.context.view_layer.update()
     for control, angle in (("torso", 0.0), ("chest", 0.2), ("thigh_fk.L", 0.4),
                            ("foot_ik.L", 0.3), ("hand_ik.R", -0.2)):
         pb = obj.pose.bones[control]
@@ -165,9 +170,12 @@ def test_rigify_controls_are_keyed_onto_a_pose_and_nothing_else(mode):
     if mode == "FK":
         assert {"thigh_fk.L", "shin_fk.L", "forearm_fk.R", "hips", "torso", "head"} <= keyed
         assert not keyed & {"foot_ik.L", "thigh_ik.L", "hand_ik.R"}
-    else:
+    elif mode == "IK":
         assert {"foot_ik.L", "thigh_ik.L", "hand_ik.R", "upper_arm_ik.R"} <= keyed
-        assert not keyed & {"thigh_fk.L", "shin_fk.L", "forearm_fk.R"}
+        assert not keyed & {"thigh_fk.L", "shin_fk.L", "forearm_fk.R", "thigh_ik_target.L"}
+    else:                               # the poles turn the knees and elbows, not the IK bases
+        assert {"foot_ik.L", "thigh_ik_target.L", "hand_ik.R", "upper_arm_ik_target.R"} <= keyed
+        assert not keyed & {"thigh_fk.L", "thigh_ik.L", "upper_arm_ik.R"}
     assert not any(b.startswith(("DEF-", "ORG-", "MCH-")) or "tweak" in b for b in keyed)
     assert_kept(user, keys_snapshot(obj), frames=[1, 11])
 
