@@ -29,7 +29,7 @@ from ...core.kinematics import matrix_to_quaternion
 from ...core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
 from ...core.rigs import (LIMBS, RIGID, ROTATE, TRANSLATE, BodyMapError, BoneConstraint,
                           RigBones, axis_rotation, bend_angle_error,
-                          joint_world_poses, model_skeleton, pose_error,
+                          joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
                           recognise_body_map, skeleton_pose, world_change, world_poses)
 from ...core.rigs.parts import PARENT
 from ..mocap.acclaim_bridge import PROP_ASF
@@ -477,7 +477,6 @@ class MappedRig:
         rotation_out = {}
         errors = np.zeros((n_frames, 2))
         keep = (scene.frame_current, scene.frame_subframe)
-        view_layer = bpy.context.view_layer
         try:
             for k, f in enumerate(np.asarray(frames).tolist()):
                 scene.frame_set(int(f))
@@ -485,23 +484,8 @@ class MappedRig:
                     steps = self.measure_inheritance(steps)
                 target = targets[k].copy()
                 target[:, :3, 3] /= s                          # armature units
-                last = np.full(2, np.inf)
-                for _ in range(MAX_STEPS + 1):
-                    m = current_matrices(self.obj)
-                    joints = m[pose_idx] @ offsets
-                    errors[k] = step_errors(steps, joints, target)
-                    errors[k, 1] *= s
-                    if errors[k, 0] < ANGLE_TOLERANCE and errors[k, 1] < DISTANCE_TOLERANCE:
-                        break
-                    tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
-                    if not any(last[i] > tolerance[i] and errors[k, i] < 0.8 * last[i]
-                               for i in (0, 1)) and np.all(np.isfinite(last)):
-                        break                 # no more progress: what the rig can do
-                    last = errors[k].copy()
-                    self.correction_steps += 1
-                    self._correct(steps, names, modes, m, cidx, joints, target)
-                    self.obj.update_tag()
-                    view_layer.update()
+                errors[k] = self._solve_frame(steps, names, modes, cidx, pose_idx, offsets,
+                                              target)
                 for c, name in enumerate(names):
                     loc_out[k, c] = pb[name].location
                     mode = modes[c]
@@ -513,6 +497,13 @@ class MappedRig:
                 pb[name].location, pb[name].rotation_quaternion = loc, quat
                 pb[name].rotation_euler, pb[name].rotation_axis_angle = euler, axis_angle
             scene.frame_set(keep[0], subframe=keep[1])
+        return self._channel_series(steps, modes, frames, loc_out, rotation_out), errors
+
+    def _channel_series(self, steps, modes, frames, locations, rotations):
+        """``(path, index) -> (N,)`` of the keyed channels of ``steps`` from the solved
+        locations (N, K, 3) and rotation channels ({k: (N, count)}), rotations continuous in
+        time from the value before the first frame."""
+        pb = self.obj.pose.bones
         values = {}
         bag = self._bag()
         before = np.asarray(frames, dtype=float)[:1] - 1.0
@@ -524,7 +515,7 @@ class MappedRig:
                 path = pose_bone_path(st.control, prop)
                 previous, _ = evaluate_fcurves(bag, [(path, i) for i in range(count)], before,
                                                list(getattr(pb[st.control], prop)))
-                series = _continuous(rotation_out[c], mode, previous[0])
+                series = _continuous(rotations[c], mode, previous[0])
                 for i in range(count):
                     if (path, i) in paths:
                         values[(path, i)] = series[:, i]
@@ -532,8 +523,31 @@ class MappedRig:
                 path = pose_bone_path(st.control, "location")
                 for i in range(3):
                     if (path, i) in paths:
-                        values[(path, i)] = loc_out[:, c, i]
-        return values, errors
+                        values[(path, i)] = locations[:, c, i]
+        return values
+
+    def _solve_frame(self, steps, names, modes, cidx, pose_idx, offsets, target):
+        """Correction steps at the current frame until the controlled parts are on ``target``
+        (armature units) or no longer get closer; returns the (angle, metres) left."""
+        view_layer = bpy.context.view_layer
+        tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
+        last, errors = np.full(2, np.inf), np.zeros(2)
+        for _ in range(MAX_STEPS + 1):
+            m = current_matrices(self.obj)
+            joints = m[pose_idx] @ offsets
+            errors = np.array(step_errors(steps, joints, target))
+            errors[1] *= self.metres_per_unit
+            if errors[0] < tolerance[0] and errors[1] < tolerance[1]:
+                break
+            if np.all(np.isfinite(last)) and not any(
+                    last[i] > tolerance[i] and errors[i] < 0.8 * last[i] for i in (0, 1)):
+                break                         # no more progress: what the rig can do
+            last = errors.copy()
+            self.correction_steps += 1
+            self._correct(steps, names, modes, m, cidx, joints, target)
+            self.obj.update_tag()
+            view_layer.update()
+        return errors
 
     def measure_inheritance(self, steps):
         """Steps whose control really turns with the control of its ``compensate`` joint,
@@ -560,7 +574,7 @@ class MappedRig:
             prop, _ = channel_property(bone.rotation_mode)
             lin = new[:3, :3]
             setattr(bone, prop, channels_from_rotations(
-                _orthonormal(lin / np.linalg.norm(lin, axis=0))[None], bone.rotation_mode,
+                orthonormal(lin / np.linalg.norm(lin, axis=0))[None], bone.rotation_mode,
                 previous=np.array(getattr(bone, prop)))[0].tolist())
             view_layer.update()
             after = current_matrices(self.obj)
@@ -637,8 +651,8 @@ class MappedRig:
                 comp = None
                 if st.compensate >= 0:
                     p = st.compensate
-                    comp = _orthonormal(joints[p, :3, :3] @ target[p, :3, :3].T)
-                change = world_change(target[st.joint], _rigid(joints[st.joint]), st.rule,
+                    comp = orthonormal(joints[p, :3, :3] @ target[p, :3, :3].T)
+                change = world_change(target[st.joint], rigid(joints[st.joint]), st.rule,
                                       pivot=control[:3, 3], compensation=comp)
             wanted = change @ control
             if not np.all(np.isfinite(wanted)):
@@ -653,7 +667,7 @@ class MappedRig:
                                  for i in range(3)]
             if st.keys_rotation:
                 lin = new[:3, :3]
-                r = _orthonormal(lin / np.linalg.norm(lin, axis=0))
+                r = orthonormal(lin / np.linalg.norm(lin, axis=0))
                 prop, _ = channel_property(modes[c])
                 current = np.array(getattr(bone, prop))
                 value = _rotation_channels(r, modes[c], current, tuple(bone.lock_rotation))
@@ -719,21 +733,6 @@ def _rotation_channels(rotation, mode, current, locked):
 def _as4(rotation):
     out = np.eye(4)
     out[:3, :3] = rotation
-    return out
-
-
-def _orthonormal(m):
-    u, _, vt = np.linalg.svd(m)
-    r = u @ vt
-    if np.linalg.det(r) < 0:
-        u[:, -1] *= -1
-        r = u @ vt
-    return r
-
-
-def _rigid(m):
-    out = np.array(m, dtype=float)
-    out[:3, :3] = _orthonormal(out[:3, :3])
     return out
 
 
