@@ -192,10 +192,11 @@ def model_skeleton(body_map, names, parents, rest_matrices, lengths, metres_per_
                          metres_per_unit=float(metres_per_unit))
 
 
-#: Anatomical joints of the model skeleton (as the CMU skeleton's own DOFs): knees and elbows
-#: are hinges, feet and toes do not twist about their length, toes only bend.
+#: Anatomical joints of the model skeleton, as the CMU skeleton's own DOFs have them (its ASF:
+#: tibia and radius ``rx``, toes ``rx``; foot ``rx rz`` and clavicle ``ry rz``, i.e. no turn
+#: about their own length): knees, elbows and toes are hinges, feet and clavicles do not twist.
 HINGES = ("shin", "forearm", "toe")
-NO_TWIST = ("foot",)
+NO_TWIST = ("foot", "clavicle")
 #: A hinge's axis (from the keyed poses or the rest pose) must lie this close to the joint
 #: frame's X or Z axis to become that axis; otherwise the joint keeps its axes.
 HINGE_ALIGNMENT = np.radians(30.0)
@@ -230,8 +231,8 @@ def _hinge_axis(model, j, key_local):
 def anatomical_dof_mask(model, dof_mask, key_local=None):
     """The DOF mask with the anatomy the CMU skeleton has: a knee, elbow or toe estimated about
     its bend axis only (found from the keyed poses or the rest pose, when it is the joint
-    frame's X or Z axis within :data:`HINGE_ALIGNMENT`; Blender's rigs bend about X), a foot
-    not about its own length (Y). Only primary joints of those parts change.
+    frame's X or Z axis within :data:`HINGE_ALIGNMENT`; Blender's rigs bend about X), a foot or
+    clavicle not about its own length (Y). Only primary joints of those parts change.
 
     Parameters
     ----------

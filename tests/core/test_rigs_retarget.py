@@ -305,6 +305,7 @@ def test_anatomical_mask_makes_knees_elbows_and_toes_hinges_and_feet_untwisted()
     mask = anatomical_dof_mask(model, full, keys)
     assert mask[shin].tolist() == [True, False, False]
     assert mask[foot].tolist() == [True, False, True]     # no twist about the foot's length
+    assert mask[names.index("left clavicle")].tolist() == [True, False, True]
     assert mask[names.index("left thigh")].all() and mask[names.index("hips")].all()
     # About Z: the hinge is Z.
     keys[:, shin] = exp_so3(np.array([[0.0, 0.0, 0.5]]))
