@@ -1,0 +1,192 @@
+"""The model skeleton of a mapped rig: one joint per mapped deforming bone (plain arrays).
+
+Tracking and the gait see a rig through its body map (:mod:`.body_map`) as this skeleton, not
+as its hundreds of bones: the **joints** are the map's deforming bones -- per part its own bone
+(the part's *primary* joint) and its segments -- nothing else (no face, finger, tweak or
+mechanism bones). Each joint's rest frame is its deforming bone's rest frame
+(``bone.matrix_local``, Y along the bone), so one tapered cylinder per joint is that bone's
+envelope (:func:`core.tracking.body_model_from_skeleton`).
+
+Parents follow the parts, not the rig's bone tree (Rigify's ``DEF-thigh.L`` hangs from
+``ORG-spine``, a mechanism bone): a part's primary joint hangs from the joint of the nearest
+part above it (:func:`.parts.present_parent`) whose bone is its nearest ancestor in the rig
+(e.g. a CMU BVH thigh from ``LHipJoint``, a segment of the hips), else from that part's
+primary joint; a segment hangs from its nearest ancestor among its part's bones, else from
+the primary joint.
+
+**Pose.** A primary joint moves with its part's *pose bone* (:attr:`.PartMap.pose_bone`,
+Rigify's ``ORG-`` bone), a segment with its own bone: ``joint = pose_bone_matrix @ offset``
+with the rest offset ``offset = pose_bone_rest^-1 @ joint_rest`` (:attr:`ModelSkeleton.
+pose_offsets`; the identity when the pose bone is the deforming bone).
+
+**Units.** Everything is in metres of the armature's space: rest heads, lengths and offsets are
+multiplied by ``metres_per_unit`` (an FBX import at object scale 0.01 has centimetre bones and
+0.01 metres per unit; the object's rotation and location are the camera's business:
+``docs/rigs.md``).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics import Skeleton
+from .body_map import BodyMapError
+from .parts import PARTS, body_region, present_parent
+from .retarget import orthonormal
+
+
+@dataclass(frozen=True, eq=False)
+class ModelSkeleton:
+    """A rig's mapped deforming bones as a core skeleton (module docstring).
+
+    Attributes
+    ----------
+    skeleton : Skeleton
+        Joint names are plain: the part's name for a primary joint (``'left thigh'``), the
+        part's name and a number for its segments (``'left thigh 2'``); metres.
+    bones : tuple of str, (J,)
+        The deforming bone of every joint.
+    pose_bones : tuple of str, (J,)
+        The bone whose evaluated matrix moves the joint.
+    parts : tuple of str, (J,)
+        The part every joint belongs to.
+    primary : ndarray, shape (J,), bool
+        The joint is its part's own (the first of :attr:`.PartMap.bones`).
+    pose_offsets : ndarray, shape (J, 4, 4)
+        Pose bone frame -> joint frame at rest (translation in metres).
+    regions : tuple of str, (J,)
+        Body region of every joint (:func:`.parts.body_region`): the tracker's body parts.
+    metres_per_unit : float
+    """
+
+    skeleton: Skeleton
+    bones: tuple
+    pose_bones: tuple
+    parts: tuple
+    primary: np.ndarray
+    pose_offsets: np.ndarray
+    regions: tuple
+    metres_per_unit: float
+
+    @property
+    def n_joints(self):
+        return self.skeleton.n_joints
+
+    def joint_of_part(self, part):
+        """Index of a part's primary joint."""
+        for j, (p, first) in enumerate(zip(self.parts, self.primary)):
+            if p == part and first:
+                return j
+        raise KeyError(part)
+
+
+def metric(matrices, metres_per_unit):
+    """Rigid 4×4 matrices with their translation scaled to metres (rotations orthonormalised:
+    Blender stores float32)."""
+    m = np.array(matrices, dtype=float)
+    m[..., :3, :3] = orthonormal(m[..., :3, :3])
+    m[..., :3, 3] *= metres_per_unit
+    return m
+
+
+def model_skeleton(body_map, names, parents, rest_matrices, lengths, metres_per_unit=1.0):
+    """The :class:`ModelSkeleton` of a rig (module docstring).
+
+    Parameters
+    ----------
+    body_map : BodyMap
+        With every required part (:meth:`.BodyMap.check`).
+    names : sequence of str, (B,)
+        Every bone of the rig.
+    parents : array_like, shape (B,), int
+        Parent index of every bone (-1: root bone).
+    rest_matrices : array_like, shape (B, 4, 4)
+        ``bone.matrix_local`` (bone frame -> armature space, armature units).
+    lengths : array_like, shape (B,), armature units
+    metres_per_unit : float
+
+    Returns
+    -------
+    ModelSkeleton
+
+    Raises
+    ------
+    BodyMapError
+        The map names a bone the rig lacks, or one bone for two joints.
+    """
+    body_map.check(bone_names=names)
+    index = {n: i for i, n in enumerate(names)}
+    parents = np.asarray(parents, dtype=int)
+    rest = metric(rest_matrices, metres_per_unit)
+    lengths = np.asarray(lengths, dtype=float) * metres_per_unit
+    present = set(body_map.parts)
+
+    def ancestors(i):
+        out, p = [], parents[i]
+        while p >= 0 and len(out) < len(names):
+            out.append(int(p))
+            p = parents[p]
+        return out
+
+    def depth(name):
+        return len(ancestors(index[name]))
+
+    joint_names, bones, pose_bones, parts, primary, parent_of = [], [], [], [], [], []
+    joint_of_bone, primary_joint = {}, {}
+    for part in PARTS:
+        if part not in body_map.parts:
+            continue
+        pmap = body_map.parts[part]
+        own = [pmap.bones[0]] + sorted(pmap.bones[1:], key=depth)
+        for k, bone in enumerate(own):
+            if bone in joint_of_bone:
+                raise BodyMapError(f"The body map names {bone} for two joints "
+                                   f"({parts[joint_of_bone[bone]]} and {part}): each bone can "
+                                   "be one part only; correct it in the Body Map panel")
+            if k == 0:
+                above = present_parent(part, present)
+                if above is None:
+                    parent = -1
+                else:
+                    candidates = {index[b]: joint_of_bone[b]
+                                  for b in body_map.parts[above].bones if b in joint_of_bone}
+                    parent = next((candidates[a] for a in ancestors(index[bone])
+                                   if a in candidates), primary_joint[above])
+            else:
+                candidates = {index[b]: joint_of_bone[b] for b in own[:k]}
+                parent = next((candidates[a] for a in ancestors(index[bone]) if a in candidates),
+                              primary_joint[part])
+            j = len(bones)
+            joint_of_bone[bone] = j
+            if k == 0:
+                primary_joint[part] = j
+            joint_names.append(part if k == 0 else f"{part} {k + 1}")
+            bones.append(bone)
+            pose_bones.append(pmap.pose_bone if k == 0 else bone)
+            parts.append(part)
+            primary.append(k == 0)
+            parent_of.append(parent)
+    n = len(bones)
+    joint_rest = rest[[index[b] for b in bones]]
+    pose_rest = rest[[index[b] for b in pose_bones]]
+    offsets = np.empty((n, 3))
+    rest_rotations = np.empty((n, 3, 3))
+    for j in range(n):
+        p = parent_of[j]
+        if p < 0:
+            rest_rotations[j], offsets[j] = joint_rest[j, :3, :3], joint_rest[j, :3, 3]
+        else:
+            rp = joint_rest[p, :3, :3]
+            rest_rotations[j] = rp.T @ joint_rest[j, :3, :3]
+            offsets[j] = rp.T @ (joint_rest[j, :3, 3] - joint_rest[p, :3, 3])
+    tails = np.zeros((n, 3))
+    tails[:, 1] = lengths[[index[b] for b in bones]]
+    skeleton = Skeleton(names=tuple(joint_names), parents=np.array(parent_of), offsets=offsets,
+                        rest_rotations=rest_rotations, tails=tails,
+                        dof_axes=((0, 1, 2),) * n, limits=None, root_translation=True)
+    pose_offsets = np.linalg.inv(pose_rest) @ joint_rest
+    return ModelSkeleton(skeleton=skeleton, bones=tuple(bones), pose_bones=tuple(pose_bones),
+                         parts=tuple(parts), primary=np.array(primary),
+                         pose_offsets=pose_offsets,
+                         regions=tuple(body_region(p) for p in parts),
+                         metres_per_unit=float(metres_per_unit))
