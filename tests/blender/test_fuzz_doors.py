@@ -182,10 +182,14 @@ def _one_command_line(cli, calls, saved, tmp_path, capfd, argv):
     before = sorted(os.listdir(tmp_path))
     calls.clear(), saved.clear()
     capfd.readouterr()
+    cwd = os.getcwd()
+    os.chdir(tmp_path)                  # relative paths (a --summary "x.blend") land in tmp_path
     try:
         code = cli.main(argv)
     except SystemExit as exc:                        # main turns --help into a status
         raise AssertionError(f"SystemExit {exc.code} for {argv}") from None
+    finally:
+        os.chdir(cwd)
     COUNTS["arguments"] += 1
     if "--help" in argv or "-h" in argv:
         capfd.readouterr()
