@@ -648,6 +648,13 @@ def test_line_by_line_errors_name_the_file_and_line(walk):
          "frame 22 follows frame 20: frames must be consecutive"),
         (lines[:frame[30]] + ["31"] + lines[frame[30] + 1:], frame[30] + 1,
          "frame 31 follows frame 29: frames must be consecutive"),
+        (lines[:i + 1] + ["wing 1 2 3"] + lines[i + 2:], i + 2,
+         "bone 'wing' is not in the skeleton"),
+        (lines[:i + 1] + ["lhipjoint 1"] + lines[i + 2:], i + 2,
+         "bone 'lhipjoint' has no DOFs in the skeleton"),
+        (lines[:i + 2] + [lines[i + 1]] + lines[i + 2:], i + 3,
+         f"bone {lines[i + 1].split()[0]!r} appears twice in frame 25"),
+        (lines[:3] + lines[4:], 4, f"expected a frame number, got {lines[4].split()[0]!r}"),
     ]
     bones = [lines[i + 1].split()[0], lines[i + 2].split()[0]]            # two bones dropped
     cases.append((lines[:i + 1] + lines[i + 3:], i + 1,
