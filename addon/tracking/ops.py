@@ -84,9 +84,9 @@ def track_poll_message(context):
 
 class TS_OT_track_keyframes(bpy.types.Operator):
     """Track the armature through the footage between its keyframes: keys every in-between
-    frame (drift-corrected) and adds residual and rank curves showing where it is unsure.
-    With several armatures selected (several people in the footage), tracks them together,
-    each hiding the others. Esc cancels and leaves everything as it was"""
+    frame (drift-corrected) and adds curves showing where it is unsure (Footage Mismatch,
+    Movements Seen). With several armatures selected (several people in the footage), tracks
+    them together, each hiding the others. Esc cancels and leaves everything as it was"""
 
     bl_idname = "track_and_stride.track_keyframes"
     bl_description = one_line(__doc__)
