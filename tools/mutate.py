@@ -38,7 +38,35 @@ MODULES = {
 
 #: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
 #: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
-EQUIVALENT = {}
+_EKF = "core.gait.ekf."
+_EKF_INPUTS = ("FilterContext keeps ctx.inputs (the GP inputs [cos, sin] of the training phases) "
+               "that no code reads (core/, addon/, tests/): setting it to None, under another "
+               "name or flattened changes nothing")
+_EKF_CACHE_KEY = ("the cache key's string only keeps steps() and decay() entries apart; "
+                  "('XXsteps', n) / ('STEPS', n) do that as well (and their tuples differ in "
+                  "length)")
+EQUIVALENT = {
+    **{f"{_EKF}xǁFilterContextǁ__post_init____mutmut_{i}": _EKF_INPUTS for i in (7, 11, 12, 16)},
+    **{f"{_EKF}xǁFilterContextǁ{name}__mutmut_{i}": _EKF_CACHE_KEY
+       for name in ("steps", "decay") for i in (2, 3)},
+    f"{_EKF}x__kernel_pair__mutmut_26":
+        "rows[3:5] -> rows[3:6] of an array of 5 rows: the same slice",
+    f"{_EKF}x_ekf_filter__mutmut_26":
+        "the initial value of outliers (-1 -> +1) is overwritten for every frame by _update",
+    f"{_EKF}x_ekf_filter__mutmut_27":
+        "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
+    f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
+        "ys[...] = None on a float array stores NaN, the same as = np.nan",
+    "core.mocap.amc.x_format_amc__mutmut_65":
+        "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
+    "core.mocap.amc.x__scaled_progress__mutmut_12":
+        "min(2.0, count / lines) -> the same: the parser counts at most the lines it was given",
+    "core.mocap.amc.x__scaled_progress__mutmut_18":
+        "max(lines, 2) for max(lines, 1): the line-by-line parser reports only after "
+        "_SLOW_STEP_LINES lines, so lines > 1 whenever a fraction is computed",
+    "core.mocap.amc.x_write_amc__mutmut_12":
+        'encoding="UTF-8" is encoding="utf-8" (codec names ignore case)',
+}
 
 #: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
 #: (each removed line against its added line): (name, pattern of the removed text, pattern of
@@ -53,6 +81,10 @@ EQUIVALENT_KINDS = (
      "einsum subscripts in capitals: the same contraction"),
     ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
      'float("-INF") is float("-inf")'),
+    ("reshape-negative", r"\.reshape\((?:[^()]|\([^()]*\))*-1\)",
+     r"\.reshape\((?:[^()]|\([^()]*\))*-2\)",
+     "reshape(..., -1) -> reshape(..., -2): NumPy takes any negative size as the one inferred "
+     "dimension"),
 )
 
 COPY = ("core", "tests", "sample_scenes", "pytest.ini")
@@ -134,11 +166,16 @@ def equivalent_kind(diff):
     return None
 
 
-def run_module(name, module, tests, jobs):
-    folder = _scratch(name, module, tests)
+def run_module(name, module, tests, jobs, run=True):
+    """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
+    already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
+    ``mutmut run NAME...``)."""
+    folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
-                   cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    if run:
+        folder = _scratch(name, module, tests)
+        subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
+                       cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     statuses = _results(folder)
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
@@ -160,11 +197,13 @@ def main(argv=None):
     parser.add_argument("--only", nargs="+", choices=sorted(MODULES))
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
+    parser.add_argument("--no-run", action="store_true",
+                        help="score the results of an earlier run (build/mutate/<module>/)")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
         module, tests = MODULES[name]
-        row = run_module(name, module, tests, args.jobs)
+        row = run_module(name, module, tests, args.jobs, run=not args.no_run)
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "
