@@ -3,7 +3,8 @@
 Keyframes and tracked keys
 --------------------------
 The rig's pose channels are the rotation channels of every bone of the tracked tree (in each
-bone's rotation mode) and the root bone's location. A frame in the tracking range is a
+bone's rotation mode) and the root bone's location -- for a rig seen through its body map
+(``rig_bridge.MappedRig``), the rotation and location channels of the controls its map names. A frame in the tracking range is a
 **keyframe** when the action has a key on one of those channels there -- except the frames this
 module wrote itself and nobody changed since: tracked keys are written with the keyframe type
 ``'GENERATED'``, and the armature object remembers a digest of every tracked frame's keys
@@ -51,7 +52,10 @@ GENERATED = "GENERATED"
 
 
 def rig_channels(rig):
-    """[(data path, index, bone name)] of the rig's pose channels (rotations + root location)."""
+    """[(data path, index, bone name)] of the rig's pose channels (rotations + root location;
+    a rig seen through its body map: its controls' rotations and locations)."""
+    if hasattr(rig, "channels"):
+        return rig.channels()
     out = []
     for name, mode in zip(rig.bone_names, rig.rotation_modes):
         prop, count = channel_property(mode)
@@ -136,7 +140,10 @@ def selected_frames(obj, rig, first, last):
 def estimated_channels(rig, tracked_bones):
     """``(path, index)`` of the channels tracking estimates and writes: every rotation channel
     of the tracked bones (a locked Euler axis excepted: not estimated) and the root's unlocked
-    location axes. The *replaced* keys of a Track Between choice are removed from these only."""
+    location axes. The *replaced* keys of a Track Between choice are removed from these only.
+    A rig seen through its body map: the channels its tracked controls are keyed on."""
+    if hasattr(rig, "estimated_channels"):
+        return rig.estimated_channels(tracked_bones)
     bones = set(tracked_bones)
     out = []
     for k, (name, mode) in enumerate(zip(rig.bone_names, rig.rotation_modes)):

@@ -12,7 +12,8 @@ import bpy
 import numpy as np
 
 from .camera_bridge import render_size
-from ..common.pose_bridge import RigError, rig_from_armature
+from ..common.pose_bridge import RigError
+from ..common.rig_bridge import cached_tracking_rig
 from .bridge import envelope_radii, frame_range
 from .cameras import draw_camera_list
 from .keys import PROP_RESIDUAL, classify_frames
@@ -44,7 +45,7 @@ def _draw_armature(layout, context, settings):
     if settings.armature is None:
         col.label(text=f"Active: {obj.name}")
     try:
-        rig = rig_from_armature(obj)
+        rig = cached_tracking_rig(obj)
     except RigError as exc:
         col.label(text=str(exc), icon="ERROR")
         return obj
@@ -128,7 +129,7 @@ def _draw_frames(layout, context, settings, obj):
 def _draw_poses(col, context, settings, obj, first, last):
     """The preview of *Track Between*: the poses tracked between, the keys replaced."""
     try:
-        rig = rig_from_armature(obj)
+        rig = cached_tracking_rig(obj)
         keys, tracked = classify_frames(obj, rig, first, last)
     except RigError:
         return

@@ -379,6 +379,21 @@ def with_ik_constraints(body_map, rig):
     return BodyMap(rig=body_map.rig, parts=parts, travel=body_map.travel, limbs=limbs)
 
 
+def best_body_map(rig):
+    """The body map that names the most required parts of ``rig`` among every recognised
+    kind and the name patterns (:func:`pattern_body_map`), missing parts and all: what the
+    Body Map panel's *Auto-Fill* puts in for the animator to complete."""
+    names = set(rig.names)
+    candidates = []
+    for template, args in _signatures(names):
+        kind, parts, travel, limbs = template(*args)
+        if template is _mixamo_template:
+            parts = _mixamo_chest_fallback(parts, names)
+        candidates.append(_body_map_from_template(kind, parts, travel, limbs, rig))
+    candidates.append(pattern_body_map(rig))
+    return min(candidates, key=lambda m: len(m.missing()))
+
+
 def recognise_body_map(rig):
     """The body map of a recognised rig (module docstring).
 
@@ -396,21 +411,24 @@ def recognise_body_map(rig):
     BodyMapError
         The rig is none of the recognised kinds and its bone names do not name the parts
         (:func:`pattern_body_map`), or it lacks parts: the message names the kind it looks
-        like and the missing parts, and points at the Body Map panel.
+        like and the missing parts, and points at the Body Map panel. Its attribute ``rig``
+        is that kind (``'Custom'`` when only name patterns matched).
     """
-    names = set(rig.names)
-    candidates = []
-    for template, args in _signatures(names):
-        kind, parts, travel, limbs = template(*args)
-        if template is _mixamo_template:
-            parts = _mixamo_chest_fallback(parts, names)
-        candidates.append(_body_map_from_template(kind, parts, travel, limbs, rig))
-    candidates.append(pattern_body_map(rig))
-    best = min(candidates, key=lambda m: len(m.missing()))
-    if best.missing():
-        raise BodyMapError(f"This looks like a {best.rig} rig, but Track & Stride cannot find "
-                           f"its {plain_list(best.missing())}: name them in the Body Map panel "
-                           "(Track & Stride tab › Body Map)")
+    best = best_body_map(rig)
+    missing = best.missing()
+    if missing:
+        if best.rig == "Custom" and len(best.parts) < 4:
+            error = BodyMapError("Track & Stride does not recognise this rig as a humanoid "
+                                 "(Rigify, Blender's metarig, Mixamo, Auto-Rig Pro, CMU) and "
+                                 "its bone names do not say which bones are the hips, legs and "
+                                 "arms: name them in the Body Map panel (Track & Stride tab › "
+                                 "Body Map)")
+        else:
+            error = BodyMapError(f"This looks like a {best.rig} rig, but Track & Stride cannot "
+                                 f"find its {plain_list(missing)}: name them in the Body Map "
+                                 "panel (Track & Stride tab › Body Map)")
+        error.rig = best.rig
+        raise error
     return best
 
 

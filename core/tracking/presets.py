@@ -88,6 +88,16 @@ RIG_PARTS = {
                                  ("forearm.L", "forearm.R")),
 }
 
+#: Table 1 parts on the model skeleton of a rig seen through its body map (``core.rigs``:
+#: joints named after the body parts).
+MODEL_PARTS = {
+    "Waist": "hips", "Chest": "chest", "Head": "head",
+    "Left thigh": "left thigh", "Right thigh": "right thigh",
+    "Left shin": "left shin", "Right shin": "right shin",
+    "Left upper arm": "left upper arm", "Right upper arm": "right upper arm",
+    "Left forearm": "left forearm", "Right forearm": "right forearm",
+}
+
 #: A rig must name at least this many Table 1 parts (including the Waist) to be recognised.
 MIN_TABLE1_PARTS = 7
 
