@@ -30,7 +30,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real stock-gaits clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real bench-rigs stock-gaits clean
 
 venv: $(STAMP)
 
@@ -80,6 +80,13 @@ bench-tracking: $(STAMP)
 # Track Keyframes through the installed extension: serial vs parallel, phases, accuracy.
 bench-track-blender: extension
 	$(PY) benchmarks/bench_track_blender.py --extension $(ZIP) --output build/bench/track_blender.json
+
+# Rigs animators animate (docs/bench_rigs.md): test rigs built from Blender's bundled data
+# (CMU import, metarig, Rigify FK/IK, Mixamo through the FBX exporter and importer, IK legs),
+# the same walk keyed on each, rendered once (cached under build/rigs and build/rig_footage),
+# Track Keyframes and Fit Body through the installed extension, each run in a fresh process.
+bench-rigs: extension
+	$(PY) benchmarks/bench_rigs.py --extension $(ZIP) --output build/bench/rigs.json
 
 # Real footage (docs/bench_real.md): MediaPipe reference over the Pose2Sim demo's 4 cameras,
 # Track Keyframes through the operator per camera; its own venv (MediaPipe, never in .venv).
