@@ -63,8 +63,9 @@ bench: bench-import bench-gait bench-gait-blender bench-tracking bench-track-ble
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
 
+# ONLY=restyle (or offline,online,lowo,restyle): a quick run of some parts while iterating.
 bench-gait: $(STAMP)
-	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json
+	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json $(if $(ONLY),--only $(ONLY))
 
 # Rebuild the stock gait library shipped in core/gait/data (about 10 s; docs/gait.md).
 stock-gaits: $(STAMP)

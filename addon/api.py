@@ -153,6 +153,7 @@ def predict(armature=None, model="", frames=None, length=None, scene=None, **opt
     scene : str or bpy.types.Scene, optional
     **options
         Other Predict Gait options (``gait.bridge.PredictOptions``): ``cadence``,
+        ``retime`` ('NATURAL', 'FAST_FORWARD'), ``turn`` (degrees per second),
         ``style_mode`` ('OBSERVED', 'RESTYLE', 'LIBRARY'), ``library_style``,
         ``restyle_from``, ``restyle_to``, ``restyle_amount``, ``stride``, ``root_travel``,
         ``plant_feet``, ``mannerisms``, ``adaptation`` ('BATCH', 'ONLINE'), ``target``

@@ -117,6 +117,12 @@ def build_parser():
                          help="how long to predict (default: the add-on preference, 2 s)")
     predict.add_argument("--cadence", type=float, default=1.0,
                          help="steps per second × this (default 1)")
+    predict.add_argument("--retime", choices=("natural", "fast-forward"), default="natural",
+                         help="a new cadence changes the walk as a person's would (longer "
+                              "strides when quicker; default) or plays it faster")
+    predict.add_argument("--turn", type=float, default=0.0, metavar="DEG_PER_S",
+                         help="turn while walking, degrees per second (positive: left; "
+                              "default 0: straight on)")
     style = predict.add_mutually_exclusive_group()
     style.add_argument("--style", metavar="NAME",
                        help="walk exactly in the model's named style (e.g. normal, brisk)")
@@ -129,7 +135,8 @@ def build_parser():
     predict.add_argument("--on-the-spot", action="store_true",
                          help="walk on the spot (no root travel)")
     predict.add_argument("--let-feet-slide", action="store_true",
-                         help="do not scale the stride to keep the standing foot planted")
+                         help="move the hips at the model's own speed instead of as the "
+                              "standing leg carries them")
     predict.add_argument("--no-mannerisms", action="store_true",
                          help="leave out the walker's own details the styles cannot express")
     predict.add_argument("--fit", choices=("whole", "frame-by-frame"), default="whole",
@@ -264,7 +271,11 @@ def run_predict(args):
         value = getattr(args, option)
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UsageError(f"--{option} {value}: give a positive number")
+    if not (math.isfinite(args.turn) and abs(args.turn) <= 360.0):
+        raise UsageError(f"--turn {args.turn}: give degrees per second between -360 and 360")
     options = {"cadence": args.cadence, "stride": args.stride,
+               "retime": "FAST_FORWARD" if args.retime == "fast-forward" else "NATURAL",
+               "turn": args.turn,
                "root_travel": not args.on_the_spot, "plant_feet": not args.let_feet_slide,
                "mannerisms": not args.no_mannerisms,
                "adaptation": "ONLINE" if args.fit == "frame-by-frame" else "BATCH",

@@ -43,6 +43,7 @@ from core.mocap import asf_to_skeleton, read_amc, read_asf, resample  # noqa: E4
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import gait_lowo  # noqa: E402
+import gait_restyle  # noqa: E402
 
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
 FPS = 60.0
@@ -528,35 +529,69 @@ def print_table(report):
           f"(goal <= {GOALS['train_s']:.0f})")
 
 
+PARTS = ("offline", "online", "lowo", "restyle")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="build/bench/gait.json")
+    parser.add_argument("--only", default=",".join(PARTS),
+                        help="comma-separated parts to run while iterating (default: all of "
+                             f"{', '.join(PARTS)}); the JSON then holds only those")
     args = parser.parse_args(argv)
+    parts = [p.strip() for p in args.only.split(",") if p.strip()]
+    unknown = sorted(set(parts) - set(PARTS))
+    if unknown:
+        parser.error(f"unknown parts {unknown}; choose from {', '.join(PARTS)}")
     output = Path(args.output)
     output.parent.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    data = {name: load(name) for name in sorted(set(OFFLINE_TRAIN + OFFLINE_TEST + ONLINE_TRAIN
-                                                    + ONLINE_TEST))}
-    offline = run_offline(data)
-    online, speed = run_online(data)
-    lowo = run_lowo()
-    report = {"offline": offline, "online": online, "speed": speed, "goals": GOALS,
-              "leave_one_walker_out": lowo,
+    report = {"goals": GOALS,
               "machine": {"python": platform.python_version(), "numpy": np.__version__,
                           "platform": platform.platform(), "processor": platform.processor()},
               "benchmark_s": None}
-    png = output.with_name("gait_online.png")
-    plot_online(online, png)
+    if "offline" in parts or "online" in parts:
+        data = {name: load(name) for name in sorted(set(OFFLINE_TRAIN + OFFLINE_TEST
+                                                        + ONLINE_TRAIN + ONLINE_TEST))}
+        if "offline" in parts:
+            report["offline"] = run_offline(data)
+        if "online" in parts:
+            report["online"], report["speed"] = run_online(data)
+    if "lowo" in parts:
+        report["leave_one_walker_out"] = run_lowo()
+    if "restyle" in parts:
+        report["restyle"] = gait_restyle.run_restyle()
+    png = None
+    if "online" in parts:
+        png = output.with_name("gait_online.png")
+        plot_online(report["online"], png)
     report["benchmark_s"] = time.perf_counter() - t_start
-    output.write_text(json.dumps(report, indent=1, allow_nan=False))
-    print_table(report)
-    print_lowo(lowo)
-    print(f"reference workload {speed['reference_workload_us']:.1f} us; online step = "
-          f"{speed['online_step_per_reference']:.2f} x reference (median of "
-          f"{len(speed['online_step_per_reference_passes'])} passes: "
-          f"{', '.join(f'{r:.2f}' for r in speed['online_step_per_reference_passes'])}) = "
-          f"{speed['online_step_us_nominal']:.1f} nominal us (goal <= {GOALS['online_step_us']:.0f})")
-    print(f"\nwrote {output} and {png} in {report['benchmark_s']:.1f} s")
+    output.write_text(json.dumps(report, indent=1, allow_nan=False, default=_plain))
+    if "offline" in parts and "online" in parts:
+        print_table(report)
+    if "lowo" in parts:
+        print_lowo(report["leave_one_walker_out"])
+    if "restyle" in parts:
+        gait_restyle.print_restyle(report["restyle"])
+    if "online" in parts:
+        speed = report["speed"]
+        print(f"reference workload {speed['reference_workload_us']:.1f} us; online step = "
+              f"{speed['online_step_per_reference']:.2f} x reference (median of "
+              f"{len(speed['online_step_per_reference_passes'])} passes: "
+              f"{', '.join(f'{r:.2f}' for r in speed['online_step_per_reference_passes'])}) = "
+              f"{speed['online_step_us_nominal']:.1f} nominal us (goal <= "
+              f"{GOALS['online_step_us']:.0f})")
+    print(f"\nwrote {output}{' and ' + str(png) if png else ''} in "
+          f"{report['benchmark_s']:.1f} s")
+
+
+def _plain(value):
+    """JSON for NumPy scalars (booleans and numbers)."""
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
 if __name__ == "__main__":

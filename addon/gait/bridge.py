@@ -20,10 +20,10 @@ import bpy
 import numpy as np
 
 from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
-                          observations_from_dofs, predict_dofs, restyle)
+                          observations_from_dofs, restyle)
 from ...core.gait.checks import check_gait
+from ...core.gait.walk import WalkRequest, predict_walk
 from ...core.rigs import plain_list
-from ...core.gait.foot_slide import planted_stride
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from ..mocap.acclaim_bridge import find_asf_beside, scene_fps
 from ..common.fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
@@ -158,6 +158,9 @@ class PredictOptions:
     ``style_mode``: ``'OBSERVED'`` (the walker as adapted), ``'RESTYLE'`` (moved from
     ``restyle_from`` towards ``restyle_to`` by ``restyle_amount``, ``core.gait.restyle``) or
     ``'LIBRARY'`` (exactly the learned style ``library_style``, at its own cadence).
+    ``retime``: ``'NATURAL'`` (a cadence change moves the style the way the training walkers'
+    styles change with their pace) or ``'FAST_FORWARD'`` (the same walk played faster).
+    ``turn``: degrees per second (positive: to the left; 0: straight on).
     ``model``: a model name of the file ('' = the active one) or the path of a model file."""
 
     range_mode: str = "ACTION"
@@ -177,6 +180,8 @@ class PredictOptions:
     adaptation: str = "BATCH"
     target: str = "AFTER"
     model: str = ""
+    retime: str = "NATURAL"
+    turn: float = 0.0
 
 
 def resolve_model(name):
@@ -272,23 +277,24 @@ def _adapt(model, obs, fps, mode, dofs):
     return Adapted(res.state, res.w, res.offset, res.residual, res.last_observation, res)
 
 
-def resolve_style(model, options, walker, fps):
-    """(state, style, offset, residual table) of the walk the options ask for."""
-    state, w = walker.state.copy(), walker.w
-    offset, residual = walker.offset, walker.residual if options.mannerisms else None
+def walk_request(model, options, walker, fps):
+    """The :class:`~core.gait.walk.WalkRequest` of the options for the adapted walker."""
+    w, factor, keep = None, 1.0, True
     if options.style_mode == "RESTYLE":
         _known_style(model, options.restyle_from, "Restyle from")
         _known_style(model, options.restyle_to, "Restyle to")
-        w, factor = restyle(model, w, options.restyle_from, options.restyle_to,
+        w, factor = restyle(model, walker.w, options.restyle_from, options.restyle_to,
                             options.restyle_amount)
-        state[0] *= factor
     elif options.style_mode == "LIBRARY":
         _known_style(model, options.library_style, "Library style")
         w = model.style(options.library_style)
         period = model.periods[model.style_names.index(options.library_style)] / model.fps
-        state[0] = 2.0 * np.pi / (period * fps)
-        offset, residual = None, None
-    return state, w, offset, residual
+        factor = 2.0 * np.pi / (period * fps) / float(walker.state[0])
+        keep = False
+    return WalkRequest(w=w, style_cadence=factor, cadence=options.cadence,
+                       retime=options.retime.lower(), travel=options.root_travel,
+                       plant=options.plant_feet, stride=options.stride,
+                       turn=float(np.radians(options.turn)), keep_walker=keep)
 
 
 def _new_action_from_range(obj, bag, first, last):
@@ -322,26 +328,6 @@ def _new_action_from_range(obj, bag, first, last):
             source.foreach_get(prop, array)
             points.foreach_set(prop, np.ascontiguousarray(array[keep]))
     return new_bag
-
-
-def planted_factor(grig, model, walk, n, last_dofs, cols, fps, options):
-    """Stride factor that keeps the stance foot planted (``core.gait.planted_stride``) for
-    the prediction as the model makes it; 1 when disabled or without root travel."""
-    feet = ("ltoes", "rtoes")
-    if not (options.plant_feet and options.root_travel and model.root_travel) \
-            or any(f not in grig.skeleton.names for f in feet):
-        return 1.0
-    raw = _predict(model, walk, n, last_dofs[cols], fps, options, stride=1.0)
-    rows = np.tile(last_dofs, (n + 1, 1))
-    rows[1:, cols] = raw
-    return planted_stride(grig.skeleton, rows, feet)
-
-
-def _predict(model, walk, n, last_dofs, fps, options, stride):
-    state, w, offset, residual, start = walk
-    return predict_dofs(model, state, w, n, last_dofs, fps, omega_scale=options.cadence,
-                        stride=stride, travel=options.root_travel, residual=residual,
-                        offset=offset, start=start)
 
 
 # ------------------------------------------------------------------------------ records
@@ -549,21 +535,23 @@ def predict_gait(context, obj, options):
     walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
     if walker.result is not None:
         check = check_gait(model, obs, fps, walker.result, what=what)
-    state, w, offset, residual = resolve_style(model, options, walker, fps)
     n = int(round(options.horizon * fps))
     if n < 1:
         raise GaitError("The length is shorter than one frame")
     frames = last + np.arange(1, n + 1)
     if options.target == "AFTER":
         _check_target(obj, grig, options, bag, frames, record)
-    walk = (state, w, offset, residual, walker.last)
-    k = planted_factor(grig, model, walk, n, dofs[-1], cols, fps, options)
     try:
-        pred = _predict(model, walk, n, model_dofs[-1], fps, options, k * options.stride)
+        request = walk_request(model, options, walker, fps)
+        walk = predict_walk(model, grig.skeleton, dofs, fps, walker.state, walker.w, n, request,
+                            offset=walker.offset,
+                            residual=walker.residual if options.mannerisms else None,
+                            start=walker.last)
     except ValueError as exc:
         raise GaitError(str(exc)) from None
-    full = np.tile(dofs[-1], (n, 1))
-    full[:, cols] = pred
+    full = walk.dofs
+    if not np.all(np.isfinite(full)):
+        raise GaitError(f"The prediction for {obj.name} is not finite: nothing was keyed")
     values = channel_values(grig, bag, full, last, dofs[-1], frames=frames)
     # Every check has passed: change the scene.
     replaced = None
@@ -578,14 +566,23 @@ def predict_gait(context, obj, options):
     new_action = obj.animation_data.action
     _store_record(new_action, obj, (first, last), (frames[0], frames[-1]),
                   _keys_digest(target_bag, grig.targets(), frames[0], frames[-1]))
-    hz = fps * state[0] / (2.0 * np.pi) * options.cadence
+    hz = fps * walk.omega / (2.0 * np.pi)
     warnings = [check.warning] if check.warning else []
     warnings += _control_warnings(grig)
     style = {"OBSERVED": "as observed", "LIBRARY": f"library style {options.library_style}",
              "RESTYLE": f"restyled {options.restyle_from} → {options.restyle_to} "
                         f"×{options.restyle_amount:g}"}[options.style_mode]
+    if options.cadence != 1.0:
+        style += (", retimed like a person" if request.retime == "natural"
+                  and np.any(model.cadence_style) else ", played faster" if
+                  options.cadence > 1.0 else ", played slower")
+    speed = _speed(full, grig.dof_names, fps)
+    if grig.kind == "MAPPED":
+        speed /= grig.space.scale                        # the character's metres
+    travel = ("on the spot" if not options.root_travel else
+              f"{speed:.2f} m/s" + (" with the feet planted" if options.plant_feet else ""))
     text = (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {model_name}: "
-            f"{hz:.2f} strides/s, {style}, stride ×{k:.2f}{' (feet planted)' if k != 1.0 else ''}"
+            f"{hz:.2f} strides/s, {style}, {travel}"
             f"; {written} keys in {new_action.name}{_controls_said(grig)}"
             + (f", replacing the earlier prediction of frames {replaced[0]}–{replaced[1]}"
                if replaced else "")
@@ -595,9 +592,19 @@ def predict_gait(context, obj, options):
     return {"status": "warning" if warnings else "ok", "object": obj.name,
             "action": new_action.name, "model": model_name, "observed": [first, last],
             "predicted": [int(frames[0]), int(frames[-1])], "keys": int(written),
-            "strides_per_s": float(hz), "fit": check.fit, "period_s": check.period_s,
+            "strides_per_s": float(hz), "speed_m_s": float(speed), "floor_m": walk.floor,
+            "fit": check.fit, "period_s": check.period_s,
             "replaced": list(replaced) if replaced else None, "warnings": warnings,
             "message": text}
+
+
+def _speed(dofs, names, fps):
+    """Mean horizontal root speed (m/s) of DOF rows."""
+    cols = [list(names).index(n) for n in ("root.tx", "root.ty")]
+    if len(dofs) < 2:
+        return 0.0
+    step = np.diff(np.asarray(dofs)[:, cols], axis=0)
+    return float(np.linalg.norm(step, axis=1).mean() * fps)
 
 
 def predict(obj, model="", frames=None, horizon=2.0, **options):

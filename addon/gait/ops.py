@@ -204,6 +204,14 @@ class TS_OT_predict_gait(bpy.types.Operator):
         name="Cadence", description="Retiming: multiplies the walker's steps per second (1.2 = "
         "steps 20 % quicker, each cycle 1/1.2 as long, same distance per cycle)",
         default=1.0, min=0.25, max=4.0, soft_min=0.5, soft_max=2.0)
+    retime: EnumProperty(
+        name="Retime", description="How a new cadence changes the walk",
+        items=(("NATURAL", "Like a Person", "Quicker steps become longer strides and wider "
+                "swings, slower ones shorter, as the walkers the model learned from walk at "
+                "that pace (the style moves along the model's cadence direction)"),
+               ("FAST_FORWARD", "Fast Forward", "The same walk played faster or slower (same "
+                "stride and joint ranges)")),
+        default="NATURAL")
     style_mode: EnumProperty(
         name="Style", description="How the predicted walk looks",
         items=(("OBSERVED", "As Observed", "The walker's own style, as picked up from the "
@@ -224,16 +232,21 @@ class TS_OT_predict_gait(bpy.types.Operator):
     library_style: EnumProperty(name="Library Style", description="The named style to walk in",
                                 items=_style_items)
     stride: FloatProperty(
-        name="Stride Scale", description="Scale of the root's forward speed (1 = as predicted; "
-        "other values make the feet slide: restyle to a longer-striding style instead)",
-        default=1.0, min=0.0, max=4.0)
+        name="Stride Scale", description="Scale of the root's forward speed (1 = as the legs "
+        "carry it; other values make the feet slide: restyle to a longer-striding style "
+        "instead)", default=1.0, min=0.0, max=4.0)
+    turn: FloatProperty(
+        name="Turn", description="Turn while walking, degrees per second (positive: to the "
+        "left; 0: straight on, keeping the heading of the reference frames)", default=0.0,
+        min=-360.0, max=360.0, soft_min=-90.0, soft_max=90.0)
     root_travel: BoolProperty(
         name="Walk Forward", description="Move along the current heading (root travel); off: "
         "walk on the spot", default=True)
     plant_feet: BoolProperty(
-        name="Keep Feet Planted", description="Scale the predicted forward speed so that the "
-        "standing foot does not slide (least squares over the prediction; Stride Scale "
-        "multiplies on top)", default=True)
+        name="Keep Feet Planted", description="The hips travel as the standing leg carries "
+        "them and the legs keep each standing foot on its spot (off: the model's own forward "
+        "speed, the feet may slide); either way the feet stay on the floor of the reference "
+        "frames", default=True)
     mannerisms: BoolProperty(
         name="Keep Mannerisms", description="Add the walker's own details that the learned "
         "styles cannot express (a smooth per-phase correction learned from the reference "
@@ -265,7 +278,8 @@ class TS_OT_predict_gait(bpy.types.Operator):
         options = PredictOptions(**{k: getattr(self, k) for k in (
             "range_mode", "frame_start", "frame_end", "horizon", "cadence", "style_mode",
             "restyle_from", "restyle_to", "restyle_amount", "library_style", "stride",
-            "root_travel", "plant_feet", "mannerisms", "adaptation", "target")})
+            "root_travel", "plant_feet", "mannerisms", "adaptation", "target", "retime",
+            "turn")})
         return _report(self, lambda: predict_gait(context, context.active_object, options))
 
     def draw(self, context):
@@ -279,6 +293,9 @@ class TS_OT_predict_gait(bpy.types.Operator):
         layout.prop(self, "adaptation")
         layout.prop(self, "horizon")
         layout.prop(self, "cadence")
+        row = layout.row()
+        row.active = self.cadence != 1.0
+        row.prop(self, "retime")
         layout.prop(self, "style_mode")
         if self.style_mode == "RESTYLE":
             col = layout.column(align=True)
@@ -292,6 +309,9 @@ class TS_OT_predict_gait(bpy.types.Operator):
             row.active = self.adaptation == "BATCH"
             row.prop(self, "mannerisms")
         layout.prop(self, "root_travel")
+        row = layout.row()
+        row.active = self.root_travel
+        row.prop(self, "turn")
         row = layout.row()
         row.active = self.root_travel
         row.prop(self, "plant_feet")

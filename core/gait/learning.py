@@ -14,6 +14,7 @@ from .factorization import factorize
 from .features import angle_channel_names, dof_observations, wrap_near
 from .gp import fit_phase_gp
 from .map_refinement import refine_map
+from .retiming import cadence_style_direction
 from .model import GaitModel
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, ROOT_FEATURE_UNITS, RootFrame
 
@@ -183,6 +184,14 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         else np.zeros((styles.shape[1],) * 2)
     cov = cov + 1e-6 * max(float(np.trace(cov)), float(np.sum(styles**2)) / count) \
         * np.eye(len(cov))
+    cadence_style = np.zeros(styles.shape[1])
+    if root_travel:
+        fwd, height = (channel.index(n) for n in ("root.v_forward", "root.height"))
+        cycles = aligned.cycles[:, :-1]
+        cadence_style = cadence_style_direction(styles, aligned.periods / model_fps,
+                                                cycles[:, :, fwd].mean(axis=1) * scale[fwd],
+                                                cycles[:, :, height].mean(axis=1)
+                                                * scale[height])
     named, named_styles, named_periods = _merge_named(names, styles, aligned.periods)
     return GaitModel(channel_names=channel, units=units, angle_centre=centre,
                      channel_scale=scale, fps=model_fps, bases=bases, styles=named_styles,
@@ -193,7 +202,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                      root_rest=frame.rest, root_order=frame.order,
                      forward_axis=frame.forward_axis, singular_values=singular,
                      alignment=alignment, refinement=refinement, offset_var=offset_var,
-                     notes=str(notes))
+                     cadence_style=cadence_style, notes=str(notes))
 
 
 def _merge_named(names, styles, periods):

@@ -25,6 +25,8 @@ lag_range        (2,)         period search range, seconds
 dof_names        (n_dofs,)    the training DOF layout (used to write predicted DOF frames)
 root_travel      bool         whether the seven root features are modelled
 root_rest, root_order, forward_axis    the :class:`.root_travel.RootFrame`
+cadence_style    (J,)         the style's change per unit log cadence (:mod:`.retiming`; zeros:
+                              retiming plays the walk faster; version 1-2 files)
 offset_var       (D,)         between-walker variance of a walker's posture offset (scaled
                               units²; the prior of the offset estimated when adapting); zeros:
                               no offset (version 1 files)
@@ -52,8 +54,8 @@ from .root_travel import RATE_FEATURES, ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, ROOT
 
 __all__ = ["FORMAT_VERSION", "GaitModel", "GaitModelFileError", "TRANSITION", "checksum"]
 
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
 # Matsubara §2.3: x_t = A x_{t-1} + v with x = [ω, φ]; the printed A = [0 1; 1 1] is a typo
 # (DESIGN.md §2): ω stays constant and φ advances by ω.
 TRANSITION = np.array([[1.0, 0.0], [1.0, 1.0]])
@@ -67,8 +69,9 @@ class GaitModelFileError(ValueError):
 _STR_FIELDS = ("channel_names", "units", "style_names", "dof_names")
 _ARRAY_FIELDS = ("angle_centre", "channel_scale", "bases", "styles", "beta", "A", "Q",
                  "style_mean", "style_cov", "periods", "lag_range", "root_rest",
-                 "singular_values", "offset_var")
-_NEW_IN_2 = ("offset_var", "notes")   # absent from version 1 files (defaults apply)
+                 "singular_values", "offset_var", "cadence_style")
+# Fields absent from older files (their defaults apply): {field: first version with it}.
+_NEW_IN = {"offset_var": 2, "notes": 2, "cadence_style": 3}
 _SCALAR_FIELDS = ("fps", "r")
 _TEXT_FIELDS = ("root_order", "alignment", "refinement", "notes")
 _INT_FIELDS = ("forward_axis", "root_travel")
@@ -145,6 +148,7 @@ class GaitModel:
     alignment: str = "mean"
     refinement: str = "map"
     offset_var: np.ndarray = None
+    cadence_style: np.ndarray = None
     notes: str = ""
     format_version: int = FORMAT_VERSION
 
@@ -152,6 +156,9 @@ class GaitModel:
         set_ = object.__setattr__
         if self.offset_var is None:
             set_(self, "offset_var", np.zeros(len(self.channel_names)))
+        if self.cadence_style is None:
+            bases = np.asarray(self.bases)
+            set_(self, "cadence_style", np.zeros(bases.shape[0] if bases.ndim == 3 else 0))
         for name in _STR_FIELDS:
             set_(self, name, tuple(str(v) for v in getattr(self, name)))
         for name in _ARRAY_FIELDS:
@@ -214,6 +221,7 @@ class GaitModel:
             (self.fps > 0 and np.isfinite(self.fps), "fps must be positive"),
             (self.offset_var.shape == (d,) and np.all(self.offset_var >= 0),
              f"offset_var must be ({d},) non-negative"),
+            (self.cadence_style.shape == (j,), f"cadence_style must be ({j},)"),
         ]
         for ok, message in checks:
             if not ok:
@@ -246,8 +254,9 @@ class GaitModel:
             (np.all(self.offset_var <= MAX_SCALED_VALUE**2),
              f"offset_var must lie within {MAX_SCALED_VALUE**2:g} scaled units²"),
             (np.all(np.abs(self.styles) <= MAX_STYLE)
-             and np.all(np.abs(self.style_mean) <= MAX_STYLE),
-             f"styles and style_mean must lie within ±{MAX_STYLE:g}"),
+             and np.all(np.abs(self.style_mean) <= MAX_STYLE)
+             and np.all(np.abs(self.cadence_style) <= MAX_STYLE),
+             f"styles, style_mean and cadence_style must lie within ±{MAX_STYLE:g}"),
             (cov_eig is not None and _within(cov_eig, STYLE_COV_EIG_RANGE),
              f"style_cov must be symmetric with eigenvalues within {STYLE_COV_EIG_RANGE}"),
         ]
@@ -374,7 +383,10 @@ class GaitModel:
         try:
             with np.load(io.BytesIO(bytes(data)), allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
-        except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, NotImplementedError,
+                RuntimeError) as exc:
+            # NotImplementedError / RuntimeError: a damaged entry header naming an unsupported
+            # compression method.
             raise GaitModelFileError(f"{source}: not a gait model file ({exc})") from None
         return cls._from_arrays(arrays, source)
 
@@ -405,8 +417,7 @@ class GaitModel:
                 raise GaitModelFileError(f"{source}: checksum mismatch: the gait model file was "
                                          "changed or damaged")
         required = _STR_FIELDS + _ARRAY_FIELDS + _SCALAR_FIELDS + _TEXT_FIELDS + _INT_FIELDS
-        if version < 2:
-            required = tuple(k for k in required if k not in _NEW_IN_2)
+        required = tuple(k for k in required if _NEW_IN.get(k, 1) <= version)
         missing = [k for k in required if k not in arrays]
         if missing:
             raise GaitModelFileError(f"{source}: incomplete gait model, missing {missing}")
@@ -417,7 +428,7 @@ class GaitModel:
                     raise ValueError(f"{name} must be text")
                 kwargs[name] = tuple(arrays[name].tolist())
             for name in _ARRAY_FIELDS:
-                if name not in arrays:           # a version 1 file: the default applies
+                if name not in arrays:           # an older file: the default applies
                     continue
                 if arrays[name].dtype.kind not in "fiu":
                     raise ValueError(f"{name} must be numeric")

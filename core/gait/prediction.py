@@ -35,8 +35,8 @@ from .phase_average import DEFAULT_PHASE_VAR_SCALE, averaged_kernel, phase_varia
 from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
-__all__ = ["DEFAULT_BLEND_S", "interpolate_styles", "mix_styles", "predict", "predict_dofs",
-           "predicted_phases", "restyle"]
+__all__ = ["DEFAULT_BLEND_S", "cycle_mean", "interpolate_styles", "mix_styles", "predict",
+           "predict_dofs", "predict_transition", "dofs_from_observations", "predicted_phases", "restyle", "smootherstep"]
 
 DEFAULT_BLEND_S = 0.15     # seconds: decay of the continuation from the last observed frame
 
@@ -136,6 +136,144 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=
     return out[:, index]
 
 
+def smootherstep(x):
+    """``6x⁵ − 15x⁴ + 10x³`` on [0, 1] (0 below, 1 above): rises from 0 to 1 with zero first and
+    second derivatives at both ends, so a blend by it keeps velocity and acceleration
+    continuous."""
+    x = np.clip(np.asarray(x, dtype=float), 0.0, 1.0)
+    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
+
+
+def predict_transition(model, state, w_from, w_to, n_frames, omega_to, blend_frames,
+                       rate_scale_to=1.0, residual=None, offset=None, start=None, fps=None,
+                       blend_s=DEFAULT_BLEND_S, keep_walker=True, start_step=None):
+    """Predicted observations of a walk that changes smoothly into another style and cadence.
+
+    Frame k (1 … n) advances the phase by ``ω_k = ω + (ω_to − ω) s_k`` and reads the model with
+    the style ``(1 − s_k) w_from + s_k w_to``, ``s_k`` = :func:`smootherstep` of
+    ``k / blend_frames``: the walk the reference frames continue (``w_from`` at the state's ω)
+    turns into the requested one (``w_to`` at ``omega_to``) over ``blend_frames`` frames with
+    velocity and acceleration continuous (no jolt at the join). The rate channels (root
+    velocities, yaw rate) are multiplied by ``1 + (rate_scale_to − 1) s_k`` (retiming by
+    playing faster: the walker covers the same distance per cycle). ``residual``, ``offset`` and
+    the continuation from ``start`` are those of :func:`predict` (the continuation is
+    measured against ``w_from``'s walk); with ``keep_walker=False`` the requested walk is the
+    model's own template (``w_to`` without the walker's residual table and offset: a library
+    style walked as learned).
+
+    Parameters
+    ----------
+    model : GaitModel
+    state : array_like, shape (2,)
+        ``[ω, φ]`` at the last observed frame (ω per frame of the predicted frames' rate).
+    w_from, w_to : array_like, shape (J,)
+    n_frames : int
+    omega_to : float
+        Phase velocity after the blend (> 0, same unit as ω).
+    blend_frames : float
+        Length of the change, frames (≥ 1).
+    rate_scale_to : float
+        Factor of the rate channels after the blend.
+    residual, offset, start, fps, blend_s
+        As in :func:`predict`.
+    keep_walker : bool
+        Whether the requested walk keeps the walker's residual table and offset.
+    start_step : array_like, shape (D,), optional
+        The last observed step (``start`` minus the frame before it, physical units; with
+        ``start``): the continuation then matches the velocity too,
+        ``e_k = (e + k (ė + e/τ)) exp(−k/τ)`` (τ = ``blend_s`` × fps frames), so the first
+        predicted frame moves on as the reference moved instead of turning round.
+
+    Returns
+    -------
+    observations : ndarray, shape (n_frames, D)
+        Physical units.
+    phases : ndarray, shape (n_frames,)
+        The phase of every predicted frame (radians, not wrapped).
+    weights : ndarray, shape (n_frames,)
+        ``s_k`` (0 = the observed walk, 1 = the requested one).
+    """
+    omega, phi = _check_state(state)
+    w_from, w_to = _check_style(model, w_from), _check_style(model, w_to)
+    if not (np.isfinite(omega_to) and omega_to > 0):
+        raise ValueError(f"omega_to must be positive, got {omega_to}")
+    if not (np.isfinite(blend_frames) and blend_frames >= 1):
+        raise ValueError(f"blend_frames must be at least 1, got {blend_frames}")
+    if not (np.isfinite(rate_scale_to) and rate_scale_to > 0):
+        raise ValueError(f"rate_scale_to must be positive, got {rate_scale_to}")
+    if int(n_frames) != n_frames or n_frames < 0:
+        raise ValueError(f"n_frames must be a non-negative integer, got {n_frames}")
+    n = int(n_frames)
+    k = np.arange(1, n + 1)
+    weights = smootherstep(k / float(blend_frames))
+    phases = phi + np.cumsum(omega + (float(omega_to) - omega) * weights)
+    if n == 0:
+        return np.zeros((0, model.n_channels)), phases, weights
+    lead = 0 if start is None else (2 if start_step is not None else 1)
+    phis = np.concatenate(([phi - omega, phi][2 - lead:], phases))
+    mix = np.concatenate((np.zeros(lead), weights))
+    kern = model.gp.kernel(phis)                                    # (n', P)
+    own = np.zeros((len(phis), model.n_channels))                   # the walker's details
+    if residual is not None:
+        own = own + kern @ residual_weights(model, residual)
+    if offset is not None:
+        own = own + _check_vector(model, offset, "offset")
+    keep = np.ones_like(mix) if keep_walker else 1.0 - mix
+    scaled = (1.0 - mix)[:, None] * (kern @ style_weights(model, w_from)) \
+        + mix[:, None] * (kern @ style_weights(model, w_to)) + keep[:, None] * own
+    out = model.to_physical(scaled)
+    out[:, model.rate_mask] *= (1.0 + (float(rate_scale_to) - 1.0) * mix)[:, None]
+    if start is not None:
+        rate = model.fps if fps is None else fps
+        if start_step is not None:
+            out = _continue_with_velocity(model, out, start, start_step, rate, blend_s)
+        else:
+            out = _continue_from(model, out, start, rate, blend_s)
+    return out, phases, weights
+
+
+def _continue_with_velocity(model, frames, start, step, fps, blend_s):
+    """``frames[2:]`` continued from ``start`` (``frames[1]`` the model's value there,
+    ``frames[0]`` one frame earlier) matching the value and the step ``step``."""
+    step = np.asarray(step, dtype=float)
+    if step.shape != (model.n_channels,) or np.any(np.isinf(step)):
+        raise ValueError(f"start_step must be {model.n_channels} values (NaN = unobserved), "
+                         f"got shape {step.shape}")
+    out = _continue_from(model, frames[1:], start, fps, blend_s)     # value, decayed
+    if blend_s == 0:
+        return out
+    slope = step - (frames[1] - frames[0])
+    slope[model.is_angle] = (slope[model.is_angle] + np.pi) % (2.0 * np.pi) - np.pi
+    diff = np.asarray(start, dtype=float) - frames[1]
+    diff[model.is_angle] = (diff[model.is_angle] + np.pi) % (2.0 * np.pi) - np.pi
+    tau = blend_s * fps
+    slope = np.where(np.isfinite(slope) & np.isfinite(diff), slope + diff / tau, 0.0)
+    k = np.arange(1, len(out) + 1)
+    return out + (k * np.exp(-k / tau))[:, None] * slope
+
+
+def cycle_mean(model, w, residual=None, offset=None, n_phases=360):
+    """Mean over one cycle of the walk ``w`` (with a walker's residual table and offset), every
+    model channel in physical units, (D,): e.g. the yaw rate a style turns at on average."""
+    w = _check_style(model, w)
+    phis = 2.0 * np.pi * np.arange(n_phases) / n_phases
+    kern = model.gp.kernel(phis).mean(axis=0)                      # (P,): the mean is linear
+    scaled = kern @ style_weights(model, w)
+    if residual is not None:
+        scaled = scaled + kern @ residual_weights(model, residual)
+    if offset is not None:
+        scaled = scaled + _check_vector(model, offset, "offset")
+    return model.to_physical(scaled)
+
+
+def style_weights(model, w):
+    """GP weights ``Σ_j w_j α_j`` (P, D) of a style: ``kernel(φ) @ style_weights`` is the
+    style's mean ``μ(x̃) w`` in scaled units (eq. 12)."""
+    p = len(model.gp.phases)
+    return np.einsum("pjd,j->pd", model.gp.alpha_flat.reshape(p, model.n_bases,
+                                                                model.n_channels), w)
+
+
 def _check_vector(model, value, what):
     value = np.asarray(value, dtype=float)
     if value.shape != (model.n_channels,) or not np.all(np.isfinite(value)):
@@ -207,6 +345,15 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
     pred = predict(model, state, w, n_frames, omega_scale, residual=residual, offset=offset,
                    start=start, fps=fps, blend_s=blend_s, covariance=covariance,
                    phase_var_scale=phase_var_scale)
+    return dofs_from_observations(model, pred, last, fps, stride, travel)
+
+
+def dofs_from_observations(model, pred, last_dofs, fps, stride=1.0, travel=True):
+    """DOF rows (``model.dof_names`` layout) of predicted observations (n, D) that follow the
+    DOF frame ``last_dofs``: angles on its branch, root integrated from its pose (see
+    :func:`predict_dofs` for ``stride`` and ``travel``)."""
+    last = np.asarray(last_dofs, dtype=float)
+    names = model.dof_names
     out = np.tile(last, (len(pred), 1))
     lookup = {n: i for i, n in enumerate(names)}
     angle_cols = np.array([lookup[n] for n in model.angle_names], dtype=int)

@@ -14,8 +14,8 @@ from .rotations import (
     skew,
 )
 from .skeleton import Skeleton
-from .fk import bone_tails, dofs_from_world_rotations, forward_kinematics, \
-    local_rotations_from_dofs, rest_pose
+from .fk import bone_tails, chain_kinematics, dof_columns, dofs_from_world_rotations, \
+    forward_kinematics, local_rotations_from_dofs, rest_pose
 
 __all__ = [
     "AXIS_INDEX",
@@ -23,6 +23,8 @@ __all__ = [
     "Skeleton",
     "axis_rotation",
     "bone_tails",
+    "chain_kinematics",
+    "dof_columns",
     "dofs_from_world_rotations",
     "euler_to_matrix",
     "exp_so3",

@@ -146,3 +146,62 @@ def dofs_from_world_rotations(skeleton, rotations, root_positions=None):
         out[:, col:col + len(axes)] = euler[:, list(axes)]
         col += len(axes)
     return out
+
+
+def dof_columns(skeleton):
+    """Per joint, ``[(column, axis), …]`` of its rotation DOFs in the flattened DOF vector."""
+    col = 3 if skeleton.root_translation else 0
+    out = []
+    for axes in skeleton.dof_axes:
+        out.append([(col + k, axis) for k, axis in enumerate(axes)])
+        col += len(axes)
+    return out
+
+
+def _closure(skeleton, joints):
+    """Sorted indices of ``joints`` and all their ancestors (a topological order)."""
+    need = set()
+    for j in joints:
+        while j >= 0 and j not in need:
+            need.add(int(j))
+            j = int(skeleton.parents[j])
+    return sorted(need)
+
+
+def chain_kinematics(skeleton, dofs, joints):
+    """Forward kinematics of some joints and their ancestors only (e.g. the legs: 11 of CMU's
+    31 joints), with the world axis of every rotation DOF on the way (for Jacobians).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    dofs : array_like, shape (N, n_dofs)
+    joints : sequence of int
+
+    Returns
+    -------
+    positions : dict {joint: (N, 3)}
+        World origins of the joints and their ancestors (root translation included).
+    axes : dict {DOF column: (N, 3)}
+        World axis of each rotation DOF of those joints (a rotation by dθ about it moves the
+        points below the joint by ``axis × (p − origin) dθ``).
+    """
+    dofs = np.asarray(dofs, dtype=float)
+    columns = dof_columns(skeleton)
+    rotations, positions, axes = {}, {}, {}
+    n = len(dofs)
+    for j in _closure(skeleton, joints):
+        parent = int(skeleton.parents[j])
+        if parent < 0:
+            frame = np.broadcast_to(skeleton.rest_rotations[0], (n, 3, 3))
+            origin = skeleton.offsets[0] + (dofs[:, :3] if skeleton.root_translation
+                                            else np.zeros((n, 3)))
+        else:
+            frame = rotations[parent] @ skeleton.rest_rotations[j]
+            origin = positions[parent] + rotations[parent] @ skeleton.offsets[j]
+        # local = R_last … R_first: the last axis turns in the parent-and-rest frame.
+        for col, axis in reversed(columns[j]):
+            axes[col] = frame[:, :, axis]
+            frame = frame @ axis_rotation(axis, dofs[:, col])
+        rotations[j], positions[j] = frame, origin
+    return positions, axes

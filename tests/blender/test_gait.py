@@ -13,9 +13,9 @@ from blender_support import MODULE, bpy, datablock_counts, relink_from_library
 from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
     dofs_to_channels_after
 from core.gait import (GaitModel, LookaheadPredictor, adapt, load_stock_library,
-                       observations_from_dofs, predict_dofs, restyle)
+                       observations_from_dofs, restyle)
 from core.gait.stock import STOCK_NAME
-from core.gait.foot_slide import planted_stride
+from core.gait.walk import WalkRequest, predict_walk
 from core.kinematics import local_rotations_from_dofs
 from core.mocap import AmcMotion, asf_to_skeleton, format_bvh, read_amc, read_asf, resample, \
     write_amc
@@ -95,20 +95,20 @@ def keys_at(obj, layout, frames):
     return out
 
 
-def core_prediction(model, skeleton, observed, n, restyled=None, stride=1.0, detail=True):
+def core_prediction(model, skeleton, observed, n, restyled=None, stride=1.0, detail=True,
+                    **request):
     """The core's prediction from observed DOF rows: batch EM (style, posture offset, the
     walker's residual table unless ``detail`` is off), ``restyled = (from, to, amount)``,
-    planted stride, predict_dofs continuing from the last observed frame."""
+    ``core.gait.walk.predict_walk`` (grounded, feet planted, continuing from the last observed
+    frame)."""
     res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
-    state, w = res.state.copy(), res.w
+    w, factor = None, 1.0
     if restyled is not None:
-        w, factor = restyle(model, w, *restyled)
-        state[0] *= factor
-    kw = dict(residual=res.residual if detail else None, offset=res.offset,
-              start=res.last_observation)
-    raw = predict_dofs(model, state, w, n, observed[-1], FPS, **kw)
-    k = planted_stride(skeleton, np.vstack([observed[-1:], raw]))
-    return predict_dofs(model, state, w, n, observed[-1], FPS, stride=k * stride, **kw)
+        w, factor = restyle(model, res.w, *restyled)
+    walk = WalkRequest(w=w, style_cadence=factor, stride=stride, **request)
+    return predict_walk(model, skeleton, observed, FPS, res.state, res.w, n, walk,
+                        offset=res.offset, residual=res.residual if detail else None,
+                        start=res.last_observation).dofs
 
 
 def angle_rms(a, b):
@@ -716,12 +716,78 @@ def test_redo_panel_draws_the_options_by_style_mode(scene):
         drawn = []
         fake = type("Op", (), {"layout": RecordingLayout(drawn), "bl_rna": rna,
                                "range_mode": "CUSTOM", "style_mode": mode, "root_travel": True,
-                               "adaptation": "BATCH"})()
+                               "adaptation": "BATCH", "cadence": 1.2})()
         op.draw(fake, bpy.context)
         names = {d[1] for d in drawn if d[0] == "prop"}
-        assert {"horizon", "cadence", "style_mode", "stride", "root_travel", "plant_feet",
-                "frame_start", "target"} <= names
+        assert {"horizon", "cadence", "retime", "style_mode", "stride", "root_travel", "turn",
+                "plant_feet", "frame_start", "target"} <= names
         assert names & {"restyle_from", "restyle_to", "restyle_amount", "library_style",
                         "mannerisms"} == expected
     # The named styles of the active model are what the redo panel offers.
     assert [i[0] for i in bridge("gait.ops")._style_items(None, bpy.context)] == list(TRAIN)
+
+
+def keyed_walk(obj, skeleton, layout, n):
+    """(reference rows, predicted rows) read back from the keyed F-curves."""
+    observed = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    predicted = channels_to_dofs(skeleton, layout,
+                                 keys_at(obj, layout, range(N_OBS + 1, N_OBS + n + 1)))
+    return observed, predicted
+
+
+def test_restyles_and_retimes_an_animator_keeps_through_the_operator(scene, tmp_path):
+    """Issue 25's worst cases as an animator met them: CMU 35_01, 1.67 s observed with the stock
+    library, 4 s predicted with Walk Forward and Keep Feet Planted, restyled from "normal" and
+    retimed; judged on the keys written (forward kinematics of the walker's own skeleton)."""
+    from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
+    from core.gait.root_travel import heading_angles, root_rotations
+
+    obj = import_observed(tmp_path, "35_01")
+    name = obj.name
+    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
+    layout = armature_layout(skeleton)
+    model = load_stock_library()
+    n = 4 * FPS
+    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    floor = contact_height(foot_tracks(skeleton, reference, FPS, root_frame=model.root_frame))
+    capture, _ = trial_dofs("35_01")
+
+    def predict(**options):
+        assert bpy.ops.track_and_stride.predict_gait(horizon=4.0, **options) == {"FINISHED"}
+        ref, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, n)
+        period = period_frames(pred[:, 6:])
+        return ref, pred, walk_summary(skeleton, pred, FPS, period, floor=floor)
+
+    def restyled(style, **options):
+        return predict(style_mode="RESTYLE", restyle_from="normal", restyle_to=style,
+                       restyle_amount=1.0, **options)
+
+    # Feet through the floor (−7 … −15 cm before): on the floor of the reference.
+    for style in ("long stride", "stroll"):
+        _, _, f = restyled(style)
+        assert abs(f["lowest_foot_cm"]) <= 2.0 and f["below_floor_share"] < 0.05, style
+    # The run moonwalked (hips 1.88 m/s, legs 3.35 m/s): the root now goes where the legs go.
+    _, _, run = restyled("run")
+    assert abs(run["root_vs_legs"] - 1.0) <= 0.05 and run["skate_cm_s"] <= 20.0
+    # The careful restyle braked the hips at 19 m/s² at the join: now within the capture's
+    # 99th percentile (second differences over 0.05 s).
+    ref, pred, _ = restyled("careful")
+    h = 3
+    rows = np.vstack([ref, pred])
+    acc = np.linalg.norm(rows[2 * h:, :3] - 2 * rows[h:-h, :3] + rows[:-2 * h, :3], axis=1) \
+        * (FPS / h) ** 2
+    cap = np.linalg.norm(capture[2 * h:, :3] - 2 * capture[h:-h, :3] + capture[:-2 * h, :3],
+                         axis=1) * (FPS / h) ** 2
+    assert acc[N_OBS - 2 * h:N_OBS].max() <= np.percentile(cap, 99)   # stencils across the join
+    # "slow" turned 30° in 4 s: it keeps the reference's heading.
+    ref, pred, _ = restyled("slow")
+    frame = model.root_frame
+    heading = heading_angles(root_rotations(np.vstack([ref, pred])[:, :6], frame), frame)
+    cycle = 70
+    assert abs(np.degrees(heading[-cycle:].mean() - heading[N_OBS - cycle:N_OBS].mean())) <= 3
+    # Retime 1.6: a brisker walk (longer strides, wider swing) than the fast-forward.
+    _, _, fast = predict(cadence=1.6)
+    _, _, ff = predict(cadence=1.6, retime="FAST_FORWARD")
+    assert fast["stride_m"] > ff["stride_m"] + 0.1
+    assert fast["hip_swing_deg"] > ff["hip_swing_deg"] + 5
+    assert fast["steps_per_min"] == pytest.approx(ff["steps_per_min"], rel=0.03)

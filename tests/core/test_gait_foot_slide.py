@@ -53,33 +53,3 @@ def test_foot_slide_errors():
         foot_slide(np.full((3, 3), np.nan), np.zeros((3, 3)), 60)
     with pytest.raises(ValueError, match="fps"):
         foot_slide(np.zeros((3, 3)), np.zeros((3, 3)), 0)
-
-
-def test_fit_stride_recovers_the_factor_that_plants_the_feet():
-    from core.gait.foot_slide import fit_stride
-
-    fps = 60.0
-    left, right = walking_feet(fps=fps)
-    # A root moving with the feet's mean speed, and feet relative to it.
-    root = np.zeros_like(left)
-    root[:, 0] = np.arange(len(left)) * 1.2 / fps
-    rel_l, rel_r = left - root, right - root
-    for k0 in (0.8, 1.0, 1.5):
-        slow = root / k0                               # a root that travels 1/k0 as far
-        k = fit_stride(rel_l + slow, rel_r + slow, slow)
-        assert k == pytest.approx(k0, rel=0.02)
-        planted = slow * k
-        assert foot_slide(rel_l + planted, rel_r + planted, fps) < \
-            foot_slide(rel_l + slow, rel_r + slow, fps) + 1e-9
-    still = np.zeros_like(root)
-    assert fit_stride(rel_l, rel_r, still) == 1.0
-
-
-def test_planted_stride_on_cmu_mocap_is_close_to_one():
-    from core.gait.foot_slide import planted_stride
-    from core.mocap import asf_to_skeleton, read_amc, read_asf
-    from tests.data import asf_path, cmu_path
-
-    asf = read_asf(asf_path("35_03"))
-    values = read_amc(cmu_path("35_03.amc"), asf).values[::2]
-    assert planted_stride(asf_to_skeleton(asf), values) == pytest.approx(1.0, abs=0.08)

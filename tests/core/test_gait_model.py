@@ -165,6 +165,33 @@ def test_checksum_refuses_a_changed_file_and_version_1_files_still_load():
     assert GaitModel.from_bytes(loaded.to_bytes()).format_version == FORMAT_VERSION
 
 
+def test_version_3_keeps_the_cadence_direction_and_version_2_files_load_without_it():
+    """Version 3 (issue 25) adds ``cadence_style``, learned from the training walks; a
+    version 2 file (signed, with its offset prior) loads with a zero direction (retiming then
+    plays the walk faster)."""
+    model = small_model()
+    assert model.cadence_style.shape == (model.n_bases,) and np.any(model.cadence_style)
+    again = GaitModel.from_bytes(model.to_bytes())
+    assert np.array_equal(again.cadence_style, model.cadence_style)
+    arrays = _arrays(model)
+    old = {k: v for k, v in arrays.items() if k not in ("checksum", "cadence_style")}
+    old["format_version"] = np.array(2)
+    old["checksum"] = np.array(checksum(old))
+    buf = io.BytesIO()
+    np.savez(buf, **old)
+    loaded = GaitModel.from_bytes(buf.getvalue())
+    assert loaded.has_offset and not np.any(loaded.cadence_style)
+    assert np.array_equal(loaded.styles, model.styles)
+    # A version 3 file without the field is incomplete.
+    del arrays["cadence_style"]
+    arrays["checksum"] = np.array(checksum({k: v for k, v in arrays.items()
+                                            if k != "checksum"}))
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    with pytest.raises(GaitModelFileError, match="cadence_style"):
+        GaitModel.from_bytes(buf.getvalue())
+
+
 def test_learning_errors():
     names = trial("35_01")[1]
     good = [np.asarray(trial(t)[0]) for t in ("35_01", "35_02")]

@@ -1,0 +1,365 @@
+"""Feet on the floor: the root's height and travel solved from the walker's own legs.
+
+The model predicts joint angles and a root trajectory learned from its training walkers. Keyed
+onto another walker (other leg lengths) or restyled (a style learned from a walker with other
+legs, another stride), that root trajectory disagrees with what the legs do: the feet sink
+through the floor or float, and the stance foot slides or moonwalks. Here the root follows the
+legs instead (``docs/gait.md``, *Restyle and retime*):
+
+* **Floor** (:func:`reference_floor`): the contact height of the reference frames, the height
+  the walker's lower foot stood at (:func:`.walk_figures.contact_height`).
+* **Height** (:func:`grounded_heights`): with the legs' forward kinematics relative to the root,
+  the root height that puts the lower foot on the floor, ``h_req = floor − min_f z_f``
+  (z_f: foot height relative to the root). A walk always has a foot down; a run has flight
+  phases: the predicted root height gives the *clearance* of the lower foot above its contact
+  level, ``c = h_model − h_req − percentile(h_model − h_req, 20)``, and the root rises by the
+  soft-thresholded clearance ``c − ε (1 − e^{−c/ε})`` (ε = 2 cm: the few-centimetre ripple of a
+  walk's contact is ignored, a run's flight is kept).
+* **Travel** (:func:`travel_from_legs`): the stance foot stays where it is: the root's
+  horizontal velocity is minus the velocity of the foot relative to the root, the feet weighted
+  by ``exp(−height above the floor / 1 cm)`` (the lower foot dominates; both in double
+  support). Frames with no foot within ``CONTACT_BAND`` of the floor (a run's flight) take the
+  velocity interpolated between the neighbouring contacts (horizontal speed is constant in
+  flight).
+
+Everything works on DOF rows of a :class:`~core.kinematics.Skeleton` (the walker's own bone
+lengths) and plain arrays.
+"""
+
+import numpy as np
+
+from ..kinematics.fk import chain_kinematics, dof_columns
+from .walk_figures import CMU_FEET, contact_height, foot_tracks
+
+__all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "grounded_heights",
+           "reference_floor", "relative_feet", "travel_from_legs"]
+
+CONTACT_BAND = 0.025        # m: a foot this close to the floor can carry the walker
+CLEARANCE_SOFTNESS = 0.02   # m: ε of the soft clearance threshold
+WEIGHT_SCALE = 0.005        # m: feet weighted by exp(-height / WEIGHT_SCALE - ...)
+SPEED_SCALE = 0.25          # m/s: ... - (speed with the lower foot still / SPEED_SCALE)²
+CLEARANCE_PERCENTILE = 20.0
+MIN_STANCE_FRAMES = 3
+MIN_EXPECTED = 0.1          # m/s: slower expected travel gives no direction
+BACKWARD_TOLERANCE = 0.3    # m/s: a foot implying the root going back this fast is doubtful
+SWING_CLEARANCE = 0.03     # m: a swinging foot passes at least this high above the floor
+SWING_SPEED = 0.5           # m/s: a foot near the floor moving faster than this swings
+PIN_RAMP_S = 0.05           # s: a planted foot is pinned fully after this, released before
+
+
+def smooth(values, sigma_frames):
+    """Gaussian smoothing along axis 0 (σ in frames, edges by reflection), same shape."""
+    values = np.asarray(values, dtype=float)
+    if sigma_frames <= 0 or len(values) < 2:
+        return values.copy()
+    half = int(np.ceil(3.0 * sigma_frames))
+    kernel = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma_frames) ** 2)
+    kernel /= kernel.sum()
+    pad = min(half, len(values) - 1)
+    padded = np.concatenate([values[pad:0:-1], values, values[-2:-pad - 2:-1]]) if pad else values
+    out = np.apply_along_axis(lambda c: np.convolve(c, kernel, "same"), 0, padded) \
+        if padded.ndim > 1 else np.convolve(padded, kernel, "same")
+    return out[pad:pad + len(values)]
+
+
+def running_max(values, half_width):
+    """Maximum over the ``2 half_width + 1`` frames centred on each frame (N,)."""
+    values = np.asarray(values, dtype=float)
+    out = values.copy()
+    for k in range(1, int(half_width) + 1):
+        out[k:] = np.maximum(out[k:], values[:-k])
+        out[:-k] = np.maximum(out[:-k], values[k:])
+    return out
+
+
+def relative_feet(skeleton, dofs, feet=CMU_FEET):
+    """Foot positions relative to the root joint, world axes, (N, 2, 3) metres: forward
+    kinematics of the DOF rows (the legs only) with the root translation left out."""
+    dofs = np.array(dofs, dtype=float)
+    if skeleton.root_translation:
+        dofs[:, :3] = 0.0
+    index = [skeleton.index(f) for f in feet]
+    positions, _ = chain_kinematics(skeleton, dofs, index)
+    return np.stack([positions[i] - positions[0] for i in index], axis=1)
+
+
+def reference_floor(skeleton, dofs, fps, feet=CMU_FEET, root_frame=None):
+    """The floor the reference frames stood on (m, world Z): the contact height of their lower
+    foot (:func:`.walk_figures.contact_height`)."""
+    return contact_height(foot_tracks(skeleton, dofs, fps, feet, root_frame))
+
+
+def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames=0.0):
+    """Root heights that keep the lower foot on the floor, flight kept (module docstring).
+
+    Parameters
+    ----------
+    relative_z : array_like, shape (N, F)
+        Heights of the F contact points relative to the root, metres.
+    model_heights : array_like, shape (N,)
+        The predicted root heights (their shape over the cycle gives the clearance).
+    floor : float
+    flight : float or array_like, shape (N,)
+        How much of the clearance to keep, 0 … 1 (0: a walk, the lower foot always down).
+    smooth_frames : float
+        σ (frames) of a Gaussian smoothing. The required height peaks where the lower foot
+        changes; smoothing would lower the peaks and sink the feet, so the required height is
+        first replaced by its running maximum over ±σ (the flight lift is smoothed as it is).
+
+    Returns
+    -------
+    heights : ndarray, shape (N,)
+    lift : ndarray, shape (N,)
+        The part of the heights that is flight (the lower foot that far above the floor).
+    """
+    rel = np.asarray(relative_z, dtype=float)
+    required = float(floor) - rel.min(axis=1)
+    gap = np.asarray(model_heights, dtype=float) - required
+    clearance = np.maximum(gap - np.percentile(gap, CLEARANCE_PERCENTILE), 0.0)
+    eps = CLEARANCE_SOFTNESS
+    lift = np.asarray(flight, dtype=float) * (clearance - eps * (1.0 - np.exp(-clearance / eps)))
+    if smooth_frames > 0:
+        required = smooth(running_max(required, int(np.ceil(smooth_frames))), smooth_frames)
+        lift = smooth(lift, smooth_frames)
+    return required + lift, lift
+
+
+def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None):
+    """Horizontal root velocities that keep the stance foot still (module docstring).
+
+    Parameters
+    ----------
+    relative : array_like, shape (N + 1, F, 3)
+        Contact points relative to the root (world axes) at frames 0 … N.
+    heights : array_like, shape (N + 1,)
+        Root heights of those frames.
+    floor : float
+    fps : float
+    expected : array_like, shape (N, 2), optional
+        The root velocity the walk is expected to have (the model's, m/s): the first guess
+        is the foot that is low and does not imply the root going backwards (a swing foot
+        skimming the floor does); without it, the lower foot.
+    lift : array_like, shape (N + 1,), optional
+        The flight part of the heights (:func:`grounded_heights`): a frame lifted by more than
+        ``CONTACT_BAND`` is in flight, the feet are judged without the lift otherwise.
+
+    Returns
+    -------
+    velocities : ndarray, shape (N, 2)
+        m/s of frames 1 … N (the step from frame k-1 to k); frames with no foot on the floor
+        are interpolated.
+    carrying : ndarray, shape (N, F), bool
+        Where each foot carries the walker (on the floor, and most of the weight).
+    """
+    rel = np.asarray(relative, dtype=float)
+    lift = np.zeros(len(rel)) if lift is None else np.asarray(lift, dtype=float)
+    grounded = np.asarray(heights, dtype=float) - lift
+    above = rel[:, :, 2] + grounded[:, None] - float(floor)
+    above = np.maximum(0.5 * (above[1:] + above[:-1]), 0.0)             # (N, F)
+    airborne = 0.5 * (lift[1:] + lift[:-1]) > CONTACT_BAND
+    step = np.diff(rel[:, :, :2], axis=0) * fps                         # (N, F, 2) m/s
+    frames = np.arange(len(step))
+    if expected is None:
+        lower = np.argmin(above, axis=1)
+    else:
+        exp = np.asarray(expected, dtype=float)
+        norm = np.linalg.norm(exp, axis=1, keepdims=True)
+        ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
+        backwards = np.maximum(np.einsum("nfc,nc->nf", step, ahead), 0.0)   # root going back
+        miss = (backwards / BACKWARD_TOLERANCE) ** 2
+        lower = np.argmin((above - above.min(axis=1, keepdims=True)) / WEIGHT_SCALE + miss,
+                          axis=1)
+    first = -step[frames, lower]                                        # that foot still
+    # A foot carries the walker when it is near the floor and (nearly) still with the root at
+    # the first guess: the swing foot skims the floor at walking speed and does not count.
+    still = np.sum((step + first[:, None, :]) ** 2, axis=2)
+    weight = np.exp(-(above - above.min(axis=1, keepdims=True)) / WEIGHT_SCALE
+                    - still / SPEED_SCALE**2)
+    share = weight / weight.sum(axis=1)[:, None]
+    vel = -np.einsum("nf,nfc->nc", share, step)
+    contact = (above.min(axis=1) < CONTACT_BAND) & ~airborne
+    if contact.any() and not contact.all():
+        for c in range(2):
+            vel[:, c] = np.interp(frames, frames[contact], vel[contact, c])
+    # A foot carries the walker through its whole stance, a run's push-off included (the lift
+    # only decides how the root travels): the legs reach down to it (pin_feet).
+    carrying = (share > 0.5) & (above < CONTACT_BAND)
+    for f in range(carrying.shape[1]):                  # a stance is not broken by a frame
+        carrying[:, f] = _close_gaps(carrying[:, f], MIN_STANCE_FRAMES)
+    return vel, carrying
+
+
+def _close_gaps(mask, longest):
+    """``mask`` with runs of False of at most ``longest`` frames between True runs filled."""
+    out = mask.copy()
+    runs = _runs(mask)
+    for (_, b), (a, _) in zip(runs[:-1], runs[1:]):
+        if a - b <= longest:
+            out[b:a] = True
+    return out
+
+
+def stance_targets(points, carrying, floor, fps, reference_frames=0):
+    """Where each foot stands while it carries the walker, and how firmly.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, F, 3)
+        World positions of the contact points (the solved root included).
+    carrying : array_like, shape (N, F), bool
+        Frames where each foot carries the walker (:func:`travel_from_legs`).
+    floor : float
+    fps : float
+    reference_frames : int
+        Leading frames that belong to the reference (their positions are what they are: a
+        stance that starts there is anchored where the foot is once fully pinned, eased in
+        from the first predicted frame).
+
+    Returns
+    -------
+    targets : ndarray, shape (N, F, 3)
+        The planted position of each foot (its own position where it is free): the mean of
+        its positions over the stance, on the floor.
+    weights : ndarray, shape (N, F)
+        0 (free) … 1 (planted): 1 over each stance, smootherstep ramps of ``PIN_RAMP_S`` in
+        the swing before and after it.
+    """
+    pts = np.asarray(points, dtype=float)
+    n, feet = pts.shape[:2]
+    targets = pts.copy()
+    weights = np.zeros((n, feet))
+    ramp = max(1.0, PIN_RAMP_S * fps)
+    frames = np.arange(n)
+    for f in range(feet):
+        for a, b in _runs(np.asarray(carrying)[:, f]):
+            if b - a < MIN_STANCE_FRAMES or b <= reference_frames:
+                continue
+            if a < reference_frames:
+                # Where the foot will be once fully pinned: it keeps moving as it did.
+                anchor = pts[min(b - 1, reference_frames - 1 + int(np.ceil(ramp))), f].copy()
+                lo = reference_frames
+            else:
+                anchor = pts[a:b, f].mean(axis=0)
+                anchor[2] = max(float(floor), float(pts[a:b, f, 2].min()))
+                lo = max(reference_frames, int(np.floor(a - ramp)))
+            hi = min(n, int(np.ceil(b + ramp)))
+            k = frames[lo:hi]
+            # Pinned through the whole stance; the ramps lie in the swing on either side, so
+            # the foot lands on its spot and leaves it upwards.
+            rise = np.minimum((k - (a - ramp)) / ramp, ((b - 1 + ramp) - k) / ramp)
+            if a < reference_frames:
+                # Held from where the reference left it, eased in from the join (the foot
+                # keeps the reference's motion for a moment instead of stopping dead).
+                rise = np.minimum((k - reference_frames + 1) / ramp, ((b - 1 + ramp) - k) / ramp)
+            w = smootherstep_weights(rise)
+            take = w > weights[lo:hi, f]
+            weights[lo:hi, f] = np.where(take, w, weights[lo:hi, f])
+            targets[lo:hi, f] = np.where(take[:, None], anchor, targets[lo:hi, f])
+    return targets, weights
+
+
+def swing_clearance(points, weights, floor, fps, reference_frames=0):
+    """Lift a swinging foot that skims the floor to ``SWING_CLEARANCE`` above it (a restyled
+    walk can drag its toes): targets and weights for :func:`pin_feet` on top of a stance's.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, F, 3)
+    weights : array_like, shape (N, F)
+        The stance weights (:func:`stance_targets`): a pinned foot is not lifted.
+    floor, fps : float
+    reference_frames : int
+        Leading frames of the reference: not lifted, and the lift eases in after them.
+
+    Returns
+    -------
+    targets : ndarray, shape (N, F, 3)
+    lift_weights : ndarray, shape (N, F)
+        1 where a free foot is lifted, else 0.
+    """
+    pts = np.asarray(points, dtype=float)
+    speed = np.zeros(pts.shape[:2])
+    speed[1:] = np.linalg.norm(np.diff(pts[:, :, :2], axis=0), axis=2) * fps
+    speed[0] = speed[1]
+    free = (np.asarray(weights) < 0.5) & (speed > SWING_SPEED)
+    raise_by = np.where(free, np.maximum(float(floor) + SWING_CLEARANCE - pts[:, :, 2], 0.0),
+                        0.0)
+    raise_by = smooth(running_max_2d(raise_by, 2), 1.5)
+    ease = smootherstep_weights((np.arange(len(pts)) - reference_frames + 1)
+                                / max(1.0, PIN_RAMP_S * fps))
+    raise_by = raise_by * ease[:, None]
+    targets = pts.copy()
+    targets[:, :, 2] += raise_by
+    return targets, (raise_by > 1e-4).astype(float)
+
+
+def running_max_2d(values, half_width):
+    """:func:`running_max` of every column."""
+    return np.stack([running_max(c, half_width) for c in np.asarray(values).T], axis=1)
+
+
+def smootherstep_weights(x):
+    """``6x⁵ − 15x⁴ + 10x³`` of values clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
+
+
+def _runs(mask):
+    padded = np.concatenate(([False], np.asarray(mask, dtype=bool), [False]))
+    edges = np.flatnonzero(np.diff(padded.astype(int)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05):
+    """Leg inverse kinematics: move each contact point towards ``p + weight × (target − p)``
+    by changing the rotation DOFs between the root and the foot (hip, knee, ankle), damped
+    least squares with analytic Jacobians, in place on ``dofs`` (joint limits respected).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    dofs : ndarray, shape (N, n_dofs)
+        Changed in place.
+    feet : (str, ...)
+        Contact joints.
+    targets : array_like, shape (N, F, 3)
+    weights : array_like, shape (N, F)
+    iterations : int
+    damping : float
+        Metres: damped least squares' λ (small moves where the leg is stretched).
+
+    Returns
+    -------
+    ndarray, shape (N, F)
+        The remaining distance to the weighted targets, metres.
+    """
+    index = [skeleton.index(f) for f in feet]
+    columns = dof_columns(skeleton)
+    limits = skeleton.dof_limits()
+    weights = np.asarray(weights, dtype=float)
+    targets = np.asarray(targets, dtype=float)
+    positions, _ = chain_kinematics(skeleton, dofs, index)
+    goal = np.stack([positions[i] for i in index], axis=1)
+    goal = goal + weights[:, :, None] * (targets - goal)
+    remaining = np.zeros(weights.shape)
+    for f, joint in enumerate(index):
+        rows = np.flatnonzero(weights[:, f] > 0)
+        if not len(rows):
+            continue
+        chain = [j for j in skeleton.chain(joint)[1:-1] if columns[j]]
+        cols = [c for j in chain for c, _ in columns[j]]
+        owner = [j for j in chain for _ in columns[j]]
+        sub = dofs[rows]
+        for _ in range(iterations):
+            positions, axes = chain_kinematics(skeleton, sub, [joint])
+            error = goal[rows, f] - positions[joint]                       # (M, 3)
+            jac = np.stack([np.cross(axes[c], positions[joint] - positions[j])
+                            for c, j in zip(cols, owner)], axis=2)          # (M, 3, K)
+            normal = jac @ np.swapaxes(jac, 1, 2) + damping**2 * np.eye(3)
+            step = np.swapaxes(jac, 1, 2) @ np.linalg.solve(normal, error[:, :, None])
+            sub[:, cols] = np.clip(sub[:, cols] + step[:, :, 0], limits[cols, 0],
+                                   limits[cols, 1])
+        positions, _ = chain_kinematics(skeleton, sub, [joint])
+        remaining[rows, f] = np.linalg.norm(goal[rows, f] - positions[joint], axis=1)
+        dofs[rows] = sub
+    return remaining

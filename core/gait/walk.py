@@ -1,0 +1,276 @@
+"""The walk Predict Gait keys: a continuation of the reference frames, retimed and restyled the
+way an animator would keep it (``docs/gait.md``, *Restyle and retime*).
+
+:func:`predict_walk` turns an adapted walker (state, style, posture offset, residual table,
+last observed frame) and a :class:`WalkRequest` into DOF rows of the walker's skeleton:
+
+1. **A smooth join** (:func:`.prediction.predict_transition`): the observed walk turns into the
+   requested style and cadence over one step (``blend_steps``; a smootherstep, so velocity and
+   acceleration stay continuous at the first predicted frame).
+2. **Retime as a person would**: a cadence factor moves the style along the model's
+   ``cadence_style`` direction (how the training walkers' styles change with their cadence:
+   longer strides and wider swings when they walk faster), ``style += log(cadence) ×
+   cadence_style``; ``retime='fast_forward'`` plays the same walk faster instead.
+3. **Straight unless asked**: the styles' mean turn rate over a cycle is removed from the
+   predicted yaw rate and ``turn`` (rad/s) added: the walker keeps the heading of the
+   reference frames (the heading still sways within a cycle).
+4. **Grounded and planted** (:mod:`.planting`): the root height puts the lower foot on the
+   floor of the reference frames (measured on the walker's own legs), and with ``plant`` the
+   root travels exactly as the stance foot implies (no sliding, no moonwalk), times
+   ``stride``. The difference between the reference's last root height and velocity and the
+   solved ones fades out over the blend (position, velocity and acceleration continuous).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .features import observations_from_dofs
+from .planting import pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
+from .prediction import (DEFAULT_BLEND_S, cycle_mean, dofs_from_observations,
+                         predict_transition, smootherstep)
+from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
+    root_rotations
+from .walk_figures import CMU_FEET
+
+__all__ = ["RETIME_MODES", "WalkRequest", "WalkResult", "predict_walk"]
+
+RETIME_MODES = ("natural", "fast_forward")
+VELOCITY_FRAMES = 3          # reference frames whose mean velocity the join continues
+SMOOTH_S = 0.08             # s: σ of the Gaussian that smooths the solved root (height, travel)
+JOIN_S = 0.25                # s: the reference's root height and velocity fade out over this
+GRAVITY = 9.81
+# Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
+# the first value the lower foot is always down, above the second a run's flight is kept.
+FLIGHT_FROUDE = (0.4, 0.6)
+
+
+@dataclass(frozen=True)
+class WalkRequest:
+    """What the animator asks for.
+
+    Attributes
+    ----------
+    w : ndarray, shape (J,), or None
+        The style to walk in (None: as observed).
+    style_cadence : float
+        The cadence factor that comes with the style (:func:`.prediction.restyle`'s).
+    cadence : float
+        The animator's retiming factor (1.2 = steps 20 % quicker).
+    retime : str
+        ``'natural'`` (the style moves with the cadence) or ``'fast_forward'``.
+    travel : bool
+        Walk forward (False: on the spot).
+    plant : bool
+        Root travel from the stance foot (False: the model's root speed).
+    stride : float
+        Scale of the horizontal travel on top.
+    turn : float
+        Turn rate, rad/s (positive: to the left).
+    blend_steps : float
+        Length of the join, in steps of the observed walk.
+    keep_walker : bool
+        Whether the requested walk keeps the walker's residual table and posture offset
+        (False: the model's template as learned, e.g. a library style).
+    """
+
+    w: np.ndarray = None
+    style_cadence: float = 1.0
+    cadence: float = 1.0
+    retime: str = "natural"
+    travel: bool = True
+    plant: bool = True
+    stride: float = 1.0
+    turn: float = 0.0
+    blend_steps: float = 1.0
+    keep_walker: bool = True
+
+    def __post_init__(self):
+        for name in ("style_cadence", "cadence"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value}")
+        if self.retime not in RETIME_MODES:
+            raise ValueError(f"retime must be one of {RETIME_MODES}, got {self.retime!r}")
+        if not (np.isfinite(self.stride) and self.stride >= 0):
+            raise ValueError(f"stride must be a non-negative number, got {self.stride}")
+        if not np.isfinite(self.turn):
+            raise ValueError(f"turn must be finite, got {self.turn}")
+        if not (np.isfinite(self.blend_steps) and self.blend_steps > 0):
+            raise ValueError(f"blend_steps must be positive, got {self.blend_steps}")
+
+
+@dataclass(frozen=True)
+class WalkResult:
+    """Outcome of :func:`predict_walk`.
+
+    Attributes
+    ----------
+    dofs : ndarray, shape (n, n_dofs)
+        Predicted DOF rows in the skeleton's layout.
+    floor : float or None
+        The reference frames' floor height (m); None without root travel.
+    w : ndarray, shape (J,)
+        The style walked after the join.
+    omega : float
+        Phase velocity after the join (radians per frame).
+    blend_frames : float
+    """
+
+    dofs: np.ndarray
+    floor: float
+    w: np.ndarray
+    omega: float
+    blend_frames: float
+
+
+def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=WalkRequest(),
+                 offset=None, residual=None, start=None, feet=CMU_FEET,
+                 cadence_style=None, blend_s=DEFAULT_BLEND_S):
+    """Predicted DOF rows of the walk an animator asked for (module docstring).
+
+    Parameters
+    ----------
+    model : GaitModel
+    skeleton : Skeleton
+        The walker's skeleton; its DOF names include ``model.dof_names``.
+    reference : array_like, shape (N >= 2, n_dofs)
+        The reference frames (the skeleton's DOF layout, metres and radians).
+    fps : float
+    state : array_like, shape (2,)
+        ``[ω, φ]`` at the last reference frame (``adapt(...).state``).
+    w : array_like, shape (J,)
+        The walker's style.
+    n_frames : int
+    request : WalkRequest
+    offset, residual, start
+        The walker's posture offset, residual table and last observation (:func:`.predict`).
+    feet : (str, str)
+        Left and right contact joints (the balls of the feet).
+    cadence_style : array_like, shape (J,), optional
+        The style's change per unit log cadence (default: the model's).
+
+    Returns
+    -------
+    WalkResult
+    """
+    reference = np.asarray(reference, dtype=float)
+    names = list(skeleton.dof_names())
+    if reference.ndim != 2 or reference.shape[1] != len(names) or len(reference) < 2 \
+            or not np.all(np.isfinite(reference)):
+        raise ValueError(f"reference must be at least 2 finite rows of {len(names)} DOFs, got "
+                         f"shape {reference.shape}")
+    missing = [n for n in model.dof_names if n not in names]
+    if missing:
+        raise ValueError(f"the skeleton lacks DOFs of the model: {missing[:5]}")
+    cols = np.array([names.index(n) for n in model.dof_names], dtype=int)
+    omega, _ = np.asarray(state, dtype=float)
+    w = np.asarray(w, dtype=float)
+    w_to = w if request.w is None else np.asarray(request.w, dtype=float)
+    if request.retime == "natural":
+        slope = model.cadence_style if cadence_style is None else \
+            np.asarray(cadence_style, dtype=float)
+        w_to = w_to + np.log(request.cadence) * slope
+        rate_to = 1.0
+    else:
+        rate_to = request.cadence
+    omega_to = omega * request.style_cadence * request.cadence
+    blend = max(1.0, request.blend_steps * np.pi / omega)          # a step = half a cycle
+    step = None
+    if start is not None and len(reference) >= 3:
+        tail = observations_from_dofs(model, reference[-3:, cols], model.dof_names, fps)
+        step = tail[-1] - tail[-2]
+    obs, _, weights = predict_transition(model, state, w, w_to, n_frames, omega_to, blend,
+                                         rate_to, residual, offset, start, fps, blend_s,
+                                         request.keep_walker, step)
+    speed = None
+    if model.root_travel:
+        yaw, fwd = model.channel_index(["root.yaw_rate", "root.v_forward"])
+        mean_from = cycle_mean(model, w, residual, offset)
+        mean_to = cycle_mean(model, w_to, *((residual, offset) if request.keep_walker
+                                            else (None, None)))
+        mean_to = mean_to * np.where(model.rate_mask, rate_to, 1.0)
+        mean = (1.0 - weights)[:, None] * mean_from + weights[:, None] * mean_to
+        obs[:, yaw] -= mean[:, yaw]
+        speed = mean[:, fwd]
+        if request.travel:
+            obs[:, yaw] += _keep_heading(model, reference, names, obs[:, yaw], fps, omega,
+                                         omega_to, weights, blend)
+        obs[:, yaw] += request.turn
+    last = reference[-1]
+    rows = dofs_from_observations(model, obs, last[cols], fps, request.stride, request.travel)
+    out = np.tile(last, (len(rows), 1))
+    out[:, cols] = rows
+    floor = None
+    feet = tuple(feet) if feet is not None else ()
+    if model.root_travel and len(out) and len(feet) == 2 \
+            and all(f in skeleton.names for f in feet):
+        floor = reference_floor(skeleton, reference, fps, feet, model.root_frame)
+        _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
+               model.root_frame)
+    return WalkResult(out, floor, w_to, float(omega_to), float(blend))
+
+
+def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weights, blend):
+    """Yaw-rate correction (rad/s per frame) that brings the prediction's mean heading over its
+    first whole cycle after the join to the mean heading of the reference's last cycle, spread
+    over the join (``Δψ ds/dk``): a straight walk keeps the heading it had (its sway stays)."""
+    cols = [names.index(n) for n in ROOT_DOF_NAMES]
+    frame = model.root_frame
+    ref_heading = heading_angles(root_rotations(reference[:, cols], frame), frame)
+    ref_cycle = int(min(len(reference), max(2, round(2.0 * np.pi / omega))))
+    target = float(np.mean(ref_heading[-ref_cycle:]))
+    heading = ref_heading[-1] + np.cumsum(yaw_rate) / fps
+    cycle = int(min(len(heading), max(2, round(2.0 * np.pi / omega_to))))
+    start = int(min(np.ceil(blend), len(heading) - cycle))
+    if cycle < 2:
+        return np.zeros_like(yaw_rate)
+    delta = target - float(np.mean(heading[start:start + cycle]))
+    return delta * np.diff(np.concatenate(([0.0], weights))) * fps
+
+
+def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame):
+    """Solve the root's height (always) and horizontal travel (``request.plant``) from the
+    legs, in place on ``out``; the reference's root height and velocity fade into them."""
+    tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
+    m = min(len(reference), VELOCITY_FRAMES + 1)
+    rows = np.vstack([reference[-m:], out])                     # frames -(m-1) … n
+    rel = relative_feet(skeleton, rows, feet)
+    model_h = rows[:, tz].copy()
+    leg = float(np.mean(reference[:, tz])) - floor
+    froude = np.concatenate([np.full(m, speed[0]), speed]) ** 2 / (GRAVITY * max(leg, 0.1))
+    flight = smootherstep((froude - FLIGHT_FROUDE[0]) / (FLIGHT_FROUDE[1] - FLIGHT_FROUDE[0]))
+    heights, lift = grounded_heights(rel[:, :, 2], model_h, floor, flight, SMOOTH_S * fps)
+    k = np.maximum(np.arange(len(rows)) - (m - 1), 0)          # 0 = last reference frame
+    fade = 1.0 - smootherstep(k * (1.0 / (JOIN_S * fps)))
+    span = m - 1
+    ref_h = reference[-m:, tz]
+    e = ref_h[-1] - heights[m - 1]
+    de = ((ref_h[-1] - ref_h[0]) - (heights[m - 1] - heights[0])) / span if span else 0.0
+    solved_h = heights + (e + de * k) * fade
+    out[:, tz] = solved_h[m:]
+    if not (request.plant and request.travel):
+        return
+    rx = [names.index(n) for n in ROOT_DOF_NAMES]
+    heading = heading_angles(root_rotations(rows[:, rx], frame), frame)
+    mid = 0.5 * (heading[1:] + heading[:-1])
+    along = np.concatenate([np.full(m - 1, speed[0]), speed])
+    expected = along[:, None] * heading_directions(mid, frame)[0]
+    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift)
+    # (velocities and carrying of the steps into frames -(m-2) … n)
+    vel = smooth(vel, SMOOTH_S * fps)
+    vel = vel * request.stride
+    ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
+        vel[m - 2]
+    plan_v = vel[:m - 1].mean(axis=0) if span else vel[0]
+    pred = vel[m - 1:] + (ref_v - plan_v)[None, :] * fade[m:, None]
+    out[:, tx] = reference[-1, tx] + np.cumsum(pred[:, 0]) / fps
+    out[:, ty] = reference[-1, ty] + np.cumsum(pred[:, 1]) / fps
+    # The smoothed root leaves the stance foot a little off its spot: the legs put it back.
+    roots = np.vstack([reference[-m:, [tx, ty, tz]], out[:, [tx, ty, tz]]])
+    points = rel + roots[:, None, :]
+    carrying = np.vstack([carrying[:1], carrying])              # frames -(m-1) … n
+    targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
+    lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)
+    targets = np.where((lifts > 0)[:, :, None], lifted, targets)
+    pin_feet(skeleton, out, feet, targets[m:], np.maximum(pins, lifts)[m:])

@@ -1,0 +1,148 @@
+"""core.gait.planting and core.kinematics.chain_kinematics: the root solved from the legs,
+checked against captured walks (the capture's own root is the ground truth), forward
+kinematics and finite differences."""
+
+import numpy as np
+import pytest
+
+from core.gait.planting import (grounded_heights, pin_feet, reference_floor, relative_feet,
+                                running_max, smooth, stance_targets, travel_from_legs)
+from core.kinematics import chain_kinematics, forward_kinematics, local_rotations_from_dofs
+from core.mocap import asf_to_skeleton, read_asf
+from tests.data import asf_path
+from tests.gait_data import trial
+
+FPS = 60.0
+
+
+def walker(name="35_03"):
+    values, _ = trial(name)
+    return asf_to_skeleton(read_asf(asf_path(name))), np.array(values)
+
+
+def test_chain_kinematics_equals_full_forward_kinematics_and_its_axes_are_the_jacobian():
+    skeleton, values = walker()
+    rows = values[:40]
+    feet = [skeleton.index("ltoes"), skeleton.index("rtoes")]
+    positions, axes = chain_kinematics(skeleton, rows, feet)
+    translation, local = local_rotations_from_dofs(skeleton, rows)
+    _, heads = forward_kinematics(skeleton, local, translation)
+    for j in positions:
+        np.testing.assert_allclose(positions[j], heads[:, j], atol=1e-12)
+    assert len(positions) == 11                        # the legs and the root, not 31 joints
+    # d(ball)/dθ = axis × (ball − joint origin) against central differences.
+    joint_of = {}
+    col = 3
+    for j, dof_axes in enumerate(skeleton.dof_axes):
+        for _ in dof_axes:
+            joint_of[col] = j
+            col += 1
+    ball = feet[0]
+    for col, axis in axes.items():
+        if joint_of[col] not in skeleton.chain(ball):
+            continue
+        analytic = np.cross(axis, positions[ball] - positions[joint_of[col]])
+        plus, minus = rows.copy(), rows.copy()
+        plus[:, col] += 1e-6
+        minus[:, col] -= 1e-6
+        numeric = (chain_kinematics(skeleton, plus, [ball])[0][ball]
+                   - chain_kinematics(skeleton, minus, [ball])[0][ball]) / 2e-6
+        np.testing.assert_allclose(analytic, numeric, atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["35_03", "35_05"])   # subject 08's floor is not level
+def test_the_root_solved_from_the_legs_follows_the_captured_root(name):
+    """A captured walk plants its feet: the root velocity the legs imply is the capture's."""
+    skeleton, values = walker(name)
+    rel = relative_feet(skeleton, values)
+    floor = reference_floor(skeleton, values, FPS)
+    heights = grounded_heights(rel[:, :, 2], values[:, 2], floor, flight=0.0)[0]
+    # The lower foot on the floor explains the root height to within a couple of centimetres.
+    assert np.std(heights - values[:, 2]) < 0.02
+    assert abs(np.median(heights - values[:, 2])) < 0.02
+    vel, carrying = travel_from_legs(rel, values[:, 2], floor, FPS)
+    truth = np.diff(values[:, :2], axis=0) * FPS
+    speed, true_speed = np.linalg.norm(vel.mean(axis=0)), np.linalg.norm(truth.mean(axis=0))
+    # The captured balls roll a few cm/s forward while they carry (slip +5 cm/s on the CMU
+    # normal walks, walk_figures), so the capture's root runs up to ~6 % ahead of its legs.
+    assert speed == pytest.approx(true_speed, rel=0.08)
+    smooth_truth, smooth_vel = smooth(truth, 0.08 * FPS), smooth(vel, 0.08 * FPS)
+    assert np.median(np.linalg.norm(smooth_vel - smooth_truth, axis=1)) < 0.12
+    # Each foot carries the walker for a share of the cycle, and they take turns.
+    share = carrying.mean(axis=0)
+    assert np.all(share > 0.25) and np.all(share < 0.75)
+
+
+def test_grounded_heights_keep_a_run_s_flight_and_drop_it_for_a_walk():
+    rel = np.zeros((100, 2, 3))
+    rel[:, :, 2] = -0.9                                # both feet 0.9 m below the root
+    model = 0.9 + 0.05 * np.maximum(np.sin(np.linspace(0, 6 * np.pi, 100)), 0.0)
+    run = grounded_heights(rel[:, :, 2], model, 0.0, flight=1.0)[0]
+    walk = grounded_heights(rel[:, :, 2], model, 0.0, flight=0.0)[0]
+    np.testing.assert_allclose(walk, 0.9)              # a walk: always a foot down
+    assert run.max() > 0.92 and run.min() == pytest.approx(0.9)
+    assert np.all(run >= walk - 1e-12)
+
+
+def test_running_max_and_smooth():
+    x = np.array([0.0, 3.0, 1.0, 0.0, 0.0, 5.0])
+    np.testing.assert_array_equal(running_max(x, 1), [3, 3, 3, 1, 5, 5])
+    y = np.random.default_rng(0).standard_normal(2000)
+    assert smooth(y, 0).tolist() == y.tolist()
+    assert smooth(np.full(30, 2.5), 3.0) == pytest.approx(2.5)
+    ramp = np.arange(40.0)
+    np.testing.assert_allclose(smooth(ramp, 3.0)[10:30], ramp[10:30])   # symmetric kernel
+    # White noise: variance × 1 / (2 σ √π) for a Gaussian of σ frames.
+    assert np.var(smooth(y, 3.0)) == pytest.approx(np.var(y) / (6 * np.sqrt(np.pi)), rel=0.2)
+    two = np.stack([y[:50], 2 * y[:50]], axis=1)
+    np.testing.assert_allclose(smooth(two, 2.0)[:, 1], 2 * smooth(y[:50], 2.0))
+
+
+def test_stance_targets_pin_each_foot_where_it_stands_with_ramps():
+    n = 40
+    points = np.zeros((n, 2, 3))
+    points[:, 0, 0] = np.linspace(0, 0.2, n)           # a foot creeping forward on the floor
+    carrying = np.zeros((n, 2), dtype=bool)
+    carrying[10:30, 0] = True
+    targets, weights = stance_targets(points, carrying, 0.0, FPS)
+    ramp = int(np.ceil(0.05 * FPS))                    # PIN_RAMP_S, in the swing either side
+    assert np.all(weights[:10 - ramp, 0] == 0) and np.all(weights[30 + ramp:, 0] == 0)
+    assert np.all(weights[10:30, 0] == 1.0)
+    assert 0 < weights[10 - 1, 0] < 1 and 0 < weights[30, 0] < 1
+    assert np.all(np.diff(weights[:20, 0]) >= 0) and np.all(np.diff(weights[20:, 0]) <= 0)
+    np.testing.assert_allclose(targets[10:30, 0, 0], points[10:30, 0, 0].mean())
+    assert np.all(weights[:, 1] == 0)
+    # A stance that began in the reference is held where the foot is once pinned fully.
+    targets, weights = stance_targets(points, carrying, 0.0, FPS, reference_frames=15)
+    np.testing.assert_allclose(targets[15:30, 0], np.broadcast_to(points[14 + 3, 0], (15, 3)))
+    assert 0 < weights[15, 0] < weights[16, 0] < 1 and weights[20, 0] == 1.0
+
+
+def test_pin_feet_moves_the_ball_onto_its_target_within_the_joint_limits():
+    skeleton, values = walker()
+    rows = values[60:100].copy()
+    feet = ("ltoes", "rtoes")
+    before = chain_kinematics(skeleton, rows, [skeleton.index(f) for f in feet])[0]
+    current = np.stack([before[skeleton.index(f)] for f in feet], axis=1)
+    targets = current + np.array([0.03, -0.02, 0.01])  # a few centimetres off
+    weights = np.zeros((len(rows), 2))
+    weights[5:30, 0] = 1.0
+    weights[10:20, 1] = 0.5
+    pinned = rows.copy()
+    remaining = pin_feet(skeleton, pinned, feet, targets, weights)
+    assert remaining.max() < 2e-3
+    after = chain_kinematics(skeleton, pinned, [skeleton.index(f) for f in feet])[0]
+    left = after[skeleton.index("ltoes")]
+    np.testing.assert_allclose(left[5:30], targets[5:30, 0], atol=2e-3)
+    half = after[skeleton.index("rtoes")][10:20]
+    np.testing.assert_allclose(half, current[10:20, 1] + 0.5 * (targets[10:20, 1]
+                                                                - current[10:20, 1]), atol=2e-3)
+    # Only the legs moved, only where a foot was pinned, within the skeleton's limits.
+    changed = np.any(pinned != rows, axis=0)
+    names = skeleton.dof_names()
+    assert {names[c].split(".")[0] for c in np.flatnonzero(changed)} <= \
+        {"lfemur", "ltibia", "lfoot", "rfemur", "rtibia", "rfoot"}
+    assert np.array_equal(pinned[:5], rows[:5]) and np.array_equal(pinned[30:], rows[30:])
+    limits = skeleton.dof_limits()           # (the capture itself leaves them here and there)
+    inside = (pinned >= limits[:, 0] - 1e-12) & (pinned <= limits[:, 1] + 1e-12)
+    assert np.all(inside | (pinned == rows))
