@@ -295,7 +295,8 @@ def worker_main(args):
         result = rig_gait.worker_predict(args.kind, args.render, args.extension, args.mode,
                                          args.arrays)
     elif args.worker == "gait_round_trip":
-        result = rig_gait.worker_round_trip(args.kind, args.render, args.extension, args.arrays)
+        result = rig_gait.worker_round_trip(args.kind, args.render, args.extension, args.arrays,
+                                            args.mode)
     elif args.worker == "gait_drive":
         result = rig_gait.worker_drive(args.kind, args.render, args.extension, args.cmu_arrays,
                                        args.arrays)
@@ -352,7 +353,8 @@ def bench_gait(kind, args):
                           extra=extra)
 
     workdir = Path(args.output).parent / "rigs_gait"
-    return rig_gait.bench_gait(kind, args.extension, run, workdir)
+    return rig_gait.bench_gait(kind, args.extension, run, workdir,
+                               study=args.study_walk_template)
 
 
 def _fmt(x, digits=1):
@@ -392,6 +394,9 @@ def main(argv=None):
     parser.add_argument("--no-tracking", action="store_true",
                         help="skip the tracking rows (keys every 10/15/20)")
     parser.add_argument("--no-gait", action="store_true", help="skip the gait rows (issue 19)")
+    parser.add_argument("--study-walk-template", action="store_true",
+                        help="gait rows also read with the walk's own CMU template "
+                             "(benchmarks/studies/rig_gait_template.py)")
     parser.add_argument("--timeout", type=float, default=1200.0,
                         help="seconds per worker (one tracking run, one fit)")
     parser.add_argument("--memory-limit-gb", type=float, default=6.0,
@@ -420,16 +425,20 @@ def main(argv=None):
                         "fit_body_size": "x".join(map(str, FIT_SIZE))},
                "timing_s": {}, "rigs": {}}
     for kind in rigs:
-        tic = time.perf_counter()
-        render = ensure_rig_footage(kind, *TRACK_SIZE, frames=N_FRAMES, extension=args.extension)
-        results["timing_s"][f"{kind}_footage"] = time.perf_counter() - tic
-        fp = load_rig_footage(render, images=False)
-        row = {"deforming_joints": int(part_joints(fp.heads[:1], fp.tails[:1], fp.names,
-                                                   fp.parts).shape[1]),
-               "drive_residual_deg": fp.drive_residual_deg,
-               "drive_residual_cm": 100 * fp.drive_residual_m,
-               "controls": len(fp.controls), "tracking": {}}
-        print(f"{kind}: footage {render}", flush=True)
+        row = {"tracking": {}}
+        if not args.no_tracking:
+            tic = time.perf_counter()
+            render = ensure_rig_footage(kind, *TRACK_SIZE, frames=N_FRAMES,
+                                        extension=args.extension)
+            results["timing_s"][f"{kind}_footage"] = time.perf_counter() - tic
+            fp = load_rig_footage(render, images=False)
+            row.update(deforming_joints=int(part_joints(fp.heads[:1], fp.tails[:1], fp.names,
+                                                        fp.parts).shape[1]),
+                       drive_residual_deg=fp.drive_residual_deg,
+                       drive_residual_cm=100 * fp.drive_residual_m, controls=len(fp.controls))
+            print(f"{kind}: footage {render}", flush=True)
+        else:
+            print(f"{kind}:", flush=True)
         for every in spacings:
             t = run_worker(kind, "track", render, args.extension, args.timeout,
                            args.memory_limit_gb, every)

@@ -95,6 +95,10 @@ def worker_predict(kind, render, extension, mode, arrays):
     from sample_scenes.rig_footage import load_rig_footage, open_rig_scene, part_joints
     from sample_scenes.rig_specs import RIG_SPECS
     _install(extension)
+    if mode.endswith("35"):                  # benchmarks/studies/rig_gait_template.py
+        from benchmarks.studies.rig_gait_template import use_walk_template
+        use_walk_template()
+        mode = mode[:-2]
     spec = RIG_SPECS[kind]
     keys = list(range(1, REFERENCE + 1)) if mode == "true" else \
         list(range(1, REFERENCE + 1, TRACK_EVERY))
@@ -162,7 +166,7 @@ def _rest(obj, names):
     return rest_frames(obj, names)[0]
 
 
-def worker_round_trip(kind, render, extension, arrays):
+def worker_round_trip(kind, render, extension, arrays, mode="true"):
     """The reference frames read by the gait's reader and keyed back by its writer on a new
     action; the deforming bones evaluated (``arrays``)."""
     import bpy
@@ -171,6 +175,9 @@ def worker_round_trip(kind, render, extension, arrays):
     from sample_scenes.rig_footage import open_rig_scene
     from sample_scenes.rig_specs import RIG_SPECS
     _install(extension)
+    if mode and mode.endswith("35"):         # benchmarks/studies/rig_gait_template.py
+        from benchmarks.studies.rig_gait_template import use_walk_template
+        use_walk_template()
     spec = RIG_SPECS[kind]
     from bl_ext.user_default.track_and_stride.addon.common.fcurves import channelbag, \
         ensure_action
@@ -263,11 +270,12 @@ def joint_error_cm(spec, fp, names, heads, tails, frames, pose_only=False):
     return float(100 * np.linalg.norm(mine - truth, axis=-1).mean())
 
 
-def bench_gait(kind, extension, run, workdir):
+def bench_gait(kind, extension, run, workdir, study=False):
     """Issue 19's rows for one rig: ``(gait, track_then_predict)`` dicts (module docstring).
 
     ``run(kind, task, render, extra)`` runs a worker in a fresh process; ``workdir`` keeps the
-    arrays (the CMU skeleton's prediction is made once and reused by every rig)."""
+    arrays (the CMU skeleton's prediction is made once and reused by every rig); ``study``
+    adds ``benchmarks/studies/rig_gait_template.py``'s rows (``gait.with_walk_template``)."""
     from core.gait.foot_slide import foot_slide
     from sample_scenes.rig_footage import load_rig_footage
     from sample_scenes.rig_specs import RIG_SPECS
@@ -320,6 +328,10 @@ def bench_gait(kind, extension, run, workdir):
                 gait["drive"] = d
         else:
             gait.update(angle_diff_deg=0.0, angle_diff_p95_deg=0.0, angle_diff_max_deg=0.0)
+    if study and kind != "cmu":
+        from benchmarks.studies.rig_gait_template import with_walk_template
+        gait["with_walk_template"] = with_walk_template(kind, spec, fp, render, run, workdir,
+                                                        cmu_arrays)
     path = workdir / f"{kind}_round_trip.npz"
     t = run(kind, "gait_round_trip", render, ["--arrays", str(path)])
     if t.get("status") == "done":
