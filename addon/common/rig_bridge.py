@@ -29,7 +29,7 @@ from ...core.kinematics import matrix_to_quaternion
 from ...core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
 from ...core.rigs import (LIMBS, RIGID, ROTATE, TRANSLATE, BodyMapError, BoneConstraint,
                           RigBones, axis_rotation, bend_angle_error,
-                          joint_world_poses, model_skeleton, pose_error,
+                          joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
                           recognise_body_map, skeleton_pose, world_change, world_poses)
 from ...core.rigs.parts import PARENT
 from ..mocap.acclaim_bridge import PROP_ASF
@@ -273,6 +273,7 @@ def control_plan(obj, body_map, model):
             add(ControlStep(lm.pole, POLE, joints[1], limb=joints))
         elif lm.twist:
             add(ControlStep(lm.twist, TWIST, joints[0], limb=joints))
+    chain = set(int(p) for p in model.skeleton.parents if p >= 0)
     for j, part in enumerate(model.parts):
         pmap = body_map.parts[part]
         limb = _ik_limb_of(part)
@@ -290,9 +291,21 @@ def control_plan(obj, body_map, model):
                 control = pmap.control
             if control:
                 add(ControlStep(control, ROTATE, j))
-        elif pmap.control and pmap.control == pmap.bones[0]:
-            # A plain rig: each segment is a bone the animator keys.
+        elif pmap.control and pmap.control == pmap.bones[0] and j in chain:
+            # A plain rig: a segment on the way to the next part (a metarig's spine.002) is a
+            # bone the animator keys; one off the chain (its pelvis and breast bones) is
+            # carried by its part.
             add(ControlStep(model.bones[j], ROTATE, j))
+    # A part the rig carries between parts it controls (Rigify's spine, bent by the hips and
+    # chest controls through their pivot) is estimated too: its children's places depend on it.
+    # It gets no keys; the rig bends it its own way.
+    controlled = {s.joint for s in steps if s.rule in (ROTATE, RIGID)}
+    for j in range(model.n_joints):
+        if model.primary[j] and not estimated[j] and j != hips and any(
+                model.skeleton.parents[c] == j or model.skeleton.parents[
+                    model.skeleton.parents[c]] == j
+                for c in controlled if model.skeleton.parents[c] >= 0):
+            estimated[j] = True
     # Compensation candidates: a rotated control and the control of its nearest controlled
     # model ancestor; whether it really turns with it is measured on the rig
     # (MappedRig.measure_inheritance).
@@ -356,6 +369,7 @@ class MappedRig:
     rotation_modes: tuple = field(default=())
     #: Correction steps taken by :meth:`control_values` so far (for the benchmark).
     correction_steps: int = 0
+    last_errors: object = None
 
     @property
     def controls(self):
@@ -472,7 +486,6 @@ class MappedRig:
         rotation_out = {}
         errors = np.zeros((n_frames, 2))
         keep = (scene.frame_current, scene.frame_subframe)
-        view_layer = bpy.context.view_layer
         try:
             for k, f in enumerate(np.asarray(frames).tolist()):
                 scene.frame_set(int(f))
@@ -480,23 +493,8 @@ class MappedRig:
                     steps = self.measure_inheritance(steps)
                 target = targets[k].copy()
                 target[:, :3, 3] /= s                          # armature units
-                last = np.full(2, np.inf)
-                for _ in range(MAX_STEPS + 1):
-                    m = current_matrices(self.obj)
-                    joints = m[pose_idx] @ offsets
-                    errors[k] = step_errors(steps, joints, target)
-                    errors[k, 1] *= s
-                    if errors[k, 0] < ANGLE_TOLERANCE and errors[k, 1] < DISTANCE_TOLERANCE:
-                        break
-                    tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
-                    if not any(last[i] > tolerance[i] and errors[k, i] < 0.8 * last[i]
-                               for i in (0, 1)) and np.all(np.isfinite(last)):
-                        break                 # no more progress: what the rig can do
-                    last = errors[k].copy()
-                    self.correction_steps += 1
-                    self._correct(steps, names, modes, m, cidx, joints, target)
-                    self.obj.update_tag()
-                    view_layer.update()
+                errors[k] = self._solve_frame(steps, names, modes, cidx, pose_idx, offsets,
+                                              target)
                 for c, name in enumerate(names):
                     loc_out[k, c] = pb[name].location
                     mode = modes[c]
@@ -508,6 +506,13 @@ class MappedRig:
                 pb[name].location, pb[name].rotation_quaternion = loc, quat
                 pb[name].rotation_euler, pb[name].rotation_axis_angle = euler, axis_angle
             scene.frame_set(keep[0], subframe=keep[1])
+        return self._channel_series(steps, modes, frames, loc_out, rotation_out), errors
+
+    def _channel_series(self, steps, modes, frames, locations, rotations):
+        """``(path, index) -> (N,)`` of the keyed channels of ``steps`` from the solved
+        locations (N, K, 3) and rotation channels ({k: (N, count)}), rotations continuous in
+        time from the value before the first frame."""
+        pb = self.obj.pose.bones
         values = {}
         bag = self._bag()
         before = np.asarray(frames, dtype=float)[:1] - 1.0
@@ -519,7 +524,7 @@ class MappedRig:
                 path = pose_bone_path(st.control, prop)
                 previous, _ = evaluate_fcurves(bag, [(path, i) for i in range(count)], before,
                                                list(getattr(pb[st.control], prop)))
-                series = _continuous(rotation_out[c], mode, previous[0])
+                series = _continuous(rotations[c], mode, previous[0])
                 for i in range(count):
                     if (path, i) in paths:
                         values[(path, i)] = series[:, i]
@@ -527,8 +532,31 @@ class MappedRig:
                 path = pose_bone_path(st.control, "location")
                 for i in range(3):
                     if (path, i) in paths:
-                        values[(path, i)] = loc_out[:, c, i]
-        return values, errors
+                        values[(path, i)] = locations[:, c, i]
+        return values
+
+    def _solve_frame(self, steps, names, modes, cidx, pose_idx, offsets, target):
+        """Correction steps at the current frame until the controlled parts are on ``target``
+        (armature units) or no longer get closer; returns the (angle, metres) left."""
+        view_layer = bpy.context.view_layer
+        tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
+        last, errors = np.full(2, np.inf), np.zeros(2)
+        for _ in range(MAX_STEPS + 1):
+            m = current_matrices(self.obj)
+            joints = m[pose_idx] @ offsets
+            errors = np.array(step_errors(steps, joints, target))
+            errors[1] *= self.metres_per_unit
+            if errors[0] < tolerance[0] and errors[1] < tolerance[1]:
+                break
+            if np.all(np.isfinite(last)) and not any(
+                    last[i] > tolerance[i] and errors[i] < 0.8 * last[i] for i in (0, 1)):
+                break                         # no more progress: what the rig can do
+            last = errors.copy()
+            self.correction_steps += 1
+            self._correct(steps, names, modes, m, cidx, joints, target)
+            self.obj.update_tag()
+            view_layer.update()
+        return errors
 
     def measure_inheritance(self, steps):
         """Steps whose control really turns with the control of its ``compensate`` joint,
@@ -555,7 +583,7 @@ class MappedRig:
             prop, _ = channel_property(bone.rotation_mode)
             lin = new[:3, :3]
             setattr(bone, prop, channels_from_rotations(
-                _orthonormal(lin / np.linalg.norm(lin, axis=0))[None], bone.rotation_mode,
+                orthonormal(lin / np.linalg.norm(lin, axis=0))[None], bone.rotation_mode,
                 previous=np.array(getattr(bone, prop)))[0].tolist())
             view_layer.update()
             after = current_matrices(self.obj)
@@ -572,6 +600,40 @@ class MappedRig:
         return [st if st.compensate < 0 or st.control in keep
                 else ControlStep(st.control, st.rule, st.joint, st.limb, compensate=-1)
                 for st in steps]
+
+    def prepare_keys(self, frames, root_translation, local_rotations, bones=None):
+        """Find the control values of poses now (:meth:`control_values`), before anything is
+        written: :meth:`write_pose_keys` of any of these frames then keys them as found. A
+        failure (a non-finite value) is raised here, while the file is unchanged.
+
+        Raises
+        ------
+        ValueError
+        """
+        root_translation = np.asarray(root_translation, dtype=float)
+        local = np.asarray(local_rotations, dtype=float)
+        if not (np.all(np.isfinite(root_translation)) and np.all(np.isfinite(local))):
+            raise ValueError("refusing to key non-finite poses")
+        wanted = set(self.controls if bones is None else bones)
+        steps = [s for s in self.steps if s.control in wanted]
+        frames = np.asarray(frames, dtype=float)
+        values, errors = self.control_values(frames, root_translation, local, steps)
+        if not all(np.all(np.isfinite(v)) for v in values.values()):
+            raise ValueError("refusing to key non-finite control values")
+        self.last_errors = errors
+        self._prepared = (frames, values, tuple(s.control for s in steps))
+
+    def _prepared_values(self, frames, steps):
+        """The values :meth:`prepare_keys` found for ``frames`` (None when it did not)."""
+        prepared = getattr(self, "_prepared", None)
+        if prepared is None or tuple(s.control for s in steps) != prepared[2]:
+            return None
+        all_frames, values, _ = prepared
+        where = {float(f): i for i, f in enumerate(all_frames)}
+        if not all(float(f) in where for f in frames):
+            return None
+        sel = np.array([where[float(f)] for f in frames])
+        return {key: series[sel] for key, series in values.items()}
 
     def _bag(self):
         anim = self.obj.animation_data
@@ -598,8 +660,8 @@ class MappedRig:
                 comp = None
                 if st.compensate >= 0:
                     p = st.compensate
-                    comp = _orthonormal(joints[p, :3, :3] @ target[p, :3, :3].T)
-                change = world_change(target[st.joint], _rigid(joints[st.joint]), st.rule,
+                    comp = orthonormal(joints[p, :3, :3] @ target[p, :3, :3].T)
+                change = world_change(target[st.joint], rigid(joints[st.joint]), st.rule,
                                       pivot=control[:3, 3], compensation=comp)
             wanted = change @ control
             if not np.all(np.isfinite(wanted)):
@@ -614,7 +676,7 @@ class MappedRig:
                                  for i in range(3)]
             if st.keys_rotation:
                 lin = new[:3, :3]
-                r = _orthonormal(lin / np.linalg.norm(lin, axis=0))
+                r = orthonormal(lin / np.linalg.norm(lin, axis=0))
                 prop, _ = channel_property(modes[c])
                 current = np.array(getattr(bone, prop))
                 value = _rotation_channels(r, modes[c], current, tuple(bone.lock_rotation))
@@ -640,8 +702,10 @@ class MappedRig:
         steps = [s for s in self.steps if s.control in wanted]
         if not steps or not len(frames):
             return 0
-        values, errors = self.control_values(frames, root_translation, local, steps)
-        self.last_errors = errors
+        values = self._prepared_values(frames, steps)
+        if values is None:
+            values, errors = self.control_values(frames, root_translation, local, steps)
+            self.last_errors = errors
         if not all(np.all(np.isfinite(v)) for v in values.values()):
             raise ValueError("refusing to key non-finite control values")
         action, slot = ensure_action(self.obj, action_name or f"{self.obj.name}Action")
@@ -678,21 +742,6 @@ def _rotation_channels(rotation, mode, current, locked):
 def _as4(rotation):
     out = np.eye(4)
     out[:3, :3] = rotation
-    return out
-
-
-def _orthonormal(m):
-    u, _, vt = np.linalg.svd(m)
-    r = u @ vt
-    if np.linalg.det(r) < 0:
-        u[:, -1] *= -1
-        r = u @ vt
-    return r
-
-
-def _rigid(m):
-    out = np.array(m, dtype=float)
-    out[:3, :3] = _orthonormal(out[:3, :3])
     return out
 
 

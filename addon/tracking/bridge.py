@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ...core.rigs import anatomical_dof_mask
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
@@ -339,7 +340,12 @@ def prepare_tracking(context, settings):
         cameras = [_camera_in_armature_space(
             scene, camera_obj, rig, settings.clip if settings.source == "CLIP" else None)]
         footages, names = [footage], [camera_obj.name]
+    key_roots, key_locals = read_pose(rig, key_frames)
     mask = rig.dof_mask
+    if isinstance(rig, MappedRig):
+        # The anatomy the CMU skeleton has (knees, elbows and toes are hinges, feet do not
+        # twist): the keys say about which axis each hinge bends (core.rigs.model).
+        mask = anatomical_dof_mask(rig.model, mask, key_locals)
     translation = np.full(3, bool(rig.root_location_mask.any()))
     try:
         problem = TrackingProblem(rig.skeleton, _body(rig),
@@ -351,7 +357,6 @@ def prepare_tracking(context, settings):
     if layout.n_params == 0:
         raise TrackError(f"Every rotation of {obj.name}'s bodied bones is locked: unlock the axes "
                          "to estimate (the padlocks in the Bone properties › Transform)")
-    key_roots, key_locals = read_pose(rig, key_frames)
     if isinstance(rig, MappedRig):
         tracked_bones = rig.tracked_controls(np.unique(layout.rotation_joints),
                                              bool(len(layout.translation_axes)))
@@ -492,6 +497,17 @@ def apply_result(context, request, result):
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
                                      and not request.options.estimate_depth
                                      and request.n_views == 1)    # views measure depth
+    if isinstance(request.rig, MappedRig):
+        # The controls' values of every written frame, found on the evaluated rig before
+        # anything changes (a failure leaves the file as it was).
+        keys = set(int(k) for k in request.key_frames)
+        between = np.array([int(f) not in keys for f in frames])
+        try:
+            request.rig.prepare_keys(frames[between], result.root_translations[between],
+                                     result.local_rotations[between],
+                                     bones=request.tracked_bones)
+        except ValueError as exc:
+            raise TrackError(f"{exc}; nothing was written") from None
     remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,

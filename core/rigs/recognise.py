@@ -140,13 +140,22 @@ def _template_parts(torso, arm, leg):
     return out
 
 
+# Rigify's spine and neck are read from their DEF- bones (stretched between tweak bones, they
+# follow the bend Rigify gives them between hips, chest and head; their ORG- twins follow the
+# hips and the neck control rigidly, 1.9 cm off at the chest in a walk); the limbs, hips,
+# chest and head from their ORG- bones (the whole twist of their controls).
+# Rigify's and the metarig's pelvis and breast bones deform the flesh around the hips and the
+# chest but are no part of the skeleton (the thighs hang from the hips, the clavicles from the
+# chest): they are left out of the body like face and finger bones, so that whatever envelope
+# radii they came with never become a shape of the tracked body.
+
+
 def _rigify_template():
     torso = {
-        "hips": (("DEF-spine", "DEF-pelvis.L", "DEF-pelvis.R"), "hips", "ORG-spine", None),
-        "spine": (("DEF-spine.001", "DEF-spine.002"), None, "ORG-spine.001", None),
-        "chest": (("DEF-spine.003", "DEF-breast.L", "DEF-breast.R"), "chest", "ORG-spine.003",
-                  None),
-        "neck": (("DEF-spine.004", "DEF-spine.005"), "neck", "ORG-spine.004", None),
+        "hips": (("DEF-spine",), "hips", "ORG-spine", None),
+        "spine": (("DEF-spine.001", "DEF-spine.002"), None, None, None),
+        "chest": (("DEF-spine.003",), "chest", "ORG-spine.003", None),
+        "neck": (("DEF-spine.004", "DEF-spine.005"), "neck", None, None),
         "head": (("DEF-spine.006",), "head", "ORG-spine.006", None),
     }
     arm = {
@@ -178,9 +187,9 @@ def _rigify_template():
 
 def _metarig_template():
     torso = {
-        "hips": (("spine", "pelvis.L", "pelvis.R"), "spine", None, None),
+        "hips": (("spine",), "spine", None, None),
         "spine": (("spine.001", "spine.002"), "spine.001", None, None),
-        "chest": (("spine.003", "breast.L", "breast.R"), "spine.003", None, None),
+        "chest": (("spine.003",), "spine.003", None, None),
         "neck": (("spine.004", "spine.005"), "spine.004", None, None),
         "head": (("spine.006",), "spine.006", None, None),
     }
