@@ -22,10 +22,10 @@ It is saved as ``scene.blend`` with ``ground_truth.npz``: per frame the evaluate
 bones' world heads, tails and matrices (metres), the camera, the body, the drive's residual.
 A **render** (:func:`ensure_rig_footage`) of it at a resolution is Workbench (flat light,
 texture colour, no anti-aliasing, as ``render_footage.py``): ``frame_0000.png`` is scene
-frame 1. Both are cached under ``build/rig_footage/<kind>/<trial>_n<frames>_o<start>/``
-(renders in ``<width>x<height>/``), rebuilt when their parameters (``scene.json``,
-``render.json``) change; the work runs in a fresh ``bpy`` process
-(``python sample_scenes/rig_footage.py …``).
+frame 1. Both are cached under
+``build/rig_footage/<kind>/<trial>_n<frames>_o<start>_bpy<version>/`` (renders in
+``<width>x<height>/``), rebuilt when their parameters (``scene.json``, ``render.json``) change;
+the work runs in a fresh ``bpy`` process (``python sample_scenes/rig_footage.py …``).
 
 Only the callers that build ``cmu`` scenes need the extension zip (its Acclaim importer).
 """
@@ -70,7 +70,11 @@ def clip_name(trial, frames, start):
 
 
 def scene_dir(kind, trial="35_01", frames=61, start=0, root=None):
-    return Path(root or FOOTAGE_ROOT) / kind / clip_name(trial, frames, start)
+    """``build/rig_footage/<kind>/<trial>_n<frames>_o<start>_bpy<version>`` (each Blender its
+    own: the cache of one is not rebuilt by the other)."""
+    from sample_scenes.rig_scenes import bpy_version
+    return (Path(root or FOOTAGE_ROOT) / kind
+            / f"{clip_name(trial, frames, start)}_bpy{bpy_version()}")
 
 
 def scene_stamp(kind, trial, frames, start):
@@ -362,7 +366,8 @@ def ensure_rig_footage(kind, width=640, height=360, frames=61, trial="35_01", st
     args = ["footage", kind, "--trial", trial, "--frames", str(frames), "--start", str(start),
             "--width", str(width), "--height", str(height), "--output", str(folder)]
     if not _is_current(kind, trial, frames, start, folder, render, width, height):
-        if kind == "cmu" and extension is None and not (folder / "scene.blend").exists():
+        scene_ok = _read_json(folder / "scene.json") == scene_stamp(kind, trial, frames, start)
+        if kind == "cmu" and extension is None and not scene_ok:
             raise ValueError("building the cmu scene needs the extension zip (its importer)")
         _run(args, extension, python)
     return render
@@ -511,4 +516,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    from sample_scenes.rig_scenes import exit_now
+    exit_now(main, sys.argv[1:])

@@ -300,9 +300,14 @@ def _base_kind(kind):
     return "rigify" if kind.startswith("rigify") else kind
 
 
+def bpy_version():
+    """``'5.2.3'``: the running bpy's version (cache stamps and names)."""
+    return ".".join(map(str, bpy.app.version))
+
+
 def rig_stamp(kind):
     """The parameters a cached rig depends on (their hash names the file)."""
-    return {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy.app.version_string,
+    return {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy_version(),
             "cmu_subject": CMU_SUBJECT, "leg_length": round(cmu_leg_length(), 6)}
 
 
@@ -384,6 +389,21 @@ def load_rig(kind, scene=None, cache=None):
     return obj
 
 
+def exit_now(main, argv):
+    """Run a command-line ``main`` and end the process at once with its status (a traceback
+    and 1 on an exception): ``bpy`` 4.5 as a module can hang at exit in a static destructor
+    (``tests/blender/conftest.py``), which would leave a caller waiting for ever."""
+    import traceback
+    try:
+        status = main(argv)
+    except BaseException:  # noqa: BLE001  (reported, then the status says it failed)
+        traceback.print_exc()
+        status = 1
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(int(status or 0))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Build a test rig's cached .blend (fresh bpy).")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -397,4 +417,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    exit_now(main, sys.argv[1:])

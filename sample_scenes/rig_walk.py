@@ -346,6 +346,18 @@ def drive_walk(obj, spec, walk, first_frame=1, max_passes=8, tolerance=(1e-3, 1e
     return action
 
 
+def _ensure_fcurve(action, obj, path, index, group):
+    """The action's F-curve of ``path[index]`` for ``obj`` (slot, layer, strip made as needed),
+    in the channel group ``group`` (Blender 4.5's call has no group argument: set after)."""
+    try:
+        return action.fcurve_ensure_for_datablock(obj, path, index=index, group_name=group)
+    except TypeError:
+        fcurve = action.fcurve_ensure_for_datablock(obj, path, index=index)
+    bag = action.layers[0].strips[0].channelbag(obj.animation_data.action_slot)
+    fcurve.group = bag.groups.get(group) or bag.groups.new(group)
+    return fcurve
+
+
 def write_keys(obj, values, first_frame=1, name=None):
     """Bezier keys (auto-clamped handles) on every frame, in bulk, on a new action.
 
@@ -356,7 +368,7 @@ def write_keys(obj, values, first_frame=1, name=None):
     obj.animation_data.action = action
     for (bone, prop, index), v in values.items():
         path = f'pose.bones["{bone}"].{prop}'
-        fcurve = action.fcurve_ensure_for_datablock(obj, path, index=index, group_name=bone)
+        fcurve = _ensure_fcurve(action, obj, path, index, bone)
         points = fcurve.keyframe_points
         points.add(len(v))
         co = np.empty((len(v), 2))

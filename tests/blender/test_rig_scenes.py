@@ -137,7 +137,7 @@ def test_ik_legs_follow_their_targets_and_poles_and_ignore_thigh_keys():
 def test_rigs_are_cached_per_bpy_version_and_generator_stamp(monkeypatch):
     fk, ik = rig_scenes.rig_blend_path("rigify_fk"), rig_scenes.rig_blend_path("rigify_ik")
     assert fk == ik                                       # one generated rig for both modes
-    assert bpy.app.version_string in fk.name and fk.parent.name == "rigs"
+    assert f"-{rig_scenes.bpy_version()}-" in fk.name and fk.parent.name == "rigs"
     monkeypatch.setattr(rig_scenes, "RIG_VERSION", rig_scenes.RIG_VERSION + 1)
     assert rig_scenes.rig_blend_path("rigify_fk") != fk
 
