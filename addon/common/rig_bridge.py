@@ -855,6 +855,15 @@ def _signature(obj):
             bool(obj.data.get(PROP_ASF)))
 
 
+def _same_object(cached, obj):
+    """Whether a cached rig's object is still ``obj``: a file loaded since (File › Open, New)
+    removes it, and Blender may give a new object the removed one's address and name."""
+    try:
+        return cached == obj and cached.name == obj.name
+    except ReferenceError:
+        return False
+
+
 def cached_tracking_rig(obj):
     """:func:`tracking_rig` for panels and draw handlers: recomputed only when the armature's
     bones, body map, scale or switches change (a generated Rigify rig takes a tenth of a
@@ -864,7 +873,8 @@ def cached_tracking_rig(obj):
     if hit is not None and hit[0] == key:
         if isinstance(hit[1], Exception):
             raise hit[1]
-        return hit[1]
+        if _same_object(hit[1].obj, obj):
+            return hit[1]
     try:
         rig = tracking_rig(obj)
     except RigError as exc:

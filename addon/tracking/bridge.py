@@ -530,8 +530,9 @@ def apply_result(context, request, result):
             warnings.append(off)
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
                f"({n_int} interval{'s' * (n_int != 1)}, {what}, "
-               f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; residual, "
-               "rank and 'Tracked: <body part>' curves in the Graph Editor")
+               f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; "
+               "'Footage Mismatch', 'Movements Seen' and 'Tracked: <body part>' curves in the "
+               "Graph Editor")
     if request.replaced:
         summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
                     f"{len(request.replaced)} keyed frames between them replaced")
@@ -607,7 +608,7 @@ def suggest_markers(context, settings):
     first, last = frame_range(scene, settings)
     frames, residuals = read_residuals(obj, first, last)
     if len(frames) == 0:
-        raise TrackError(f"{obj.name} has no residual curve in frames {first}–{last}: run "
+        raise TrackError(f"{obj.name} has no Footage Mismatch curve in frames {first}–{last}: run "
                          "Track Keyframes first")
     keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
     found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)

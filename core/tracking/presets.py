@@ -130,8 +130,9 @@ def find_table1_parts(bone_names):
     n_found = sum(b is not None for b in found.values())
     if found["Waist"] is None or n_found < MIN_TABLE1_PARTS:
         missing = [bone for bone in preset.values() if bone not in names]
-        raise ValueError(f"not a humanoid rig the Table 1 preset knows (CMU, CMU BVH, Mixamo, "
-                         f"Blender metarig); closest: {best}, missing {', '.join(missing)}")
+        raise ValueError(f"Simplified Joints knows the bone names of CMU, CMU BVH, Mixamo and "
+                         f"Blender's metarig, and this rig is none of them (closest: {best}, "
+                         f"missing {', '.join(missing)})")
     return best, found
 
 
@@ -171,7 +172,7 @@ def table1_dof_mask(skeleton, parts=None):
     parts = CMU_PARTS if parts is None else parts
     unknown = set(parts) - set(TABLE1)
     if unknown:
-        raise ValueError(f"not Table 1 parts: {sorted(unknown)}; known: {list(TABLE1)}")
+        raise ValueError(f"unknown body parts {sorted(unknown)}; known: {list(TABLE1)}")
     mask = np.zeros((skeleton.n_joints, 3), dtype=bool)
     translation = np.zeros(3, dtype=bool)
     for part, joint in parts.items():

@@ -450,16 +450,21 @@ def test_error_in_a_late_chunk_names_its_line(walk, monkeypatch):
 def test_values_beyond_the_magnitude_limit_refuse_with_the_line(walk):
     asf, lines = walk
     i = next(k for k, l in enumerate(lines) if l.startswith("lfemur "))
-    for token, ok in (("1e29", True), ("-1e33", False), ("1e308", False)):   # degrees
+    # Angles: at most 10 000 degrees (core.limits.MAX_ANGLE_DEGREES); the file is in degrees.
+    for token, ok in (("10000", True), ("-9999.5", True), ("10000.01", False), ("-1e4_1", False),
+                      ("1e12", False), ("-1e33", False), ("1e308", False)):
         bad = lines.copy()
         parts = bad[i].split()
         parts[2] = token
         bad[i] = " ".join(parts)
         if ok:
-            assert np.all(np.isfinite(parse_amc(bad, asf).values))
+            values = parse_amc(bad, asf).values
+            assert np.all(np.isfinite(values))
+            assert np.isclose(np.abs(values).max(), np.radians(abs(float(token))))
         else:
             err = amc_error(bad, asf)
-            assert err.line == i + 1 and "too large in radians" in err.reason
+            assert err.line == i + 1 and "'lfemur': angle" in err.reason, err.reason
+            assert "beyond 10000 degrees" in err.reason and "degrees" in err.reason
     j = next(k for k, l in enumerate(lines) if l.startswith("root "))
     bad = lines.copy()
     bad[j] = "root 1e308 1e308 1e308 0 0 0"                 # finite, and finite in metres too
@@ -468,7 +473,8 @@ def test_values_beyond_the_magnitude_limit_refuse_with_the_line(walk):
 
 
 @pytest.mark.parametrize("field, text, phrase", [
-    ("axis", "     axis 0 1e308 0  XYZ", "too large in radians"),
+    ("axis", "     axis 0 1e308 0  XYZ", "beyond 10000 degrees"),
+    ("axis", "     axis 0 10001 0  XYZ", "beyond 10000 degrees"),
     ("direction", "     direction 1e308 1e308 0", "direction is too large"),
     ("limits", "    limits (-1e308 1e308)", "a limit is too large"),
 ])
