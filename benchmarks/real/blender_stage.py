@@ -171,14 +171,48 @@ def build_armature(bpy, plan):
         eb.use_connect = False
         eb.head_radius, eb.tail_radius = bone["radii"]
         eb.envelope_distance = 0.02
+    # Hands: the rig layer (issue 18) needs every required part of a body map, hands
+    # included; the reference has none (MediaPipe's wrists end the forearms). Each is a short
+    # bone on its forearm's tail, rotation locked and without a body (radii 0): no samples, no
+    # estimated DOFs, so the problem the tracker solves is the 14-bone one it was before.
+    for side in "lr":
+        forearm = data.edit_bones[f"{side}radius"]
+        eb = data.edit_bones.new(f"{side}wrist")
+        eb.head = forearm.tail
+        eb.tail = forearm.tail + (forearm.tail - forearm.head).normalized() * 0.08
+        eb.roll = forearm.roll
+        eb.parent = forearm
+        eb.use_connect = False
+        eb.head_radius = eb.tail_radius = 0.0
+        eb.envelope_distance = 0.0
     bpy.ops.object.mode_set(mode="OBJECT")
-    for i, bone in enumerate(bones):
-        pb = obj.pose.bones[bone["name"]]
+    locked = {bone["name"]: bone["locked"] for bone in bones} | {"lwrist": True, "rwrist": True}
+    for i, (name, lock) in enumerate(locked.items()):
+        pb = obj.pose.bones[name]
         pb.rotation_mode = plan["rotation_mode"]
         pb.lock_location = (i > 0,) * 3
-        pb.lock_rotation = (bone["locked"],) * 3
-        pb.lock_rotation_w = bone["locked"]
+        pb.lock_rotation = (lock,) * 3
+        pb.lock_rotation_w = lock
+    store_body_map(obj)
     return obj
+
+
+def store_body_map(obj):
+    """The rig's body map, stored as the Body Map panel stores it: every bone plays its own
+    part (the CMU recogniser would leave ``neck`` out: it knows ``lowerneck``/``upperneck``)."""
+    rigs = ext("core.rigs")
+    ui = ext("addon.common.body_map_ui")
+    own = {"hips": "root", "chest": "thorax", "neck": "neck", "head": "head"}
+    for side in "lr":
+        name = {"l": "left", "r": "right"}[side]
+        own.update({f"{name} upper arm": f"{side}humerus", f"{name} forearm": f"{side}radius",
+                    f"{name} hand": f"{side}wrist", f"{name} thigh": f"{side}femur",
+                    f"{name} shin": f"{side}tibia", f"{name} foot": f"{side}foot"})
+    body_map = rigs.BodyMap(rig="Custom", parts={part: rigs.PartMap(bones=(bone,), control=bone)
+                                                 for part, bone in own.items()},
+                            travel="root", limbs={})
+    body_map.check(obj.name, bone_names=obj.data.bones.keys())
+    ui.store_body_map(ui.body_map_settings(obj.data), body_map)
 
 
 def key_poses(bpy, obj, plan, roots, local, keys):
