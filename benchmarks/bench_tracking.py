@@ -442,17 +442,21 @@ def hard_conditions_table(table_):
 
 def bench_robust_cost(fp, options, repeats=3, iterations=4, n=20):
     """The robust estimate's time cost: ms per frame-iteration (serial, fixed iterations) of
-    the default options and of ``robust_loss='clip'`` (the tracker before issue 20), runs
-    alternating in one process; ``ratio`` = robust / clip (medians)."""
+    the default options, of ``robust_loss='clip'`` (the tracker before issue 20) and of
+    plain IRLS (``robust_reweight=1``: re-weighted at every re-linearisation), runs
+    alternating in one process; ``ratio`` = robust / clip, ``ratio_every`` = plain IRLS / clip
+    (medians). docs/tracking.md, *Robust estimation: its cost*."""
     robust = bench_speed(fp, options, repeats=1, iterations=iterations, n=n)
     old = options.replace(robust_loss="clip")
-    times = {"robust": [], "clip": []}
+    every = options.replace(robust_reweight=1)
+    times = {"robust": [], "clip": [], "irls_every": []}
     for _ in range(repeats):
-        for name, opts in (("clip", old), ("robust", options)):
+        for name, opts in (("clip", old), ("robust", options), ("irls_every", every)):
             times[name].append(bench_speed(fp, opts, repeats=1, iterations=iterations,
                                            n=n)["ms_per_frame_iter"])
     med = {k: float(np.median(v)) for k, v in times.items()}
     return {"ms_per_frame_iter": med, "runs": times, "ratio": med["robust"] / med["clip"],
+            "ratio_every": med["irls_every"] / med["clip"],
             "levels": [robust["finest_level"], robust["top_level"]]}
 
 
@@ -521,7 +525,8 @@ def table(result):
         c = s["robust_cost"]
         lines.append(f"  robust estimate (issue 20): {c['ms_per_frame_iter']['robust']:.2f} ms "
                      f"per frame-iteration against {c['ms_per_frame_iter']['clip']:.2f} ms "
-                     f"before (x{c['ratio']:.2f}, 640x360, same run)")
+                     f"before (x{c['ratio']:.2f}, 640x360, same run; re-weighted at every "
+                     f"re-linearisation x{c.get('ratio_every', float('nan')):.2f})")
     if "hard_conditions" in result:
         lines += hard_conditions_table(result["hard_conditions"])
     lines += ["", "Goals: " + ", ".join(f"{k} {v}" for k, v in GOALS.items())]

@@ -72,6 +72,12 @@ CANDIDATES = {
         "huber_3_joint": _robust("huber", 3.0, "joint"),
         "tukey_4.685_joint": _robust("tukey", 4.685, "joint"),   # the default's scale
     },
+    # How often a pyramid level re-weights (robust_reweight): every re-linearisation (plain
+    # IRLS, the tracker until 2026-11-26) or once per level (one decomposition per level).
+    "reweight": {
+        "tukey_4.685_joint_rw1": _robust("tukey", 4.685, "joint", robust_reweight=1),
+        "tukey_4.685_joint_rw3": _robust("tukey", 4.685, "joint", robust_reweight=3),
+    },
 }
 #: Blends replayed on every candidate (blend_drift k, blend_power q); (0, 2): no blend.
 BLENDS = [(0.0, 2.0)] + [(k, q) for k in (0.2, 0.3, 0.4, 0.5, 0.7) for q in (1.0, 2.0, 3.0)]

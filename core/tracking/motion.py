@@ -712,7 +712,7 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                                      column_factor)
                      for view, pts, (finest, top) in zip(views, points, levels)]
         system, weights = None, None
-        for _ in range(options.warp_iterations):
+        for iteration in range(options.warp_iterations):
             moved_pose = apply_motion(sk, roots, local, *full_motion(x_s / scales))
             warped = [_warped_residuals(sk, view, t, moved_pose)
                       for view, t in zip(views, templates)]
@@ -722,12 +722,16 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                 rows, scale = [None] * len(views), np.stack([c[1] for c in clipped])
                 b_views = [c[0] for c in clipped]
             else:
-                # IRLS (robust.py): weights at the current estimate, each view's own scale.
-                robust = _irls(options, warped, templates, sk.n_joints)
-                rows = [np.sqrt(w) for w, _ in robust]
-                scale = np.stack([s for _, s in robust])
+                if iteration % options.robust_reweight == 0:
+                    # IRLS (robust.py): weights at the current estimate, each view's own
+                    # scale; the weights changed, so the system is decomposed again. In
+                    # between (robust_reweight > 1) the level keeps both: the decomposition
+                    # is most of an iteration's cost.
+                    robust = _irls(options, warped, templates, sk.n_joints)
+                    rows = [np.sqrt(w) for w, _ in robust]
+                    scale = np.stack([s for _, s in robust])
+                    system = None
                 b_views = [root * r for root, (r, _) in zip(rows, warped)]
-                system = None                        # the weights changed: decompose again
             if system is None:
                 a_views = [t.a if root is None else root[..., None] * t.a
                            for root, t in zip(rows, templates)]

@@ -176,6 +176,14 @@ class TrackingOptions:
     robust_gradient : bool
         Standardise each residual by its image gradient before it is weighted
         (``motion._irls``): a misaligned point's residual grows with its gradient.
+    robust_reweight : int
+        IRLS weights are re-estimated (and the weighted system decomposed again, eqs. 6-7) on
+        every ``robust_reweight``-th re-linearisation of a pyramid level, starting with its
+        first; in between the level keeps its weights and its decomposition and only the
+        residuals are new (``motion._coarse_to_fine``). 1: every re-linearisation (plain IRLS);
+        ``warp_iterations`` or more: once per level -- the estimate then reweights once per
+        level and trajectory iteration, at the cost of the unweighted tracker's one
+        decomposition per level (docs/tracking.md, *Robust estimation: its cost*).
     robust_clip : float
         ``robust_loss='clip'`` only: photometric residuals are clipped at this many standard
         deviations (estimated per frame from the mean absolute residual).
@@ -273,6 +281,7 @@ class TrackingOptions:
     robust_threshold: float = 4.685
     robust_scale: str = "joint"
     robust_gradient: bool = False
+    robust_reweight: int = 3
     robust_clip: float = 3.0
     max_iterations: int = 4
     patience: int = 2
@@ -326,7 +335,7 @@ class TrackingOptions:
             raise ValueError(f"limit_action must be 'reject', 'clamp' or None, got "
                              f"{self.limit_action!r}")
         for name in ("sample_budget", "candidate_budget", "levels", "warp_iterations",
-                     "max_iterations", "patience", "min_samples"):
+                     "max_iterations", "patience", "min_samples", "robust_reweight"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
 
