@@ -49,14 +49,19 @@ extension: $(STAMP)
 demo: extension
 	$(PY) sample_scenes/demo.py --extension $(ZIP) --output build/demo
 
+# One BLAS thread: on a loaded machine OpenBLAS's threads wait for cores other processes hold
+# (a test tracking in-process took 127 s with the default threads and 40 s with one,
+# docs/tracking.md, *Robust estimation: its cost*); the tracker's pool workers do the same.
+TEST_ENV := OPENBLAS_NUM_THREADS=1
+
 test: extension
-	$(PY) -m pytest $(PYTEST_ARGS) tests
+	$(TEST_ENV) $(PY) -m pytest $(PYTEST_ARGS) tests
 
 test-core: $(STAMP)
-	$(PY) -m pytest $(PYTEST_ARGS) tests/core
+	$(TEST_ENV) $(PY) -m pytest $(PYTEST_ARGS) tests/core
 
 test-blender: extension
-	$(PY) -m pytest $(PYTEST_ARGS) tests/blender
+	$(TEST_ENV) $(PY) -m pytest $(PYTEST_ARGS) tests/blender
 
 bench: bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender
 

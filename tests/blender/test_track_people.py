@@ -1,9 +1,10 @@
 """Track Keyframes on two armatures at once (issue 20): two people on the rendered walk (CMU
-08_01 and a second walker, 35_03, crossing 1.2 m nearer the oblique camera at frame 31;
-``sample_scenes/conditions.py`` *two_people*, 640x360, 61 frames, keyed every 20 frames, tracked
-over the interval 21-41 where they cross), filmed by the oblique camera and its mirror across
-the path (``footage_scenes.VIEWS['opposite']``): each person hides the other in one of the two
-views.
+08_01 and a second walker, 35_03, crossing 1.2 m nearer the oblique camera at frame 11;
+``sample_scenes/conditions.py`` *two_people*, 640x360, 21 frames keyed at the first and the
+last, one interval of 20 frames around the crossing), filmed by the oblique camera and its
+mirror across the path (``footage_scenes.VIEWS['opposite']``): each person hides the other in
+one of the two views. Only the tracked interval is rendered (both clips are rendered once and
+cached under build/footage: about a minute on a fresh clone).
 
 Through ``bpy.ops`` with both armatures selected: each is tracked better than when it is
 tracked alone, neither ever moves onto the other person, each keeps its own keys bit for bit;
@@ -26,10 +27,12 @@ from sample_scenes.track_scene import (CMU, H36M_JOINTS, add_footage_camera, bui
                                        joint_errors, keep_keys_at, set_envelopes_to_body)
 from test_track import bridge, same_keys, settings, snapshot
 
-N_FRAMES, STEP = 61, 20
+N_FRAMES, STEP = 21, 20
 KEYS = tuple(range(1, N_FRAMES + 1, STEP))
-#: The tracked span: the interval where the two cross (frame 31).
-SPAN = (21, 41)
+#: The tracked span: the interval where the two cross (:data:`CROSSING`).
+SPAN = (1, 21)
+#: The frame where they cross (``conditions.crossing_placement``: the clip's middle frame).
+CROSSING = N_FRAMES // 2 + 1
 IN_BETWEEN = list(range(SPAN[0] + 1, SPAN[1]))
 
 
@@ -155,10 +158,10 @@ def test_two_armatures_tracked_together_each_better_than_alone(folders, people, 
 def test_one_camera_api_report_and_suggest_keyframes_say_a_part_was_hidden(folders, people,
                                                                            tmp_path):
     """The oblique camera alone, through the API's list (one run for the report and Suggest
-    Keyframes): the first walker is hidden behind the second around frame 31; the summary has
-    one entry per armature, the report names the frames, the hidden curve shows them, Suggest
-    Keyframes suggests a key there (or says a suggested frame is hidden). The command line's
-    repeated ``--armature`` reaches the same list."""
+    Keyframes): the first walker is hidden behind the second around :data:`CROSSING`; the
+    summary has one entry per armature, the report names the frames, the hidden curve shows
+    them, Suggest Keyframes suggests a key there (or says a suggested frame is hidden). The
+    command line's repeated ``--armature`` reaches the same list."""
     bpy.ops.wm.read_homefile(use_empty=True)
     first, second = build_people_scene(folders, cameras=1)
     summary = bridge("api").track([first.name, "Second"], frames=SPAN, processes=1)
@@ -169,12 +172,12 @@ def test_one_camera_api_report_and_suggest_keyframes_say_a_part_was_hidden(folde
     assert all("hidden_behind" in p and "unmatched" in p for p in parts.values())
     warnings = summary["warnings"]
     hidden = [w for w in warnings if "hidden behind Second" in w]
-    assert len(hidden) == 1 and hidden[0].startswith(f"{first.name}: Frames 21–41: hidden "
-                                                     "behind Second — the ")
+    assert len(hidden) == 1 and hidden[0].startswith(
+        f"{first.name}: Frames {SPAN[0]}–{SPAN[1]}: hidden behind Second — the ")
     assert not any(w.startswith("Second: ") and "hidden behind" in w for w in warnings)
     group = bridge("tracking.group")
     curve = group.read_hidden(first, IN_BETWEEN)
-    assert curve[IN_BETWEEN.index(31)] >= 0.5 and curve[0] < 0.5
+    assert curve[IN_BETWEEN.index(CROSSING)] >= 0.5 and curve[0] < 0.5
     assert np.all(group.read_hidden(second, IN_BETWEEN) == 0)
     settings().armature = first
     line, frames = bridge("tracking.bridge").suggest_markers(bpy.context, settings())
@@ -198,8 +201,8 @@ def test_an_armature_that_cannot_be_tracked_is_named_and_nothing_changes(folders
     keep_keys_at(second, KEYS[:1])                 # one keyframe: cannot be tracked
     before, counts = [snapshot(first), snapshot(second)], datablock_counts()
     select(first, second)
-    with pytest.raises(RuntimeError, match="^Error: Second: No keyframes of Second in frames "
-                                           "21–41"):
+    with pytest.raises(RuntimeError, match=r"^Error: Second: Only one keyframe of Second "
+                                           rf"\(frame 1\) in frames {SPAN[0]}–{SPAN[1]}"):
         bpy.ops.track_and_stride.track_keyframes()
     same_keys(before[0], snapshot(first))
     same_keys(before[1], snapshot(second))
