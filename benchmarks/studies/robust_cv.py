@@ -76,6 +76,7 @@ CANDIDATES = {
     # IRLS, the tracker until 2026-11-26) or once per level (one decomposition per level).
     "reweight": {
         "tukey_4.685_joint_rw1": _robust("tukey", 4.685, "joint", robust_reweight=1),
+        "tukey_4.685_joint_rw2": _robust("tukey", 4.685, "joint", robust_reweight=2),
         "tukey_4.685_joint_rw3": _robust("tukey", 4.685, "joint", robust_reweight=3),
     },
 }
