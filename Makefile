@@ -30,7 +30,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real stock-gaits clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real bench-rigs bench-memory mutate test-portability stock-gaits clean
 
 venv: $(STAMP)
 
@@ -83,6 +83,13 @@ bench-tracking: $(STAMP)
 bench-track-blender: extension
 	$(PY) benchmarks/bench_track_blender.py --extension $(ZIP) --output build/bench/track_blender.json
 
+# Rigs animators animate (docs/bench_rigs.md): test rigs built from Blender's bundled data
+# (CMU import, metarig, Rigify FK/IK, Mixamo through the FBX exporter and importer, IK legs),
+# the same walk keyed on each, rendered once (cached under build/rigs and build/rig_footage),
+# Track Keyframes and Fit Body through the installed extension, each run in a fresh process.
+bench-rigs: extension
+	$(PY) benchmarks/bench_rigs.py --extension $(ZIP) --output build/bench/rigs.json
+
 # Real footage (docs/bench_real.md): MediaPipe reference over the Pose2Sim demo's 4 cameras,
 # Track Keyframes through the operator per camera; its own venv (MediaPipe, never in .venv).
 BENCH_VENV := .venv-bench
@@ -96,6 +103,30 @@ $(BENCH_STAMP): requirements-bench.txt
 
 bench-real: extension $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python benchmarks/bench_real.py --extension $(ZIP) --blender-python $(PY) --output build/bench/real.json
+
+# Peak memory of Track and Fit Body at 1920x1080 on the largest rig (docs/testing.md).
+bench-memory: $(STAMP)
+	$(PY) benchmarks/bench_memory.py --output build/bench/memory.json
+
+# Mutation testing of six core modules, each against its own tests (docs/testing.md); mutmut
+# in its own venv (.venv-mutate), never in .venv or the extension. MUTATE_ARGS="--only ekf".
+MUTATE_VENV := .venv-mutate
+MUTATE_STAMP := $(MUTATE_VENV)/.installed
+MUTATE_ARGS ?=
+
+$(MUTATE_STAMP): requirements-mutate.txt requirements.txt
+	@interpreter="$$(sh tools/find_python.sh 3.13)" || exit 1; "$$interpreter" -m venv --clear $(MUTATE_VENV)
+	$(MUTATE_VENV)/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-mutate.txt
+	touch $(MUTATE_STAMP)
+
+mutate: $(MUTATE_STAMP)
+	$(MUTATE_VENV)/bin/python tools/mutate.py $(MUTATE_ARGS)
+
+# The core tests on other CPU paths (docs/testing.md): NumPy's SIMD dispatch off, OpenBLAS's
+# oldest x86-64 kernels, one thread -- exact comparisons that hold only by luck fail here.
+test-portability: $(STAMP)
+	NPY_DISABLE_CPU_FEATURES="AVX2 FMA3 F16C AVX SSE42 SSE41 POPCNT SSSE3" \
+	OPENBLAS_CORETYPE=Nehalem OPENBLAS_NUM_THREADS=1 $(PY) -m pytest $(PYTEST_ARGS) tests/core
 
 clean:
 	rm -rf build .pytest_cache

@@ -17,10 +17,12 @@ repository)::
 ``docs/pipeline.md`` documents every function, its return dict and the command line.
 """
 
+import functools
 from pathlib import Path
 
 import bpy
 
+from ..core import limits
 from ..core.mocap import MocapParseError
 from .gait import storage as gait_storage
 from .gait.bridge import PredictOptions, predict_gait, resolve_model
@@ -40,6 +42,21 @@ __all__ = ["track", "predict", "import_acclaim", "learn", "export_model", "impor
 
 #: What the API raises when a request cannot be carried out (nothing was changed then).
 ERRORS = (TrackError, GaitError, AcclaimError, MocapParseError)
+
+
+def _door(error):
+    """An API function: messages name its keyword arguments (``length``), unless the command
+    line called it (then ``--length``); a number out of its bound raises ``error``."""
+    def wrap(function):
+        @functools.wraps(function)
+        def checked(*args, **kwargs):
+            with limits.naming("api", outer_wins=True):
+                try:
+                    return function(*args, **kwargs)
+                except limits.OutOfBounds as exc:
+                    raise error(str(exc)) from None
+        return checked
+    return wrap
 
 
 class _SceneContext:
@@ -75,6 +92,7 @@ def _object(name_or_object, kind, error):
 
 
 # ------------------------------------------------------------------------------ tracking
+@_door(TrackError)
 def track(armature=None, camera=None, frames=None, processes=None, suggest=False, scene=None,
           between=None, every=None):
     """Track Keyframes on a scene, synchronously (``tracking.batch.track_armature``).
@@ -133,6 +151,7 @@ def find_model(name):
         raise
 
 
+@_door(GaitError)
 def predict(armature=None, model="", frames=None, length=None, scene=None, **options):
     """Predict Gait: continue an armature's walk after its observed frames.
 
@@ -174,9 +193,15 @@ def predict(armature=None, model="", frames=None, length=None, scene=None, **opt
         else default_walker(scene)
     if length is None:
         length = preferences().gait_length
-    kwargs = dict(options, model=str(model or ""), horizon=float(length))
+    kwargs = dict(options, model=str(model or ""), horizon=limits.check("length", length))
     if frames is not None:
-        kwargs.update(range_mode="CUSTOM", frame_start=int(frames[0]), frame_end=int(frames[1]))
+        try:
+            first, last = frames
+        except (TypeError, ValueError):
+            raise GaitError(f"{limits.name_of('predict_frame')} {frames!r}: give two frames, "
+                            "the first and the last") from None
+        first, last = limits.check_frame_range("predict_frame", first, last)
+        kwargs.update(range_mode="CUSTOM", frame_start=first, frame_end=last)
     unknown = set(kwargs) - set(PredictOptions.__dataclass_fields__)
     if unknown:
         raise GaitError(f"Unknown predict options: {', '.join(sorted(unknown))}")
@@ -194,6 +219,7 @@ def default_walker(scene):
 
 
 # ------------------------------------------------------------------------------ import
+@_door(AcclaimError)
 def import_acclaim(motion, skeleton="", frame_rate_mode=None, capture_rate=None,
                    use_file_rate=True, frame_start=1, set_frame_range=True):
     """Import an Acclaim motion (.amc) and its skeleton (.asf) as an animated armature into the
@@ -237,10 +263,12 @@ def import_acclaim(motion, skeleton="", frame_rate_mode=None, capture_rate=None,
     mode = frame_rate_mode or prefs.acclaim_frame_rate_mode
     if mode not in ("RESAMPLE", "KEEP"):
         raise AcclaimError(f"frame_rate_mode must be 'RESAMPLE' or 'KEEP', got {mode!r}")
-    rate = prefs.acclaim_capture_rate if capture_rate is None else float(capture_rate)
+    rate = prefs.acclaim_capture_rate if capture_rate is None else \
+        limits.check("capture_rate", capture_rate)
     context = bpy.context
     job = AcclaimImport(context, str(motion), str(skeleton or ""), mode, rate,
-                        bool(use_file_rate), int(frame_start), bool(set_frame_range))
+                        bool(use_file_rate), limits.check("start_frame", frame_start),
+                        bool(set_frame_range))
     message = job.run()
     obj = context.view_layer.objects.active
     bag = object_channelbag(obj)

@@ -31,10 +31,12 @@ Nothing is saved unless the status is 'ok' or 'warning'. The work itself is :mod
 
 import argparse
 import contextlib
+import functools
 import json
 import math
 import os
 import sys
+import tempfile
 import time
 import traceback
 from pathlib import Path
@@ -42,6 +44,7 @@ from pathlib import Path
 import bpy
 
 from . import api
+from ..core import limits
 
 COMMAND_ID = "track_and_stride"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
@@ -63,6 +66,10 @@ class _Parser(argparse.ArgumentParser):
 
 
 # ------------------------------------------------------------------------------ arguments
+def _range(key):
+    return limits.BOUNDS[key].range_text()
+
+
 def build_parser():
     """The argument parser of every sub-command."""
     parser = _Parser(prog=PROG, description="Track & Stride batch commands: each prints one "
@@ -85,16 +92,16 @@ def build_parser():
     track.add_argument("--camera", metavar="NAME",
                        help="the camera that filmed the footage (default: the Track panel's, "
                             "else the scene camera)")
-    track.add_argument("--frames", nargs=2, type=int, metavar=("FIRST", "LAST"),
+    track.add_argument("--frames", nargs=2, metavar=("FIRST", "LAST"),
                        help="frames searched for keyframes (default: the Track panel's range)")
-    track.add_argument("--processes", type=int, metavar="N",
+    track.add_argument("--processes", metavar="N",
                        help="worker processes (0 = automatic: the add-on preference, else one "
                             "per CPU; default: the Track panel's)")
     track.add_argument("--between", choices=tuple(TRACK_BETWEEN),
                        help="the keyed poses to track between (default: the Track panel's): "
                             "all keys, the selected keys, every Nth key (--every) or the "
                             "scene's markers; the other keys between them are replaced")
-    track.add_argument("--every", type=int, metavar="N",
+    track.add_argument("--every", metavar="N",
                        help="N of --between every-nth (default: the Track panel's, 10)")
     track.add_argument("--suggest", action="store_true",
                        help="also mark suggested keyframes (timeline markers at residual "
@@ -111,27 +118,29 @@ def build_parser():
     predict.add_argument("--model", default="", metavar="NAME|FILE.npz",
                          help="a gait model of the file, 'Stock Gaits' (built in) or a model "
                               "file (default: the file's active model)")
-    predict.add_argument("--frames", nargs=2, type=int, metavar=("FIRST", "LAST"),
+    predict.add_argument("--frames", nargs=2, metavar=("FIRST", "LAST"),
                          help="the observed frames (default: the keyed range)")
-    predict.add_argument("--length", type=float, metavar="SECONDS",
-                         help="how long to predict (default: the add-on preference, 2 s)")
-    predict.add_argument("--cadence", type=float, default=1.0,
-                         help="steps per second × this (default 1)")
+    predict.add_argument("--length", metavar="SECONDS",
+                         help=f"how long to predict, {_range('length')} (default: the add-on "
+                              "preference, 2 s)")
+    predict.add_argument("--cadence", default=1.0, metavar="X",
+                         help=f"steps per second × this, {_range('cadence')} (default 1)")
     predict.add_argument("--retime", choices=("natural", "fast-forward"), default="natural",
                          help="a new cadence changes the walk as a person's would (longer "
                               "strides when quicker; default) or plays it faster")
-    predict.add_argument("--turn", type=float, default=0.0, metavar="DEG_PER_S",
-                         help="turn while walking, degrees per second (positive: left; "
-                              "default 0: straight on)")
+    predict.add_argument("--turn", default=0.0, metavar="DEG_PER_S",
+                         help=f"turn while walking, degrees per second, {_range('turn')} "
+                              "(positive: left; default 0: straight on)")
     style = predict.add_mutually_exclusive_group()
     style.add_argument("--style", metavar="NAME",
                        help="walk exactly in the model's named style (e.g. normal, brisk)")
     style.add_argument("--restyle", nargs=2, metavar=("FROM", "TO"),
                        help="move the walker's own style from one named style towards another")
-    predict.add_argument("--amount", type=float, default=1.0,
-                         help="how far --restyle moves (default 1: the whole difference)")
-    predict.add_argument("--stride", type=float, default=1.0,
-                         help="scale of the forward speed (default 1)")
+    predict.add_argument("--amount", default=1.0, metavar="A",
+                         help=f"how far --restyle moves, {_range('restyle_amount')} (default 1: the "
+                              "whole difference)")
+    predict.add_argument("--stride", default=1.0, metavar="X",
+                         help=f"scale of the forward speed, {_range('stride')} (default 1)")
     predict.add_argument("--on-the-spot", action="store_true",
                          help="walk on the spot (no root travel)")
     predict.add_argument("--let-feet-slide", action="store_true",
@@ -156,22 +165,28 @@ def build_parser():
                               "file)")
     acclaim.add_argument("--output", metavar="OUT.blend",
                          help="where to save (default: --blend itself; required without it)")
-    acclaim.add_argument("--fps", type=float,
+    acclaim.add_argument("--fps", metavar="F",
                          help="the scene's frames per second to resample to (default: the "
                               "file's; a new file: 24)")
     acclaim.add_argument("--frame-rate", choices=("resample", "keep"),
                          help="resample to the scene's rate or keep the capture's (default: "
                               "the add-on preference, resample)")
-    acclaim.add_argument("--capture-rate", type=float, metavar="HZ",
+    acclaim.add_argument("--capture-rate", metavar="HZ",
                          help="samples per second of a motion that records none (default: "
                               "the add-on preference, 120)")
     acclaim.add_argument("--ignore-file-rate", action="store_true",
                          help="use --capture-rate even when the .amc records its rate")
-    acclaim.add_argument("--start-frame", type=int, default=1,
-                         help="scene frame of the first sample (default 1)")
+    acclaim.add_argument("--start-frame", default=1, metavar="N",
+                         help=f"scene frame of the first sample, {_range('start_frame')} (default 1)")
     acclaim.add_argument("--keep-frame-range", action="store_true",
                          help="leave the scene's frame range as it is")
     return parser
+
+
+@functools.lru_cache(maxsize=1)
+def _parser():
+    """The parser, built once (argparse parses with it any number of times)."""
+    return build_parser()
 
 
 def _scene_args(parser):
@@ -181,23 +196,80 @@ def _scene_args(parser):
 
 
 # ------------------------------------------------------------------------------ checks
+#: Every number option of each command: (attribute, bound key of ``core.limits``).
+NUMBERS = {
+    "track": (("processes", "processes"), ("every", "every")),
+    "predict": (("length", "length"), ("cadence", "cadence"), ("amount", "restyle_amount"),
+                ("stride", "stride"), ("turn", "turn")),
+    "import-acclaim": (("fps", "fps"), ("capture_rate", "capture_rate"),
+                       ("start_frame", "start_frame")),
+}
+#: Commands whose --frames FIRST LAST are frames of that bound.
+FRAMES = {"track": "track_frame", "predict": "predict_frame"}
+
+
+def check_numbers(args):
+    """Every number option of ``args`` read and checked against ``core.limits`` (in place):
+    :class:`UsageError` naming the option, the value and the range. Runs before any work."""
+    try:
+        for attr, key in NUMBERS.get(args.command, ()):
+            value = getattr(args, attr)
+            if value is not None:
+                setattr(args, attr, limits.check(key, value, "cli"))
+        if args.command in FRAMES and args.frames is not None:
+            args.frames = list(limits.check_frame_range(FRAMES[args.command], *args.frames,
+                                                        "cli"))
+    except limits.OutOfBounds as exc:
+        raise UsageError(str(exc)) from None
+
+
 def _existing_file(path, what):
-    p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"{what} {path} does not exist")
-    return p.resolve()
+    try:
+        p = Path(path)
+        if not p.is_file():
+            raise UsageError(f"{what} {path} does not exist")
+        return p.resolve()
+    except (OSError, ValueError) as exc:          # a NUL byte, a name too long, a loop …
+        raise UsageError(f"{what} {path}: not a usable path ({_reason(exc)})") from None
+
+
+def _reason(exc):
+    return getattr(exc, "strerror", None) or str(exc)
+
+
+def writable_file(path, option):
+    """``path`` resolved, checked writable before any work: its folder exists, it is not a
+    folder, and a file can be created there (or the existing file opened for writing) -- a
+    real probe, which also holds for root and read-only file systems. :class:`UsageError`
+    naming the option otherwise. Leaves nothing behind."""
+    try:
+        p = Path(path).resolve()
+        if p.is_dir():
+            raise UsageError(f"{option} {path}: that is a folder; give a file name")
+        if not p.parent.is_dir():
+            raise UsageError(f"{option} {path}: the folder {p.parent} does not exist")
+        if p.exists():
+            with open(p, "ab"):
+                pass
+        else:
+            handle, probe = tempfile.mkstemp(dir=p.parent, prefix=".track_and_stride-")
+            os.close(handle)
+            os.unlink(probe)
+            with open(p, "xb"):             # the name itself (length, characters) works here
+                pass
+            os.unlink(p)
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"{option} {path}: cannot write there ({_reason(exc)})") from None
+    return p
 
 
 def _output_path(path):
-    """An output .blend path whose folder exists (None stays None)."""
+    """An output .blend path, writable (None stays None)."""
     if path is None:
         return None
-    p = Path(path).resolve()
-    if p.suffix.lower() != ".blend":
+    if not str(path).lower().endswith(".blend"):
         raise UsageError(f"--output {path}: the output must be a .blend file")
-    if not p.parent.is_dir():
-        raise UsageError(f"--output {path}: the folder {p.parent} does not exist")
-    return p
+    return writable_file(path, "--output")
 
 
 def _open(path):
@@ -245,12 +317,6 @@ def run_track(args):
     scene = _scene(args.scene)
     armature = _named("--armature", args.armature, "ARMATURE")
     camera = _named("--camera", args.camera, "CAMERA")
-    if args.frames is not None and args.frames[1] < args.frames[0]:
-        raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")
-    if args.processes is not None and args.processes < 0:
-        raise UsageError(f"--processes {args.processes}: give 0 (automatic) or more")
-    if args.every is not None and args.every < 2:
-        raise UsageError(f"--every {args.every}: give 2 or more")
     between = TRACK_BETWEEN[args.between] if args.between else None
     return api.track(armature, camera, args.frames, args.processes, args.suggest, scene,
                      between, args.every)
@@ -265,14 +331,6 @@ def run_predict(args):
         model_name, model = api.find_model(args.model)
     except api.GaitError as exc:
         raise UsageError(f"--model {args.model}: {exc}") from None
-    if args.frames is not None and args.frames[1] < args.frames[0]:
-        raise UsageError(f"--frames {args.frames[0]} {args.frames[1]}: LAST is before FIRST")
-    for option in ("length", "cadence", "stride"):
-        value = getattr(args, option)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise UsageError(f"--{option} {value}: give a positive number")
-    if not (math.isfinite(args.turn) and abs(args.turn) <= 360.0):
-        raise UsageError(f"--turn {args.turn}: give degrees per second between -360 and 360")
     options = {"cadence": args.cadence, "stride": args.stride,
                "retime": "FAST_FORWARD" if args.retime == "fast-forward" else "NATURAL",
                "turn": args.turn,
@@ -297,11 +355,6 @@ def run_import_acclaim(args):
     if args.frame_rate == "keep" and args.fps is not None:
         raise UsageError("--fps and --frame-rate keep contradict each other: keeping the "
                          "capture rate sets the scene's frames per second to it")
-    for option in ("fps", "capture_rate"):
-        value = getattr(args, option)
-        if value is not None and not (math.isfinite(value) and 0.01 <= value <= 10000):
-            raise UsageError(f"--{option.replace('_', '-')} {value}: give frames per second "
-                             "between 0.01 and 10000")
     if args.blend:
         _open(args.blend)
     else:
@@ -327,7 +380,7 @@ def output_of(args):
         if base is None:
             raise UsageError("--output: say where to save the imported motion (or --blend to "
                              "import into an existing .blend)")
-        output = _existing_file(base, "The .blend file")
+        output = writable_file(_existing_file(base, "The .blend file"), "SHOT.blend")
     return output
 
 
@@ -337,14 +390,18 @@ def execute(args):
     summary = {"command": args.command, "status": None, "exit_code": None, "message": "",
                "warnings": [], "input": None, "output": None, "saved": False}
     source = getattr(args, "blend", None) or getattr(args, "motion", None)
-    summary["input"] = str(Path(source).resolve()) if source else None
+    summary["input"] = _shown_path(source)
+    args.new_output = None
     try:
+        check_numbers(args)
         output = output_of(args)
         summary["output"] = str(output)
         result = COMMANDS[args.command](args)
         summary.update(result)
+        existed = output.exists()
         summary["output"] = api.save_blend(output)
         summary["saved"] = True
+        args.new_output = None if existed else output
         code = EXIT_OK
     except UsageError as exc:
         summary["message"], code = str(exc), EXIT_USAGE
@@ -366,7 +423,7 @@ def main(argv):
     JSON line and returns the exit status (see the module docstring)."""
     tic = time.perf_counter()
     try:
-        args = build_parser().parse_args(list(argv))
+        args = _parser().parse_args(list(argv))
         if args.command is None:
             raise UsageError(f"{PROG}: choose a command: {', '.join(COMMANDS)} (--help)")
     except UsageError as exc:
@@ -377,10 +434,50 @@ def main(argv):
         return EXIT_USAGE
     except SystemExit as exc:                       # --help printed the help
         return int(exc.code or 0)
-    with stdout_to_stderr():
+    try:
+        if args.summary_path is not None:
+            writable_file(args.summary_path, "--summary")
+    except UsageError as exc:
+        summary = {"command": args.command, "status": "bad_arguments", "exit_code": EXIT_USAGE,
+                   "message": str(exc), "warnings": [], "input": None, "output": None,
+                   "saved": False}
+        emit(_stamp(summary, tic), None)
+        return EXIT_USAGE
+    with stdout_to_stderr(), limits.naming("cli"):
         summary, code = execute(args)
-    emit(_stamp(summary, tic), args.summary_path)
+    summary = _stamp(summary, tic)
+    problem = write_summary(summary, args.summary_path)
+    if problem:
+        code = _summary_failed(summary, args, problem)
+    emit(summary)
     return code
+
+
+def _summary_failed(summary, args, problem):
+    """The summary file could not be written: the run fails (exit 1); an output .blend this
+    run created is removed (one that was there before keeps the saved work, and says so)."""
+    note = ""
+    if summary.get("saved") and args.new_output is not None:
+        with contextlib.suppress(OSError):
+            args.new_output.unlink()
+        summary["saved"] = False
+        note = "; the saved .blend was removed"
+    elif summary.get("saved"):
+        note = f"; the work was saved into {summary['output']}"
+    summary.update(status="failed", exit_code=EXIT_FAILED,
+                   message=f"--summary {args.summary_path}: cannot write the summary "
+                           f"({problem}){note}. Before: {summary['message']}")
+    return EXIT_FAILED
+
+
+def _shown_path(path):
+    """``path`` resolved for the summary (as given when it cannot be resolved)."""
+    if not path:
+        return None
+    try:
+        return str(Path(path).resolve())
+    except (OSError, ValueError):
+        return str(path)
 
 
 def _guess_command(argv):
@@ -395,15 +492,24 @@ def _stamp(summary, tic):
 
 
 def emit(summary, path=None):
-    """Print the summary as one JSON line on stdout (and write it to ``path``)."""
-    line = json.dumps(jsonable(summary), allow_nan=False)
-    sys.stdout.write(line + "\n")
+    """Print the summary as one JSON line on stdout (and write it to ``path``); returns what
+    went wrong writing ``path`` ('' when nothing did)."""
+    problem = write_summary(summary, path)
+    sys.stdout.write(json.dumps(jsonable(summary), allow_nan=False) + "\n")
     sys.stdout.flush()
-    if path:
-        try:
-            Path(path).write_text(line + "\n", encoding="utf-8")
-        except OSError as exc:
-            print(f"Track & Stride: cannot write the summary to {path}: {exc}", file=sys.stderr)
+    return problem
+
+
+def write_summary(summary, path):
+    """Write the summary's JSON line to ``path`` (None: nowhere); '' or why it failed."""
+    if not path:
+        return ""
+    try:
+        Path(path).write_text(json.dumps(jsonable(summary), allow_nan=False) + "\n",
+                              encoding="utf-8")
+    except (OSError, ValueError) as exc:
+        return _reason(exc)
+    return ""
 
 
 def jsonable(value):
@@ -419,6 +525,7 @@ def jsonable(value):
     return value
 
 
+@functools.lru_cache(maxsize=1)
 def extension_version():
     """The version in the extension's manifest (None when it cannot be read)."""
     import tomllib

@@ -20,6 +20,8 @@ from types import SimpleNamespace
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
+from ..core.limits import hard
+
 #: The add-on's module name (``bl_ext.<repository>.track_and_stride`` when installed as an
 #: extension): the key of its entry in ``context.preferences.addons``.
 ADDON_MODULE = __package__.rpartition(".")[0]
@@ -46,7 +48,7 @@ class TS_AddonPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_MODULE
 
     track_processes: IntProperty(
-        name="Tracking Processes", default=DEFAULTS.track_processes, min=0, max=64,
+        name="Tracking Processes", default=DEFAULTS.track_processes, **hard("processes"),
         description="Worker processes that Track Keyframes uses when a scene's Processes is 0 "
                     "(0 = one per CPU, at most one per interval; 1 = everything in Blender's "
                     "process). On a shared render node, the cores one task may use")
@@ -56,11 +58,12 @@ class TS_AddonPreferences(bpy.types.AddonPreferences):
         description="How Import Acclaim meets the scene's frame rate, unless the import is told "
                     "otherwise")
     acclaim_capture_rate: FloatProperty(
-        name="Capture Rate", default=DEFAULTS.acclaim_capture_rate, min=1.0, max=1000.0,
+        name="Capture Rate", default=DEFAULTS.acclaim_capture_rate, soft_min=1.0,
+        soft_max=1000.0, **hard("capture_rate"),
         description="Samples per second of .amc files that record no rate (CMU captures: 120); "
                     "Import Acclaim's and the command line's default")
     gait_length: FloatProperty(
-        name="Prediction Length", default=DEFAULTS.gait_length, min=0.05, max=60.0,
+        name="Prediction Length", default=DEFAULTS.gait_length, **hard("length"),
         unit="TIME_ABSOLUTE",
         description="How long Predict Gait continues a walk unless told otherwise, in seconds "
                     "(the prediction horizon)")

@@ -150,7 +150,7 @@ def step_track_footage(bpy):
     scene = bpy.context.scene
     scene.name = "Track Footage"
     walker = track_scene.build_walk_scene(folder, step=TRACK_STEP, source="CLIP")
-    walker.name = "Tracked Walker"
+    walker.name = "Walker"              # reports say "Tracked Walker …"
     bpy.ops.track_and_stride.show_envelopes()
     request = track_bridge.prepare_tracking(bpy.context, scene.track_and_stride_track)
     tic = time.perf_counter()
@@ -162,7 +162,7 @@ def step_track_footage(bpy):
     roots, local = pose_bridge.read_pose(request.rig, frames)
     residual_frames, residuals = importlib.import_module(
         addon + "tracking.keys").read_residuals(walker, 1, TRACK_FRAMES)
-    rank = track_scene.channelbag(walker).fcurves.find('["track_and_stride_rank"]')
+    rank = track_scene.channelbag(walker).fcurves.find('["Movements Seen"]')
     keys = request.key_frames.tolist()
     suggested = [m.frame for m in scene.timeline_markers if m.name.startswith("Key here? ")]
     interior = np.setdiff1d(frames, keys)
@@ -176,12 +176,18 @@ def step_track_footage(bpy):
                 ranks=[rank.evaluate(float(f)) for f in residual_frames], mpjpe=mpjpe)
 
 
+def save(bpy, path):
+    """Save the open file to ``path`` without a ``.blend1`` backup of what was there."""
+    bpy.context.preferences.filepaths.save_version = 0
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+
+
 def merge_scene(bpy, blend, source):
     """Copy every scene of ``source`` (.blend) into ``blend`` and save it."""
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     with bpy.data.libraries.load(str(source), link=False) as (data_from, data_to):
         data_to.scenes = list(data_from.scenes)
-    bpy.ops.wm.save_mainfile()
+    save(bpy, blend)
     return [s.name for s in data_to.scenes]
 
 
@@ -210,6 +216,9 @@ def contact_sheet_png(path, track, every=SHEET_EVERY, columns=7):
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     from core.tracking.body_model import joint_frames_in_camera
     from core.tracking.overlay import draw_overlay, draw_segments, silhouette_labels
 
@@ -217,13 +226,18 @@ def contact_sheet_png(path, track, every=SHEET_EVERY, columns=7):
     sk, cam = problem.skeleton, problem.camera
     shown = list(range(1, TRACK_FRAMES + 1, every))
     rows = -(-len(shown) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(2.0 * columns, 3.0 * rows))
+    fig, axes = plt.subplots(rows, columns, figsize=(2.0 * columns, 3.0 * rows + 0.9),
+                             gridspec_kw={"hspace": 0.05, "wspace": 0.05})
     for ax in axes.ravel():
         ax.axis("off")
     for ax, frame in zip(axes.ravel(), shown):
         k = frame - 1
         labels = silhouette_labels(problem.body, cam, sk, track["roots"][k], track["local"][k])
-        tile = draw_overlay(fp.rgb[k], labels)
+        # The footage in grey, so that the tracked body (one orange tint, white outlines) and
+        # its bones (cyan) are the only colours: the rendered person's coloured parts would
+        # otherwise look like the tracked body's.
+        grey = (np.asarray(fp.rgb[k], dtype=float) @ [0.2126, 0.7152, 0.0722]).astype(np.uint8)
+        tile = draw_overlay(np.repeat(grey[..., None], 3, axis=2), labels, alpha=0.45)
         rot, org = joint_frames_in_camera(sk, cam.world2camera, track["roots"][k][None],
                                           track["local"][k][None])
         tails = org[0] + np.einsum("bij,bj->bi", rot[0], sk.tails)
@@ -232,13 +246,20 @@ def contact_sheet_png(path, track, every=SHEET_EVERY, columns=7):
                              width=2)
         ax.imshow(_crop(tile, labels))
         what = "key" if frame in track["keys"] else (
-            "suggested" if frame in track["suggested"] else "")
-        ax.set_title(f"{frame} {what}\n{100 * track['errors'][k]:.1f} cm", fontsize=8,
-                     color="tab:orange" if what == "suggested" else "k")
-    fig.suptitle("Track Keyframes on the rendered walk (keys every 20 frames): tracked body "
-                 "(orange, outlined) and bones (cyan) over the footage;\nframe number and mean "
-                 "joint error against the ground truth", fontsize=9)
-    fig.tight_layout()
+            "suggested key" if frame in track["suggested"] else "")
+        # The label inside the tile's top-left corner: it cannot overlap another row.
+        ax.text(0.03, 0.97, f"frame {frame} {what}\n{100 * track['errors'][k]:.1f} cm off",
+                transform=ax.transAxes, ha="left", va="top", fontsize=7,
+                color="tab:red" if what == "suggested key" else "k",
+                bbox=dict(boxstyle="round,pad=0.2", facecolor="white", alpha=0.85, lw=0))
+    handles = [Patch(facecolor=(1.0, 0.55, 0.16), edgecolor="white", label="tracked body"),
+               Line2D([], [], color=(40 / 255, 220 / 255, 1.0), lw=2, label="tracked bones"),
+               Patch(facecolor="0.55", label="footage (grey)")]
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8, frameon=False)
+    fig.suptitle("Track Keyframes on the rendered walk (keys every 20 frames); in each "
+                 "picture: frame, and how far the tracked joints are from the true ones",
+                 fontsize=9)
+    fig.subplots_adjust(left=0.01, right=0.99, top=0.93, bottom=0.06)
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -251,21 +272,34 @@ def confidence_png(path, track):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
-    axes[0].plot(track["residual_frames"], track["residuals"], color="tab:red")
-    axes[0].set_ylabel("image mismatch\n(residual)")
-    axes[1].step(track["residual_frames"], track["ranks"], where="mid", color="tab:blue")
-    axes[1].set_ylabel("usable motion\nequations (rank)")
-    axes[2].plot(track["frames"], 100 * np.asarray(track["errors"]), color="k")
-    axes[2].set_ylabel("joint error (cm)")
-    axes[2].set_xlabel("frame")
-    for ax in axes:
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    panels = (
+        (track["residual_frames"], track["residuals"], "tab:red", "plot",
+         "How different the footage looks\nfrom the tracked body", "lower is better"),
+        (track["residual_frames"], track["ranks"], "tab:blue", "step",
+         "How many of the body's movements\nthe footage shows clearly", "higher is better"),
+        (track["frames"], 100 * np.asarray(track["errors"]), "k", "plot",
+         "How far the tracked joints are\nfrom the true ones (cm)", "lower is better"))
+    for ax, (x, y, colour, kind, title, better) in zip(axes, panels):
+        if kind == "step":
+            ax.step(x, y, where="mid", color=colour)
+        else:
+            ax.plot(x, y, color=colour)
+        ax.set_ylabel(title, fontsize=8)
+        up = better.startswith("higher")
+        ax.annotate(("▲ " if up else "▼ ") + better, xy=(1.0, 1.0 if up else 0.0),
+                    xycoords="axes fraction", xytext=(-4, -4 if up else 4),
+                    textcoords="offset points", ha="right", va="top" if up else "bottom",
+                    fontsize=8, color="tab:green",
+                    bbox=dict(boxstyle="round,pad=0.2", facecolor="white", alpha=0.85, lw=0))
         for key in track["keys"]:
             ax.axvline(key, color="0.6", lw=0.8)
         for frame in track["suggested"]:
             ax.axvline(frame, color="tab:orange", lw=1.2, ls="--")
-    axes[0].set_title("Confidence curves written by Track Keyframes (grey: keyframes, dashed: "
-                      "suggested keys)", fontsize=9)
+    axes[2].set_xlabel("frame")
+    axes[0].set_title("What Track Keyframes writes in the Graph Editor (top two) and the true "
+                      "error (bottom);\ngrey lines: your keyframes, orange dashes: where it "
+                      "suggests one more key", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -336,7 +370,7 @@ def main():
     gait_png = output / "gait_prediction.png"
     plot_gait(gait_png, *step_gait_prediction(bpy))
     blend = output / "track_and_stride_demo.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    save(bpy, blend)
     # Tracking in a file of its own (a scene needs a window to be evaluated headless), then
     # its scene goes into the demo file.
     track = step_track_footage(bpy)
@@ -344,7 +378,7 @@ def main():
     contact_sheet_png(sheet_png, track)
     confidence_png(confidence, track)
     track_blend = output / "track_footage.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(track_blend))
+    save(bpy, track_blend)
     scenes = merge_scene(bpy, blend, track_blend)
     track_blend.unlink()
     print(f"demo: wrote {blend.relative_to(ROOT) if blend.is_relative_to(ROOT) else blend}"

@@ -130,7 +130,8 @@ def view_camera(view, path, points, aspect):
 
     Parameters
     ----------
-    view : str
+    view : str or tuple
+        A name of :data:`VIEWS`, or its (angle, elevation, distance) values.
     path : ndarray, shape (N, 2)
         The root's ground projection per frame.
     points : ndarray, shape (M, 3)
@@ -138,7 +139,7 @@ def view_camera(view, path, points, aspect):
     aspect : float
         Width over height of the image.
     """
-    angle, elevation, dist = VIEWS[view]
+    angle, elevation, dist = VIEWS[view] if isinstance(view, str) else view
     heading = path[-1] - path[0]
     heading /= np.linalg.norm(heading)
     side = np.array([-heading[1], heading[0]])

@@ -4,7 +4,14 @@
 Joint frames are the bones' rest frames (``bone.matrix_local``), so a joint's local rotation is
 the pose bone's basis rotation and the root translation is ``B_root @ pose_location`` (see
 ``docs/conventions.md``). The armature object's transform is *not* folded in: core arrays are in
-armature space; :attr:`ArmatureRig.armature2world` gives the object transform.
+armature space, in metres: an armature object at a uniform scale ``s`` (an FBX import at 0.01
+with centimetre bones) has its lengths and the root's location multiplied by ``s`` on reading
+and divided by ``s`` on keying (:attr:`ArmatureRig.metres_per_unit`);
+:attr:`ArmatureRig.armature2world` gives the object transform.
+
+A rig seen through a body map (``rig_bridge.MappedRig``: Rigify, Mixamo …) answers
+:func:`read_pose` and :func:`write_pose_keys` itself, by evaluating the rig and keying its
+controls.
 """
 
 from dataclasses import dataclass
@@ -39,6 +46,9 @@ class ArmatureRig:
     excluded : tuple of str
         Bones outside that tree (other root bones and their children).
     armature2world : ndarray, shape (4, 4)
+        The object's matrix (its uniform scale included).
+    metres_per_unit : float
+        The object's uniform scale: core arrays are in metres (module docstring).
     """
 
     obj: object
@@ -49,6 +59,9 @@ class ArmatureRig:
     root_location_mask: np.ndarray
     excluded: tuple
     armature2world: np.ndarray
+    metres_per_unit: float = 1.0
+
+    regions = None                      # body regions: named from bone names by the core
 
 
 def rig_from_armature(obj, root=None):
@@ -67,6 +80,7 @@ def rig_from_armature(obj, root=None):
     """
     if obj is None or obj.type != "ARMATURE":
         raise RigError("Select an armature")
+    unit = uniform_scale(obj)
     bones = obj.data.bones
     if len(bones) == 0:
         raise RigError(f"{obj.name} has no bones")
@@ -90,7 +104,8 @@ def rig_from_armature(obj, root=None):
     sel_names = [names[i] for i in order]
     sel_parents = [position[parents[i]] if parents[i] >= 0 else -1 for i in order]
     matrices = np.array([np.array(bones[i].matrix_local) for i in order])
-    lengths = np.array([bones[i].length for i in order])
+    matrices[:, :3, 3] *= unit
+    lengths = np.array([bones[i].length for i in order]) * unit
     pose_bones = obj.pose.bones
     modes, mask, dof_axes = [], np.zeros((len(order), 3), dtype=bool), []
     for k, name in enumerate(sel_names):
@@ -108,7 +123,34 @@ def rig_from_armature(obj, root=None):
     excluded = tuple(names[i] for i in range(len(names)) if i not in tree)
     return ArmatureRig(obj=obj, skeleton=skeleton, bone_names=tuple(sel_names), rotation_modes=tuple(modes),
                        dof_mask=mask, root_location_mask=root_location_mask, excluded=excluded,
-                       armature2world=np.array(obj.matrix_world))
+                       armature2world=np.array(obj.matrix_world), metres_per_unit=unit)
+
+
+def uniform_scale(obj):
+    """Metres per armature unit: the armature object's scale, the same on its three axes.
+
+    Raises
+    ------
+    RigError
+        The scale differs between axes (or is zero): bones would change shape as they turn.
+    """
+    m = np.array(obj.matrix_world, dtype=float)
+    scale = np.linalg.norm(m[:3, :3], axis=0)
+    unit = float(np.cbrt(np.prod(scale)))
+    if not np.all(scale > 0) or np.any(np.abs(scale / max(unit, 1e-30) - 1.0) > 1e-4):
+        raise RigError(
+            f"{obj.name} is scaled unevenly ({', '.join(f'{v:.3g}' for v in scale)}): its bones "
+            "would change shape as they turn, which no body can follow; give the object the "
+            "same scale on its three axes (Object properties › Transform › Scale)")
+    return unit
+
+
+def rigid_armature2world(rig):
+    """The rig's armature -> world transform without its uniform scale (4, 4): the transform
+    of the metre-scaled armature space the core works in."""
+    out = np.array(rig.armature2world, dtype=float)
+    out[:3, :3] /= rig.metres_per_unit
+    return out
 
 
 def _channels(rig):
@@ -135,6 +177,8 @@ def read_pose(rig, frames):
     root_translation : ndarray, shape (N, 3), metres, armature space
     local_rotations : ndarray, shape (N, B, 3, 3)
     """
+    if not isinstance(rig, ArmatureRig):
+        return rig.read_pose(frames)
     frames = np.asarray(frames, dtype=float)
     obj = rig.obj
     anim = obj.animation_data
@@ -151,7 +195,7 @@ def read_pose(rig, frames):
     root_pb = obj.pose.bones[rig.bone_names[0]]
     targets = [(pose_bone_path(rig.bone_names[0], "location"), i) for i in range(3)]
     location, _ = evaluate_fcurves(bag, targets, frames, list(root_pb.location))
-    translation = location @ rig.skeleton.rest_rotations[0].T
+    translation = location @ rig.skeleton.rest_rotations[0].T * rig.metres_per_unit
     return translation, local
 
 
@@ -177,6 +221,9 @@ def write_pose_keys(rig, frames, root_translation, local_rotations, bones=None, 
     int
         Number of keys written.
     """
+    if not isinstance(rig, ArmatureRig):
+        return rig.write_pose_keys(frames, root_translation, local_rotations, bones=bones,
+                                   action_name=action_name)
     frames = np.asarray(frames, dtype=float)
     root_translation = np.asarray(root_translation, dtype=float)
     local = np.asarray(local_rotations, dtype=float)
@@ -205,7 +252,7 @@ def write_pose_keys(rig, frames, root_translation, local_rotations, bones=None, 
                 continue
             written += insert_keys_preserving(bag, path, i, name, frames, values[:, i])
     if rig.bone_names[0] in wanted:
-        location = root_translation @ rig.skeleton.rest_rotations[0]
+        location = root_translation @ rig.skeleton.rest_rotations[0] / rig.metres_per_unit
         path = pose_bone_path(rig.bone_names[0], "location")
         for i in np.nonzero(rig.root_location_mask)[0]:
             written += insert_keys_preserving(bag, path, int(i), rig.bone_names[0], frames, location[:, i])

@@ -13,12 +13,13 @@ them.
 """
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import bpy
 import numpy as np
 
+from ...core import limits
 from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
                           observations_from_dofs, restyle)
 from ...core.gait.checks import check_gait
@@ -103,6 +104,11 @@ def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, ran
         ``model`` (the stored name), ``styles``, ``style_count`` (J), ``sequences``, ``message``.
     """
     scene = context.scene
+    try:
+        n_styles = limits.check("n_styles", n_styles)
+        source_fps = limits.check("learn_rate", source_fps)
+    except limits.OutOfBounds as exc:
+        raise GaitError(str(exc)) from None
     sequences, names, rates, styles, walkers = [], [], [], [], []
     for obj in objects:
         grig = gait_rig(obj)
@@ -137,8 +143,9 @@ def learn(files=(), objects=(), name="Gait Model", n_styles=0, range_mode="ACTIO
     """:func:`learn_gait` with plain arguments (object names, file paths) on the current scene;
     returns its summary dict."""
     objs = [_object(n) for n in objects]
-    return learn_gait(bpy.context, objs, [str(f) for f in files], name, int(n_styles),
-                      range_mode, float(source_fps))
+    with limits.naming("api", outer_wins=True):
+        return learn_gait(bpy.context, objs, [str(f) for f in files], name, n_styles,
+                          range_mode, source_fps)
 
 
 def _object(name):
@@ -180,6 +187,24 @@ class PredictOptions:
     model: str = ""
     retime: str = "NATURAL"
     turn: float = 0.0
+
+
+#: PredictOptions fields that are numbers a user types -> their bound in ``core.limits``.
+_BOUNDED = (("horizon", "length"), ("cadence", "cadence"), ("stride", "stride"),
+            ("restyle_amount", "restyle_amount"), ("turn", "turn"))
+
+
+def checked_options(options):
+    """``options`` with every number checked against ``core.limits`` (:class:`GaitError`
+    naming the value, its range and the option as the calling door names it)."""
+    try:
+        values = {field: limits.check(key, getattr(options, field)) for field, key in _BOUNDED}
+        if options.range_mode == "CUSTOM":
+            values["frame_start"], values["frame_end"] = limits.check_frame_range(
+                "predict_frame", options.frame_start, options.frame_end)
+    except limits.OutOfBounds as exc:
+        raise GaitError(str(exc)) from None
+    return replace(options, **values)
 
 
 def resolve_model(name):
@@ -477,6 +502,7 @@ def predict_gait(context, obj, options):
     """
     scene = context.scene
     fps = scene_fps(scene)
+    options = checked_options(options)
     model_name, model = resolve_model(options.model)
     grig = gait_rig(obj)
     anim = obj.animation_data
@@ -500,8 +526,14 @@ def predict_gait(context, obj, options):
     if walker.result is not None:
         check = check_gait(model, obs, fps, walker.result, what=what)
     n = int(round(options.horizon * fps))
+    length = limits.name_of("length")
     if n < 1:
-        raise GaitError("The length is shorter than one frame")
+        raise GaitError(f"{length} {options.horizon:g} s is shorter than one frame at "
+                        f"{fps:g} fps: give at least {1 / fps:.3g} s")
+    if last + n > limits.MAXFRAME:
+        raise GaitError(f"{length} {options.horizon:g} s would key frames {last + 1}–{last + n}, "
+                        f"after {limits.last_frame_text()}: give a shorter {length} or observe "
+                        "earlier frames")
     frames = last + np.arange(1, n + 1)
     if options.target == "AFTER":
         _check_target(obj, grig, options, bag, frames, record)

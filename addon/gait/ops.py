@@ -12,10 +12,10 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from . import storage
 from .bridge import PredictOptions, export_model, import_model, learn_gait, predict_gait
 from .rigs import GaitError
+from ...core.limits import hard
 from ..preferences import operator_value
 
 _MODES = ("OBJECT", "POSE")
-MAX_STYLE_COUNT = 16
 
 
 def _poll_armature(cls, context):
@@ -65,10 +65,10 @@ class TS_OT_learn_gait(bpy.types.Operator):
     n_styles: IntProperty(
         name="Style Count", description="How many independent ways of walking the model can "
         "mix (the paper's style dimension J); 0 = automatic (99 % of the singular-value "
-        "spectrum)", default=0, min=0, max=MAX_STYLE_COUNT)
+        "spectrum)", default=0, **hard("n_styles"))
     source_fps: FloatProperty(
         name="Capture Rate", description="Samples per second of the .amc files (CMU: 120)",
-        default=120.0, min=1.0, max=1000.0)
+        default=120.0, soft_min=1.0, soft_max=1000.0, **hard("learn_rate"))
     browse: BoolProperty(name="Browse", description="Choose .amc files in a file browser first",
                          default=False, options={"HIDDEN", "SKIP_SAVE"})
     files: CollectionProperty(type=bpy.types.OperatorFileListElement,
@@ -193,17 +193,18 @@ class TS_OT_predict_gait(bpy.types.Operator):
                ("CUSTOM", "Custom Range", "The frames set below")),
         default="ACTION")
     frame_start: IntProperty(name="Start", description="First reference frame (Custom Range)",
-                             default=1)
+                             default=1, **hard("predict_frame"))
     frame_end: IntProperty(name="End", description="Last reference frame (Custom Range); the "
-                           "prediction starts on the frame after it", default=100)
+                           "prediction starts on the frame after it", default=100,
+                           **hard("predict_frame"))
     horizon: FloatProperty(
         name="Length", description="How long the prediction runs, in seconds (frames = seconds "
         "× scene fps; the prediction horizon; default: the add-on preference)", default=2.0,
-        min=0.05, max=60.0, unit="TIME_ABSOLUTE")
+        unit="TIME_ABSOLUTE", **hard("length"))
     cadence: FloatProperty(
         name="Cadence", description="Retiming: multiplies the walker's steps per second (1.2 = "
         "steps 20 % quicker, each cycle 1/1.2 as long, same distance per cycle)",
-        default=1.0, min=0.25, max=4.0, soft_min=0.5, soft_max=2.0)
+        default=1.0, soft_min=0.5, soft_max=2.0, **hard("cadence"))
     retime: EnumProperty(
         name="Retime", description="How a new cadence changes the walk",
         items=(("NATURAL", "Like a Person", "Quicker steps become longer strides and wider "
@@ -227,18 +228,19 @@ class TS_OT_predict_gait(bpy.types.Operator):
                              items=_style_items)
     restyle_amount: FloatProperty(
         name="Amount", description="How far to move: 0 = as observed, 1 = the whole difference "
-        "between the two styles (values outside extrapolate)", default=1.0, soft_min=0.0,
-        soft_max=1.0)
+        "between the two styles (values outside extrapolate, up to one whole difference "
+        "further either way)", default=1.0, soft_min=0.0, soft_max=1.0,
+        **hard("restyle_amount"))
     library_style: EnumProperty(name="Library Style", description="The named style to walk in",
                                 items=_style_items)
     stride: FloatProperty(
         name="Stride Scale", description="Scale of the root's forward speed (1 = as the legs "
         "carry it; other values make the feet slide: restyle to a longer-striding style "
-        "instead)", default=1.0, min=0.0, max=4.0)
+        "instead)", default=1.0, **hard("stride"))
     turn: FloatProperty(
         name="Turn", description="Turn while walking, degrees per second (positive: to the "
         "left; 0: straight on, keeping the heading of the reference frames)", default=0.0,
-        min=-360.0, max=360.0, soft_min=-90.0, soft_max=90.0)
+        soft_min=-90.0, soft_max=90.0, **hard("turn"))
     root_travel: BoolProperty(
         name="Walk Forward", description="Move along the current heading (root travel); off: "
         "walk on the spot", default=True)
@@ -253,10 +255,10 @@ class TS_OT_predict_gait(bpy.types.Operator):
         "frames: the walker's residual table); Whole Range fit only", default=True)
     adaptation: EnumProperty(
         name="Fit", description="How the model fits the reference frames",
-        items=(("BATCH", "Whole Range", "Fit all reference frames together (batch EM: the best "
-                "estimate)"),
+        items=(("BATCH", "Whole Range", "Fit all reference frames together: the best estimate "
+                "(the paper's batch EM)"),
                ("ONLINE", "Frame by Frame", "Fit frame by frame as the live preview does "
-                "(online EM)")),
+                "(the paper's online EM)")),
         default="BATCH")
     target: EnumProperty(
         name="Target", description="Where the predicted keys go",

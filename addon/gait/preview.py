@@ -254,7 +254,7 @@ class TS_OT_gait_preview_start(bpy.types.Operator):
     """Show a ghost walking ahead of the active armature"""
 
     bl_description = ("Show a ghost of the active armature walking ahead of it, predicted frame "
-                      "by frame (online EM) while you scrub or play")
+                      "by frame while you scrub or play (the paper's online EM)")
 
     bl_idname = "track_and_stride.gait_preview_start"
     bl_label = "Start Live Preview"

@@ -9,6 +9,12 @@ Two kinds of armature are understood (``docs/gait_blender.md``):
   map ``core.mocap.CMU_BVH_NAMES`` and the CMU template ASF turn each bone's world rotation
   relative to rest into ASF DOFs (``core.mocap.asf_dofs_from_world_deltas``) and back.
 
+Both read the armature through the rig layer's plain reader (``common.pose_bridge``: its F-curves,
+in metres of the armature's space, the object's uniform scale folded in) -- no frame changes,
+so the Live Preview's frame handler can read too. Other rigs are recognised by the rig layer
+(``core.rigs``, the Body Map panel) and refused by name here until the gait reads them through
+their body maps (issue 19).
+
 Everything here reads or writes Blender data; the maths is in ``core``.
 """
 
@@ -24,7 +30,7 @@ from ...core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_d
 from ..mocap.acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
 from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, keyframe_state,
                               pose_bone_path)
-from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from ..common.pose_bridge import RigError, read_pose, rig_from_armature, rigid_armature2world
 
 # Metres per armature unit a BVH conversion may use: metres, CMU file units (1/0.45 inch),
 # inches, centimetres. The armature's leg lengths pick the nearest (see _bvh_scale).
@@ -118,6 +124,13 @@ def gait_rig(obj):
     known = [n for n in CMU_BVH_NAMES.values() if n in bones]
     if CMU_BVH_NAMES["root"] not in bones or len(known) < len(CMU_BVH_NAMES):
         missing = [n for n in CMU_BVH_NAMES.values() if n not in bones]
+        kind = _rig_kind(obj)
+        if kind not in ("Custom", "CMU (BVH)"):
+            raise GaitError(
+                f"{obj.name} is a {kind} rig (its body map is recognised: Track & Stride tab › "
+                "Body Map), but the gait model reads walks on Acclaim imports and CMU BVH "
+                "conversions only so far: import the walk with File › Import › Acclaim, or "
+                "as a CMU BVH")
         raise GaitError(
             f"{obj.name} is neither an Acclaim import nor a CMU BVH conversion: the gait model "
             f"knows the CMU bones (Acclaim names like lfemur, or cgspeed BVH names like "
@@ -137,6 +150,14 @@ def gait_rig(obj):
                    bone_of_joint=bone_of_joint)
     grig.scale = _bvh_scale(grig)
     return grig
+
+
+def _rig_kind(obj):
+    """What the rig layer recognises the armature as (``core.rigs``: ``'Rigify'``,
+    ``'Mixamo'`` …; ``'Custom'`` when only name patterns matched)."""
+    from ...core.rigs import best_body_map
+    from ..common.rig_bridge import rig_bones
+    return best_body_map(rig_bones(obj)).rig
 
 
 def _world_linear(rig):
@@ -183,7 +204,7 @@ def read_dofs(grig, frames):
     rotations, positions = forward_kinematics(rig.skeleton, local, translation)
     rest_rot, _ = rest_pose(rig.skeleton)
     a_rot, _ = _world_linear(rig)
-    a = rig.armature2world
+    a = rigid_armature2world(rig)          # the rig's arrays are metres of armature space
     deltas_arm = rotations @ np.swapaxes(rest_rot, -1, -2)
     deltas = a_rot @ deltas_arm[:, grig.bone_of_joint] @ a_rot.T
     deltas = fill_unmapped(grig.skeleton.parents, deltas, grig.bone_of_joint >= 0)
@@ -199,7 +220,7 @@ def _bvh_channels(grig, dofs, last_values):
     rig = grig.rig
     deltas, root_world = world_deltas_from_asf_dofs(grig.skeleton, dofs)
     a_rot, _ = _world_linear(rig)
-    a = rig.armature2world
+    a = rigid_armature2world(rig)
     rest_rot, _ = rest_pose(rig.skeleton)
     n, b = len(dofs), len(rig.bone_names)
     world = np.broadcast_to(rest_rot, (n, b, 3, 3)).copy()
@@ -217,7 +238,8 @@ def _bvh_channels(grig, dofs, last_values):
                                            previous=last_values[col:col + count]))
         col += count
     translation = head - rig.skeleton.offsets[0]
-    out.append(translation @ rig.skeleton.rest_rotations[0])   # pose location, bone frame
+    # Pose location: bone frame, armature units.
+    out.append(translation @ rig.skeleton.rest_rotations[0] / rig.metres_per_unit)
     return np.hstack(out)
 
 

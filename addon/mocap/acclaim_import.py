@@ -17,6 +17,7 @@ import bpy
 import numpy as np
 
 from ...core.armature import armature_layout, dofs_to_channels, plausible_envelope_radii
+from ...core import limits
 from ...core.kinematics import make_euler_continuous
 from ...core.mocap import (asf_to_skeleton, format_asf, read_amc_steps, read_asf, resample,
                            run_steps)
@@ -46,8 +47,10 @@ def resolve_files(amc_path, asf_path=""):
         return amc_path, asf_path
     found = find_asf_beside(amc_path)
     if found is None:
+        where = {"ui": "with 'Skeleton File'", "cli": "with --asf",
+                 "api": "as skeleton="}[limits.door()]
         raise AcclaimError(f"No .asf skeleton found beside {os.path.basename(amc_path)}; "
-                           "choose one with 'Skeleton File'")
+                           f"choose one {where}")
     return amc_path, found
 
 
@@ -80,6 +83,11 @@ class AcclaimImport:
 
     def __init__(self, context, amc_path, asf_path="", frame_rate_mode="RESAMPLE", source_fps=120.0,
                  use_file_rate=True, frame_start=1, set_frame_range=True):
+        try:
+            frame_start = limits.check("start_frame", frame_start)
+            source_fps = limits.check("capture_rate", source_fps)
+        except limits.OutOfBounds as exc:
+            raise AcclaimError(str(exc)) from None
         self.amc_path, self.asf_path = resolve_files(amc_path, asf_path)
         self.asf = read_asf(self.asf_path)
         self.context = context
@@ -104,6 +112,9 @@ class AcclaimImport:
         skeleton = asf_to_skeleton(self.asf)
         layout = armature_layout(skeleton)
         target_fps = rate if self.frame_rate_mode == "KEEP" else scene_fps(self.context.scene)
+        n_frames = (len(values) if target_fps == rate else
+                    int(np.floor((len(values) - 1) / rate * target_fps + 1e-9)) + 1)
+        self._check_last_frame(n_frames, target_fps)        # before resampling allocates them
         if target_fps != rate:
             yield _READ_SHARE, "resampling"
             values = resample(values, rate, target_fps, np.arange(3, skeleton.n_dofs))
@@ -141,6 +152,18 @@ class AcclaimImport:
             note = ("the file records no rate: Capture Rate" if self.use_file_rate
                     else "Capture Rate, not the file's")
         return motion.values, rate, f"{note}, {rate:g} fps"
+
+    def _check_last_frame(self, n_frames, fps):
+        """The motion's last key within Blender's frames (before anything is built)."""
+        last = self.frame_start + n_frames - 1
+        if last > limits.MAXFRAME:
+            name = limits.name_of("start_frame")
+            latest = limits.MAXFRAME - n_frames + 1
+            raise AcclaimError(
+                f"{name} {self.frame_start}: the motion's {n_frames} frames at {fps:g} fps would "
+                f"end at frame {last}, after {limits.last_frame_text()}; give "
+                + (f"{name} {limits.MINFRAME} to {latest}" if latest >= limits.MINFRAME else
+                   "a higher frame rate or a shorter motion"))
 
     def _convert(self, values, skeleton, layout):
         """Steps of converting DOF rows to F-curve values (N, n_channels)."""

@@ -6,6 +6,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
+from ...core.limits import hard
 from ...core.mocap import MocapParseError
 from .acclaim_bridge import AcclaimError, export_acclaim
 from .acclaim_import import AcclaimImport
@@ -62,8 +63,9 @@ class TS_OT_import_acclaim(bpy.types.Operator, ImportHelper):
         name="Capture Rate",
         description="Samples per second of an .amc that records no rate (CMU captures: 120; "
                     "default: the add-on preference)",
-        default=120.0, min=1.0, max=1000.0)
-    frame_start: IntProperty(name="Start Frame", description="Scene frame of the first sample", default=1)
+        default=120.0, soft_min=1.0, soft_max=1000.0, **hard("capture_rate"))
+    frame_start: IntProperty(name="Start Frame", description="Scene frame of the first sample",
+                             default=1, **hard("start_frame"))
     set_frame_range: BoolProperty(
         name="Set Frame Range", description="Set the scene's start/end frames to the motion", default=True)
     run_modal: BoolProperty(

@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from ...core import limits
 from .bridge import (TrackError, apply_result, prepare_tracking, read_all_footage, run_core,
                      suggest_markers)
 from ..common.pose_bridge import only_armature
@@ -52,15 +53,23 @@ def batch_settings(scene, armature=None, camera=None, frame_range=None, processe
     arguments that are given (see :func:`track_armature`)."""
     settings = track_settings(scene)
     overrides = {}
+    try:
+        every = None if every is None else limits.check("every", every)
+        processes = None if processes is None else limits.check("processes", processes)
+        if frame_range is not None:
+            if len(frame_range) != 2:
+                raise limits.OutOfBounds(f"{limits.name_of('track_frame')} {frame_range!r}: "
+                                         "give two frames, the first and the last")
+            frame_range = limits.check_frame_range("track_frame", *frame_range)
+    except (limits.OutOfBounds, TypeError) as exc:
+        raise TrackError(str(exc)) from None
     if between is not None:
         if between not in BETWEEN:
             raise TrackError(f"Track Between must be one of {', '.join(BETWEEN)}, got "
                              f"{between!r}")
         overrides["track_between"] = between
     if every is not None:
-        if int(every) < 2:
-            raise TrackError(f"Every Nth Key needs N of 2 or more, got {every}")
-        overrides["key_step"] = int(every)
+        overrides["key_step"] = every
     if armature is not None:
         if armature.type != "ARMATURE":
             raise TrackError(f"{armature.name} is not an armature")
@@ -70,12 +79,10 @@ def batch_settings(scene, armature=None, camera=None, frame_range=None, processe
             raise TrackError(f"{camera.name} is not a camera")
         overrides["camera"] = camera
     if frame_range is not None:
-        first, last = (int(f) for f in frame_range)
-        overrides.update(range_mode="CUSTOM", frame_start=first, frame_end=last)
+        overrides.update(range_mode="CUSTOM", frame_start=frame_range[0],
+                         frame_end=frame_range[1])
     if processes is not None:
-        if int(processes) < 0:
-            raise TrackError(f"Processes must be 0 (automatic) or more, got {processes}")
-        overrides["processes"] = int(processes)
+        overrides["processes"] = processes
     view = _SettingsView(settings, **overrides)
     return _BatchContext(scene, armature or default_armature(scene)), view
 

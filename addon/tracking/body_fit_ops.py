@@ -17,7 +17,8 @@ import numpy as np
 
 from ...core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
 from ..common.body_bridge import connected_bones, write_envelope_radii
-from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from ..common.pose_bridge import RigError, read_pose
+from ..common.rig_bridge import tracking_rig
 from ..common.reporting import one_line, report_outcome
 from .bridge import (TrackError, _camera_in_armature_space, _listed_views, envelope_radii,
                      frame_range, resolve_camera, resolve_editable_armature, resolve_footage)
@@ -107,7 +108,7 @@ def fit_body_to_footage(context, settings):
     if obj.mode == "EDIT":
         raise TrackError("Leave Edit Mode first")
     try:
-        rig = rig_from_armature(obj)
+        rig = tracking_rig(obj)
     except RigError as exc:
         raise TrackError(str(exc)) from None
     footages, cameras, names, keys = _views(scene, settings, rig, obj)
@@ -122,17 +123,17 @@ def fit_body_to_footage(context, settings):
     before = envelope_radii(rig)
     try:
         fit = fit_body_radii(rig.skeleton, before, cameras, frames, key_roots, key_locals,
-                             mirror=mirror_bones(rig.bone_names),
+                             mirror=mirror_bones(rig.skeleton.names),
                              connected=connected_bones(obj.data, rig.bone_names))
     except BodyFitError as exc:
         raise TrackError(f"Cannot fit the body: {exc}") from None
     if not np.all(np.isfinite(fit.radii)):      # never write what cannot be stood behind
         raise TrackError("The fit gave no finite radii: nothing was changed")
     # Radii the Envelope display draws as fitted (a connected joint: the parent's tail too).
-    write_envelope_radii(obj.data, rig.bone_names, fit.radii)
+    write_envelope_radii(obj.data, rig.bone_names, fit.radii / rig.metres_per_unit)
     seen = (f"1 camera ({names[0]})" if len(names) == 1 else
             f"{len(names)} cameras ({', '.join(names)})")
-    return _describe(rig.bone_names, fit, before) + f" from {len(keys)} keyframes, {seen}"
+    return _describe(rig.skeleton.names, fit, before) + f" from {len(keys)} keyframes, {seen}"
 
 
 class TS_OT_fit_body_to_footage(bpy.types.Operator):

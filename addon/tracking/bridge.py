@@ -12,8 +12,11 @@ The pipeline, in the order the modal operator runs it:
 4. :func:`apply_result` (main thread): write keys and confidence curves in one go, only when
    the whole result is there and finite (cancelling before it leaves the file untouched).
 
-Coordinates: the core works in the armature's space (``pose_bridge``); the camera is brought
-into it (``world2camera @ armature2world``).
+Coordinates: the core works in the armature's space in metres (``pose_bridge``: an object at a
+uniform scale has it folded in); the camera is brought into it (``world2camera @
+armature2world`` without the scale). The rig is the armature as ``rig_bridge.tracking_rig``
+sees it: through its body map (Rigify, Mixamo … : the mapped deforming bones, keys on the
+controls), or every bone a part (Acclaim imports, plain armatures).
 """
 
 import dataclasses
@@ -24,6 +27,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ...core.rigs import anatomical_dof_mask
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
@@ -33,7 +37,8 @@ from .cameras import CameraListError, camera_image, listed_cameras, uses_camera_
 from ..common.body_bridge import envelope_radii_as_drawn
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
-from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from ..common.pose_bridge import RigError, read_pose, rigid_armature2world
+from ..common.rig_bridge import MappedRig, tracking_rig, verify_pose
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
                    read_residuals, remove_replaced_keys, selected_frames, unwritable_channels,
                    write_tracking)
@@ -215,19 +220,16 @@ def _camera_in_armature_space(scene, camera_obj, rig, clip=None, size=None, pixe
                                       size, pixel_aspect)
     except CameraError as exc:
         raise TrackError(str(exc)) from None
-    armature2world = rig.armature2world
-    scale = np.linalg.norm(armature2world[:3, :3], axis=0)
-    if np.any(np.abs(scale - 1.0) > 1e-4):
-        raise TrackError(f"{rig.obj.name} is scaled ({', '.join(f'{s:.3g}' for s in scale)}): "
-                         "apply its scale (Ctrl A › Scale) so that envelope radii are metres")
-    return camera.with_pose(camera.world2camera @ armature2world)
+    # The core's space: the armature's, in metres (its uniform scale folded into the rig).
+    return camera.with_pose(camera.world2camera @ rigid_armature2world(rig))
 
 
 def envelope_radii(rig):
-    """(B, 2) head and tail envelope radii of the rig's bones, metres, as the Envelope display
-    draws them (a connected bone's head: its parent's tail radius;
-    :func:`..common.body_bridge.envelope_radii_as_drawn`)."""
-    return envelope_radii_as_drawn(rig.obj.data, rig.bone_names)
+    """(B, 2) head and tail envelope radii of the rig's bones (a mapped rig: of each joint's
+    deforming bone), metres, as the Envelope display draws them (a connected bone's head: its
+    parent's tail radius; :func:`..common.body_bridge.envelope_radii_as_drawn`; an armature
+    at object scale 0.01 draws radii in its centimetres)."""
+    return envelope_radii_as_drawn(rig.obj.data, rig.bone_names) * rig.metres_per_unit
 
 
 def _body(rig):
@@ -321,7 +323,7 @@ def prepare_tracking(context, settings):
     several = uses_camera_list(settings)
     camera_obj = None if several else resolve_camera(scene, settings)
     try:
-        rig = rig_from_armature(obj)
+        rig = tracking_rig(obj)
     except RigError as exc:
         raise TrackError(str(exc)) from None
     first, last = frame_range(scene, settings)
@@ -338,22 +340,31 @@ def prepare_tracking(context, settings):
         cameras = [_camera_in_armature_space(
             scene, camera_obj, rig, settings.clip if settings.source == "CLIP" else None)]
         footages, names = [footage], [camera_obj.name]
+    key_roots, key_locals = read_pose(rig, key_frames)
     mask = rig.dof_mask
+    if isinstance(rig, MappedRig):
+        # The anatomy the CMU skeleton has (knees, elbows and toes are hinges, feet do not
+        # twist): the keys say about which axis each hinge bends (core.rigs.model).
+        mask = anatomical_dof_mask(rig.model, mask, key_locals)
     translation = np.full(3, bool(rig.root_location_mask.any()))
     try:
         problem = TrackingProblem(rig.skeleton, _body(rig),
-                                  cameras[0] if len(cameras) == 1 else cameras, mask, translation)
+                                  cameras[0] if len(cameras) == 1 else cameras, mask, translation,
+                                  regions=rig.regions)
     except TrackingError as exc:
         raise TrackError(str(exc)) from None
     layout = problem.layout
     if layout.n_params == 0:
         raise TrackError(f"Every rotation of {obj.name}'s bodied bones is locked: unlock the axes "
                          "to estimate (the padlocks in the Bone properties › Transform)")
-    key_roots, key_locals = read_pose(rig, key_frames)
-    bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
-    if len(layout.translation_axes):
-        bones.add(rig.bone_names[0])
-    tracked_bones = [n for n in rig.bone_names if n in bones]
+    if isinstance(rig, MappedRig):
+        tracked_bones = rig.tracked_controls(np.unique(layout.rotation_joints),
+                                             bool(len(layout.translation_axes)))
+    else:
+        bones = {rig.bone_names[j] for j in np.unique(layout.rotation_joints)}
+        if len(layout.translation_axes):
+            bones.add(rig.bone_names[0])
+        tracked_bones = [n for n in rig.bone_names if n in bones]
     _check_writable(obj, rig, tracked_bones, tracked_before)
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
@@ -486,6 +497,17 @@ def apply_result(context, request, result):
     max_rank = layout.n_params - int(len(layout.translation_axes) > 0
                                      and not request.options.estimate_depth
                                      and request.n_views == 1)    # views measure depth
+    if isinstance(request.rig, MappedRig):
+        # The controls' values of every written frame, found on the evaluated rig before
+        # anything changes (a failure leaves the file as it was).
+        keys = set(int(k) for k in request.key_frames)
+        between = np.array([int(f) not in keys for f in frames])
+        try:
+            request.rig.prepare_keys(frames[between], result.root_translations[between],
+                                     result.local_rotations[between],
+                                     bones=request.tracked_bones)
+        except ValueError as exc:
+            raise TrackError(f"{exc}; nothing was written") from None
     remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
     tic = time.perf_counter()
     written = write_tracking(request.rig, request.key_frames.tolist(), request.tracked_before,
@@ -500,14 +522,44 @@ def apply_result(context, request, result):
     n_int = len(result.intervals)
     views = (f", {request.n_views} cameras: {', '.join(request.view_names)}"
              if request.n_views > 1 else "")
+    what = f"{len(request.tracked_bones)} bones"
+    if isinstance(request.rig, MappedRig):
+        what = (f"{request.rig.body_map.rig} rig, {len(request.tracked_bones)} controls")
+        off = _rig_fit_note(request, frames, result)
+        if off:
+            warnings.append(off)
     summary = (f"Tracked {obj.name} over frames {request.first}–{request.last} "
-               f"({n_int} interval{'s' * (n_int != 1)}, {len(request.tracked_bones)} bones, "
-               f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; residual, "
-               "rank and 'Tracked: <body part>' curves in the Graph Editor")
+               f"({n_int} interval{'s' * (n_int != 1)}, {what}, "
+               f"{written} keys{views}) in {request.timings.get('track', 0.0):.1f} s; "
+               "'Footage Mismatch', 'Movements Seen' and 'Tracked: <body part>' curves in the "
+               "Graph Editor")
     if request.replaced:
         summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
                     f"{len(request.replaced)} keyed frames between them replaced")
     return summary, warnings
+
+
+#: A mapped rig whose controlled parts end up further than this from the tracked pose (its
+#: constraints or limits, an IK out of reach) gets a report line.
+RIG_FIT_ANGLE = np.radians(2.0)
+RIG_FIT_DISTANCE = 0.02
+
+
+def _rig_fit_note(request, frames, result):
+    """A line when the keyed controls do not put the rig on the tracked pose (checked by
+    evaluating the rig at the written frames), else None."""
+    keys = set(int(k) for k in request.key_frames)
+    sel = np.array([int(f) not in keys for f in frames])
+    if not np.any(sel):
+        return None
+    angle, dist = verify_pose(request.rig, frames[sel], result.root_translations[sel],
+                              result.local_rotations[sel])
+    if angle <= RIG_FIT_ANGLE and dist <= RIG_FIT_DISTANCE:
+        return None
+    return (f"{request.obj_name}'s controls could not put every part exactly on the tracked "
+            f"pose: up to {np.degrees(angle):.1f}° and {100 * dist:.1f} cm off (the rig's "
+            "constraints or limits, or an IK limb out of reach); check the "
+            "'Tracked: <body part>' curves and the Body Map")
 
 
 def read_all_footage(request):
@@ -550,13 +602,13 @@ def suggest_markers(context, settings):
     scene = context.scene
     obj = resolve_armature(context, settings)
     try:
-        rig = rig_from_armature(obj)
+        rig = tracking_rig(obj)
     except RigError as exc:
         raise TrackError(str(exc)) from None
     first, last = frame_range(scene, settings)
     frames, residuals = read_residuals(obj, first, last)
     if len(frames) == 0:
-        raise TrackError(f"{obj.name} has no residual curve in frames {first}–{last}: run "
+        raise TrackError(f"{obj.name} has no Footage Mismatch curve in frames {first}–{last}: run "
                          "Track Keyframes first")
     keys = classify_frames(obj, rig, first, last)[0] if obj.animation_data else []
     found = suggest_keyframes(frames, residuals, keys, threshold=settings.suggest_threshold)

@@ -50,9 +50,9 @@ class TS_TrackCamera(bpy.types.PropertyGroup):
                     "as its background")
     use: BoolProperty(
         name="Use", default=True,
-        description="Track with this camera's footage too (every camera switched on measures "
-                    "the same motion: the paper's eq. 5 rows of all of them are stacked and "
-                    "eq. 4 is summed over them)")
+        description="Track with this camera's footage too: every camera switched on sees the "
+                    "same motion, and each adds its evidence (the paper's eq. 5 rows of all "
+                    "of them are stacked and eq. 4 is summed over them)")
     offset: IntProperty(
         name="Offset", default=0, soft_min=-1000, soft_max=1000,
         description="Frames this camera's footage is shifted later on the timeline, for "

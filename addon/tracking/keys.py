@@ -3,7 +3,8 @@
 Keyframes and tracked keys
 --------------------------
 The rig's pose channels are the rotation channels of every bone of the tracked tree (in each
-bone's rotation mode) and the root bone's location. A frame in the tracking range is a
+bone's rotation mode) and the root bone's location -- for a rig seen through its body map
+(``rig_bridge.MappedRig``), the rotation and location channels of the controls its map names. A frame in the tracking range is a
 **keyframe** when the action has a key on one of those channels there -- except the frames this
 module wrote itself and nobody changed since: tracked keys are written with the keyframe type
 ``'GENERATED'``, and the armature object remembers a digest of every tracked frame's keys
@@ -24,9 +25,12 @@ the chosen poses are *replaced*: :func:`remove_replaced_keys` first removes thei
 estimated channels only, then they are written like any in-between frame. Everywhere here a key
 at a fractional frame counts for its nearest whole frame (``np.rint``): for finding keyframes,
 for replacing keys and for removing earlier tracked keys. Confidence curves
-(custom properties of the armature object, visible in the Graph Editor):
-``track_and_stride_residual`` (eq. 4 residual of the frame pair ``f-1 -> f``, linear) and
-``track_and_stride_rank`` (rank of ``A`` for that pair, constant; the paper's Fig. 10).
+(custom properties of the armature object, visible in the Graph Editor under the names an
+animator reads there): ``Footage Mismatch`` (the eq. 4 residual of the frame pair
+``f-1 -> f``, linear) and ``Movements Seen`` (the rank of ``A`` for that pair, constant; the
+paper's Fig. 10). Files tracked before these names (``track_and_stride_residual``,
+``track_and_stride_rank``: :data:`LEGACY_CONFIDENCE`) are read, and their curves replaced by
+the new ones when tracked again.
 """
 
 import hashlib
@@ -44,14 +48,20 @@ from ..common.fcurves import (channelbag, ensure_action, enum_value, insert_keys
 from ..common.pose_bridge import write_pose_keys
 
 PROP_TRACKED = "track_and_stride_tracked"
-PROP_RESIDUAL = "track_and_stride_residual"
-PROP_RANK = "track_and_stride_rank"
+PROP_RESIDUAL = "Footage Mismatch"
+PROP_RANK = "Movements Seen"
+#: The confidence curves' names in files tracked before (new name -> old name).
+LEGACY_CONFIDENCE = {PROP_RESIDUAL: "track_and_stride_residual",
+                     PROP_RANK: "track_and_stride_rank"}
 CONFIDENCE_GROUP = "Track & Stride"
 GENERATED = "GENERATED"
 
 
 def rig_channels(rig):
-    """[(data path, index, bone name)] of the rig's pose channels (rotations + root location)."""
+    """[(data path, index, bone name)] of the rig's pose channels (rotations + root location;
+    a rig seen through its body map: its controls' rotations and locations)."""
+    if hasattr(rig, "channels"):
+        return rig.channels()
     out = []
     for name, mode in zip(rig.bone_names, rig.rotation_modes):
         prop, count = channel_property(mode)
@@ -136,7 +146,10 @@ def selected_frames(obj, rig, first, last):
 def estimated_channels(rig, tracked_bones):
     """``(path, index)`` of the channels tracking estimates and writes: every rotation channel
     of the tracked bones (a locked Euler axis excepted: not estimated) and the root's unlocked
-    location axes. The *replaced* keys of a Track Between choice are removed from these only."""
+    location axes. The *replaced* keys of a Track Between choice are removed from these only.
+    A rig seen through its body map: the channels its tracked controls are keyed on."""
+    if hasattr(rig, "estimated_channels"):
+        return rig.estimated_channels(tracked_bones)
     bones = set(tracked_bones)
     out = []
     for k, (name, mode) in enumerate(zip(rig.bone_names, rig.rotation_modes)):
@@ -182,6 +195,8 @@ def written_channels(obj, rig, tracked_bones, tracked_before):
         if bone in bones or np.any(np.isin(frames, clear)):
             channels.append((path, index))
     channels += [(f'["{prop}"]', 0) for prop in (PROP_RESIDUAL, PROP_RANK)]
+    channels += [(f'["{prop}"]', 0) for prop in LEGACY_CONFIDENCE.values()
+                 if bag is not None and bag.fcurves.find(f'["{prop}"]', index=0) is not None]
     return channels
 
 
@@ -331,14 +346,17 @@ def write_confidence(obj, bag, frames, residuals, ranks, max_rank):
     """Residual and rank F-curves (custom properties of ``obj``) at ``frames``, replacing this
     module's earlier values there."""
     frames = np.asarray(frames, dtype=float)
+    _move_legacy_confidence(obj, bag)
     _ensure_property(obj, PROP_RESIDUAL, 0.0, min=0.0, soft_min=0.0, description=(
-        "Track & Stride: eq. 4 photometric residual of the tracked pose between the previous "
-        "frame and this one (sum of squared grey-level differences over the body). Spikes "
-        "mark frames where one more keyframe helps"))
+        "Track & Stride: how different the footage looks from the tracked body between the "
+        "previous frame and this one; lower is better. Spikes mark frames where one more "
+        "keyframe helps (the paper's eq. 4 photometric residual: squared grey-level "
+        "differences over the body)"))
     _ensure_property(obj, PROP_RANK, 0, min=0, max=max(int(max_rank), 1), description=(
-        "Track & Stride: rank of the motion equations between the previous frame and this one "
-        f"(at most {max_rank}: the estimated degrees of freedom minus depth). Dips mean parts "
-        "were hidden or showed too little texture"))
+        "Track & Stride: how many of the body's movements the footage shows clearly between "
+        f"the previous frame and this one, at most {max_rank}; higher is better. Dips mean "
+        "parts were hidden or showed too little texture and followed the keys (the rank of "
+        "the motion equations)"))
     for prop, values, interpolation in ((PROP_RESIDUAL, residuals, "LINEAR"),
                                         (PROP_RANK, ranks, "CONSTANT")):
         path = f'["{prop}"]'
@@ -354,10 +372,31 @@ def write_confidence(obj, bag, frames, residuals, ranks, max_rank):
         fcurve.update()
 
 
+def _move_legacy_confidence(obj, bag):
+    """A file tracked before the curves had their names: the old curves and properties go
+    (the new ones are written in their place)."""
+    for old in LEGACY_CONFIDENCE.values():
+        fcurve = bag.fcurves.find(f'["{old}"]', index=0) if bag is not None else None
+        if fcurve is not None:
+            bag.fcurves.remove(fcurve)
+        if old in obj.keys():
+            del obj[old]
+
+
+def has_confidence(obj):
+    """The armature carries confidence curves (of this version or an earlier one)."""
+    keys = obj.keys()
+    return PROP_RESIDUAL in keys or LEGACY_CONFIDENCE[PROP_RESIDUAL] in keys
+
+
 def read_residuals(obj, first, last):
-    """Frames and values of the residual curve's keys in ``[first, last]`` (empty if none)."""
+    """Frames and values of the residual curve's keys in ``[first, last]`` (empty if none;
+    the earlier name's curve in files tracked before)."""
     bag = object_channelbag(obj)
-    fcurve = bag.fcurves.find(f'["{PROP_RESIDUAL}"]', index=0) if bag is not None else None
+    fcurve = None
+    for name in (PROP_RESIDUAL, LEGACY_CONFIDENCE[PROP_RESIDUAL]):
+        fcurve = fcurve or (bag.fcurves.find(f'["{name}"]', index=0) if bag is not None
+                            else None)
     if fcurve is None:
         return np.zeros(0, dtype=int), np.zeros(0)
     frames, values, _ = key_frames_and_types(fcurve)

@@ -76,7 +76,8 @@ def track_poll_message(context):
 
 class TS_OT_track_keyframes(bpy.types.Operator):
     """Track the armature through the footage between its keyframes: keys every in-between
-    frame (drift-corrected) and adds residual and rank curves showing where it is unsure.
+    frame (drift-corrected) and adds curves showing where it is unsure (Footage Mismatch,
+    Movements Seen).
     Esc cancels and leaves everything as it was"""
 
     bl_idname = "track_and_stride.track_keyframes"

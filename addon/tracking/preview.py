@@ -8,7 +8,8 @@ why). Drawing only reads Blender data.
 import bpy
 
 from ..common.drawing import draw_vertical_lines
-from ..common.pose_bridge import RigError, rig_from_armature
+from ..common.pose_bridge import RigError
+from ..common.rig_bridge import cached_tracking_rig
 from .bridge import TrackError, choose_keyframes, frame_range
 from .props import track_settings
 
@@ -32,7 +33,7 @@ def preview_frames(context):
     if anim is None or anim.action is None:
         return []
     try:
-        rig = rig_from_armature(obj)
+        rig = cached_tracking_rig(obj)
         first, last = frame_range(scene, settings)
         choice, _ = choose_keyframes(scene, obj, rig, settings, first, last)
     except (RigError, TrackError):

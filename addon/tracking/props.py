@@ -4,6 +4,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
                        IntProperty, PointerProperty, StringProperty)
 
+from ...core.limits import hard
 from .cameras import TS_TrackCamera
 
 SETTINGS = "track_and_stride_track"
@@ -57,8 +58,10 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         items=(("SCENE", "Scene Range", "The scene's start to end frame"),
                ("CUSTOM", "Custom", "The frames set below")),
         default="SCENE")
-    frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)")
-    frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)")
+    frame_start: IntProperty(name="Start", default=1, description="First frame (Custom)",
+                             **hard("track_frame"))
+    frame_end: IntProperty(name="End", default=250, description="Last frame (Custom)",
+                           **hard("track_frame"))
     track_between: EnumProperty(
         name="Track Between",
         description="The keyed poses to track between. The other keys between the first and "
@@ -72,15 +75,16 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
                ("MARKERS", "Markers", "The keyed frames at the scene's timeline markers")),
         default="ALL")
     key_step: IntProperty(
-        name="N", default=10, min=2, soft_max=100,
+        name="N", default=10, soft_max=100, **hard("every"),
         description="Every Nth Key: track between every Nth keyed frame (10 on a capture keyed "
                     "at every frame = a pose every 10 frames)")
     iterations: IntProperty(
         name="Iterations", default=4, min=1, max=20,
         description="Drift-correction passes per interval (track, accumulate, correct, score; "
-                    "the pass with the smallest photometric error is kept)")
+                    "the pass whose bones best match the footage is kept; the paper's "
+                    "photometric error)")
     processes: IntProperty(
-        name="Processes", default=0, min=0, max=64,
+        name="Processes", default=0, **hard("processes"),
         description="Worker processes for the intervals (0 = automatic: Tracking Processes of "
                     "the add-on's preferences, one per CPU unless set there; at most one per "
                     "interval; 1 = all in Blender's process)")
@@ -89,13 +93,17 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         description="Also estimate motion along the camera's axis (rigid objects, whose size "
                     "changes measure depth; off for bodies, as in the paper)")
     rank_threshold: FloatProperty(
-        name="Rank Threshold", default=0.02, min=1e-4, max=0.5, precision=3,
-        description="Singular values below this fraction of the largest count as zero (hidden "
-                    "or textureless parts take the predicted motion)")
+        name="Visibility Cutoff", default=0.02, min=1e-4, max=0.5, precision=3,
+        description="How clearly the footage must show a movement for it to be tracked: "
+                    "movements the footage shows less clearly than this share of the clearest "
+                    "one follow the keys instead (the paper's rank threshold: singular values "
+                    "below this fraction of the largest count as zero: hidden or textureless "
+                    "parts take the predicted motion)")
     suggest_threshold: FloatProperty(
         name="Spike Threshold", default=3.5, min=1.0, max=20.0,
-        description="Robust z-score of the residual above which a frame counts as a spike "
-                    "(median and MAD over all tracked frames)")
+        description="How far a frame's mismatch with the footage must stand out from the "
+                    "clip's usual mismatch for Suggest Keyframes to mark it (robust z-score of "
+                    "the residual: median and MAD over all tracked frames)")
 
 
 def track_settings(scene):

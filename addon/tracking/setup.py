@@ -14,11 +14,13 @@ import bpy
 import numpy as np
 
 from ...core.tracking import find_table1_parts, table1_dof_mask
+from ...core.tracking.presets import MODEL_PARTS
 from ...core.tracking.dof_check import locked_axis_motion
 from .camera_bridge import render_size
 from ..common.fcurves import not_editable
 from .footage import FootageError, footage_from_clip
-from ..common.pose_bridge import RigError, read_pose, rig_from_armature
+from ..common.pose_bridge import RigError, read_pose
+from ..common.rig_bridge import MappedRig, tracking_rig
 from .bridge import TrackError, resolve_camera, resolve_footage
 from .keys import classify_frames
 
@@ -254,19 +256,43 @@ def apply_table1_dof(obj, frames=None):
         The bones the keys show turning about the axes now locked.
     """
     try:
-        rig = rig_from_armature(obj)
-        rig_name, parts = find_table1_parts(rig.bone_names)
+        rig = tracking_rig(obj)
+        if isinstance(rig, MappedRig):
+            rig_name = f"{rig.body_map.rig} body map"
+            parts = {p: (j if j in rig.skeleton.names else None) for p, j in MODEL_PARTS.items()}
+        else:
+            rig_name, parts = find_table1_parts(rig.bone_names)
+            rig_name += " bone names"
     except (RigError, ValueError) as exc:
         raise TrackError(f"{obj.name}: {exc}") from None
     mask, translation = table1_dof_mask(rig.skeleton, parts)
     warning = None if frames is None else _locked_motion_warning(obj, rig, mask, parts, *frames)
-    for k, name in enumerate(rig.bone_names):
-        obj.pose.bones[name].lock_rotation = [bool(v) for v in ~mask[k]]
+    for k, name in enumerate(_lock_bones(rig)):
+        if name is not None:
+            obj.pose.bones[name].lock_rotation = [bool(v) for v in ~mask[k]]
     skipped = [part for part, bone in parts.items() if bone is None]
     total = int(mask.sum()) + (3 if translation.any() and rig.root_location_mask.any() else 0)
     note = f"; no bone for {', '.join(skipped)}" if skipped else ""
-    return (f"Simplified Joints on {obj.name} ({rig_name} bone names): {total} degrees of "
+    return (f"Simplified Joints on {obj.name} ({rig_name}): {total} degrees of "
             f"freedom estimated, every other rotation axis locked{note}"), warning
+
+
+def _lock_bones(rig):
+    """Per joint, the bone whose ``lock_rotation`` says which of its axes are estimated: the
+    bone itself; a mapped rig's FK control when its rest frame is the joint's (else None:
+    an IK-driven or differently aligned joint keeps its axes)."""
+    if not isinstance(rig, MappedRig):
+        return list(rig.bone_names)
+    bones = rig.obj.data.bones
+    out = [None] * rig.skeleton.n_joints
+    for step in rig.steps:
+        if step.rule != "rotate":
+            continue
+        joint_rest = np.array(bones[rig.bone_names[step.joint]].matrix_local)[:3, :3]
+        control_rest = np.array(bones[step.control].matrix_local)[:3, :3]
+        if np.abs(joint_rest.T @ control_rest - np.eye(3)).max() < 1e-4:
+            out[step.joint] = step.control
+    return out
 
 
 def _locked_motion_warning(obj, rig, mask, parts, first, last):
@@ -277,9 +303,9 @@ def _locked_motion_warning(obj, rig, mask, parts, first, last):
     if len(keys) < 2:
         return None
     motion = locked_axis_motion(read_pose(rig, keys)[1], mask)
-    kept = [rig.bone_names.index(b) for b in parts.values()
-            if b is not None and b in rig.bone_names]
-    moving = sorted(((motion[j], rig.bone_names[j]) for j in kept
+    names = rig.skeleton.names
+    kept = [names.index(b) for b in parts.values() if b is not None and b in names]
+    moving = sorted(((motion[j], names[j]) for j in kept
                      if mask[j].any() and motion[j] > PRESET_WARN_DEGREES), reverse=True)
     if not moving:
         return None

@@ -12,10 +12,11 @@ import bpy
 import numpy as np
 
 from .camera_bridge import render_size
-from ..common.pose_bridge import RigError, rig_from_armature
+from ..common.pose_bridge import RigError
+from ..common.rig_bridge import cached_tracking_rig
 from .bridge import envelope_radii, frame_range
 from .cameras import draw_camera_list
-from .keys import PROP_RESIDUAL, classify_frames
+from .keys import PROP_RANK, PROP_RESIDUAL, classify_frames, has_confidence
 from .ops import track_poll_message
 from .bridge import TrackError, choose_keyframes          # Track Between's preview
 from . import preview
@@ -44,7 +45,7 @@ def _draw_armature(layout, context, settings):
     if settings.armature is None:
         col.label(text=f"Active: {obj.name}")
     try:
-        rig = rig_from_armature(obj)
+        rig = cached_tracking_rig(obj)
     except RigError as exc:
         col.label(text=str(exc), icon="ERROR")
         return obj
@@ -57,7 +58,7 @@ def _draw_armature(layout, context, settings):
     row.operator("track_and_stride.add_envelope_body", text="Body Mesh")
     col.operator("track_and_stride.fit_body_to_footage", icon="MOD_SHRINKWRAP")
     axes = int(np.count_nonzero(rig.dof_mask))
-    col.label(text=f"DOF: {axes} rotation axes unlocked (locks = not estimated)",
+    col.label(text=f"Tracks {axes} joint rotations (locked axes follow the keys)",
               icon="CON_ROTLIMIT")
     return obj
 
@@ -116,7 +117,7 @@ def _draw_frames(layout, context, settings, obj):
         row.prop(settings, "frame_start")
         row.prop(settings, "frame_end")
     row = col.row(align=True)
-    row.prop(settings, "track_between", text="")
+    row.prop(settings, "track_between", text="Between")
     if settings.track_between == "NTH":
         row.prop(settings, "key_step")
     first, last = frame_range(context.scene, settings)
@@ -128,7 +129,7 @@ def _draw_frames(layout, context, settings, obj):
 def _draw_poses(col, context, settings, obj, first, last):
     """The preview of *Track Between*: the poses tracked between, the keys replaced."""
     try:
-        rig = rig_from_armature(obj)
+        rig = cached_tracking_rig(obj)
         keys, tracked = classify_frames(obj, rig, first, last)
     except RigError:
         return
@@ -170,8 +171,9 @@ def draw_track_panel(layout, context, in_clip_editor=False):
         col.label(text=message, icon="INFO")
     col = layout.column(align=True)
     col.label(text="Where is tracking unsure?", icon="GRAPH")
-    if obj is not None and PROP_RESIDUAL in obj.keys():
-        col.label(text="Graph Editor: residual, rank and 'Tracked: <body part>' curves")
+    if obj is not None and has_confidence(obj):
+        col.label(text=f"Graph Editor: '{PROP_RESIDUAL}' (lower is better), "
+                       f"'{PROP_RANK}' (higher is better), 'Tracked: <body part>'")
     col.operator("track_and_stride.suggest_keyframes", icon="MARKER_HLT")
     col.prop(settings, "suggest_threshold")
 

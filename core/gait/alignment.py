@@ -133,7 +133,7 @@ def periodicity(values, fps, lag_range=(0.5, 2.0), peak_ratio=0.85):
     peaks = lags[is_peak]
     if len(peaks) == 0 or ac[peaks].max() <= 0:
         raise ValueError(f"no periodicity found between {lo_s} and {hi_s} s "
-                         "(autocorrelation has no positive peak)")
+                         "(no step repeats within that time)")
     best = ac[peaks].max()
     j = int(peaks[np.argmax(ac[peaks] >= peak_ratio * best)])
     # Parabolic interpolation through (j-1, j, j+1).
@@ -302,7 +302,7 @@ def align_sequences(sequences, fps, n_phase=51, mode="mean", lag_range=(0.5, 2.0
         Naming the sequence that is shorter than one cycle or has mismatched channels.
     """
     if len(sequences) == 0:
-        raise ValueError("need at least one training sequence")
+        raise ValueError("need at least one walk")
     seqs = [np.asarray(s, dtype=float) for s in sequences]
     width = seqs[0].shape[1] if seqs[0].ndim == 2 else None
     for i, s in enumerate(seqs):

@@ -75,8 +75,8 @@ def factorize(cycles, n_styles=None, energy=DEFAULT_ENERGY):
         n_styles = choose_n_styles(s, energy)
     n_styles = int(n_styles)
     if not 1 <= n_styles <= len(s):
-        raise ValueError(f"n_styles must be between 1 and {len(s)} (number of training "
-                         f"sequences), got {n_styles}")
+        raise ValueError(f"the style count must be between 1 and {len(s)} (the number of "
+                         f"walks learned from), got {n_styles}")
     styles = u[:, :n_styles] * s[:n_styles]
     bases = vt[:n_styles].reshape(n_styles, n_phase, n_ch)
     sign = np.where(styles.sum(axis=0) < 0, -1.0, 1.0)

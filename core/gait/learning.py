@@ -107,7 +107,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         Naming the sequence that is too short, has mismatched columns or misses channels.
     """
     if len(sequences) == 0:
-        raise ValueError("need at least one training sequence")
+        raise ValueError("need at least one walk")
     count = len(sequences)
     if alignment not in ALIGNMENT_MODES:
         raise ValueError(f"alignment must be one of {ALIGNMENT_MODES}, got {alignment!r}")
@@ -138,7 +138,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
             observed.append(dof_observations(seq, cols, model_fps, angle_names, root_travel,
                                              frame))
         except ValueError as exc:
-            raise ValueError(f"training sequence {i} ({names[i]}): {exc}") from None
+            raise ValueError(f"the walk {names[i]}: {exc}") from None
 
     n_angles = len(angle_names)
     stacked = np.vstack(observed)
@@ -164,7 +164,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         message = str(exc)
         if message.startswith("sequence "):
             index = int(message.split()[1].rstrip(":"))
-            message = f"training sequence {index} ({names[index]}):" + message.split(":", 1)[1]
+            message = f"the walk {names[index]}:" + message.split(":", 1)[1]
         raise ValueError(message) from None
     styles, bases, singular = factorize(aligned.cycles, n_styles, energy)
     if refinement == "map":

@@ -395,7 +395,8 @@ class GaitModel:
                 RuntimeError) as exc:
             # NotImplementedError / RuntimeError: a damaged entry header naming an unsupported
             # compression method.
-            raise GaitModelFileError(f"{source}: not a gait model file ({exc})") from None
+            raise GaitModelFileError(f"{source}: not a gait model file: "
+                                     f"{_unreadable_reason(bytes(data[:4]), exc)}") from None
         return cls._from_arrays(arrays, source)
 
     @classmethod
@@ -467,3 +468,20 @@ def checksum(arrays):
         digest.update(f"{name}|{value.dtype.str}|{value.shape}|".encode())
         digest.update(value.tobytes())
     return digest.hexdigest()
+
+
+def _unreadable_reason(head, exc):
+    """Why bytes starting with ``head`` are not a model file, in plain words (NumPy's own
+    messages speak of pickles and ``allow_pickle``, and some repeat the path)."""
+    if not head:
+        return "the file is empty"
+    if head[:2] != b"PK":
+        return ("it is another kind of file (a model file is a NumPy .npz archive exported by "
+                "Track & Stride)")
+    if isinstance(exc, EOFError) or "truncated" in str(exc).lower() or \
+            "end-of-central-directory" in str(exc).lower() or isinstance(exc, zipfile.BadZipFile):
+        return "the archive is damaged or cut short (copy the file again)"
+    if "pickle" in str(exc).lower() or "object arrays" in str(exc).lower():
+        return ("it holds Python objects, which a model file never does (not made by Track & "
+                "Stride, or altered)")
+    return "its contents are damaged (an array cannot be read)"

@@ -54,12 +54,17 @@ class FrameGrid:
     scales : array_like, shape (sum(counts),)
         Factor from file units to core units of each value (metres or radians), for the
         magnitude check.
+    limits : array_like, shape (sum(counts),), optional
+        Largest |value| in core units of each value (default :data:`._text.MAX_MAGNITUDE`);
+        a frame beyond is left to the line-by-line parser, which names the line.
     """
 
-    def __init__(self, names, counts, scales):
+    def __init__(self, names, counts, scales, limits=None):
         self.names = [np.frombuffer(n.encode("utf-8"), dtype=np.uint8) for n in names]
         self.counts = np.asarray(counts, dtype=int)
         self.scales = np.asarray(scales, dtype=float)
+        self.limits = (np.full(self.scales.shape, MAX_MAGNITUDE) if limits is None
+                       else np.asarray(limits, dtype=float))
         self.lines_per_frame = 1 + len(names)
         self.values_per_line = np.concatenate(([1], self.counts))
 
@@ -201,7 +206,7 @@ def _check_and_parse(body, starts, grid, first, stop):
     parsed = parsed.reshape(frames, width)
     values = parsed[:, 1:]
     with np.errstate(over="ignore", invalid="ignore"):
-        if not np.all(np.abs(values * grid.scales) <= MAX_MAGNITUDE):
+        if not np.all(np.abs(values * grid.scales) <= grid.limits):
             return None
     return parsed[:, 0].astype(np.int64), values
 

@@ -9,10 +9,15 @@ rotations applied to a root location, interpolation) can overflow to ``inf``.
 import gzip
 import math
 
+from ..limits import MAX_ANGLE_DEGREES
 from .errors import MocapParseError
 
 # Largest |value| in metres or radians a reader lets through (see the module docstring).
 MAX_MAGNITUDE = 1e30
+# Largest |angle| a reader lets through, radians: 10 000 degrees (``core.limits``), 28 turns. A
+# joint angle is a rotation of a few turns at most; a larger one is a corrupt or mis-scaled file
+# (and would key bones spinning thousands of times between two frames).
+MAX_ANGLE = math.radians(MAX_ANGLE_DEGREES)
 
 # Characters other than "\n" and "\r" that str.splitlines() treats as line breaks.
 _EXOTIC_BREAKS = "\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
@@ -89,7 +94,22 @@ def check_magnitude(value, scale, path, line, what, unit):
         ``value * scale``.
     """
     converted = float(value) * float(scale)            # Python floats: overflow gives inf
+    if unit == "radians" and not abs(converted) <= MAX_ANGLE:
+        raise MocapParseError(path, line, f"{what} is {_angle_text(value, scale)}, beyond "
+                              f"{MAX_ANGLE_DEGREES:g} degrees: a joint turns a few times at "
+                              "most, so the file is damaged or not in the units its header says")
     if not abs(converted) <= MAX_MAGNITUDE:            # also catches inf from the product
         raise MocapParseError(path, line, f"{what} is too large in {unit} (|value| above "
                               f"{MAX_MAGNITUDE:g} {unit}: no real capture comes near)")
     return converted
+
+
+def max_magnitude(unit):
+    """Largest |value| a reader accepts in core ``unit`` ('metres' or 'radians')."""
+    return MAX_ANGLE if unit == "radians" else MAX_MAGNITUDE
+
+
+def _angle_text(value, scale):
+    """'1e+12 degrees' (or radians): the value as the file gives it, with its unit."""
+    in_degrees = abs(float(scale) - math.pi / 180.0) < 1e-15
+    return f"{float(value):g} {'degrees' if in_degrees else 'radians'}"

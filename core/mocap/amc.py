@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._amc_grid import FrameGrid, line_starts, parse_regular_frames
-from ._text import check_magnitude, normalised_bytes, parse_float, read_bytes
+from ._text import check_magnitude, max_magnitude, normalised_bytes, parse_float, read_bytes
 from .acclaim_skeleton import YUP_TO_ZUP, channel_layout
 from .asf import _fmt
 from .errors import MocapParseError
@@ -138,7 +138,8 @@ def parse_amc_steps(source, asf, path="<string>", fps=None):
         numbers, values, stop_line = np.empty(0, dtype=np.int64), np.empty((0, layout.n_channels)), 0
     else:
         grid = FrameGrid(grid_bones, [layout.bone_counts[b] for b in grid_bones],
-                         np.concatenate([units.scales[b] for b in grid_bones]))
+                         np.concatenate([units.scales[b] for b in grid_bones]),
+                         [max_magnitude(u) for b in grid_bones for u in units.names[b]])
         numbers, values, stop_line = yield from parse_regular_frames(
             body, starts, grid, order=_layout_order(grid_bones, layout))
     bone_order = tuple(grid_bones) if grid_bones is not None and len(numbers) else None
@@ -361,7 +362,7 @@ def _parse_slow(lines, layout, start, path, units, previous=None):
             raise MocapParseError(path, line, f"bone {head!r} needs {count} values, got {len(parts) - 1}")
         values = [parse_float(p, path, line, f"bone {head!r}") for p in parts[1:]]
         for value, token, scale, unit in zip(values, parts[1:], units.scales[head], units.names[head]):
-            what = (f"root position {token}" if unit == "metres" else f"bone {head!r}: angle {token}")
+            what = (f"root position {token}" if unit == "metres" else f"bone {head!r}: angle")
             check_magnitude(value, scale, path, line, what, unit)
         current[head] = values
     if current is None:

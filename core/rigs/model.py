@@ -190,3 +190,76 @@ def model_skeleton(body_map, names, parents, rest_matrices, lengths, metres_per_
                          pose_offsets=pose_offsets,
                          regions=tuple(body_region(p) for p in parts),
                          metres_per_unit=float(metres_per_unit))
+
+
+#: Anatomical joints of the model skeleton, as the CMU skeleton's own DOFs have them (its ASF:
+#: tibia and radius ``rx``, toes ``rx``; foot ``rx rz`` and clavicle ``ry rz``, i.e. no turn
+#: about their own length): knees, elbows and toes are hinges, feet and clavicles do not twist.
+HINGES = ("shin", "forearm", "toe")
+NO_TWIST = ("foot", "clavicle")
+#: A hinge's axis (from the keyed poses or the rest pose) must lie this close to the joint
+#: frame's X or Z axis to become that axis; otherwise the joint keeps its axes.
+HINGE_ALIGNMENT = np.radians(30.0)
+
+
+def _hinge_axis(model, j, key_local):
+    """The bend axis (3,) of joint ``j`` in its own frame: the mean rotation axis of its keyed
+    local rotations (weighted by their angles), else the bend of the rest pose, else None."""
+    from ..kinematics import log_so3
+    vectors = log_so3(np.asarray(key_local)[:, j]) if key_local is not None else np.zeros((0, 3))
+    angles = np.linalg.norm(vectors, axis=-1)
+    bent = angles > np.radians(5.0)
+    if np.any(bent):
+        axes = vectors[bent] / angles[bent, None]
+        ref = axes[np.argmax(angles[bent])]
+        signs = np.where(axes @ ref < 0, -1.0, 1.0)
+        mean = (axes * (signs * angles[bent])[:, None]).sum(axis=0)
+        if np.linalg.norm(mean) > 0:
+            return mean / np.linalg.norm(mean)
+    sk = model.skeleton
+    p = sk.parents[j]
+    if p < 0:
+        return None
+    parent_dir = sk.rest_rotations[j].T @ (sk.tails[p] / max(np.linalg.norm(sk.tails[p]), 1e-12))
+    own = np.array([0.0, 1.0, 0.0])
+    axis = np.cross(parent_dir, own)
+    if np.linalg.norm(axis) < np.sin(np.radians(2.0)):
+        return None
+    return axis / np.linalg.norm(axis)
+
+
+def anatomical_dof_mask(model, dof_mask, key_local=None):
+    """The DOF mask with the anatomy the CMU skeleton has: a knee, elbow or toe estimated about
+    its bend axis only (found from the keyed poses or the rest pose, when it is the joint
+    frame's X or Z axis within :data:`HINGE_ALIGNMENT`; Blender's rigs bend about X), a foot or
+    clavicle not about its own length (Y). Only primary joints of those parts change.
+
+    Parameters
+    ----------
+    model : ModelSkeleton
+    dof_mask : array_like, shape (J, 3), bool
+    key_local : array_like, shape (K, J, 3, 3), optional
+        Local rotations of the keyed poses.
+
+    Returns
+    -------
+    ndarray, shape (J, 3), bool
+    """
+    mask = np.array(dof_mask, dtype=bool)
+    for j, part in enumerate(model.parts):
+        if not model.primary[j] or not mask[j].any():
+            continue
+        kind = part.split(" ", 1)[-1]
+        if kind in NO_TWIST:
+            mask[j, 1] = False
+        elif kind in HINGES:
+            axis = _hinge_axis(model, j, key_local)
+            if axis is None:
+                continue
+            for a in (0, 2):
+                if np.arccos(min(1.0, abs(axis[a]))) < HINGE_ALIGNMENT:
+                    keep = np.zeros(3, dtype=bool)
+                    keep[a] = True
+                    mask[j] &= keep
+                    break
+    return mask

@@ -140,13 +140,22 @@ def _template_parts(torso, arm, leg):
     return out
 
 
+# Rigify's spine and neck are read from their DEF- bones (stretched between tweak bones, they
+# follow the bend Rigify gives them between hips, chest and head; their ORG- twins follow the
+# hips and the neck control rigidly, 1.9 cm off at the chest in a walk); the limbs, hips,
+# chest and head from their ORG- bones (the whole twist of their controls).
+# Rigify's and the metarig's pelvis and breast bones deform the flesh around the hips and the
+# chest but are no part of the skeleton (the thighs hang from the hips, the clavicles from the
+# chest): they are left out of the body like face and finger bones, so that whatever envelope
+# radii they came with never become a shape of the tracked body.
+
+
 def _rigify_template():
     torso = {
-        "hips": (("DEF-spine", "DEF-pelvis.L", "DEF-pelvis.R"), "hips", "ORG-spine", None),
-        "spine": (("DEF-spine.001", "DEF-spine.002"), None, "ORG-spine.001", None),
-        "chest": (("DEF-spine.003", "DEF-breast.L", "DEF-breast.R"), "chest", "ORG-spine.003",
-                  None),
-        "neck": (("DEF-spine.004", "DEF-spine.005"), "neck", "ORG-spine.004", None),
+        "hips": (("DEF-spine",), "hips", "ORG-spine", None),
+        "spine": (("DEF-spine.001", "DEF-spine.002"), None, None, None),
+        "chest": (("DEF-spine.003",), "chest", "ORG-spine.003", None),
+        "neck": (("DEF-spine.004", "DEF-spine.005"), "neck", None, None),
         "head": (("DEF-spine.006",), "head", "ORG-spine.006", None),
     }
     arm = {
@@ -178,9 +187,9 @@ def _rigify_template():
 
 def _metarig_template():
     torso = {
-        "hips": (("spine", "pelvis.L", "pelvis.R"), "spine", None, None),
+        "hips": (("spine",), "spine", None, None),
         "spine": (("spine.001", "spine.002"), "spine.001", None, None),
-        "chest": (("spine.003", "breast.L", "breast.R"), "spine.003", None, None),
+        "chest": (("spine.003",), "spine.003", None, None),
         "neck": (("spine.004", "spine.005"), "spine.004", None, None),
         "head": (("spine.006",), "spine.006", None, None),
     }
@@ -379,6 +388,21 @@ def with_ik_constraints(body_map, rig):
     return BodyMap(rig=body_map.rig, parts=parts, travel=body_map.travel, limbs=limbs)
 
 
+def best_body_map(rig):
+    """The body map that names the most required parts of ``rig`` among every recognised
+    kind and the name patterns (:func:`pattern_body_map`), missing parts and all: what the
+    Body Map panel's *Auto-Fill* puts in for the animator to complete."""
+    names = set(rig.names)
+    candidates = []
+    for template, args in _signatures(names):
+        kind, parts, travel, limbs = template(*args)
+        if template is _mixamo_template:
+            parts = _mixamo_chest_fallback(parts, names)
+        candidates.append(_body_map_from_template(kind, parts, travel, limbs, rig))
+    candidates.append(pattern_body_map(rig))
+    return min(candidates, key=lambda m: len(m.missing()))
+
+
 def recognise_body_map(rig):
     """The body map of a recognised rig (module docstring).
 
@@ -396,21 +420,24 @@ def recognise_body_map(rig):
     BodyMapError
         The rig is none of the recognised kinds and its bone names do not name the parts
         (:func:`pattern_body_map`), or it lacks parts: the message names the kind it looks
-        like and the missing parts, and points at the Body Map panel.
+        like and the missing parts, and points at the Body Map panel. Its attribute ``rig``
+        is that kind (``'Custom'`` when only name patterns matched).
     """
-    names = set(rig.names)
-    candidates = []
-    for template, args in _signatures(names):
-        kind, parts, travel, limbs = template(*args)
-        if template is _mixamo_template:
-            parts = _mixamo_chest_fallback(parts, names)
-        candidates.append(_body_map_from_template(kind, parts, travel, limbs, rig))
-    candidates.append(pattern_body_map(rig))
-    best = min(candidates, key=lambda m: len(m.missing()))
-    if best.missing():
-        raise BodyMapError(f"This looks like a {best.rig} rig, but Track & Stride cannot find "
-                           f"its {plain_list(best.missing())}: name them in the Body Map panel "
-                           "(Track & Stride tab › Body Map)")
+    best = best_body_map(rig)
+    missing = best.missing()
+    if missing:
+        if best.rig == "Custom" and len(best.parts) < 4:
+            error = BodyMapError("Track & Stride does not recognise this rig as a humanoid "
+                                 "(Rigify, Blender's metarig, Mixamo, Auto-Rig Pro, CMU) and "
+                                 "its bone names do not say which bones are the hips, legs and "
+                                 "arms: name them in the Body Map panel (Track & Stride tab › "
+                                 "Body Map)")
+        else:
+            error = BodyMapError(f"This looks like a {best.rig} rig, but Track & Stride cannot "
+                                 f"find its {plain_list(missing)}: name them in the Body Map "
+                                 "panel (Track & Stride tab › Body Map)")
+        error.rig = best.rig
+        raise error
     return best
 
 

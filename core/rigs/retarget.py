@@ -38,13 +38,10 @@ def orthonormal(rotations):
     """Nearest rotations (polar decomposition) of (..., 3, 3) matrices (removes scale and
     float32 noise)."""
     u, _, vt = np.linalg.svd(np.asarray(rotations, dtype=float))
-    r = u @ vt
-    bad = np.linalg.det(r) < 0
-    if np.any(bad):
-        u = u.copy()
-        u[bad, :, -1] *= -1
-        r = u @ vt
-    return r
+    flip = np.where(np.linalg.det(u @ vt) < 0, -1.0, 1.0)       # a reflection: flip u's last axis
+    u = u.copy()
+    u[..., :, -1] *= flip[..., None]
+    return u @ vt
 
 
 def rigid(matrices):

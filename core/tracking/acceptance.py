@@ -228,6 +228,24 @@ def body_parts(names, parents):
     return tuple(PART_NAMES[k] for k in present), remap[full]
 
 
+def parts_from_regions(regions):
+    """:func:`body_parts`'s answer from a body part name per joint (``PART_NAMES``)."""
+    unknown = sorted(set(regions) - set(PART_NAMES))
+    if unknown:
+        raise ValueError(f"unknown body parts {unknown}; known: {list(PART_NAMES)}")
+    present = [name for name in PART_NAMES if name in regions]
+    return tuple(present), np.array([present.index(r) for r in regions], dtype=int)
+
+
+def problem_parts(problem):
+    """The body parts of a tracking problem: its ``regions`` when given, else guessed from
+    the joint names (:func:`body_parts`)."""
+    if getattr(problem, "regions", None) is not None:
+        return parts_from_regions(problem.regions)
+    sk = problem.skeleton
+    return body_parts(sk.names, sk.parents)
+
+
 def _part_points(skeleton, roots, local):
     """Heads and tails (F, B, 2, 3) of every bone."""
     rot, pos = forward_kinematics(skeleton, local, roots)

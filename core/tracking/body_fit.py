@@ -67,7 +67,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body_model import body_model_from_skeleton, joint_frames_in_camera, part_geometry, ray_cast
+from .body_model import (BodyModel, body_model_from_skeleton, joint_frames_in_camera,
+                         part_geometry, ray_cast)
 from .image import gaussian_blur, pyr_down, sample_with_gradient
 
 __all__ = ["BodyFit", "BodyFitError", "BodyFitOptions", "fit_body_radii",
@@ -78,6 +79,10 @@ _NEAR = 1e-2
 # Smallest median score a contrast is taken against (units of a profile's mean edge strength):
 # keeps the contrast finite on a textureless image (median 0).
 _MEDIAN_FLOOR = 0.1
+# Profile samples (keys x positions x sides x radii) of the bones measured at once: the peak
+# memory of a fit is this budget (about 0.5 KB a sample: 500 MB at most), whatever the count
+# of bones (a 706-bone rig) and the image size; the votes kept per bone are 8 bytes a sample.
+PROFILE_BUDGET = 1 << 20
 
 
 class BodyFitError(ValueError):
@@ -304,7 +309,11 @@ def _profiles(model, camera, frames, rotations, origins, grid, upper, occluders,
     # Occlusion by other parts nearer the camera than this bone's axis (the tracker's caster).
     hits = ray_cast(occluders, camera, rotations, origins, flat_pix, frames=idx[0])
     s = np.asarray(o.positions, dtype=float)
-    r_now = occluders.radii[:, :1] + (occluders.radii[:, 1:] - occluders.radii[:, :1]) * s
+    # The occluders' current radii of these parts (the model may be some of the bones only).
+    row = np.minimum(np.searchsorted(occluders.joints, model.joints), occluders.n_cylinders - 1)
+    now = np.where((occluders.joints[row] == model.joints)[:, None], occluders.radii[row],
+                   model.radii)
+    r_now = now[:, :1] + (now[:, 1:] - now[:, :1]) * s
     reach = depth + o.overlap_depth * r_now                             # (K, P, S)
     occluded = (hits.hit & (hits.joints != np.asarray(model.joints)[idx[1]])
                 & (hits.depth < reach[idx[:3]]))
@@ -389,15 +398,32 @@ def _taper_vote(vote, voted, grid, upper, allowed, current, options):
 
 
 def _view_votes(model, occluders, camera, frames, rotations, origins, grid, upper, options):
-    """Votes of one camera: (K, P, S, G); voted, end_on, seen (K, P, S); level."""
+    """Votes of one camera: (K, P, S, G); voted, end_on, seen (K, P, S); level. Bones are
+    measured a few at a time (:data:`PROFILE_BUDGET` profile samples)."""
     o = options
     level = _level_for(camera, origins, o)
     cam = camera.at_level(level)
     work = _working_frames(frames, level, o.blur_sigma)
-    strength, mask, end_on, seen = _profiles(model, cam, work, rotations, origins, grid, upper,
-                                       occluders, o)
-    vote, voted = _votes(strength, mask, int(round(o.max_offset / o.radius_step)), o.one_side)
+    per_bone = len(frames) * len(o.positions) * 2 * len(grid)
+    step = max(1, PROFILE_BUDGET // max(per_bone, 1))
+    parts = []
+    for first in range(0, model.n_cylinders, step):
+        some = _some_parts(model, slice(first, first + step))
+        strength, mask, end_on, seen = _profiles(some, cam, work, rotations, origins, grid,
+                                                 upper[first:first + step], occluders, o)
+        parts.append(_votes(strength, mask, int(round(o.max_offset / o.radius_step)),
+                            o.one_side) + (end_on, seen))
+        del strength, mask
+    vote, voted, end_on, seen = (np.concatenate([p[i] for p in parts], axis=1)
+                                 for i in range(4))
     return vote, voted, end_on, seen, level
+
+
+def _some_parts(model, which):
+    """The cylinders ``which`` (a slice) of ``model`` as a body model of their own."""
+    return BodyModel(n_joints=model.n_joints, joints=model.joints[which],
+                     starts=model.starts[which], ends=model.ends[which],
+                     radii=model.radii[which], names=model.names[which])
 
 
 def fit_body_radii(skeleton, radii, cameras, frames, key_roots, key_locals, options=None,

@@ -23,6 +23,10 @@ import numpy as np
 
 # Parts closer to the camera plane than this (metres) get a full-image bounding box.
 _NEAR = 1e-3
+# (ray, part) cells handled at once by :func:`ray_cast` and the front-most search: the peak
+# memory of a call is a fixed budget (about 40 bytes a cell: 40 MB), whatever the count of
+# parts (a 706-bone rig has 455) and of rays (a profile search casts millions).
+PAIR_BUDGET = 1 << 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -410,15 +414,35 @@ def _pair_hits(model, geo, d, ray_idx, part_idx, frames):
 
 
 def _front_most(model, d, ray_idx, part_idx, t, face):
-    """Per ray, the nearest hit among its pairs: (hit, depth, parts, face)."""
-    m = len(d)
-    t_mat = np.full((m, model.n_parts), np.inf)
+    """Per ray, the nearest hit among its pairs: (hit, depth, parts, face). Ties go to the
+    lower part index. Rays are taken :data:`PAIR_BUDGET` cells (rays x parts) at a time."""
+    m, n = len(d), model.n_parts
+    step = max(1, PAIR_BUDGET // max(n, 1))
+    if m <= step:
+        return _front_most_block(m, n, ray_idx, part_idx, t, face)
+    order = np.argsort(ray_idx, kind="stable")          # pairs grouped by ray, order kept
+    ray_idx, part_idx, t, face = ray_idx[order], part_idx[order], t[order], face[order]
+    cuts = np.searchsorted(ray_idx, np.arange(0, m + step, step))
+    hit, depth = np.zeros(m, dtype=bool), np.full(m, np.inf)
+    parts, faces = np.full(m, -1), np.zeros(m, dtype=np.int8)
+    for k, first in enumerate(range(0, m, step)):
+        stop = min(m, first + step)
+        lo, hi = cuts[k], cuts[k + 1]
+        block = _front_most_block(stop - first, n, ray_idx[lo:hi] - first, part_idx[lo:hi],
+                                  t[lo:hi], face[lo:hi])
+        hit[first:stop], depth[first:stop], parts[first:stop], faces[first:stop] = block
+    return hit, depth, parts, faces
+
+
+def _front_most_block(m, n, ray_idx, part_idx, t, face):
+    """:func:`_front_most` of rays ``0 .. m - 1`` over a dense (m, n) table."""
+    t_mat = np.full((m, n), np.inf)
     t_mat[ray_idx, part_idx] = t
     parts = np.argmin(t_mat, axis=1)
     rows = np.arange(m)
     depth = t_mat[rows, parts]
     hit = np.isfinite(depth)
-    face_mat = np.zeros((m, model.n_parts), dtype=np.int8)
+    face_mat = np.zeros((m, n), dtype=np.int8)
     face_mat[ray_idx, part_idx] = face
     return hit, depth, np.where(hit, parts, -1), face_mat[rows, parts]
 
@@ -438,7 +462,8 @@ def ray_cast(model, camera, rotations, origins, pixels, frames=None, normals=Fal
     """Front-most body surface point seen through each pixel (occlusion between parts).
 
     Every ray is intersected with every part whose conservative bounding box
-    (:func:`part_bounds`) contains the pixel; the nearest intersection wins.
+    (:func:`part_bounds`) contains the pixel; the nearest intersection wins. Rays are cast
+    :data:`PAIR_BUDGET` (ray, part) cells at a time (fixed peak memory).
 
     Parameters
     ----------
@@ -473,9 +498,22 @@ def ray_cast(model, camera, rotations, origins, pixels, frames=None, normals=Fal
     geo = part_geometry(model, rotations, origins) if geometry is None else geometry
     if bounds is None:
         bounds = part_bounds(model, camera, geo)
+    step = max(1, PAIR_BUDGET // max(model.n_parts, 1))
+    if m <= step:
+        return _cast(model, camera, geo, bounds, pixels, frames, normals)
+    blocks = [_cast(model, camera, geo, bounds, pixels[a:a + step], frames[a:a + step], normals)
+              for a in range(0, m, step)]
+    return RayHits(**{name: (None if getattr(blocks[0], name) is None else
+                             np.concatenate([getattr(b, name) for b in blocks]))
+                      for name in ("hit", "points", "depth", "parts", "joints", "normals")})
+
+
+def _cast(model, camera, geo, bounds, pixels, frames, normals):
+    """:func:`ray_cast` of a block of rays (all at once)."""
     b = bounds[frames]                                   # (M, P + Q, 4)
     u, v = pixels[:, 0:1], pixels[:, 1:2]
     inside = (u >= b[..., 0]) & (u <= b[..., 1]) & (v >= b[..., 2]) & (v <= b[..., 3])
+    del b
     ray_idx, part_idx = np.nonzero(inside)
     return _hits(model, geo, camera.rays(pixels, only=ray_idx), frames, ray_idx, part_idx, normals)
 

@@ -88,6 +88,16 @@ RIG_PARTS = {
                                  ("forearm.L", "forearm.R")),
 }
 
+#: Table 1 parts on the model skeleton of a rig seen through its body map (``core.rigs``:
+#: joints named after the body parts).
+MODEL_PARTS = {
+    "Waist": "hips", "Chest": "chest", "Head": "head",
+    "Left thigh": "left thigh", "Right thigh": "right thigh",
+    "Left shin": "left shin", "Right shin": "right shin",
+    "Left upper arm": "left upper arm", "Right upper arm": "right upper arm",
+    "Left forearm": "left forearm", "Right forearm": "right forearm",
+}
+
 #: A rig must name at least this many Table 1 parts (including the Waist) to be recognised.
 MIN_TABLE1_PARTS = 7
 
@@ -120,8 +130,9 @@ def find_table1_parts(bone_names):
     n_found = sum(b is not None for b in found.values())
     if found["Waist"] is None or n_found < MIN_TABLE1_PARTS:
         missing = [bone for bone in preset.values() if bone not in names]
-        raise ValueError(f"not a humanoid rig the Table 1 preset knows (CMU, CMU BVH, Mixamo, "
-                         f"Blender metarig); closest: {best}, missing {', '.join(missing)}")
+        raise ValueError(f"Simplified Joints knows the bone names of CMU, CMU BVH, Mixamo and "
+                         f"Blender's metarig, and this rig is none of them (closest: {best}, "
+                         f"missing {', '.join(missing)})")
     return best, found
 
 
@@ -161,7 +172,7 @@ def table1_dof_mask(skeleton, parts=None):
     parts = CMU_PARTS if parts is None else parts
     unknown = set(parts) - set(TABLE1)
     if unknown:
-        raise ValueError(f"not Table 1 parts: {sorted(unknown)}; known: {list(TABLE1)}")
+        raise ValueError(f"unknown body parts {sorted(unknown)}; known: {list(TABLE1)}")
     mask = np.zeros((skeleton.n_joints, 3), dtype=bool)
     translation = np.zeros(3, dtype=bool)
     for part, joint in parts.items():

@@ -39,6 +39,11 @@ class TrackingProblem:
         skeleton's ``dof_axes``. Joints whose subtree has no body part are never estimated.
     translation_mask : array_like, shape (3,), bool, optional
         Root translation axes (root frame) estimated; default all.
+    regions : sequence of str, optional
+        Body part of every joint for the per-part acceptance (``'torso and head'``,
+        ``'left arm'``, ``'right arm'``, ``'left leg'``, ``'right leg'``: a rig's body map
+        knows them, ``core.rigs.body_region``); default: guessed from the joint names
+        (:func:`~.acceptance.body_parts`).
 
     Attributes
     ----------
@@ -60,6 +65,7 @@ class TrackingProblem:
     camera: PinholeCamera
     dof_mask: np.ndarray = None
     translation_mask: np.ndarray = None
+    regions: tuple = None
     cameras: tuple = field(init=False)
     layout: object = field(init=False)
     ancestors: np.ndarray = field(init=False)
@@ -78,6 +84,12 @@ class TrackingProblem:
             raise TrackingError("camera must be a PinholeCamera or a non-empty sequence of them")
         object.__setattr__(self, "cameras", cameras)
         object.__setattr__(self, "camera", cameras[0])
+        if self.regions is not None:
+            regions = tuple(str(r) for r in self.regions)
+            if len(regions) != self.skeleton.n_joints:
+                raise TrackingError(f"Expected {self.skeleton.n_joints} regions, got "
+                                    f"{len(regions)}")
+            object.__setattr__(self, "regions", regions)
         layout = motion_layout(self.skeleton, self.dof_mask, self.translation_mask, self.body)
         object.__setattr__(self, "layout", layout)
         object.__setattr__(self, "dof_mask", layout.dof_mask)

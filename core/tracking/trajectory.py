@@ -29,7 +29,7 @@ import numpy as np
 
 from ..kinematics import euler_to_matrix, exp_so3, log_so3, matrix_to_euler
 from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, blend_trajectories,
-                         blend_weights, body_parts, judge_parts, keep_interpolation,
+                         blend_weights, judge_parts, keep_interpolation, problem_parts,
                          part_distances, seen_shares)
 from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_geometry,
                          sample_silhouette)
@@ -729,7 +729,7 @@ def _accept_parts(problem, options, views, start, end, scores):
     :class:`~.acceptance.PartVerdicts`.
     """
     sk = problem.skeleton
-    names, part_of = body_parts(sk.names, sk.parents)
+    names, part_of = problem_parts(problem)
     best, interp = scores.best, scores.initial
     nan = np.full(len(names), np.nan)
     gap = nan.copy()

@@ -152,7 +152,7 @@ def test_a_frame_offset_is_applied_and_short_footage_is_refused_by_name(folders)
     assert datablock_counts() == counts
     same_keys(before, snapshot(obj))
     assert snapshot(obj).keys() == before.keys()
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
 
 
 class ListLayout(RecordingLayout):

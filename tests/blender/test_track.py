@@ -93,14 +93,14 @@ def test_image_sequence_tracks_like_the_core_and_the_ground_truth(walk_folder, w
     np.testing.assert_allclose(roots, core.root_translations, atol=2e-6)
     # Confidence curves: eq. 4 residual and rank of every frame pair, as the core says.
     bag = channelbag(obj)
-    residual = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_residual"]'))
-    rank = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["track_and_stride_rank"]'))
+    residual = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["Footage Mismatch"]'))
+    rank = bridge("common.fcurves").keyframe_state(bag.fcurves.find('["Movements Seen"]'))
     assert residual["co"][:, 0].tolist() == list(range(2, N_FRAMES + 1))
     np.testing.assert_allclose(residual["co"][:, 1],
                                np.concatenate([r.residuals for r in core.intervals]), rtol=1e-6)
     np.testing.assert_array_equal(rank["co"][:, 1], np.concatenate([r.ranks for r in core.intervals]))
     assert 0 < rank["co"][:, 1].min() and rank["co"][:, 1].max() <= request.problem.layout.n_params - 1
-    assert obj.id_properties_ui("track_and_stride_residual").as_dict()["description"]
+    assert obj.id_properties_ui("Footage Mismatch").as_dict()["description"]
     # Tracked keys are marked 'GENERATED'; the keyframes keep their type.
     fcurve = bag.fcurves.find('pose.bones["lfemur"].rotation_euler', index=0)
     types = {int(round(k.co[0])): k.type for k in fcurve.keyframe_points}
@@ -222,7 +222,7 @@ def test_refusals_explain_and_change_nothing(walk_folder, breaks, message):
     after = snapshot(obj)
     assert after.keys() == before.keys()
     same_keys(before, after)
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
 
 
 def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
@@ -241,7 +241,7 @@ def test_a_linked_armature_is_refused_and_left_as_it_was(walk_folder, tmp_path):
     assert datablock_counts() == counts
     assert snapshot(obj).keys() == before.keys()
     same_keys(before, snapshot(obj))
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
     assert [tuple(pb.lock_rotation) for pb in obj.pose.bones] == locks
     assert (obj.data.display_type, obj.show_in_front) == (display, in_front)
 
@@ -261,7 +261,7 @@ def test_a_modifier_added_while_tracking_stops_the_write(walk_folder):
     assert datablock_counts() == counts
     assert snapshot(obj).keys() == before.keys()
     same_keys(before, snapshot(obj))
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
 
 
 def test_cancel_leaves_everything_as_it_was(walk_folder):
@@ -347,7 +347,7 @@ def test_undo_restores_the_file_in_one_step(walk_folder):
     after = snapshot(obj)
     assert after.keys() == before.keys()
     same_keys(before, after)
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
 
 
 def test_suggestions_mark_a_damaged_frame(walk_folder, tmp_path):
@@ -367,7 +367,7 @@ def test_suggestions_mark_a_damaged_frame(walk_folder, tmp_path):
     markers = [m for m in bpy.context.scene.timeline_markers if m.name.startswith("Key here? ")]
     # Plain names: the frame's residual over the clip's median residual.
     curve = bridge("common.fcurves").keyframe_state(
-        channelbag(obj).fcurves.find('["track_and_stride_residual"]'))["co"]
+        channelbag(obj).fcurves.find('["Footage Mismatch"]'))["co"]
     usual = np.median(curve[:, 1])
     ratios = []
     for m in markers:
@@ -410,7 +410,7 @@ def test_table1_dof_locks_the_papers_axes(walk_folder):
     settings().processes = 1
     assert bpy.ops.track_and_stride.track_keyframes() == {"FINISHED"}
     rank = bridge("common.fcurves").keyframe_state(channelbag(obj).fcurves.find(
-        '["track_and_stride_rank"]'))["co"][:, 1]
+        '["Movements Seen"]'))["co"][:, 1]
     assert rank.max() <= 22
     # A non-humanoid armature is refused by name.
     data = bpy.data.armatures.new("Crane")
@@ -421,7 +421,7 @@ def test_table1_dof_locks_the_papers_axes(walk_folder):
     data.edit_bones.new("Boom").tail = (0, 1, 0)
     bpy.ops.object.mode_set(mode="OBJECT")
     settings().armature = crane
-    with pytest.raises(RuntimeError, match="not a humanoid rig"):
+    with pytest.raises(RuntimeError, match="this rig is none of them"):
         bpy.ops.track_and_stride.table1_dof()
 
 
@@ -558,7 +558,7 @@ def test_a_movie_deleted_after_the_checks_is_refused_in_the_synchronous_run(
     assert datablock_counts() == counts
     assert snapshot(obj).keys() == before.keys()
     same_keys(before, snapshot(obj))
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
 
 
 def test_parts_that_kept_the_in_between_show_in_the_report_and_the_graph_editor(walk_folder,

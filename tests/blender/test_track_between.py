@@ -140,7 +140,7 @@ def test_a_choice_that_leaves_nothing_to_track_says_what_to_do_and_changes_nothi
     after = snapshot(obj)
     assert after.keys() == before.keys()
     same_keys(before, after)
-    assert "track_and_stride_residual" not in obj.keys()
+    assert "Footage Mismatch" not in obj.keys()
     # The panel says the same, in lines short enough for the sidebar.
     assert re.search(message, " ".join(_drawn_labels(obj)))
 

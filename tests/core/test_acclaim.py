@@ -1,5 +1,6 @@
 """ASF/AMC reading and writing on the real CMU files."""
 
+import dataclasses
 import re
 
 import numpy as np
@@ -450,16 +451,21 @@ def test_error_in_a_late_chunk_names_its_line(walk, monkeypatch):
 def test_values_beyond_the_magnitude_limit_refuse_with_the_line(walk):
     asf, lines = walk
     i = next(k for k, l in enumerate(lines) if l.startswith("lfemur "))
-    for token, ok in (("1e29", True), ("-1e33", False), ("1e308", False)):   # degrees
+    # Angles: at most 10 000 degrees (core.limits.MAX_ANGLE_DEGREES); the file is in degrees.
+    for token, ok in (("10000", True), ("-9999.5", True), ("10000.01", False), ("-1e4_1", False),
+                      ("1e12", False), ("-1e33", False), ("1e308", False)):
         bad = lines.copy()
         parts = bad[i].split()
         parts[2] = token
         bad[i] = " ".join(parts)
         if ok:
-            assert np.all(np.isfinite(parse_amc(bad, asf).values))
+            values = parse_amc(bad, asf).values
+            assert np.all(np.isfinite(values))
+            assert np.isclose(np.abs(values).max(), np.radians(abs(float(token))))
         else:
             err = amc_error(bad, asf)
-            assert err.line == i + 1 and "too large in radians" in err.reason
+            assert err.line == i + 1 and "'lfemur': angle" in err.reason, err.reason
+            assert "beyond 10000 degrees" in err.reason and "degrees" in err.reason
     j = next(k for k, l in enumerate(lines) if l.startswith("root "))
     bad = lines.copy()
     bad[j] = "root 1e308 1e308 1e308 0 0 0"                 # finite, and finite in metres too
@@ -468,7 +474,8 @@ def test_values_beyond_the_magnitude_limit_refuse_with_the_line(walk):
 
 
 @pytest.mark.parametrize("field, text, phrase", [
-    ("axis", "     axis 0 1e308 0  XYZ", "too large in radians"),
+    ("axis", "     axis 0 1e308 0  XYZ", "beyond 10000 degrees"),
+    ("axis", "     axis 0 10001 0  XYZ", "beyond 10000 degrees"),
     ("direction", "     direction 1e308 1e308 0", "direction is too large"),
     ("limits", "    limits (-1e308 1e308)", "a limit is too large"),
 ])
@@ -487,3 +494,185 @@ def test_asf_infinite_limits_mean_no_limit(asf_lines):
     lines[i] = "    limits (-inf inf)"
     asf = parse_asf(lines)
     assert any(np.all(np.isinf(b.limits[0])) for b in asf.bones if len(b.limits))
+
+
+# --------------------------------------------------------------------------- writing: units, header, checks
+
+def _quarter_turn_motion(asf, n_frames=3, **fields):
+    """Zero motion except lfemur.rx = a quarter turn (π/2 rad = 90°)."""
+    names = asf_to_skeleton(asf).dof_names()
+    values = np.zeros((n_frames, len(names)))
+    values[:, names.index("lfemur.rx")] = np.pi / 2
+    return AmcMotion(values=values, **{"frame_numbers": None, "bone_order": (), **fields})
+
+
+@pytest.mark.parametrize("unit, header, written", [("deg", ":DEGREES", 90.0),
+                                                   ("rad", ":RADIANS", np.pi / 2)])
+def test_written_angles_are_in_the_skeletons_unit(unit, header, written):
+    """A skeleton in degrees gets a :DEGREES file with 90 for a quarter turn, one in radians a
+    :RADIANS file with π/2; both read back to the same motion."""
+    asf = dataclasses.replace(read_asf(cmu_path("08.asf")), angle_unit=unit)
+    motion = _quarter_turn_motion(asf)
+    lines = format_amc(asf, motion).splitlines()
+    assert lines[:3] == ["# frames per second: 120", ":FULLY-SPECIFIED", header]
+    femur = next(line for line in lines if line.startswith("lfemur "))
+    assert float(femur.split()[1]) == pytest.approx(written, rel=1e-12)
+    np.testing.assert_allclose(parse_amc(lines, asf).values, motion.values, atol=1e-12)
+
+
+def test_written_frames_are_numbered_from_one_in_the_layout_bone_order():
+    """Without frame numbers the frames are 1..N; a bone order that is not the skeleton's
+    bones is replaced by the skeleton's order."""
+    asf = read_asf(cmu_path("08.asf"))
+    motion = _quarter_turn_motion(asf, n_frames=4, bone_order=("nosuchbone",))
+    lines = format_amc(asf, motion).splitlines()
+    assert [line for line in lines if line.isdigit()] == ["1", "2", "3", "4"]
+    bones = list(channel_layout(asf).bones)
+    assert [line.split()[0] for line in lines[4:4 + len(bones)]] == bones
+    again = parse_amc(lines, asf)
+    np.testing.assert_array_equal(again.frame_numbers, [1, 2, 3, 4])
+    np.testing.assert_allclose(again.values, motion.values, atol=1e-12)
+
+
+def test_format_amc_refuses_what_it_cannot_write():
+    asf = read_asf(cmu_path("08.asf"))
+    good = _quarter_turn_motion(asf)
+    for values, shape in ((good.values[0], "(62,)"), (good.values[:, :61], "(3, 61)")):
+        with pytest.raises(ValueError, match=re.escape(f"(N, 62), got {shape}")):
+            format_amc(asf, dataclasses.replace(good, values=values))
+    bad = good.values.copy()
+    bad[1, 7] = np.nan
+    with pytest.raises(ValueError, match="^motion values must be finite$"):
+        format_amc(asf, dataclasses.replace(good, values=bad))
+    for fps in amc_module.FPS_RANGE:                        # the bounds themselves are allowed
+        text = format_amc(asf, dataclasses.replace(good, fps=fps))
+        assert parse_amc(text, asf).recorded_fps == fps
+    for fps in (0.005, 20000.0):
+        with pytest.raises(ValueError, match=re.escape(f"{fps!r} is outside 0.01..10000")):
+            format_amc(asf, dataclasses.replace(good, fps=fps))
+
+
+def test_read_amc_names_the_file_and_takes_the_callers_rate(tmp_path):
+    asf = read_asf(cmu_path("08.asf"))
+    motion = dataclasses.replace(_quarter_turn_motion(asf), fps=24.0)
+    path = tmp_path / "walk.amc"
+    amc_module.write_amc(path, asf, motion, asf_name="08.asf")
+    assert path.read_text().startswith("#!OML:ASF 08.asf\n# frames per second: 24\n")
+    again = read_amc(path, asf)
+    assert again.path == str(path) and again.fps == 24.0
+    np.testing.assert_allclose(again.values, motion.values, atol=1e-12)
+    assert read_amc(path, asf, fps=30.0).fps == 30.0
+    path.write_text(path.read_text().replace("lfemur 90", "lfemur ninety", 1))
+    with pytest.raises(MocapParseError) as info:
+        read_amc(path, asf)
+    assert info.value.path == str(path)
+
+
+def test_recorded_rate_bounds_and_message(walk):
+    asf, lines = walk
+    for token, value in (("0.01", 0.01), ("10000", 10000.0)):     # the bounds are allowed
+        motion = parse_amc(lines[:1] + [f"# frames per second: {token}"] + lines[1:], asf)
+        assert motion.recorded_fps == value
+    err = amc_error(lines[:1] + ["# frames per second: 10001"] + lines[1:], asf)
+    assert (err.path, err.line) == ("walk.amc", 2)
+    assert err.reason == "frames per second 10001 is outside 0.01..10000"
+    err = amc_error(lines[:1] + ["# frames per second: fast"] + lines[1:], asf)
+    assert (err.path, err.line) == ("walk.amc", 2)
+    assert err.reason == "frames per second: 'fast' is not a number"
+
+
+def test_text_lines_in_pieces_are_the_lines():
+    """The line-by-line parser's lazy split gives str.split('\\n') of the range whatever the
+    piece size (pieces end at a newline)."""
+    data = b"ab\ncdef\n\ng h\ni"
+    for begin in (0, 3):
+        for piece in range(1, len(data) + 1):
+            got = list(amc_module._text_lines(data, begin, len(data), piece=piece))
+            assert got == data[begin:].decode().split("\n"), (begin, piece)
+
+
+def test_given_frame_numbers_are_written():
+    asf = read_asf(cmu_path("08.asf"))
+    motion = _quarter_turn_motion(asf, frame_numbers=np.arange(7, 10))
+    lines = format_amc(asf, motion).splitlines()
+    assert [line for line in lines if line.isdigit()] == ["7", "8", "9"]
+    np.testing.assert_array_equal(parse_amc(lines, asf).frame_numbers, [7, 8, 9])
+
+
+def test_progress_of_the_line_by_line_parser_rises_within_zero_to_one(monkeypatch):
+    """Regular frames, then a tail in another bone order (line-by-line parser, reporting every
+    50 lines): the fractions reported rise from 0 to 1 and never leave [0, 1]."""
+    asf = read_asf(cmu_path("08.asf"))
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), 60))
+    out = list(head)
+    for k, frame in enumerate(frames):
+        out += [frame[0]] + (frame[1:][::-1] if k >= 30 else frame[1:])
+    monkeypatch.setattr(amc_module, "_SLOW_STEP_LINES", 50)
+    steps = amc_module.parse_amc_steps("\n".join(out), asf)
+    fractions = []
+    while True:
+        try:
+            fractions.append(next(steps))
+        except StopIteration as finished:
+            motion = finished.value
+            break
+    assert motion.n_frames == 60
+    tail = [f for f in fractions if f > 0.45]     # the line-by-line half: ~900 lines, 50 a step
+    assert 10 <= len(tail) <= 25
+    assert all(a < b for a, b in zip(tail, tail[1:])), tail        # 50 more lines each
+    assert all(0.0 <= f <= 1.0 for f in fractions), fractions
+    assert all(a <= b for a, b in zip(fractions, fractions[1:])), fractions
+    assert fractions[-1] > 0.95
+
+
+def _regular_then_reversed(frames_total=40, regular=20):
+    """08_01's first frames as lines: the first ``regular`` frames as in the file (vectorised
+    parser), the rest with the bones in reverse order (line-by-line parser)."""
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), frames_total))
+    out = list(head)
+    for k, frame in enumerate(frames):
+        out += [frame[0]] + (frame[1:][::-1] if k >= regular else frame[1:])
+    return out
+
+
+def test_line_by_line_errors_name_the_file_and_line(walk):
+    asf, _ = walk
+    lines = _regular_then_reversed()
+    frame = {int(l): i for i, l in enumerate(lines) if l.isdigit()}     # frame -> list index
+    i = frame[25]
+    cases = [
+        (lines[:i + 1] + [""] + lines[i + 1:], i + 2, "blank line inside the motion data"),
+        (lines[:i] + ["25 extra text"] + lines[i + 1:], i + 1,
+         "frame number line has extra text: 'extra text'"),
+        (lines[:frame[21]] + ["22"] + lines[frame[21] + 1:], frame[21] + 1,
+         "frame 22 follows frame 20: frames must be consecutive"),
+        (lines[:frame[30]] + ["31"] + lines[frame[30] + 1:], frame[30] + 1,
+         "frame 31 follows frame 29: frames must be consecutive"),
+        (lines[:i + 1] + ["wing 1 2 3"] + lines[i + 2:], i + 2,
+         "bone 'wing' is not in the skeleton"),
+        (lines[:i + 1] + ["lhipjoint 1"] + lines[i + 2:], i + 2,
+         "bone 'lhipjoint' has no DOFs in the skeleton"),
+        (lines[:i + 2] + [lines[i + 1]] + lines[i + 2:], i + 3,
+         f"bone {lines[i + 1].split()[0]!r} appears twice in frame 25"),
+        (lines[:3] + lines[4:], 4, f"expected a frame number, got {lines[4].split()[0]!r}"),
+    ]
+    bones = [lines[i + 1].split()[0], lines[i + 2].split()[0]]            # two bones dropped
+    cases.append((lines[:i + 1] + lines[i + 3:], i + 1,
+                  f"frame 25 is truncated: it lacks {', '.join(sorted(bones, key=list(channel_layout(asf).bones).index))}"))
+    for bad, line, reason in cases:
+        err = amc_error(bad, asf)
+        assert (err.path, err.line, err.reason) == ("walk.amc", line, reason)
+
+
+def test_bone_order_of_a_file_read_line_by_line_is_its_first_frames(walk):
+    """A first frame only the line-by-line parser reads ('1_0'), the last frame in another
+    order: the motion keeps the first frame's bone order (the writer's order)."""
+    asf, _ = walk
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), 5))
+    first = frames[0][1:]
+    parts = first[0].split()
+    parts[1] = "1_0" if parts[1] == "10" else parts[1] + "_0"
+    frames[0] = [frames[0][0], " ".join(parts)] + first[1:]
+    frames[-1] = [frames[-1][0]] + frames[-1][1:][::-1]
+    motion = parse_amc(head + [l for f in frames for l in f], asf)
+    assert motion.bone_order == tuple(l.split()[0] for l in first)

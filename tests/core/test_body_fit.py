@@ -7,6 +7,7 @@ import pytest
 
 from core.armature import plausible_envelope_radii, skeleton_from_bones
 from core.kinematics import exp_so3
+from core.tracking import body_fit, body_model
 from core.tracking.body_fit import BodyFitError, fit_body_radii, mirror_bones
 from core.tracking.body_model import body_model_from_skeleton
 from core.tracking.camera import PinholeCamera, world2camera_from_blender
@@ -278,3 +279,18 @@ def test_connected_bones_share_their_joint_radius_and_still_fit(scene, front):
     assert np.mean(err) < 0.5 * np.mean(_errors(default, true))
     with pytest.raises(BodyFitError, match="connected of shape"):
         fit_body_radii(skeleton, default, *front, roots, local, connected=connected[:-1])
+
+
+def test_bones_measured_a_few_at_a_time_give_the_same_fit(scene, front, monkeypatch):
+    """Memory bounded (issue 26): the profiles of a few bones at a time (PROFILE_BUDGET) give
+    exactly the all-at-once fit (the same code on the same numbers)."""
+    skeleton, lengths, roots, local, _ = scene
+    default = plausible_envelope_radii(skeleton.names, lengths)
+    whole = fit_body_radii(skeleton, default, *front, roots, local)
+    monkeypatch.setattr(body_fit, "PROFILE_BUDGET", 1)              # one bone at a time
+    monkeypatch.setattr(body_model, "PAIR_BUDGET", 997)            # and a few rays at a time
+    single = fit_body_radii(skeleton, default, *front, roots, local)
+    assert whole.n_fitted >= 8
+    np.testing.assert_array_equal(single.radii, whole.radii)
+    np.testing.assert_array_equal(single.contrast, whole.contrast)
+    assert single.reasons == whole.reasons and single.levels == whole.levels

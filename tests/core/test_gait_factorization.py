@@ -54,7 +54,7 @@ def test_choose_n_styles_by_energy():
 
 
 def test_bad_n_styles_raises(cycles):
-    with pytest.raises(ValueError, match="n_styles must be between 1 and 5"):
+    with pytest.raises(ValueError, match="the style count must be between 1 and 5"):
         factorize(cycles, n_styles=6)
 
 

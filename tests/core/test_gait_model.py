@@ -195,9 +195,9 @@ def test_version_3_keeps_the_cadence_direction_and_version_2_files_load_without_
 def test_learning_errors():
     names = trial("35_01")[1]
     good = [np.asarray(trial(t)[0]) for t in ("35_01", "35_02")]
-    with pytest.raises(ValueError, match=r"sequence 1 \(short\):.*shorter than one cycle"):
+    with pytest.raises(ValueError, match=r"^the walk short:.*shorter than one cycle"):
         learn_model([good[0], good[1][:40]], names, 60.0, ["long", "short"])
-    with pytest.raises(ValueError, match=r"sequence 0 \(style0\): expected shape \(N, 62\)"):
+    with pytest.raises(ValueError, match=r"^the walk style0: expected shape \(N, 62\)"):
         learn_model([good[0][:, :60], good[1]], names, 60.0)
     with pytest.raises(ValueError, match="root DOF channels missing"):
         learn_model([g[:, 3:] for g in good], names[3:], 60.0)
@@ -221,3 +221,25 @@ def test_model_lookups():
     lo, hi = model.omega_range(120.0)
     np.testing.assert_allclose([lo, hi], [2 * np.pi / 240, 2 * np.pi / 60])
     np.testing.assert_allclose(model.process_noise(30.0)[0, 0], model.Q[0, 0] * 8)
+
+
+@pytest.mark.parametrize("content, reason", [
+    (b"", "the file is empty"),
+    (b"hello, not a model", "it is another kind of file"),
+    (None, "it holds Python objects"),                      # an .npz of object arrays
+    (b"PK\x03\x04 cut short", "the archive is damaged or cut short"),
+])
+def test_a_corrupt_model_file_says_what_is_wrong_once(tmp_path, content, reason):
+    """Not NumPy's advice to load it "unsafely using allow_pickle", and the path once."""
+    path = tmp_path / "walks.npz"
+    if content is None:
+        np.savez(path, a=np.array([{"x": 1}], dtype=object))
+    else:
+        path.write_bytes(content)
+    with pytest.raises(GaitModelFileError) as err:
+        GaitModel.load(path)
+    message = str(err.value)
+    assert message == f"{path}: not a gait model file: " + message.split(": ", 2)[2]
+    assert reason in message and message.count(str(path)) == 1 and "walks.npz" not in \
+        message.replace(str(path), "")
+    assert "pickle" not in message.replace("Python objects", "") and "allow" not in message

@@ -290,3 +290,30 @@ def test_bend_angle_error_measures_a_turn_about_the_limb_axis_that_axis_rotation
     on_axis = root + 0.3 * (end - root)
     np.testing.assert_allclose(np.einsum("nij,nj->ni", turn[:, :3, :3], on_axis)
                                + turn[:, :3, 3], on_axis, atol=1e-12)
+
+
+def test_anatomical_mask_makes_knees_elbows_and_toes_hinges_and_feet_untwisted():
+    from core.rigs import anatomical_dof_mask
+    rig, rest, lengths = acclaim_armature()
+    model = model_skeleton(recognise_body_map(rig), rig.names, rig.parents, rest, lengths)
+    full = np.ones((model.n_joints, 3), dtype=bool)
+    names = model.skeleton.names
+    shin, foot = names.index("left shin"), names.index("left foot")
+    keys = np.broadcast_to(np.eye(3), (3, model.n_joints, 3, 3)).copy()
+    for k, angle in enumerate((0.2, 0.9, 0.4)):           # the knee bends about the frame's X
+        keys[k, shin] = exp_so3(np.array([angle, 0.0, 0.05 * angle]))
+    mask = anatomical_dof_mask(model, full, keys)
+    assert mask[shin].tolist() == [True, False, False]
+    assert mask[foot].tolist() == [True, False, True]     # no twist about the foot's length
+    assert mask[names.index("left clavicle")].tolist() == [True, False, True]
+    assert mask[names.index("left thigh")].all() and mask[names.index("hips")].all()
+    # About Z: the hinge is Z.
+    keys[:, shin] = exp_so3(np.array([[0.0, 0.0, 0.5]]))
+    assert anatomical_dof_mask(model, full, keys)[shin].tolist() == [False, False, True]
+    # Between X and Y (no frame axis within 30 degrees): the joint keeps its axes.
+    keys[:, shin] = exp_so3(np.array([[0.4, 0.4, 0.0]]))
+    assert anatomical_dof_mask(model, full, keys)[shin].all()
+    # A locked axis stays locked; a joint without DOF stays without.
+    none = full.copy()
+    none[shin] = False
+    assert not anatomical_dof_mask(model, none, keys)[shin].any()

@@ -247,3 +247,25 @@ def test_track_interval_blends_each_part_by_its_share_and_keeps_the_keys(swing):
         assert got.root_translations[end_frame].tobytes() == np.asarray(
             key.root_translation, float).tobytes()
     assert np.all(np.isfinite(got.residuals))
+
+
+def test_body_parts_from_a_body_maps_regions_override_the_names(swing):
+    """A rig seen through its body map names each joint's body part itself (its legs called
+    legs whatever its bones are called): the problem's regions decide, the names do not."""
+    from core.tracking.acceptance import parts_from_regions, problem_parts
+    problem, frames, start, end, _ = swing
+    sk = problem.skeleton
+    guessed = problem_parts(problem)
+    regions = [TORSO] * sk.n_joints
+    regions[-1] = LEFT_ARM                      # say the last joint is an arm, whatever its name
+    mapped = TrackingProblem(sk, problem.body, problem.camera, regions=regions)
+    parts, part_of = problem_parts(mapped)
+    assert parts == (TORSO, LEFT_ARM) and part_of.tolist() == [0] * (sk.n_joints - 1) + [1]
+    assert guessed != (parts, part_of)
+    result = track_interval(mapped, frames, start, end, TrackingOptions(max_iterations=1))
+    assert result.acceptance.parts == (TORSO, LEFT_ARM)
+    with pytest.raises(ValueError, match="unknown body parts"):
+        parts_from_regions(["torso", "left arm"])
+    from core.tracking.problem import TrackingError
+    with pytest.raises(TrackingError, match="regions"):
+        TrackingProblem(sk, problem.body, problem.camera, regions=[TORSO])

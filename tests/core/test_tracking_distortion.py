@@ -249,3 +249,27 @@ def test_local_margins_bound_the_shift_and_ray_casting_misses_nothing():
     assert hits.hit.sum() > 1000
     np.testing.assert_array_equal(hits.parts, brute.parts)
     np.testing.assert_array_equal(hits.depth, brute.depth)
+
+
+def test_undistortion_table_is_accurate_and_used():
+    """The rays' lookup table (ideal points on a grid of distorted points, bilinear between):
+    at its nodes it gives each node's exact undistortion, between them it is within its
+    tolerance of Newton's exact inverse, so :meth:`undistort_fast` uses it for the demo camera's
+    lens (a wrong lookup would only make the rays slow: Newton's method would take over; the
+    wide-angle lens needs more nodes than the table's limit and always takes that path)."""
+    from core.tracking.distortion import _TABLE_TOL
+    lens = _camera(DEMO).distortion
+    table = lens.table
+    assert table.accurate
+    rows, cols = table.shape
+    ix, iy = np.meshgrid(np.arange(cols), np.arange(rows))
+    nodes = table.origin + np.stack([ix, iy], -1).reshape(-1, 2) * table.step
+    ideal, inside = table.interpolate(nodes)
+    assert inside.all()
+    # the last row and column are read 1e-6 of a cell short of the node (the clip)
+    np.testing.assert_allclose(lens.distort(ideal), nodes, atol=1e-6 * np.abs(table.step).max())
+    between = table.origin + RNG.uniform(0, 1, (3000, 2)) * table.step * [cols - 1, rows - 1]
+    ideal, inside = table.interpolate(between)
+    assert inside.all()
+    np.testing.assert_allclose(ideal, lens.undistort(between), atol=_TABLE_TOL, rtol=0)
+    np.testing.assert_array_equal(lens.undistort_fast(between), ideal)

@@ -137,3 +137,20 @@ def test_singular_system_after_a_half_turn_is_solved_not_raised():
     np.testing.assert_allclose(x[0], exp_so3(np.array([0.0, 0.0, 0.05])), atol=1e-10)
     # The third stays at a half-turn distance: reported, not hidden.
     assert res.residual[2] > 1e-3 and res.iterations == 20
+
+
+# ---------------------------------------------------------------------------- input checks
+def test_root_correction_needs_two_frames_and_takes_two():
+    """One frame cannot carry drift; two frames (one motion) can: the end moves onto the key."""
+    with pytest.raises(ValueError, match="^need at least two frames$"):
+        correct_root_positions(np.zeros((1, 3)), np.ones(3))
+    two = correct_root_positions([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]], [2.0, 2.0, 2.0])
+    np.testing.assert_allclose(two, [[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]])
+
+
+def test_accumulated_rotations_have_one_pose_per_frame():
+    motions = exp_so3(np.random.default_rng(2).normal(0.0, 0.2, (5, 4, 3)))
+    out = accumulate_rotations(np.broadcast_to(np.eye(3), (4, 3, 3)), motions)
+    assert out.shape == (6, 4, 3, 3)
+    np.testing.assert_array_equal(out[0], np.broadcast_to(np.eye(3), (4, 3, 3)))
+    np.testing.assert_allclose(out[1:], out[:-1] @ motions, atol=1e-12)

@@ -101,3 +101,17 @@ def render(skeleton, body, cam, roots, local):
         img[h] = _texture(local_pts, hits.parts[h])
         out[f] = img.reshape(cam.height, cam.width)
     return out
+
+
+def many_bone_skeleton(rng, n_bones=706):
+    """A synthetic rig of ``n_bones`` short bones (a random tree, ``parents[i] < i``), about a
+    person's size, 3 m in front of an identity camera -- as many bones as a generated Rigify
+    rig (706), most of them small (fingers, face), for memory tests."""
+    parents = [-1] + [int(rng.integers(max(0, i - 8), i)) for i in range(1, n_bones)]
+    offsets = rng.normal(0.0, 0.03, (n_bones, 3))
+    offsets[0] = [0.0, 0.0, 3.0]
+    tails = rng.normal(0.0, 0.04, (n_bones, 3)) + [0.0, 0.08, 0.0]
+    return Skeleton(names=tuple(f"b{i}" for i in range(n_bones)), parents=parents,
+                    offsets=offsets, rest_rotations=exp_so3(rng.normal(0, 0.3, (n_bones, 3))),
+                    tails=tails, dof_axes=((0, 1, 2),) * n_bones, limits=None,
+                    root_translation=True)

@@ -1,0 +1,221 @@
+"""Mutation testing of core modules, each against its own tests (``make mutate``; mutmut 3).
+
+For every module of :data:`MODULES` a scratch copy of the project is made under
+``build/mutate/<name>/`` with a ``setup.cfg`` that tells mutmut to mutate that one module and to
+run only that module's own test files; ``mutmut run`` mutates it and ``mutmut results`` reads
+back what each mutant did. A mutant is *killed* when a test fails with it, *survived* when every
+test still passes. The score is killed / (mutants - equivalent), the equivalent ones (changes no
+test can see because the behaviour is the same) listed in :data:`EQUIVALENT` with the reason
+in ``docs/testing.md``.
+
+    .venv-mutate/bin/python tools/mutate.py [--only checks ekf] [--output build/mutate/scores.json]
+
+mutmut lives in its own virtualenv (``.venv-mutate``, ``requirements-mutate.txt``): neither
+the extension nor the main test venv gain it.
+"""
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: module -> its own test files (the issue's six; more can be added).
+MODULES = {
+    "checks": ("core/gait/checks.py", ["tests/core/test_gait_checks.py"]),
+    "amc": ("core/mocap/amc.py", ["tests/core/test_acclaim.py"]),
+    "distortion": ("core/tracking/distortion.py", ["tests/core/test_tracking_distortion.py"]),
+    "acceptance": ("core/tracking/acceptance.py", ["tests/core/test_tracking_acceptance.py",
+                                                   "tests/core/test_tracking_acceptance_blend.py"]),
+    "drift": ("core/tracking/drift.py", ["tests/core/test_tracking_drift.py"]),
+    "ekf": ("core/gait/ekf.py", ["tests/core/test_gait_ekf.py"]),
+}
+
+#: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
+#: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
+_EKF = "core.gait.ekf."
+_EKF_INPUTS = ("FilterContext keeps ctx.inputs (the GP inputs [cos, sin] of the training phases) "
+               "that no code reads (core/, addon/, tests/): setting it to None, under another "
+               "name or flattened changes nothing")
+_EKF_CACHE_KEY = ("the cache key's string only keeps steps() and decay() entries apart; "
+                  "('XXsteps', n) / ('STEPS', n) do that as well (and their tuples differ in "
+                  "length)")
+EQUIVALENT = {
+    **{f"{_EKF}xǁFilterContextǁ__post_init____mutmut_{i}": _EKF_INPUTS for i in (7, 11, 12, 16)},
+    **{f"{_EKF}xǁFilterContextǁ{name}__mutmut_{i}": _EKF_CACHE_KEY
+       for name in ("steps", "decay") for i in (2, 3)},
+    f"{_EKF}x__kernel_pair__mutmut_26":
+        "rows[3:5] -> rows[3:6] of an array of 5 rows: the same slice",
+    f"{_EKF}x_ekf_filter__mutmut_26":
+        "the initial value of outliers (-1 -> +1) is overwritten for every frame by _update",
+    f"{_EKF}x_ekf_filter__mutmut_27":
+        "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
+    f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
+        "ys[...] = None on a float array stores NaN, the same as = np.nan",
+    "core.mocap.amc.x_format_amc__mutmut_65":
+        "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
+    "core.mocap.amc.x__scaled_progress__mutmut_12":
+        "min(2.0, count / lines) -> the same: the parser counts at most the lines it was given",
+    "core.mocap.amc.x__scaled_progress__mutmut_18":
+        "max(lines, 2) for max(lines, 1): the line-by-line parser reports only after "
+        "_SLOW_STEP_LINES lines, so lines > 1 whenever a fraction is computed",
+    "core.mocap.amc.x_write_amc__mutmut_12":
+        'encoding="UTF-8" is encoding="utf-8" (codec names ignore case)',
+}
+
+#: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
+#: (each removed line against its added line): (name, pattern of the removed text, pattern of
+#: the added text, why). Reviewed by hand for these modules (docs/testing.md); a survivor of
+#: another kind is never counted as equivalent.
+EQUIVALENT_KINDS = (
+    ("dtype", r"dtype=float\)", r"(dtype=None\)|(?<=, )\))",
+     "np.asarray(x, dtype=float) -> np.asarray(x): every input is numbers that the "
+     "float arithmetic right after promotes to float64 the same way (no in-place integer "
+     "arithmetic follows)"),
+    ("einsum-case", r'np\.einsum\("[a-z,>-]+"', r'np\.einsum\("[A-Z,>-]+"',
+     "einsum subscripts in capitals: the same contraction"),
+    ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
+     'float("-INF") is float("-inf")'),
+    ("reshape-negative", r"\.reshape\((?:[^()]|\([^()]*\))*-1\)",
+     r"\.reshape\((?:[^()]|\([^()]*\))*-2\)",
+     "reshape(..., -1) -> reshape(..., -2): NumPy takes any negative size as the one inferred "
+     "dimension"),
+)
+
+COPY = ("core", "tests", "sample_scenes", "pytest.ini")
+
+
+def _scratch(name, module, tests):
+    """A copy of the project for one module's run, with its mutmut configuration."""
+    folder = ROOT / "build" / "mutate" / name
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    for item in COPY:
+        source = ROOT / item
+        if source.is_dir():
+            shutil.copytree(source, folder / item,
+                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.blend1"))
+        else:
+            shutil.copy2(source, folder / item)
+    (folder / "setup.cfg").write_text(
+        "[mutmut]\n"
+        "source_paths = core\n"
+        f"only_mutate = {module}\n"
+        f"tests_dir = {' '.join(tests)}\n"
+        "also_copy =\n    tests\n    sample_scenes\n    pytest.ini\n"
+        "pytest_add_cli_args = -p no:cacheprovider -q -x\n")
+    return folder
+
+
+def _results(folder):
+    """{mutant name: status} from ``mutmut results --all true``."""
+    done = subprocess.run([sys.executable, "-m", "mutmut", "results", "--all", "true"],
+                          cwd=folder, capture_output=True, text=True)
+    out = {}
+    for line in done.stdout.splitlines():
+        match = re.match(r"\s*([\w.]+__mutmut_\d+):\s*(.+?)\s*$", line)
+        if match:
+            out[match.group(1)] = match.group(2)
+    return out
+
+
+def mutant_diffs(folder, module):
+    """{mutant name: [(removed line, added line), ...]} of the mutants file mutmut wrote."""
+    import ast
+    import difflib
+    path = folder / "mutants" / module
+    source = path.read_text()
+    functions = {node.name: ast.get_source_segment(source, node)
+                 for node in ast.walk(ast.parse(source)) if isinstance(node, ast.FunctionDef)}
+    prefix = module[:-3].replace("/", ".")
+    out = {}
+    for name, text in functions.items():
+        if "__mutmut_" not in name or name.endswith("__mutmut_orig"):
+            continue
+        original = functions.get(name.rsplit("__mutmut_", 1)[0] + "__mutmut_orig")
+        if original is None:
+            continue
+        a, b = original.splitlines()[1:], text.splitlines()[1:]
+        removed, added = [], []
+        for line in difflib.unified_diff(a, b, lineterm="", n=0):
+            if line.startswith("-") and not line.startswith("---"):
+                removed.append(line[1:])
+            elif line.startswith("+") and not line.startswith("+++"):
+                added.append(line[1:])
+        out[f"{prefix}.{name}"] = list(zip(removed, added)) if len(removed) == len(added) \
+            else None
+    return out
+
+
+def equivalent_kind(diff):
+    """The :data:`EQUIVALENT_KINDS` name of a mutant's diff when every changed line is of
+    that one kind, else None."""
+    if not diff:
+        return None
+    for kind, old, new, _ in EQUIVALENT_KINDS:
+        if all(re.search(old, a) and re.search(new, b)
+               and re.sub(new, "", b, count=1) == re.sub(old, "", a, count=1)
+               for a, b in diff):
+            return kind
+    return None
+
+
+def run_module(name, module, tests, jobs, run=True):
+    """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
+    already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
+    ``mutmut run NAME...``)."""
+    folder = ROOT / "build" / "mutate" / name
+    tic = time.perf_counter()
+    if run:
+        folder = _scratch(name, module, tests)
+        subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
+                       cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    statuses = _results(folder)
+    survived = sorted(k for k, v in statuses.items() if v == "survived")
+    diffs = mutant_diffs(folder, module)
+    kinds = {k: EQUIVALENT.get(k) or equivalent_kind(diffs.get(k)) for k in survived}
+    equivalent = {k: v for k, v in kinds.items() if v}
+    counted = len(statuses) - len(equivalent)
+    killed = sum(v == "killed" for v in statuses.values())
+    return {"module": module, "tests": tests, "mutants": len(statuses), "killed": killed,
+            "survived": [k for k in survived if k not in equivalent],
+            "survived_diffs": {k: diffs.get(k) for k in survived if k not in equivalent},
+            "equivalent": equivalent,
+            "other": {k: v for k, v in statuses.items() if v not in ("killed", "survived")},
+            "score": round(killed / counted, 4) if counted else None,
+            "seconds": round(time.perf_counter() - tic, 1)}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", choices=sorted(MODULES))
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
+    parser.add_argument("--no-run", action="store_true",
+                        help="score the results of an earlier run (build/mutate/<module>/)")
+    args = parser.parse_args(argv)
+    rows = []
+    for name in args.only or MODULES:
+        module, tests = MODULES[name]
+        row = run_module(name, module, tests, args.jobs, run=not args.no_run)
+        rows.append(row)
+        print(f"{module}: {row['killed']}/{row['mutants']} killed, "
+              f"{len(row['equivalent'])} equivalent, score {row['score']} "
+              f"({row['seconds']} s); survived: {', '.join(row['survived']) or 'none'}",
+              flush=True)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(rows, indent=1) + "\n")
+    low = [r["module"] for r in rows if r["score"] is None or r["score"] < 0.9]
+    if low:
+        print(f"below 90 %: {', '.join(low)}")
+    return 1 if low else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
