@@ -158,7 +158,8 @@ def predict(armature=None, model="", frames=None, length=None, scene=None, **opt
     Parameters
     ----------
     armature : str or bpy.types.Object, optional
-        The walker (an Acclaim import or a CMU BVH conversion). Default: the active object
+        The walker (an Acclaim import, a CMU BVH conversion or a rig with a body map: Rigify,
+        Mixamo, a metarig …). Default: the active object
         when it is an armature, else the scene's only armature.
     model : str
         A gait model of the file by name, the stock library's name (``'Stock Gaits'``), the

@@ -33,7 +33,9 @@ fresh process: the peak of the memory Python and NumPy allocate during the opera
 limit (``--memory-limit-gb``, address space) and a time limit, so that an operator that would
 need more is recorded as such instead of taking the machine down.
 
-Gait rows (``gait``, ``track_then_predict``) are issue 19's: :func:`bench_gait` marks the place.
+Gait rows (``gait``, ``track_then_predict``; issue 19) are ``benchmarks/rig_gait.py``'s: Predict
+Gait on each rig against the CMU skeleton's prediction, the round trip through the model's joint
+space, foot slide, and a walk tracked from the footage continued by Predict Gait.
 """
 
 import argparse
@@ -286,8 +288,18 @@ def worker_fit_body(kind, render, extension):
 
 def worker_main(args):
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="ts-bench-rigs-"))
+    from benchmarks import rig_gait
     if args.worker == "track":
         result = worker_track(args.kind, args.every, args.render, args.extension)
+    elif args.worker == "gait_predict":
+        result = rig_gait.worker_predict(args.kind, args.render, args.extension, args.mode,
+                                         args.arrays)
+    elif args.worker == "gait_round_trip":
+        result = rig_gait.worker_round_trip(args.kind, args.render, args.extension, args.arrays,
+                                            args.mode)
+    elif args.worker == "gait_drive":
+        result = rig_gait.worker_drive(args.kind, args.render, args.extension, args.cmu_arrays,
+                                       args.arrays)
     else:
         result = worker_fit_body(args.kind, args.render, args.extension)
     Path(args.result).write_text(json.dumps(result, indent=1))
@@ -306,13 +318,13 @@ def _limit_memory(gigabytes):
     return apply
 
 
-def run_worker(kind, task, render, extension, timeout, memory_gb, every=None):
+def run_worker(kind, task, render, extension, timeout, memory_gb, every=None, extra=()):
     """Run one worker in a fresh process under the limits; its result dict (or why none)."""
     with tempfile.TemporaryDirectory(prefix="ts-bench-rigs-") as tmp:
         result_path = Path(tmp) / "result.json"
         cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", task, "--kind", kind,
                "--render", str(render), "--extension", str(extension), "--result",
-               str(result_path)]
+               str(result_path)] + [str(x) for x in extra]
         if every is not None:
             cmd += ["--every", str(every)]
         env = dict(os.environ, BLENDER_USER_RESOURCES=str(Path(tmp) / "blender"))
@@ -332,12 +344,17 @@ def run_worker(kind, task, render, extension, timeout, memory_gb, every=None):
         return json.loads(result_path.read_text())
 
 
-def bench_gait(kind, render):
-    """**Issue 19 fills this in**: ``gait.angle_diff_deg``, ``gait.root_diff_cm``,
-    ``gait.round_trip_deg``, ``gait.foot_slide_cm_s`` (the stock-library prediction keyed on
-    the rig vs on the CMU skeleton) and ``track_then_predict`` (the predicted 2 s after a
-    tracked walk against the truth, beside the same prediction from the true walk)."""
-    return ({"status": "not measured (issue 19)"}, {"status": "not measured (issue 19)"})
+def bench_gait(kind, args):
+    """Issue 19's rows for one rig (``benchmarks/rig_gait.py``)."""
+    from benchmarks import rig_gait
+
+    def run(k, task, render, extra):
+        return run_worker(k, task, render, args.extension, args.timeout, args.memory_limit_gb,
+                          extra=extra)
+
+    workdir = Path(args.output).parent / "rigs_gait"
+    return rig_gait.bench_gait(kind, args.extension, run, workdir,
+                               study=args.study_walk_template)
 
 
 def _fmt(x, digits=1):
@@ -374,23 +391,33 @@ def main(argv=None):
     parser.add_argument("--rigs", default=",".join(RIGS), help="comma-separated rig kinds")
     parser.add_argument("--keys-every", default=",".join(map(str, KEYS_EVERY)))
     parser.add_argument("--no-fit-body", action="store_true")
+    parser.add_argument("--no-tracking", action="store_true",
+                        help="skip the tracking rows (keys every 10/15/20)")
+    parser.add_argument("--no-gait", action="store_true", help="skip the gait rows (issue 19)")
+    parser.add_argument("--study-walk-template", action="store_true",
+                        help="gait rows also read with the walk's own CMU template "
+                             "(benchmarks/studies/rig_gait_template.py)")
     parser.add_argument("--timeout", type=float, default=1200.0,
                         help="seconds per worker (one tracking run, one fit)")
     parser.add_argument("--memory-limit-gb", type=float, default=6.0,
                         help="address-space limit of each worker")
     # Worker mode (internal).
-    parser.add_argument("--worker", choices=("track", "fit_body"))
+    parser.add_argument("--worker", choices=("track", "fit_body", "gait_predict",
+                                             "gait_round_trip", "gait_drive"))
     parser.add_argument("--kind")
     parser.add_argument("--every", type=int)
     parser.add_argument("--render")
     parser.add_argument("--result")
+    parser.add_argument("--mode")
+    parser.add_argument("--arrays")
+    parser.add_argument("--cmu-arrays")
     args = parser.parse_args(argv)
     if args.worker:
         return worker_main(args)
 
     import bpy
     rigs = [r for r in args.rigs.split(",") if r]
-    spacings = [int(k) for k in args.keys_every.split(",") if k]
+    spacings = [] if args.no_tracking else [int(k) for k in args.keys_every.split(",") if k]
     results = {"machine": {"python": platform.python_version(), "bpy": bpy.app.version_string,
                            "cpu_count": os.cpu_count(), "numpy": np.__version__},
                "clip": {"motion": "CMU 35_01 walk", "frames": N_FRAMES, "fps": 30,
@@ -398,16 +425,20 @@ def main(argv=None):
                         "fit_body_size": "x".join(map(str, FIT_SIZE))},
                "timing_s": {}, "rigs": {}}
     for kind in rigs:
-        tic = time.perf_counter()
-        render = ensure_rig_footage(kind, *TRACK_SIZE, frames=N_FRAMES, extension=args.extension)
-        results["timing_s"][f"{kind}_footage"] = time.perf_counter() - tic
-        fp = load_rig_footage(render, images=False)
-        row = {"deforming_joints": int(part_joints(fp.heads[:1], fp.tails[:1], fp.names,
-                                                   fp.parts).shape[1]),
-               "drive_residual_deg": fp.drive_residual_deg,
-               "drive_residual_cm": 100 * fp.drive_residual_m,
-               "controls": len(fp.controls), "tracking": {}}
-        print(f"{kind}: footage {render}", flush=True)
+        row = {"tracking": {}}
+        if not args.no_tracking:
+            tic = time.perf_counter()
+            render = ensure_rig_footage(kind, *TRACK_SIZE, frames=N_FRAMES,
+                                        extension=args.extension)
+            results["timing_s"][f"{kind}_footage"] = time.perf_counter() - tic
+            fp = load_rig_footage(render, images=False)
+            row.update(deforming_joints=int(part_joints(fp.heads[:1], fp.tails[:1], fp.names,
+                                                        fp.parts).shape[1]),
+                       drive_residual_deg=fp.drive_residual_deg,
+                       drive_residual_cm=100 * fp.drive_residual_m, controls=len(fp.controls))
+            print(f"{kind}: footage {render}", flush=True)
+        else:
+            print(f"{kind}:", flush=True)
         for every in spacings:
             t = run_worker(kind, "track", render, args.extension, args.timeout,
                            args.memory_limit_gb, every)
@@ -421,7 +452,7 @@ def main(argv=None):
         kept = [t["user_keys_bit_for_bit"] for t in runs if "user_keys_bit_for_bit" in t]
         row["keys_on_unmapped_bones"] = max(counts) if counts else None
         row["user_keys_bit_for_bit"] = all(kept) if kept else None
-        if not args.no_fit_body:
+        if not args.no_fit_body and not args.no_tracking:
             tic = time.perf_counter()
             fit_render = ensure_rig_footage(kind, *FIT_SIZE, frames=N_FRAMES,
                                             extension=args.extension)
@@ -435,12 +466,27 @@ def main(argv=None):
                   f"{_fmt(fit.get('tracemalloc_peak_mb'), 0)} MB {fit.get('message', '')[:200]}",
                   flush=True)
         # ---- Issue 19's rows (gait on the rig; track, then predict) ----
-        row["gait"], row["track_then_predict"] = bench_gait(kind, render)
+        if not args.no_gait:
+            tic = time.perf_counter()
+            row["gait"], row["track_then_predict"] = bench_gait(kind, args)
+            results["timing_s"][f"{kind}_gait"] = time.perf_counter() - tic
+            g, t = row["gait"], row["track_then_predict"]
+            print(f"  gait: {g.get('status')} angle {_fmt(g.get('angle_diff_deg'), 2)}° root "
+                  f"{_fmt(g.get('root_diff_cm'), 2)} cm round trip "
+                  f"{_fmt(g.get('round_trip_deg'), 3)}° foot slide "
+                  f"{_fmt(g.get('foot_slide_cm_s'), 1)} (CMU "
+                  f"{_fmt(g.get('cmu_foot_slide_cm_s'), 1)}) cm/s; tracked → predicted "
+                  f"{_fmt(t.get('tracked_cm'), 1)} cm, true walk → "
+                  f"{_fmt(t.get('true_walk_cm'), 1)} cm, keys only → "
+                  f"{_fmt(t.get('keys_only_cm'), 1)} cm", flush=True)
         results["rigs"][kind] = row
         out = Path(args.output)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(results, indent=2))
     print(table(results))
+    if not args.no_gait:
+        from benchmarks import rig_gait
+        print(rig_gait.table(results))
     print(f"wrote {args.output}")
     return 0
 

@@ -12,7 +12,13 @@ builds the scene ``Track Footage`` over it (the walk keyed every 20 frames, enve
 rendered body, the footage as a movie clip behind the camera), runs Track › Track Keyframes and
 Suggest Keyframes, and writes ``track_contact_sheet.png`` (every 5th frame: footage with the
 tracked body and bones over it) and ``track_confidence.png`` (residual, rank and the error
-against the ground truth per frame).
+against the ground truth per frame). Then it tracks a Rigify character (generated from
+Blender's Human metarig, limbs in FK, a CMU walk keyed every 15 frames on its controls, rendered
+footage; scene *Track on Rigify*, the error against the render's truth printed). The last step
+predicts on a Rigify character (generated
+from Blender's Human metarig, its limbs in IK, a CMU walk keyed on its controls): 1.5 s
+observed, 2 s keyed on its IK feet and poles (scene *Predict on Rigify*,
+``rigify_prediction.png``).
 
 Usage: ``python sample_scenes/demo.py --extension build/track_and_stride-<v>.zip --output build/demo``
 """
@@ -180,6 +186,107 @@ def save(bpy, path):
     """Save the open file to ``path`` without a ``.blend1`` backup of what was there."""
     bpy.context.preferences.filepaths.save_version = 0
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
+
+
+RIGIFY_KIND = "rigify_ik"        # a generated Rigify rig, its legs and arms in IK
+RIGIFY_REFERENCE = 46            # reference frames 1-46 (1.5 s at 30 fps)
+RIGIFY_STRIP = (46, 58, 70, 82, 94, 106)
+
+
+def step_rigify_prediction(bpy, extension, output):
+    """Predict Gait on a Rigify character: the rig generated from Blender's Human metarig with
+    its limbs in IK (``sample_scenes/rig_scenes.py``, cached under ``build/rigs``), a CMU walk
+    keyed on its controls (``rig_walk.py``; 1.5 s kept), the stock library's prediction of the
+    next 2 s keyed on its IK feet, hands, poles and torso. Saves the scene as a .blend of its
+    own and ``rigify_prediction.png`` (the character at every 12th frame from the last reference
+    frame, the scene's camera moved along with it). Returns (the .blend, the picture, the operator's report)."""
+    import numpy as np
+    from PIL import Image
+
+    sys.path.insert(0, str(ROOT))
+    from sample_scenes.rig_footage import ensure_rig_footage, open_rig_scene
+    render = ensure_rig_footage(RIGIFY_KIND, 160, 90, frames=61, extension=extension,
+                                python=sys.executable)
+    obj, _ = open_rig_scene(render, keys=range(1, RIGIFY_REFERENCE + 1))
+    scene = bpy.context.scene
+    scene.name = "Predict on Rigify"
+    result = bpy.ops.track_and_stride.predict_gait(horizon=2.0)
+    if result != {"FINISHED"}:
+        raise RuntimeError(f"Predict Gait on the Rigify character: {result}")
+    scene.frame_start, scene.frame_end = 1, RIGIFY_STRIP[-1]
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.light = "STUDIO"
+    scene.display.shading.color_type = "TEXTURE"
+    scene.render.resolution_x, scene.render.resolution_y = 640, 360
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    tiles = []
+    camera = scene.camera
+    start = camera.location.copy()
+    scene.frame_set(RIGIFY_STRIP[0])
+    torso = obj.pose.bones["torso"]
+    origin = obj.matrix_world @ torso.head
+    for f in RIGIFY_STRIP:
+        scene.frame_set(f)
+        # The camera follows the walker (the scene's camera frames the first 2 s only).
+        camera.location = start + (obj.matrix_world @ torso.head - origin)
+        path = output / f"rigify_frame_{f}.png"
+        scene.render.filepath = str(path)
+        bpy.ops.render.render(write_still=True)
+        tiles.append(np.asarray(Image.open(path).convert("RGB")))
+        path.unlink()
+    camera.location = start
+    strip = np.concatenate([np.concatenate(tiles[:3], axis=1), np.concatenate(tiles[3:], axis=1)])
+    png = output / "rigify_prediction.png"
+    Image.fromarray(strip).save(png)
+    blend = output / "rigify_prediction.blend"
+    save(bpy, blend)
+    return blend, png, obj.name
+
+
+RIGIFY_TRACK_KIND = "rigify_fk"  # the generated Rigify rig with its limbs in FK
+RIGIFY_TRACK_KEYS = (1, 16, 31, 46, 61)
+
+
+def step_rigify_tracking(bpy, extension, output):
+    """Track Keyframes on a Rigify character: the rig generated from Blender's Human metarig
+    (limbs in FK), the same body and CMU walk as ``make bench-rigs`` rendered from one camera
+    at 640x360 (``sample_scenes/rig_footage.py``, cached under ``build/rig_footage``), the walk's
+    keys kept every 15 frames on its controls, Track › Track Keyframes. Prints the deforming
+    joints' error against the render's truth on the in-between frames, for Blender's
+    interpolation of the keys and for the tracked keys, and saves the scene as a .blend of its
+    own (scene *Track on Rigify*). Returns (the .blend, the operator's report line)."""
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT))
+    from sample_scenes.rig_footage import ensure_rig_footage, open_rig_scene, part_joints
+    from sample_scenes.rig_specs import RIG_SPECS
+    from sample_scenes.rig_walk import read_truth
+    render = ensure_rig_footage(RIGIFY_TRACK_KIND, 640, 360, frames=61, extension=extension,
+                                python=sys.executable)
+    obj, fp = open_rig_scene(render, keys=RIGIFY_TRACK_KEYS)
+    spec = RIG_SPECS[RIGIFY_TRACK_KIND]
+    inside = [f for f in range(1, 62) if f not in RIGIFY_TRACK_KEYS]
+
+    def error_cm():
+        got = read_truth(obj, spec, inside)
+        rows = np.asarray(inside) - 1
+        truth = part_joints(fp.heads[rows], fp.tails[rows], fp.names, fp.parts)
+        mine = part_joints(got.heads, got.tails, got.names, got.parts)
+        return 100.0 * float(np.linalg.norm(mine - truth, axis=-1).mean())
+
+    before = error_cm()
+    scene = bpy.context.scene
+    scene.name = "Track on Rigify"
+    if bpy.ops.track_and_stride.track_keyframes() != {"FINISHED"}:
+        raise RuntimeError("Track Keyframes on the Rigify character did not finish")
+    after = error_cm()
+    print(f"demo: Rigify character (FK), keys every 15 frames: deforming joints "
+          f"{after:.1f} cm from the footage's truth after tracking, {before:.1f} cm with "
+          "Blender's interpolation of the keys")
+    blend = output / "rigify_tracking.blend"
+    save(bpy, blend)
+    return blend
 
 
 def merge_scene(bpy, blend, source):
@@ -381,9 +488,17 @@ def main():
     save(bpy, track_blend)
     scenes = merge_scene(bpy, blend, track_blend)
     track_blend.unlink()
+    # Track Keyframes on a Rigify character, in a scene of its own too.
+    rigify_track_blend = step_rigify_tracking(bpy, args.extension, output)
+    scenes += merge_scene(bpy, blend, rigify_track_blend)
+    rigify_track_blend.unlink()
+    # Predict Gait on a Rigify character, in a scene of its own too.
+    rigify_blend, rigify_png, _ = step_rigify_prediction(bpy, args.extension, output)
+    scenes += merge_scene(bpy, blend, rigify_blend)
+    rigify_blend.unlink()
     print(f"demo: wrote {blend.relative_to(ROOT) if blend.is_relative_to(ROOT) else blend}"
           f" (scenes: the imported walk and gait prediction; {', '.join(scenes)})")
-    for written in (png, gait_png, sheet_png, confidence):
+    for written in (png, gait_png, sheet_png, confidence, rigify_png):
         print(f"demo: wrote {written.relative_to(ROOT) if written.is_relative_to(ROOT) else written}")
     print(f"demo: done in {time.perf_counter() - t0:.1f} s")
     return 0

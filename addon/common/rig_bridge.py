@@ -445,6 +445,15 @@ class MappedRig:
         rot, pos = joint_world_poses(self.model, matrices)
         return skeleton_pose(self.skeleton, rot, pos)
 
+    def current_pose(self):
+        """The model skeleton's pose as the rig is evaluated now (the frame shown, no frame
+        change: a frame handler may call it): root translation (1, 3) and local rotations
+        (1, J, 3, 3), metres, armature space."""
+        pb = self.obj.pose.bones
+        idx = [pb.find(n) for n in self.model.pose_bones]
+        rot, pos = joint_world_poses(self.model, current_matrices(self.obj)[idx][None])
+        return skeleton_pose(self.skeleton, rot, pos)
+
     # Writing --------------------------------------------------------------------------------
 
     def control_values(self, frames, root_translation, local_rotations, steps=None):

@@ -24,6 +24,7 @@ from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
                           observations_from_dofs, restyle)
 from ...core.gait.checks import check_gait
 from ...core.gait.walk import WalkRequest, predict_walk
+from ...core.rigs import plain_list
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from ..mocap.acclaim_bridge import find_asf_beside, scene_fps
 from ..common.fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
@@ -86,7 +87,8 @@ def learn_gait(context, objects=(), files=(), name="Gait Model", n_styles=0, ran
     Parameters
     ----------
     objects : sequence of bpy.types.Object
-        Armatures (Acclaim imports or CMU BVH conversions) with walking actions, one walker
+        Armatures with walking actions (Acclaim imports, CMU BVH conversions, or rigs with
+        a body map: Rigify, Mixamo, a metarig …), one walker
         each.
     files : sequence of str
         ``.amc`` paths (their ``.asf`` beside them); the files of one subject (``08_01``,
@@ -221,6 +223,40 @@ def resolve_model(name):
         except GaitModelFileError as exc:
             raise GaitError(str(exc)) from None
     return name, storage.model_by_name(name)
+
+
+def model_hold(model, grig):
+    """Values (n_dofs,) at which to hold the joint angles the armature cannot show (a rig
+    without fingers, toes or a second neck bone: ``grig.observed``): the model's mean pose,
+    so that the walker is not taken to hold them at zero (``GaitSpace.dofs``'s ``hold``);
+    None when the armature shows every angle."""
+    if grig.observed.all():
+        return None
+    centre = dict(zip(model.angle_names, model.angle_centre[:model.n_angles]))
+    return np.array([centre.get(name, 0.0) for name in grig.dof_names])
+
+
+def _control_warnings(grig):
+    """A warning when a mapped rig's controls could not put its parts on the prediction."""
+    if grig.kind != "MAPPED":
+        return []
+    angle, dist = grig.last_errors
+    if np.degrees(angle) <= 2.0 and dist <= 0.02:
+        return []
+    return [f"{grig.obj.name}'s controls could not put every part exactly on the predicted "
+            f"walk: up to {np.degrees(angle):.1f}° and {100 * dist:.1f} cm off (the rig's "
+            "constraints or limits, or an IK limb out of reach)"]
+
+
+def _controls_said(grig):
+    """' on the rig's FK controls …' for a mapped rig's report ('' for other armatures)."""
+    if grig.kind != "MAPPED":
+        return ""
+    ik = sorted(limb for limb, mode in grig.mapped.modes.items() if mode == "IK")
+    controls = len({st.control for st in grig.steps})
+    where = f"IK {plain_list(ik)}" if ik else "FK"
+    return (f" on {controls} controls of the {grig.mapped.body_map.rig} rig ({where}; "
+            f"{grig.space.leg_length:.2f} m legs)")
 
 
 def _model_columns(model, grig):
@@ -447,7 +483,7 @@ def _observed_range(grig, scene, options, bag, record):
                             f"Keyed Range to replace that prediction")
     if last <= first:
         raise GaitError(f"The frame range {first}–{last} of {obj.name} is empty")
-    if _count_keys(bag, grig.targets(), first, last) == 0:
+    if _count_keys(bag, grig.reads(), first, last) == 0:
         raise GaitError(f"Frames {first}–{last} of {obj.name} hold no keys on the bones the gait "
                         f"model reads: key or import a few steps of the walk there first")
     fps = scene_fps(scene)
@@ -515,7 +551,7 @@ def predict_gait(context, obj, options):
     action = obj.animation_data.action
     record = intact_prediction(bag, grig, action)
     first, last = _observed_range(grig, scene, options, bag, record)
-    dofs = read_dofs(grig, np.arange(first, last + 1))
+    dofs = read_dofs(grig, np.arange(first, last + 1), model_hold(model, grig))
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
     what = f"frames {first}–{last} of {obj.name}"
@@ -548,7 +584,7 @@ def predict_gait(context, obj, options):
     full = walk.dofs
     if not np.all(np.isfinite(full)):
         raise GaitError(f"The prediction for {obj.name} is not finite: nothing was keyed")
-    values = channel_values(grig, bag, full, last, dofs[-1])
+    values = channel_values(grig, bag, full, last, dofs[-1], frames=frames)
     # Every check has passed: change the scene.
     replaced = None
     if options.target == "AFTER":
@@ -564,6 +600,7 @@ def predict_gait(context, obj, options):
                   _keys_digest(target_bag, grig.targets(), frames[0], frames[-1]))
     hz = fps * walk.omega / (2.0 * np.pi)
     warnings = [check.warning] if check.warning else []
+    warnings += _control_warnings(grig)
     style = {"OBSERVED": "as observed", "LIBRARY": f"library style {options.library_style}",
              "RESTYLE": f"restyled {options.restyle_from} → {options.restyle_to} "
                         f"×{options.restyle_amount:g}"}[options.style_mode]
@@ -572,11 +609,13 @@ def predict_gait(context, obj, options):
                   and np.any(model.cadence_style) else ", played faster" if
                   options.cadence > 1.0 else ", played slower")
     speed = _speed(full, grig.dof_names, fps)
+    if grig.kind == "MAPPED":
+        speed /= grig.space.scale                        # the character's metres
     travel = ("on the spot" if not options.root_travel else
               f"{speed:.2f} m/s" + (" with the feet planted" if options.plant_feet else ""))
     text = (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {model_name}: "
             f"{hz:.2f} strides/s, {style}, {travel}"
-            f"; {written} keys in {new_action.name}"
+            f"; {written} keys in {new_action.name}{_controls_said(grig)}"
             + (f", replacing the earlier prediction of frames {replaced[0]}–{replaced[1]}"
                if replaced else "")
             + (f"; fit score {check.fit:.2f}" if check.fit is not None else ""))

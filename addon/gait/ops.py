@@ -21,7 +21,7 @@ _MODES = ("OBJECT", "POSE")
 def _poll_armature(cls, context):
     obj = context.active_object
     if obj is None or obj.type != "ARMATURE":
-        cls.poll_message_set("Select the walking armature (an Acclaim import or a CMU BVH)")
+        cls.poll_message_set("Select the walking armature")
         return False
     if obj.mode not in _MODES:
         cls.poll_message_set("Switch to Object or Pose mode")
@@ -55,8 +55,8 @@ class TS_OT_learn_gait(bpy.types.Operator):
                          default="Gait Model")
     use_selected: BoolProperty(
         name="Selected Armatures",
-        description="Learn from the selected armatures' actions (Acclaim imports or CMU BVH "
-                    "conversions), one walker each", default=True)
+        description="Learn from the selected armatures' walks (motion-capture imports or your "
+                    "own rigs through their body maps), one walker each", default=True)
     range_mode: EnumProperty(
         name="Frames", description="Frames read from each selected armature",
         items=(("ACTION", "Keyed Range", "Every keyed frame of the armature's action"),

@@ -7,6 +7,12 @@ EM) in step with the current frame and poses the ghost with the DOF row predicte
 frames later. The ghost is a copy of the armature (its own armature data, drawn as sticks in
 front) without animation; stopping the preview (or unregistering the add-on, or loading another
 file) removes the handler, the ghost and its data.
+
+A rig read through its body map (Rigify, Mixamo, a metarig …) is evaluated by Blender (its
+constraints and IK), which a frame handler cannot do for other frames than the one shown: the
+preview reads the keyed range once when it starts, and the frame shown each time it changes
+(an edited key counts from the next time its frame is shown). Its ghost shows the rig's mapped
+deforming bones only (the copy's other bones hidden, no constraints), posed directly.
 """
 
 from dataclasses import dataclass
@@ -19,8 +25,8 @@ from ...core.armature import dofs_to_channels
 from ...core.gait import LookaheadPredictor, adapt, observations_from_dofs
 from ...core.gait.checks import check_gait
 from ..mocap.acclaim_bridge import scene_fps
-from .bridge import active_model, frame_range, gait_settings
-from .rigs import GaitError, _bvh_channels, gait_rig, read_dofs
+from .bridge import active_model, frame_range, gait_settings, model_hold
+from .rigs import GaitError, _bvh_channels, gait_rig, read_current, read_dofs
 
 PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
 PREVIEW_CHECK_S = 4.0                   # seconds of the keyed range checked at start
@@ -39,6 +45,11 @@ class PreviewSession:
     last_row: np.ndarray = None
     updates: int = 0
     warning: str = None
+    #: Mapped rigs: DOF rows by frame (read at start, then the frame shown) and the ghost's
+    #: poser.
+    rows: dict = None
+    poser: object = None
+    model: object = None
 
 
 _SESSION = None
@@ -82,6 +93,73 @@ def _make_ghost(context, obj):
     return ghost
 
 
+def _make_mapped_ghost(context, obj, grig):
+    """A ghost of a rig read through its body map: a copy of its armature data without
+    constraints, every bone inheriting rotation and scale (so that a pose is one matrix per
+    bone), the bones that are not mapped deforming bones hidden."""
+    ghost = _make_ghost(context, obj)
+    mapped = set(grig.mapped.model.bones)
+    for bone in ghost.data.bones:
+        bone.hide = bone.name not in mapped
+        bone.use_inherit_rotation = True
+        bone.inherit_scale = "FULL"
+        bone.use_local_location = True
+    for pb in ghost.pose.bones:
+        pb.rotation_mode = "QUATERNION"
+        pb.lock_rotation = (False, False, False)
+    context.view_layer.update()
+    return ghost, _GhostPoser(ghost, grig)
+
+
+class _GhostPoser:
+    """Poses a mapped rig's ghost from the model skeleton's pose: the mapped deforming bones
+    at their joints, every other bone rigid with its nearest mapped ancestor; one
+    ``matrix_basis`` per bone by Blender's pose formula (``core.rigs.retarget``)."""
+
+    def __init__(self, ghost, grig):
+        bones = ghost.data.bones
+        names = [b.name for b in bones]
+        index = {n: i for i, n in enumerate(names)}
+        self.rest = np.array([np.array(b.matrix_local) for b in bones])
+        self.parent = np.array([index[b.parent.name] if b.parent else -1 for b in bones])
+        model = grig.mapped.model
+        self.model, self.grig = model, grig
+        self.mapped = np.array([index[b] for b in model.bones])
+        joint_of = {index[b]: j for j, b in enumerate(model.bones)}
+        anchor = np.full(len(names), -1)
+        for i, bone in enumerate(bones):
+            p = bone.parent
+            while p is not None and index[p.name] not in joint_of:
+                p = p.parent
+            anchor[i] = -1 if p is None else index[p.name]
+        self.anchor = anchor
+        free = np.array([i not in joint_of for i in range(len(names))])
+        self.free = np.flatnonzero(free & (anchor >= 0))
+        inv = np.linalg.inv(self.rest)
+        self.rel = inv[anchor[self.free]] @ self.rest[self.free]
+        has_parent = self.parent >= 0
+        self.child = np.flatnonzero(has_parent)
+        self.offset = inv[self.parent[self.child]] @ self.rest[self.child]
+        self.root = np.flatnonzero(~has_parent)
+        self.ghost_name = ghost.name
+
+    def pose(self, ghost, translation, local):
+        """Pose the ghost with the model skeleton's pose (armature metres)."""
+        from ...core.rigs import world_poses
+        joints = world_poses(self.model.skeleton, translation[None], local[None])[0]
+        joints[:, :3, 3] /= self.model.metres_per_unit
+        pose = self.rest.copy()
+        pose[self.mapped] = joints
+        pose[self.free] = pose[self.anchor[self.free]] @ self.rel
+        basis = np.empty_like(pose)
+        basis[self.child] = np.linalg.inv(pose[self.parent[self.child]] @ self.offset) \
+            @ pose[self.child]
+        basis[self.root] = np.linalg.inv(self.rest[self.root]) @ pose[self.root]
+        ghost.pose.bones.foreach_set(
+            "matrix_basis", np.ascontiguousarray(np.swapaxes(basis, -1, -2), np.float32).ravel())
+        ghost.update_tag()
+
+
 def _remove_ghost(ghost):
     data = ghost.data
     bpy.data.objects.remove(ghost)
@@ -120,7 +198,14 @@ def start_preview(context, obj):
     columns = np.array([lookup[n] for n in model.dof_names], dtype=int)
     # The last (at most) 4 s of the keyed range: enough for the checks and the fit score.
     first_checked = max(first, last - int(round(PREVIEW_CHECK_S * fps)) + 1)
-    dofs = read_dofs(grig, np.arange(first_checked, last + 1))[:, columns]
+    rows = None
+    if grig.kind == "MAPPED":
+        # Blender evaluates the rig (constraints, IK): read the keyed range once now.
+        frames = np.arange(first, last + 1)
+        rows = dict(zip(frames.tolist(), read_dofs(grig, frames, model_hold(model, grig))))
+        dofs = np.array([rows[f] for f in range(first_checked, last + 1)])[:, columns]
+    else:
+        dofs = read_dofs(grig, np.arange(first_checked, last + 1))[:, columns]
     warning = None
     if len(dofs) >= 2:
         what = f"the keyed frames {first_checked}–{last} of {obj.name}"
@@ -140,10 +225,14 @@ def start_preview(context, obj):
     global _SESSION
     ghost_name = None
     try:
-        ghost = _make_ghost(context, obj)
+        poser = None
+        if grig.kind == "MAPPED":
+            ghost, poser = _make_mapped_ghost(context, obj, grig)
+        else:
+            ghost = _make_ghost(context, obj)
         ghost_name = ghost.name
         _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns,
-                                  warning=warning)
+                                  warning=warning, rows=rows, poser=poser, model=model)
         if not bpy.app.background and not handler_registered():
             bpy.app.handlers.frame_change_post.append(_on_frame_change)
         update_preview(scene)
@@ -193,6 +282,10 @@ def last_stop():
 
 def _pose_ghost(s, ghost, row):
     grig = s.grig
+    if grig.kind == "MAPPED":
+        translation, local = grig.space.rig_pose(row[None])
+        s.poser.pose(ghost, translation[0], local[0])
+        return
     targets = grig.targets()
     if grig.kind == "ACCLAIM":
         values = dofs_to_channels(grig.skeleton, grig.layout, row[None])[0]
@@ -225,7 +318,8 @@ def update_preview(scene):
         return None
 
     def read(frames):
-        rows = read_dofs(s.grig, frames)
+        rows = _mapped_rows(s, scene, frames) if s.grig.kind == "MAPPED" else \
+            read_dofs(s.grig, frames)
         s.last_row = rows[-1]
         return rows[:, s.columns]
 
@@ -235,6 +329,24 @@ def update_preview(scene):
     row[s.columns] = predicted
     _pose_ghost(s, ghost, row)
     return row
+
+
+def _mapped_rows(s, scene, frames):
+    """DOF rows of a mapped rig at ``frames``: the frame shown as Blender evaluates it now
+    (kept for later), others as read before (at start, or when they were shown); a frame never
+    read takes the nearest one read (beyond the keys the rig holds its pose)."""
+    now = scene.frame_current
+    rows = s.rows
+    if now in [int(f) for f in frames]:
+        rows[now] = read_current(s.grig, model_hold(s.model, s.grig))
+    known = np.array(sorted(rows))
+    out = []
+    for f in frames:
+        f = int(f)
+        if f not in rows:
+            f = int(known[np.argmin(np.abs(known - f))])
+        out.append(rows[f])
+    return np.array(out)
 
 
 @persistent

@@ -11,9 +11,17 @@ Two kinds of armature are understood (``docs/gait_blender.md``):
 
 Both read the armature through the rig layer's plain reader (``common.pose_bridge``: its F-curves,
 in metres of the armature's space, the object's uniform scale folded in) -- no frame changes,
-so the Live Preview's frame handler can read too. Other rigs are recognised by the rig layer
-(``core.rigs``, the Body Map panel) and refused by name here until the gait reads them through
-their body maps (issue 19).
+so the Live Preview's frame handler can read too.
+
+* **Every other humanoid rig** (``'MAPPED'``: Rigify in FK or IK, Blender's metarig, Mixamo
+  from FBX, Auto-Rig Pro, any rig with a body map stored by the Body Map panel) is seen through
+  the shared rig layer: its evaluated pose (constraints, IK) is read through its body map
+  (``common.rig_bridge.MappedRig``) and brought into the CMU joint space
+  (``core.rigs.gait_space``: rest-pose alignment per bone, the rig's own proportions); a
+  prediction is keyed back onto the controls the animator keys (FK controls, or IK targets and
+  poles, as the rig's IK/FK switches say) by the rig layer's correction steps. A rig whose map
+  lacks parts is refused by the rig layer's message: the missing parts in plain words,
+  pointing at the Body Map panel.
 
 Everything here reads or writes Blender data; the maths is in ``core``.
 """
@@ -51,7 +59,7 @@ class GaitRig:
     ----------
     obj : bpy.types.Object
     kind : str
-        ``'ACCLAIM'`` or ``'BVH'``.
+        ``'ACCLAIM'``, ``'BVH'`` or ``'MAPPED'``.
     skeleton : Skeleton
         The ASF skeleton whose DOF layout the rows use.
     dof_names : tuple of str
@@ -63,6 +71,10 @@ class GaitRig:
         BVH: rig bone index of every ASF joint (-1: unmapped).
     scale : float
         BVH: metres per world unit of the armature.
+    mapped : MappedRig or None
+        MAPPED: the rig through its body map (``common.rig_bridge``).
+    space : GaitSpace or None
+        MAPPED: the rig in the CMU joint space (``core.rigs.gait_space``).
     """
 
     obj: object
@@ -73,9 +85,41 @@ class GaitRig:
     rig: object = None
     bone_of_joint: np.ndarray = None
     scale: float = 1.0
+    mapped: object = None
+    space: object = None
+    #: MAPPED: largest angle (rad) and distance (m) the controls left between the rig and the
+    #: last keyed prediction (:func:`channel_values`).
+    last_errors: tuple = (0.0, 0.0)
+
+    @property
+    def observed(self):
+        """(n_dofs,) bool: the DOF columns the armature's pose determines (MAPPED: not the
+        CMU joints the rig has no bone for, e.g. fingers)."""
+        if self.kind == "MAPPED":
+            return self.space.observed
+        return np.ones(len(self.dof_names), dtype=bool)
+
+    def reads(self):
+        """[(data path, index, group)] of the F-curves whose keys mark the walk: the written
+        ones (:meth:`targets`), and for a mapped rig every channel of its controls (FK and IK
+        sets, the travel control)."""
+        if self.kind == "MAPPED":
+            return self.mapped.channels()
+        return self.targets()
+
+    @property
+    def steps(self):
+        """MAPPED: the rig's control steps that the gait keys -- those of the parts' chains
+        (``GaitSpace.cmu_of_joint``); side bones that only go along (a metarig's pelvis and
+        breast bones) keep the keys the animator gave them."""
+        return [st for st in self.mapped.steps if self.space.cmu_of_joint[st.joint] >= 0]
 
     def targets(self):
-        """[(data path, index, group)] of every F-curve the rig reads and writes."""
+        """[(data path, index, group)] of every F-curve the prediction writes (Acclaim, BVH:
+        also every one it reads)."""
+        if self.kind == "MAPPED":
+            return [(path, index, step.control) for step in self.steps
+                    for path, index in self.mapped.step_channels(step)]
         if self.kind == "ACCLAIM":
             return [(pose_bone_path(b, p), i, b) for b, p, i in self.layout.channels]
         out = []
@@ -100,12 +144,14 @@ def _action_bag(obj):
 
 
 def gait_rig(obj):
-    """Recognise an armature as an Acclaim import or a CMU BVH conversion.
+    """The armature as the gait sees it: an Acclaim import, a CMU BVH conversion (all 31 bones
+    of the cgspeed naming), else a rig through its body map (module docstring).
 
     Raises
     ------
     GaitError
-        For other armatures, naming what is missing.
+        For armatures that cannot be read, saying why (a rig without a usable body map: the
+        missing parts in plain words and the Body Map panel).
     """
     if obj is None or obj.type != "ARMATURE":
         raise GaitError("Select an armature")
@@ -121,21 +167,8 @@ def gait_rig(obj):
             raise GaitError(f"{obj.name} lacks bones of its stored skeleton: {', '.join(missing[:6])}")
         return GaitRig(obj, "ACCLAIM", skeleton, tuple(skeleton.dof_names()), layout=layout)
     bones = obj.data.bones
-    known = [n for n in CMU_BVH_NAMES.values() if n in bones]
-    if CMU_BVH_NAMES["root"] not in bones or len(known) < len(CMU_BVH_NAMES):
-        missing = [n for n in CMU_BVH_NAMES.values() if n not in bones]
-        kind = _rig_kind(obj)
-        if kind not in ("Custom", "CMU (BVH)"):
-            raise GaitError(
-                f"{obj.name} is a {kind} rig (its body map is recognised: Track & Stride tab › "
-                "Body Map), but the gait model reads walks on Acclaim imports and CMU BVH "
-                "conversions only so far: import the walk with File › Import › Acclaim, or "
-                "as a CMU BVH")
-        raise GaitError(
-            f"{obj.name} is neither an Acclaim import nor a CMU BVH conversion: the gait model "
-            f"knows the CMU bones (Acclaim names like lfemur, or cgspeed BVH names like "
-            f"LeftUpLeg); missing here: {', '.join(missing[:8])}"
-            f"{' …' if len(missing) > 8 else ''}")
+    if CMU_BVH_NAMES["root"] not in bones or any(n not in bones for n in CMU_BVH_NAMES.values()):
+        return _mapped_gait_rig(obj)
     try:
         rig = rig_from_armature(obj, root=CMU_BVH_NAMES["root"])
     except RigError as exc:
@@ -152,12 +185,17 @@ def gait_rig(obj):
     return grig
 
 
-def _rig_kind(obj):
-    """What the rig layer recognises the armature as (``core.rigs``: ``'Rigify'``,
-    ``'Mixamo'`` …; ``'Custom'`` when only name patterns matched)."""
-    from ...core.rigs import best_body_map
-    from ..common.rig_bridge import rig_bones
-    return best_body_map(rig_bones(obj)).rig
+def _mapped_gait_rig(obj):
+    """A rig through its body map (stored by the Body Map panel, else recognised)."""
+    from ...core.rigs import BodyMapError
+    from ...core.rigs.gait_space import gait_space
+    from ..common.rig_bridge import mapped_rig
+    try:
+        mapped = mapped_rig(obj)
+        space = gait_space(mapped.model, mapped.armature2world)
+    except (RigError, BodyMapError) as exc:
+        raise GaitError(f"The gait cannot read {obj.name}: {exc}") from None
+    return GaitRig(obj, "MAPPED", space.skeleton, space.dof_names, mapped=mapped, space=space)
 
 
 def _world_linear(rig):
@@ -183,8 +221,9 @@ def _bvh_scale(grig):
     return best if abs(np.log(best / ratio)) < np.log(1.5) else ratio
 
 
-def read_dofs(grig, frames):
-    """AMC-layout DOF rows (N, n_dofs) of the armature's action at ``frames``.
+def read_dofs(grig, frames, hold=None):
+    """AMC-layout DOF rows (N, n_dofs) of the armature's action at ``frames`` (MAPPED: the
+    columns the rig does not show at ``hold``, ``GaitSpace.dofs``).
 
     Raises
     ------
@@ -193,6 +232,8 @@ def read_dofs(grig, frames):
     """
     frames = np.asarray(frames, dtype=float)
     bag = _action_bag(grig.obj)
+    if grig.kind == "MAPPED":
+        return grig.space.dofs(*grig.mapped.read_pose(frames), hold=hold)
     if grig.kind == "ACCLAIM":
         pb = grig.obj.pose.bones
         targets = [(pose_bone_path(b, p), i) for b, p, i in grig.layout.channels]
@@ -252,11 +293,17 @@ def current_values(bag, targets, frame, obj):
     return values[0]
 
 
+def read_current(grig, hold=None):
+    """A mapped rig's DOF row (n_dofs,) as it is evaluated now (the frame shown; no frame
+    change, so a frame handler can call it)."""
+    return grig.space.dofs(*grig.mapped.current_pose(), hold=hold)[0]
+
+
 def keyed_range(grig):
     """(first, last) keyed frame over the F-curves the rig reads; :class:`GaitError` if none."""
     bag = _action_bag(grig.obj)
     lo, hi = np.inf, -np.inf
-    for path, index, _ in grig.targets():
+    for path, index, _ in grig.reads():
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is not None and len(fcurve.keyframe_points):
             co = keyframe_state(fcurve)["co"][:, 0]
@@ -279,9 +326,11 @@ def keyed_conflicts(bag, targets, first, last):
     return count
 
 
-def channel_values(grig, bag, dofs, last_frame, last_dofs):
-    """Values (N, len(targets)) that key DOF rows, continuing the curves of ``bag`` at
-    ``last_frame`` (whose DOF row is ``last_dofs``).
+def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None):
+    """Values (N, len(targets)) that key DOF rows at ``frames`` (default: the frames after
+    ``last_frame``), continuing the curves of ``bag`` at ``last_frame`` (whose DOF row is
+    ``last_dofs``). A mapped rig's controls are solved on the evaluated rig
+    (``MappedRig.control_values``); what they could not reach is in ``grig.last_errors``.
 
     Raises
     ------
@@ -289,11 +338,23 @@ def channel_values(grig, bag, dofs, last_frame, last_dofs):
         If any value is not finite (nothing is written then).
     """
     targets = grig.targets()
-    last_values = current_values(bag, targets, last_frame, grig.obj)
-    if grig.kind == "ACCLAIM":
-        values = dofs_to_channels_after(grig.skeleton, grig.layout, dofs, last_dofs, last_values)
+    if grig.kind == "MAPPED":
+        if frames is None:
+            frames = last_frame + np.arange(1, len(dofs) + 1)
+        translation, local = grig.space.rig_pose(dofs)
+        if not (np.all(np.isfinite(translation)) and np.all(np.isfinite(local))):
+            raise GaitError("the prediction produced non-finite values; nothing was written")
+        found, errors = grig.mapped.control_values(np.asarray(frames, dtype=float), translation,
+                                                   local, grig.steps)
+        grig.last_errors = (float(errors[:, 0].max()), float(errors[:, 1].max()))
+        values = np.column_stack([found[(path, index)] for path, index, _ in targets])
     else:
-        values = _bvh_channels(grig, dofs, last_values)
+        last_values = current_values(bag, targets, last_frame, grig.obj)
+        if grig.kind == "ACCLAIM":
+            values = dofs_to_channels_after(grig.skeleton, grig.layout, dofs, last_dofs,
+                                            last_values)
+        else:
+            values = _bvh_channels(grig, dofs, last_values)
     if not np.all(np.isfinite(values)):
         raise GaitError("the prediction produced non-finite values; nothing was written")
     return values

@@ -13,6 +13,7 @@ from .body_map import (BodyMap, BodyMapError, LimbMap, PartMap, Toggle, body_map
                        read_body_map, write_body_map)
 from .ik import (axis_rotation, bend_angle_error, bend_direction, ik_targets_from_pose,
                  pole_position, solve_two_bone)
+from .gait_space import GaitSpace, gait_space
 from .model import ModelSkeleton, anatomical_dof_mask, model_skeleton
 from .parts import (LIMBS, OPTIONAL, PARENT, PARTS, REQUIRED, body_region, limb_of_part,
                     present_parent, side_of_part)
@@ -25,11 +26,11 @@ from .retarget import (RIGID, ROTATE, TRANSLATE, basis_from_pose, basis_matrix,
                        world_poses)
 
 __all__ = [
-    "BodyMap", "BodyMapError", "BoneConstraint", "LIMBS", "LimbMap", "ModelSkeleton", "OPTIONAL",
+    "BodyMap", "BodyMapError", "BoneConstraint", "GaitSpace", "LIMBS", "LimbMap", "ModelSkeleton", "OPTIONAL",
     "PARENT", "PARTS", "PartMap", "REQUIRED", "RIGID", "ROTATE", "RigBones", "TRANSLATE",
     "Toggle", "anatomical_dof_mask", "axis_rotation", "basis_from_pose", "basis_matrix", "bend_angle_error",
     "bend_direction", "best_body_map", "body_map_from_dict", "body_map_from_json", "body_map_to_dict",
-    "body_map_to_json", "body_region", "control_targets", "corrected_basis",
+    "body_map_to_json", "body_region", "control_targets", "corrected_basis", "gait_space",
     "ik_targets_from_pose", "joint_world_poses", "limb_of_part", "minimal_rotation",
     "model_skeleton", "orthonormal", "pattern_body_map", "plain_list", 
     "pole_position", "pose_error", "pose_from_basis", "present_parent", "read_body_map",

@@ -66,3 +66,26 @@ def relink_from_library(obj, folder):
     bpy.context.view_layer.objects.active = obj
     assert obj.library is not None and not obj.is_editable
     return obj
+
+
+def addon_module(name):
+    """The installed extension's ``addon.<name>`` module (e.g. ``"cli"``, ``"tracking.bridge"``)."""
+    import importlib
+    return importlib.import_module(f"{MODULE}.addon.{name}")
+
+
+def run_cli(capfd, *argv):
+    """Run the registered command line in process: (exit status, summary dict, stderr). Checks
+    that stdout holds exactly one line (the JSON summary)."""
+    import json
+    capfd.readouterr()
+    code = addon_module("cli").main([str(a) for a in argv])
+    out, err = capfd.readouterr()
+    assert len(out.splitlines()) == 1, out
+    return code, json.loads(out), err
+
+
+def file_digest(path):
+    """SHA-256 of a file's bytes (to show a file is unchanged)."""
+    import hashlib
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()

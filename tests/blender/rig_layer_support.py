@@ -30,6 +30,8 @@ bpy.ops.pose.rigify_generate()
 rig = bpy.context.active_object
 rig.name = "rig"
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
+sys.stdout.flush()
+os._exit(0)     # bpy 4.5 as a module can hang at exit (tests/blender/conftest.py)
 """
 
 
@@ -40,7 +42,7 @@ def rigify_blend():
         CACHE.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.blend")
         subprocess.run([sys.executable, "-c", _BUILD, str(tmp)], check=True,
-                       capture_output=True)
+                       capture_output=True, timeout=600)
         tmp.replace(path)
     return path
 

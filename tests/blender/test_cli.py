@@ -6,15 +6,13 @@ The bpy module has no ``--command`` argument handling, so the tests call the reg
 callable with the arguments Blender would pass (everything after the command id).
 """
 
-import hashlib
-import importlib
 import json
 import sys
 
 import numpy as np
 import pytest
 
-from blender_support import EXTENSION_ID, MODULE, bpy
+from blender_support import EXTENSION_ID, addon_module, bpy, file_digest, run_cli
 from core.gait.stock import STOCK_NAME
 from sample_scenes.footage_scenes import ensure_footage, load_footage
 from sample_scenes.track_scene import build_walk_scene, joint_errors, keep_keys_at
@@ -25,8 +23,7 @@ IN_BETWEEN = [f for f in range(1, N_FRAMES + 1) if f not in KEYS]
 BENCHMARK_MPJPE_CM = 4.16          # the tracking benchmark's figure (test_track.py)
 
 
-def module(name):
-    return importlib.import_module(f"{MODULE}.addon.{name}")
+module = addon_module
 
 
 @pytest.fixture(scope="module")
@@ -35,21 +32,13 @@ def walk_folder():
 
 
 def run(capfd, *argv):
-    """Run the registered command; (exit status, summary dict, stderr). Checks that stdout
-    holds exactly one line, a JSON object."""
-    cli = module("cli")
-    capfd.readouterr()
-    code = cli.main([str(a) for a in argv])
-    out, err = capfd.readouterr()
-    lines = out.splitlines()
-    assert len(lines) == 1, out
-    summary = json.loads(lines[0])
+    """:func:`blender_support.run_cli`, and the summary's exit code is the status."""
+    code, summary, err = run_cli(capfd, *argv)
     assert summary["exit_code"] == code
     return code, summary, err
 
 
-def digest(path):
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+digest = file_digest
 
 
 def save_scene(path):

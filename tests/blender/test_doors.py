@@ -3,34 +3,17 @@ operators refuse the same values with a message naming the value, the range and 
 nothing is written and the scene is left as it was. Each case is one that used to give a
 traceback, a MemoryError or keys beyond Blender's frames."""
 
-import hashlib
-import importlib
-import json
 
 import numpy as np
 import pytest
 
-from blender_support import MODULE, bpy
+from blender_support import addon_module, bpy, file_digest, run_cli
 from core import limits
 from core.gait.stock import STOCK_NAME
 from tests.data import asf_path, cmu_path
 
 
-def module(name):
-    return importlib.import_module(f"{MODULE}.addon.{name}")
-
-
-def run(capfd, *argv):
-    """(exit status, summary, stderr) of the registered command; stdout is one JSON line."""
-    capfd.readouterr()
-    code = module("cli").main([str(a) for a in argv])
-    out, err = capfd.readouterr()
-    assert len(out.splitlines()) == 1, out
-    return code, json.loads(out), err
-
-
-def digest(path):
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+module, run, digest = addon_module, run_cli, file_digest
 
 
 @pytest.fixture(scope="module")

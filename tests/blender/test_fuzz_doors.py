@@ -14,8 +14,6 @@ Hypothesis runs derandomized (the same cases every run, no example database), so
 is reproducible.
 """
 
-import hashlib
-import importlib
 import json
 import math
 import os
@@ -25,7 +23,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from blender_support import MODULE, bpy
+from blender_support import addon_module, bpy, file_digest
 from core import limits
 from core.gait.stock import STOCK_NAME
 from tests.data import cmu_path
@@ -45,12 +43,7 @@ def examples(n):
 COUNTS = {"arguments": 0, "api": 0, "end_to_end": 0, "saved": 0, "exit_3": 0, "tracebacks": 0}
 
 
-def module(name):
-    return importlib.import_module(f"{MODULE}.addon.{name}")
-
-
-def digest(path):
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+module, digest = addon_module, file_digest
 
 
 # ------------------------------------------------------------------------------ values

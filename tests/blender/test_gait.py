@@ -412,7 +412,7 @@ def test_refusals_explain_and_change_nothing(scene, tmp_path):
     data.edit_bones.new("Bone").tail = (0, 0, 1)
     bpy.ops.object.mode_set(mode="OBJECT")
     counts = datablock_counts()
-    refused("neither an Acclaim import nor a CMU BVH")
+    refused(r"The gait cannot read plain: .*does not recognise this rig as a humanoid.*Body Map")
     (tmp_path / "other").mkdir()
     empty = import_observed(tmp_path / "other", trial="35_01", n=60)
     empty.animation_data.action = None

@@ -3,7 +3,6 @@ files after the .blend is saved elsewhere -- the Track panel's File exactly as B
 its own (movie clip) paths; ``--output`` and ``--summary`` checked writable before any work; a
 summary that cannot be written fails the run."""
 
-import hashlib
 import importlib
 import json
 import os
@@ -11,24 +10,11 @@ import os
 import pytest
 from PIL import Image
 
-from blender_support import MODULE, bpy
+from blender_support import MODULE, addon_module, bpy, file_digest, run_cli
 from tests.data import cmu_path
 
 
-def module(name):
-    return importlib.import_module(f"{MODULE}.addon.{name}")
-
-
-def run(capfd, *argv):
-    capfd.readouterr()
-    code = module("cli").main([str(a) for a in argv])
-    out, err = capfd.readouterr()
-    assert len(out.splitlines()) == 1, out
-    return code, json.loads(out), err
-
-
-def digest(path):
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+module, run, digest = addon_module, run_cli, file_digest
 
 
 @pytest.fixture

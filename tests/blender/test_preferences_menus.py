@@ -1,13 +1,12 @@
 """Add-on preferences as the operators' defaults (explicit arguments from scripts still win) and
 the menu entries in the Pose, Graph Editor and Dope Sheet menus."""
 
-import importlib
 import sys
 from types import SimpleNamespace
 
 import pytest
 
-from blender_support import MODULE, bpy
+from blender_support import MODULE, addon_module, bpy
 from sample_scenes.footage_scenes import ensure_footage
 from sample_scenes.track_scene import build_walk_scene
 from tests.data import cmu_path
@@ -17,8 +16,7 @@ MENU_ENTRIES = [("track_and_stride.track_keyframes", "Track Keyframes"),
                 ("track_and_stride.predict_gait", "Predict Gait")]
 
 
-def module(name):
-    return importlib.import_module(f"{MODULE}.addon.{name}")
+module = addon_module
 
 
 class Recorder:
