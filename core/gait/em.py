@@ -241,7 +241,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio, offset)
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
-    grid = grid_search(ctx, ys[:k])
+    grid = grid_search(ctx, ys[:k], refine=True)
     fixed = style is not None
     if fixed:
         w = np.asarray(style, dtype=float)
