@@ -67,7 +67,8 @@ bench-import: extension
 bench-gait: $(STAMP)
 	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json $(if $(ONLY),--only $(ONLY))
 
-# Rebuild the stock gait library shipped in core/gait/data (about 10 s; docs/gait.md).
+# Rebuild the stock gait library shipped in core/gait/data (1.5-2.5 min; the same file, bit for
+# bit, on a rebuild: docs/gait.md).
 stock-gaits: $(STAMP)
 	$(PY) tools/build_stock_gaits.py --output core/gait/data/stock_gaits.npz
 

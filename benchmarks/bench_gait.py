@@ -42,6 +42,7 @@ from core.gait.residual import residual_weights  # noqa: E402
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
+import gait_acceptance  # noqa: E402
 import gait_lowo  # noqa: E402
 import gait_restyle  # noqa: E402
 
@@ -411,7 +412,10 @@ def print_lowo(block):
     bases = gait_lowo.BASELINES
     print("method: the confident cycle Predict Gait keys; forecast: the phase-averaged forecast "
           "(core API only, not keyed)")
-    print(f"{'observed':10s}{'method':>9s}{'forecast':>9s}" + "".join(f"{b:>15s}" for b in bases)
+    print("windows Predict Gait refuses are refusals (the accept rate), not scores; every "
+          "figure is over the windows it takes")
+    print(f"{'observed':10s}{'accept':>8s}{'method':>9s}{'forecast':>9s}"
+          + "".join(f"{b:>15s}" for b in bases)
           + f"{'method@lc':>11s}{'fcast@lc':>10s}{'lc cases':>10s}{'ratio':>8s}  best")
     for w, b in block["windows"].items():
         cells = "".join(f"{'—' if b['baselines'][k] is None else format(b['baselines'][k], '.2f'):>15s}"
@@ -419,7 +423,7 @@ def print_lowo(block):
         mlc, klc = b["method_on_last_cycle_cases"], b.get("method_forecast_on_last_cycle_cases")
         keyed = b.get("method_forecast")
         keyed = "—" if keyed is None else format(keyed, ".2f")
-        print(f"{w + ' s':10s}{b['method']:9.2f}{keyed:>9s}{cells}"
+        print(f"{w + ' s':10s}{100 * b['accept_rate']:7.0f}%{b['method']:9.2f}{keyed:>9s}{cells}"
               f"{'—' if mlc is None else format(mlc, '.2f'):>11s}"
               f"{'—' if klc is None else format(klc, '.2f'):>10s}"
               f"{'/'.join(map(str, b['last_cycle_cases'])):>10s}"
@@ -529,7 +533,7 @@ def print_table(report):
           f"(goal <= {GOALS['train_s']:.0f})")
 
 
-PARTS = ("offline", "online", "lowo", "restyle")
+PARTS = ("offline", "online", "lowo", "restyle", "acceptance")
 
 
 def main(argv=None):
@@ -561,6 +565,8 @@ def main(argv=None):
         report["leave_one_walker_out"] = run_lowo()
     if "restyle" in parts:
         report["restyle"] = gait_restyle.run_restyle()
+    if "acceptance" in parts:
+        report["acceptance"] = gait_acceptance.run_acceptance()
     png = None
     if "online" in parts:
         png = output.with_name("gait_online.png")
@@ -573,6 +579,8 @@ def main(argv=None):
         print_lowo(report["leave_one_walker_out"])
     if "restyle" in parts:
         gait_restyle.print_restyle(report["restyle"])
+    if "acceptance" in parts:
+        gait_acceptance.print_acceptance(report["acceptance"])
     if "online" in parts:
         speed = report["speed"]
         print(f"reference workload {speed['reference_workload_us']:.1f} us; online step = "

@@ -41,6 +41,8 @@ import numpy as np
 
 from core.gait import OnlineEM, adapt, learn_model, observations_from_dofs, predict
 from core.gait.alignment import estimate_period
+from core.gait.checks import check_gait, regularity
+from core.gait.walk import WalkRequest, predict_walk
 from core.gait.phase_average import forecast_scale
 from core.gait.segments import _moving_average, _runs, steady_segments
 from core.gait.root_travel import RootFrame, heading_angles, root_rotations
@@ -207,6 +209,34 @@ def method_prediction(model, method, window, n, keyed=False):
     return pred, (predict(model, res.state, res.w, n, **kw) if method.phase_average else pred)
 
 
+def keyed_prediction(model, method, window_obs, window_dofs, names, skeleton, n):
+    """What Predict Gait keys from a window, through its path: the checks (a refused window
+    gives None), batch EM, ``core.gait.walk.predict_walk`` on the walker's skeleton (grounded,
+    planted, continuing from the last frame; the residual table with ``method.residual``);
+    the model's joint angles of the keyed rows, (n, 56)."""
+    return keyed_variants(model, method, window_obs, window_dofs, names, skeleton, n)["method"]
+
+
+def keyed_variants(model, method, window_obs, window_dofs, names, skeleton, n):
+    """:func:`keyed_prediction` (``'method'``) and, from the same adaptation, Keep Mannerisms
+    off (``'method_plain'``) and the residual table weighted by the window's regularity
+    (``'method_regular'``, ``core.gait.checks.regularity``); all None when refused."""
+    check = check_gait(model, window_obs, FPS)
+    if check.refusal is not None:
+        return {"method": None, "method_plain": None, "method_regular": None}
+    res = adapt(model, window_obs, fps=FPS, residual=method.residual, **method.adapt)
+    cols = [list(names).index(a) for a in model.angle_names]
+    out = {}
+    for key, table in (("method", res.residual), ("method_plain", None),
+                       ("method_regular", None if res.residual is None
+                        else regularity(check) * res.residual)):
+        walk = predict_walk(model, skeleton, window_dofs, FPS, res.state, res.w, n,
+                            WalkRequest(), offset=res.offset, residual=table,
+                            start=res.last_observation)
+        out[key] = walk.dofs[:, cols]
+    return out
+
+
 def baseline_predictions(model, window, n):
     """{baseline: (n, 56) or None} (module docstring)."""
     out = {"hold": np.tile(window[-1, :N_ANGLES], (n, 1))}
@@ -271,6 +301,7 @@ class CaseScore:
     bins: dict                  # {predictor: {bin label: deg or None}}
     joint_sq: dict              # {predictor: (56,) mean squared error, rad²}
     phase_s: dict               # {predictor: s or None}
+    accepted: bool = True       # Predict Gait's checks took the window
 
 
 def bin_label(lo, hi):
@@ -306,16 +337,31 @@ def evaluate_subject(method, subject, train_subjects, windows=WINDOWS, baselines
         obs = obs_cache[trial]
         truth = obs[t0:stop, :N_ANGLES]
         n = len(truth)
+        values, names = load(trial)
+        skeleton = skeleton_of(trial)
         for w in windows:
-            win = obs[t0 - round(w * FPS):t0]
+            a = t0 - round(w * FPS)
+            win = obs[a:t0]
             if baselines:
-                pred, keyed = method_prediction(model, method, win, n, keyed=True)
-                preds = {"method": keyed, "method_forecast": pred}   # method: what Predict Gait keys
+                # method: what Predict Gait keys (None where its checks refuse the window)
+                preds = keyed_variants(model, method, win, values[a:t0], names, skeleton, n)
+                keyed = preds["method"]
+                if keyed is not None:
+                    preds["method_forecast"] = method_prediction(model, method, win, n)
                 preds.update(baseline_predictions(model, win, n))
             else:
                 preds = {"method": method_prediction(model, method, win, n)}
-            scores.append(score_case(subject, trial, t0, w, preds, truth))
+            score = score_case(subject, trial, t0, w, preds, truth)
+            score.accepted = "method" in score.total
+            scores.append(score)
     return scores
+
+
+@lru_cache(maxsize=None)
+def skeleton_of(trial):
+    """The trial's skeleton (its subject's .asf, else the CMU template)."""
+    path = CMU / f"{trial.split('_')[0]}.asf"
+    return asf_to_skeleton(read_asf(path) if path.exists() else cmu_template_asf())
 
 
 def lowo_scores(method, subjects=SUBJECTS, windows=WINDOWS, baselines=True):
@@ -363,15 +409,28 @@ def headline(scores, predictor, window, getter=lambda c, p: c.total.get(p), subj
     return _mean(by.values())
 
 
-def summarise(scores, joint_names, predictors=("method", "method_forecast") + BASELINES):
+def summarise(scores, joint_names, predictors=("method", "method_forecast", "method_plain",
+                                               "method_regular") + BASELINES):
     """The ``leave_one_walker_out`` JSON block (issue 12) plus extra diagnostics."""
     windows = {}
     per_subject = {}
-    for w in sorted({c.window for c in scores}):
+    everything = scores
+    for w in sorted({c.window for c in everything}):
         key = f"{w:g}"
+        cases_w = [c for c in everything if c.window == w]
+        # What the user gets: a refused window is a refusal (the accept rate), not a score;
+        # the method and every baseline are compared on the windows Predict Gait takes.
+        scores = [c for c in cases_w if c.accepted]
+        accept_rate = len(scores) / len(cases_w) if cases_w else None
         have = {p for c in scores if c.window == w for p in c.total}
         block = {"method": headline(scores, "method", w), "baselines": {},
-                 "method_forecast": headline(scores, "method_forecast", w)}
+                 "method_forecast": headline(scores, "method_forecast", w),
+                 "method_plain": headline(scores, "method_plain", w),
+                 "method_regular": headline(scores, "method_regular", w),
+                 "accept_rate": accept_rate, "cases": len(cases_w),
+                 "accept_rate_per_subject": {
+                     s: float(np.mean([c.accepted for c in cases_w if c.subject == s]))
+                     for s in sorted({c.subject for c in cases_w})}}
         for b in BASELINES:
             block["baselines"][b] = headline(scores, b, w) if b in have else None
         # last cycle runs only where the window holds a period: compare on those cases.
@@ -441,7 +500,7 @@ def summarise(scores, joint_names, predictors=("method", "method_forecast") + BA
                 for s, v in subject_means(scores, p, w).items():
                     per_subject.setdefault(s, {}).setdefault(key, {})[p] = v
     for s in per_subject:
-        per_subject[s]["cases"] = len({(c.trial, c.t0) for c in scores if c.subject == s})
+        per_subject[s]["cases"] = len({(c.trial, c.t0) for c in everything if c.subject == s})
     return {"windows": windows, "per_subject": per_subject}
 
 

@@ -8,24 +8,30 @@ resamples them to 60 Hz, cuts each into steady pieces (``core.gait.segments``), 
 model with the default settings: every piece is a training sequence named after its style (the
 pieces of a style become one named style), the CMU subject is the walker (posture-offset prior).
 The same recipe, without the held-out subject, is what ``make bench-gait`` evaluates leave one
-walker out. Deterministic: the same data give the same model up to floating-point rounding
-(the file's checksum covers its exact bytes, so a rebuild on another machine may differ in the
-last digits and in the checksum). Takes about 10 s.
+walker out. Reproducible: one BLAS thread and a timestamp-free file make a rebuild on the same
+machine byte-identical (a rebuild on another CPU may still differ in the last digits, and then in
+the checksum). Takes 2-7 minutes on the 2-core development machine.
 """
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# One BLAS thread: sums of products then round the same way on every run, so the rebuild is
+# byte-identical (with two threads the last digits, and the file's checksum, can differ).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from core.gait import learn_model  # noqa: E402
 from core.gait.segments import steady_segments  # noqa: E402
-from core.gait.stock import STOCK_PATH, STOCK_RECIPE, STOCK_VERSION  # noqa: E402
+from core.gait.stock import STOCK_LAG_RANGE, STOCK_PATH, STOCK_RECIPE, STOCK_VERSION  # noqa: E402
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample  # noqa: E402
 from core.mocap.bvh import cmu_template_asf  # noqa: E402
 
@@ -33,7 +39,7 @@ CMU = ROOT / "sample_scenes" / "data" / "cmu"
 FPS = 60.0
 NOTES = (f"Track & Stride stock gaits v{STOCK_VERSION}: learned by tools/build_stock_gaits.py "
          "from CMU motion capture (mocap.cs.cmu.edu; the database was created with funding "
-         "from NSF EIA-0196217), subjects 07, 08, 35, 91, 132, 139.")
+         "from NSF EIA-0196217), subjects 06, 07, 08, 35, 74, 91, 120, 132, 139.")
 
 
 def load_trial(name, folder=CMU):
@@ -57,7 +63,7 @@ def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=()):
             if subject in exclude_subjects or trial in exclude_trials:
                 continue
             values, names = load_trial(trial, folder)
-            for start, stop in steady_segments(values, names, FPS):
+            for start, stop in steady_segments(values, names, FPS, lag_range=STOCK_LAG_RANGE):
                 seqs.append(values[start:stop])
                 styles.append(style)
                 walkers.append(subject)
@@ -70,6 +76,7 @@ def build_stock(recipe=STOCK_RECIPE, folder=CMU, exclude_subjects=(), exclude_tr
     benchmark's folds); ``learn_kw`` go to ``learn_model``."""
     seqs, names, styles, walkers = training_pieces(recipe, folder, exclude_subjects,
                                                    exclude_trials)
+    learn_kw.setdefault("lag_range", STOCK_LAG_RANGE)
     return learn_model(seqs, names, FPS, styles, walkers=walkers, notes=NOTES, **learn_kw)
 
 

@@ -618,9 +618,7 @@ def predict_gait(context, obj, options):
             f"; {written} keys in {new_action.name}{_controls_said(grig)}"
             + (f", replacing the earlier prediction of frames {replaced[0]}–{replaced[1]}"
                if replaced else "")
-            + (f"; fit score {check.fit:.2f}" if check.fit is not None else "")
-            + ("" if check.period_s is not None else
-               "; the reference range is shorter than a step cycle, its rhythm was not tested"))
+            + (f"; fit score {check.fit:.2f}" if check.fit is not None else ""))
     return {"status": "warning" if warnings else "ok", "object": obj.name,
             "action": new_action.name, "model": model_name, "observed": [first, last],
             "predicted": [int(frames[0]), int(frames[-1])], "keys": int(written),

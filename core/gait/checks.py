@@ -1,43 +1,60 @@
 """Is the observed range a gait the model can continue? (``docs/gait.md``, *Saying no*)
 
-Predict and the live preview must not key a confident walk onto motion that is not one. The
-checks, on the observed joint angles (physical units) and, after adapting, on the model's fit:
+Predict and the live preview must not key a confident walk onto motion that is not one, and
+must take every real walk or run. The checks, on the observed channels (physical units) and,
+after adapting, on the model's fit (issue 21):
 
-1. **Motion**: the RMS deviation of the model's *gait channels* (the joint angles that move
-   most in the model's mean cycle: hips, knees, ankles for CMU) from their mean over the range
-   must reach ``MIN_MOTION_DEG`` (1°). A frozen pose is refused.
-2. **Rhythm**: when the range is long enough to test (about 1 s for a 0.5-2 s period search),
-   the periodicity test learning uses (:func:`.alignment.periodicity`) must find a period with a
-   strength of at least ``MIN_STRENGTH`` (0.3, the segmentation's, :mod:`.segments`). Shorter
-   ranges (predicting from less than a cycle) skip this test and say so.
-3. **Alternating legs**: in the model's cycles the left and right gait channels alternate
-   (their pooled zero-lag correlation, :func:`legs_together`, is negative). Observed legs that
-   move together (correlation above ``MAX_LEGS_TOGETHER``, 0.8: a jump, a hop, a squat) are
-   refused. On the leave-one-walker-out test windows of real walks the correlation stays below
-   0.3 (0.5 s windows; 0.14 at 1.67 s); a jump gives 1.
-4. **Fit score** (after adapting): the share of the gait channels' variance over the range that
-   the adapted style and posture offset explain, ``1 - SSE / SST`` (no residual table: that
-   would explain anything). Below ``WARN_FIT`` (0.5) the prediction is made with a warning that
-   quotes the score. Leave-one-walker-out windows: median 0.7-0.85 for regular walkers, about
-   0.1 (down to -0.5) for the sneaking walks of CMU 139 when no careful walker was learned.
+1. **Legs move**: the RMS deviation of the hip and knee flexion from their mean over the range
+   must reach ``MIN_MOTION_DEG`` (1°). A frozen pose (a T-pose, standing) is refused.
+2. **Upright**: the root's tilt from its upright rest (the ``root.tilt_*`` channels) stays
+   within ``MAX_TILT_DEG`` (60°): lying, rolling, cartwheels and handstands are refused (walks
+   and runs lean at most about 30°).
+3. **Alternating legs**: the hips must move against each other: the RMS of their half
+   difference (:func:`alternation_deg`, hip flexion) must reach ``MIN_ALTERNATION_DEG`` (3.5°).
+   Jumps, hops, squats, the chicken dance and shifting weight in place stay below 3.1°; steady
+   walks and runs reach 4-10° from 0.75 s of observation. (The zero-lag correlation of the
+   legs, :func:`legs_together`, is reported: a crouched sneaking walk bends both hips together
+   while it steps, up to +0.9, so the correlation cannot tell it from a jump.)
+4. **Travel**: the root's mean horizontal velocity (the ``root.v_forward`` / ``root.v_left``
+   channels) must reach ``MIN_TRAVEL`` (0.2 m/s): boxing footwork, punching, gesturing or
+   balancing in place are refused (steady walks: 0.38 m/s and more; the slowest shipped walker,
+   a sneaking one, 0.4). A walk cycle keyed in place is refused too: key its travel.
+5. **Rhythm over the whole range** (:func:`rhythm`): for every period the model's walkers walk
+   at (their periods × 0.8 … 1.25, the cadence prior), the range is compared with itself one cycle
+   later and, mirrored left for right, half a cycle later (the other leg's step), wherever the
+   range is long enough for ``MIN_OVERLAP_S`` (0.2 s) of overlap: a walk observed for 0.75 s
+   (less than a cycle) already shows one leg repeating the other's step. The best pooled
+   correlation must reach ``MIN_STRENGTH`` (0.3). A range too short for even the half-cycle
+   comparison is predicted with a warning (its rhythm is not tested) when its legs alternate.
+6. **Fit score** (after adapting): `1 − SSE/SST` of the style and offset on the gait channels.
+   Below ``WARN_FIT`` (0.5) the prediction is made with a warning that quotes it.
 
-Refusals say why in plain words; nothing is changed by the caller then.
+Refusals say why in plain words; nothing is changed by the caller then. Measured acceptance of
+every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .alignment import periodicity
 from .segments import MIN_STRENGTH
 
-__all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MIN_MOTION_DEG", "WARN_FIT", "check_gait",
-           "fit_score", "gait_channels", "legs_together"]
+__all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
+           "MIN_MOTION_DEG", "MIN_OVERLAP_S",
+           "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
+           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm"]
 
 MIN_MOTION_DEG = 1.0
-MAX_LEGS_TOGETHER = 0.8
+MAX_TILT_DEG = 60.0
+MAX_LEGS_TOGETHER = 0.5      # (reported; the refusal uses the alternation below)
+MIN_ALTERNATION_DEG = 3.5
+MIN_TRAVEL = 0.2            # m/s
+MIN_OVERLAP_S = 0.2         # s of overlap for a rhythm comparison
+CADENCE_SPREAD = 1.25       # periods searched: the training walkers' × 1/1.25 … × 1.25
 WARN_FIT = 0.5
 N_GAIT_CHANNELS = 8
+LEG_FLEXION = ("lfemur.rx", "rfemur.rx", "ltibia.rx", "rtibia.rx")
+HIP_FLEXION = ("lfemur.rx", "rfemur.rx")
 
 
 @dataclass(frozen=True)
@@ -47,7 +64,7 @@ class GaitCheck:
     Attributes
     ----------
     motion_deg : float
-        RMS motion of the gait channels over the range, degrees.
+        RMS motion of the hip and knee flexion over the range, degrees.
     period_s, strength : float or None
         Period (seconds) and periodicity strength; None when the range is too short to test.
     legs_together : float or None
@@ -58,6 +75,10 @@ class GaitCheck:
         Why the range is not a gait to continue (plain words), or None.
     warning : str or None
         A caution to report with the result, or None.
+    tilt_deg : float or None
+        Largest tilt of the root from upright, degrees (None without root channels).
+    travel : float or None
+        Mean horizontal root speed, m/s (None without root channels).
     """
 
     motion_deg: float
@@ -67,6 +88,8 @@ class GaitCheck:
     fit: float = None
     refusal: str = None
     warning: str = None
+    tilt_deg: float = None
+    travel: float = None
 
 
 def gait_channels(model, count=N_GAIT_CHANNELS):
@@ -101,6 +124,24 @@ def legs_together(values, pairs):
     return float(np.sum(left * right)) / den if den > 0 else 0.0
 
 
+def alternation_deg(values, pairs):
+    """RMS of the half difference of left/right channel pairs over a range, degrees: how much
+    the legs move *against* each other (the stepping), whatever they do together (a crouch, a
+    bounce). Jumps and squats: below 3°; walks and runs: 4° and more from 0.75 s."""
+    values = np.asarray(values, dtype=float)
+    diff = 0.5 * (values[:, [a for a, _ in pairs]] - values[:, [b for _, b in pairs]])
+    return float(np.degrees(np.sqrt(np.mean((diff - diff.mean(axis=0)) ** 2))))
+
+
+def regularity(check):
+    """How far to trust a walker's own cycle-to-cycle details (the residual table, *Keep
+    Mannerisms*): 0 … 1 from the rhythm strength of the range, ``(strength − 0.3) / 0.5``
+    clipped (a range too short to test: 0.5)."""
+    if check.strength is None:
+        return 0.5
+    return float(np.clip((check.strength - MIN_STRENGTH) / 0.5, 0.0, 1.0))
+
+
 def fit_score(model, observations, result):
     """Share of the gait channels' variance explained by an adaptation (``1 - SSE/SST``).
 
@@ -122,8 +163,71 @@ def fit_score(model, observations, result):
     return 1.0 - sse / sst if sst > 0 else float("-inf")
 
 
+def rhythm(model, observations, fps):
+    """Period and strength of the gait's rhythm over the whole range (module docstring, 5).
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+    fps : float
+
+    Returns
+    -------
+    period_s, strength : float or None
+        The best period (seconds) and its pooled correlation; None when the range is too short
+        for the half-cycle comparison at the model's shortest period.
+    whole : bool
+        Whether the range held a whole cycle at that period (the same leg compared a cycle
+        later, not only the other leg half a cycle later).
+    """
+    obs = np.asarray(observations, dtype=float)
+    pairs = _leg_pairs(model, gait_channels(model))
+    cols = sorted(set(gait_channels(model).tolist()) | {b for _, b in pairs})
+    x = obs[:, cols] - obs[:, cols].mean(axis=0)
+    position = {c: k for k, c in enumerate(cols)}
+    left = [position[a] for a, _ in pairs]
+    right = [position[b] for _, b in pairs]
+    mirrored = x.copy()
+    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
+    n = len(x)
+    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
+    periods = model.periods / model.fps * fps
+    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
+    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
+    best = (None, None, False)
+    for period in range(lo, hi + 1):
+        half = int(round(period / 2))
+        num = e1 = e2 = 0.0
+        if pairs and n - half >= overlap:                  # the other leg's step
+            a, b = mirrored[:n - half][:, left + right], x[half:][:, left + right]
+            num, e1, e2 = np.sum(a * b), np.sum(a * a), np.sum(b * b)
+        whole = n - period >= overlap
+        if whole:                                          # the same leg, a cycle later
+            a, b = x[:n - period], x[period:]
+            num, e1, e2 = num + np.sum(a * b), e1 + np.sum(a * a), e2 + np.sum(b * b)
+        if e1 <= 0 or e2 <= 0:
+            continue
+        value = num / np.sqrt(e1 * e2)
+        if best[1] is None or value > best[1]:
+            best = (period / fps, float(value), whole)
+    return best
+
+
+def _root_figures(model, obs):
+    """(largest tilt from upright in degrees, mean horizontal speed in m/s), or (None, None)
+    for a model without root travel."""
+    if not model.root_travel:
+        return None, None
+    tilt = obs[:, model.channel_index(["root.tilt_x", "root.tilt_y", "root.tilt_z"])]
+    speed = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
+    tilt_deg = float(np.degrees(np.linalg.norm(tilt, axis=1).max()))
+    travel = float(np.linalg.norm(np.nanmean(speed, axis=0)))
+    return tilt_deg, travel
+
+
 def check_gait(model, observations, fps, result=None, what="the observed frames"):
-    """Checks 1-3 of the module docstring, and the fit score when ``result`` is given.
+    """Checks 1-5 of the module docstring, and the fit score when ``result`` is given.
 
     Parameters
     ----------
@@ -140,41 +244,57 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     GaitCheck
     """
     obs = np.asarray(observations, dtype=float)
-    cols = gait_channels(model)
-    angles = obs[:, cols]
-    motion = float(np.degrees(np.sqrt(np.mean((angles - angles.mean(axis=0)) ** 2))))
+    flex = [model.channel_names.index(c) for c in LEG_FLEXION if c in model.channel_names] \
+        or list(gait_channels(model))
+    legs = obs[:, flex]
+    motion = float(np.degrees(np.sqrt(np.mean((legs - legs.mean(axis=0)) ** 2))))
     if motion < MIN_MOTION_DEG:
         return GaitCheck(motion, refusal=f"The legs hold still in {what} ({motion:.2f}° of "
                                          f"motion): there is no walk to continue")
-    pairs = _leg_pairs(model, cols)
+    tilt, travel = _root_figures(model, obs)
+    if tilt is not None and tilt > MAX_TILT_DEG:
+        return GaitCheck(motion, tilt_deg=tilt, travel=travel,
+                         refusal=f"The body is not upright in {what} (tilted {tilt:.0f}° from "
+                                 f"standing): that is not a walk or run the gait model can "
+                                 f"continue")
+    hips = [(model.channel_names.index(a), model.channel_names.index(b))
+            for a, b in (HIP_FLEXION,) if a in model.channel_names and b in model.channel_names]
+    pairs = hips or _leg_pairs(model, gait_channels(model))
     together = None
     if pairs:
         together = legs_together(obs, pairs)
+        stepping = alternation_deg(obs, pairs)
         alternate = legs_together(np.einsum("j,jcd->cd", model.style_mean,
                                             model.bases)[:-1], pairs) < 0
-        if alternate and together > MAX_LEGS_TOGETHER:
-            return GaitCheck(motion, legs_together=together,
-                             refusal=f"Both legs move together in {what} (correlation "
-                                     f"{together:.2f}): that is a jump, hop or squat, not a walk "
-                                     f"or run the gait model can continue")
-    period = strength = None
-    try:
-        frames, strength = periodicity(obs[:, :model.n_angles], fps,
-                                       tuple(model.lag_range))
-        period = frames / fps
-    except ValueError as exc:
-        if "shorter than one cycle" not in str(exc):
-            return GaitCheck(motion, legs_together=together,
-                             refusal=f"No repeating step in {what}: {exc}")
-    if strength is not None and strength < MIN_STRENGTH:
-        return GaitCheck(motion, period, strength, together,
-                         refusal=f"No steady rhythm in {what}: the motion repeats with a "
-                                 f"strength of {strength:.2f} (a walk or run reaches "
+        if alternate and stepping < MIN_ALTERNATION_DEG:
+            return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
+                             refusal=f"Both legs move together in {what} (they differ by "
+                                     f"{stepping:.1f}° only): that is a jump, hop, squat or "
+                                     f"a dance step, not a walk or run the gait model can "
+                                     f"continue")
+    if travel is not None and travel < MIN_TRAVEL:
+        return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
+                         refusal=f"The walker stays in place in {what} ({travel:.2f} m/s): "
+                                 f"boxing, gesturing or stepping on the spot is not a walk or "
+                                 f"run the gait model can continue (a walk cycle keyed in "
+                                 f"place needs its travel keyed)")
+    period, strength, whole = rhythm(model, obs, fps)
+    if whole and strength < MIN_STRENGTH:
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         refusal=f"No steady rhythm in {what}: the legs repeat their steps "
+                                 f"with a strength of {strength:.2f} (a walk or run reaches "
                                  f"{MIN_STRENGTH:g} or more)")
-    fit = warning = None
+    fit = None
+    warnings = []
+    if strength is None:
+        warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
+    elif strength < MIN_STRENGTH:
+        warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
+                        f"(strength {strength:.2f}): check the result")
     if result is not None:
         fit = fit_score(model, obs, result)
         if fit < WARN_FIT:
-            warning = (f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the leg "
-                       f"motion in {what} (fit score {fit:.2f}): check the result")
-    return GaitCheck(motion, period, strength, together, fit, None, warning)
+            warnings.append(f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
+                            f"leg motion in {what} (fit score {fit:.2f}): check the result")
+    return GaitCheck(motion, period, strength, together, fit, None,
+                     "; ".join(warnings) or None, tilt, travel)

@@ -195,7 +195,7 @@ def m_step_offset(ctx, stats, style=None):
 def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
           init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
           residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO,
-          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True, n_starts=1):
+          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True, n_starts=1, refine_start=True):
     """Batch EM: estimate phase state and style of a new walker from an observed window.
 
     Parameters
@@ -233,6 +233,9 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     n_starts : int
         EM runs from the best local minima of the start grid; the run with the highest
         likelihood is kept (1: the grid's best only).
+    refine_start : bool
+        Move the grid's best start down the continuous cost with the posture offset
+        (:func:`.grid_search`'s ``refine``; False: the grid cell itself, as before issue 21).
 
     Returns
     -------
@@ -241,7 +244,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio, offset)
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
-    grid = grid_search(ctx, ys[:k])
+    grid = grid_search(ctx, ys[:k], refine=refine_start)
     fixed = style is not None
     if fixed:
         w = np.asarray(style, dtype=float)

@@ -17,6 +17,20 @@ normal equations and the residual use per-phase tables of ``μ`` and ``μᵀμ``
 (``N_TABLE`` samples), so scoring ~10³ candidates over tens of frames costs about a
 millisecond. The best candidate seeds the EKF (and the online filter's re-acquisition after a
 change of walker).
+
+``refine=True`` (what batch adaptation uses) then moves the best candidate off the grid, down
+the continuous cost with the walker's posture offset estimated too (``b ~ N(0, offset_var)``,
+eliminated as in the M-step of :mod:`.em`): in turn along log ω and along the phase at the
+window's middle frame (where the cost's valley runs along ω; at fixed φ₀ it runs diagonally),
+each time to the vertex of the parabola through the point and a step either side, the steps
+halved every round from one grid cell. Why: the plain grid's start jumps a whole cell when the
+best cell changes, and on a window shorter than a cycle the EKF still remembers its start at the
+last frame, so a walker's posture offset -- e.g. a rig read through another skeleton's rest
+directions, ``tests/blender/test_gait_rigs.py`` -- moved the prediction's first frames by a few
+degrees (a 0.003 rad offset in one channel moved the phase by 0.06 rad with the v2 stock
+library, whose wider period range makes the ω cells 8 % apart). The refined start moves
+continuously with the data while the best cell stays in the same valley of the cost, and an
+offset the prior allows hardly moves it (``tests/core/test_gait_em.py``).
 """
 
 from dataclasses import dataclass
@@ -29,6 +43,7 @@ N_TABLE = 360
 OMEGA_LOG_SD = 0.1
 DEFAULT_N_PHI = 36
 DEFAULT_N_OMEGA = 24
+REFINE_ROUNDS = 5    # halvings of the steps when refining the best candidate (1/32 cell)
 _BLOCK = 16          # frames gathered at once when summing the tables
 
 
@@ -102,7 +117,23 @@ def phase_tables(ctx):
     return cached
 
 
-def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
+def _parabola_vertex(before, centre, after):
+    """Offset (in steps, within ±½) of the vertex of the parabola through three costs
+    at -1, 0, +1 whose middle one is the smallest."""
+    curvature = before - 2.0 * centre + after
+    if not np.isfinite(curvature) or curvature <= 0.0:
+        return 0.0
+    return float(np.clip(0.5 * (before - after) / curvature, -0.5, 0.5))
+
+
+def _cadence_prior(ctx, omegas):
+    """The cadence prior's cost term (module docstring) at ``omegas`` (n,)."""
+    z = (np.log(omegas)[:, None] - np.log(ctx.omega_train)[None, :]) / OMEGA_LOG_SD
+    zmin = np.min(z**2, axis=1)
+    return zmin - 2.0 * np.log(np.mean(np.exp(-0.5 * (z**2 - zmin[:, None])), axis=1))
+
+
+def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=False):
     """Score the (ω, φ₀) grid on a window and return the best candidate.
 
     Parameters
@@ -113,6 +144,9 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
         the window is left out of the scoring).
     n_phi, n_omega : int
         Grid size.
+    refine : bool
+        Move the best candidate down the continuous cost (module docstring); ``costs`` stay
+        the grid's.
 
     Returns
     -------
@@ -155,16 +189,86 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA):
     resid = yy - 2.0 * np.einsum("...j,...j->...", w, b_sum) \
         + np.einsum("...j,...jk,...k->...", w, a_sum, w)
     dw = w - ctx.w_mean
-    z = (np.log(omegas)[:, None] - np.log(ctx.omega_train)[None, :]) / OMEGA_LOG_SD
-    zmin = np.min(z**2, axis=1)
-    cadence = zmin - 2.0 * np.log(np.mean(np.exp(-0.5 * (z**2 - zmin[:, None])), axis=1))
     cost = np.maximum(resid, 0.0) / r + np.einsum("...j,jk,...k->...", dw, prec, dw) \
-        + cadence[:, None]
+        + _cadence_prior(ctx, omegas)[:, None]
     i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
     omega, phi0 = float(omegas[i]), float(phis[j])
+    best = (w[i, j].copy(), float(cost[i, j]), float(max(resid[i, j], 0.0)),
+            a_sum[i, j].copy(), b_sum[i, j].copy())
+    if refine:
+        omega, phi0, best = _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0,
+                                    np.log(omegas[1] / omegas[0]), 2.0 * np.pi / n_phi)
+    w_best, cost_best, resid_best, a_best, b_best = best
     return GridResult(omega=omega, phi0=phi0,
                       phi_last=float((phi0 + omega * (k_frames - 1)) % (2.0 * np.pi)),
-                      w=w[i, j].copy(), cost=float(cost[i, j]),
-                      residual=float(max(resid[i, j], 0.0)), costs=cost, omegas=omegas,
-                      a_sum=a_sum[i, j].copy(), b_sum=b_sum[i, j].copy(), n_frames=k_frames,
-                      styles=w, phis=phis)
+                      w=w_best, cost=cost_best, residual=resid_best, costs=cost, omegas=omegas,
+                      a_sum=a_best, b_sum=b_best, n_frames=k_frames, styles=w, phis=phis)
+
+
+def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=REFINE_ROUNDS):
+    """Descend the continuous cost from a grid candidate, in turn along log ω (holding the
+    phase at the window's middle frame: the cost's valley runs along ω there, while at fixed
+    φ₀ it runs diagonally) and along the phase, each time to the vertex of the parabola through
+    the cost at the point and a step either side (at most one step), halving the steps every
+    round. Returns ``(ω, φ₀, score)`` with ``score`` as :func:`_score_one`'s."""
+    lo, hi = np.log(ctx.omega_min), np.log(ctx.omega_max)
+    offset_prec = None if ctx.offset_prec is None else ctx.offset_prec[ok]
+    t_mid = 0.5 * (len(ys) - 1)
+    x = np.array([np.log(omega), phi0 + omega * t_mid])          # (log ω, φ at the middle)
+
+    def score(p):
+        om = float(np.exp(p[0]))
+        return _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy, offset_prec)
+
+    best = score(x)
+    steps = np.array([log_step, phi_step])
+    for _ in range(rounds):
+        for axis in (0, 1):
+            def point(k):
+                p = x.copy()
+                p[axis] += k * steps[axis]
+                p[0] = np.clip(p[0], lo, hi)
+                return p
+            costs = [score(point(-1.0))[1], best[1], score(point(1.0))[1]]
+            if costs[0] < best[1] or costs[2] < best[1]:
+                k = -1.0 if costs[0] < costs[2] else 1.0          # downhill: one step
+            else:
+                k = 2.0 * _parabola_vertex(*costs)                # the vertex, within ±1 step
+            candidate = point(k)
+            trial = score(candidate)
+            if trial[1] <= best[1]:
+                x, best = candidate, trial
+        steps = steps / 2.0
+    omega = float(np.exp(x[0]))
+    return omega, float((x[1] - omega * t_mid) % (2.0 * np.pi)), best
+
+
+def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None):
+    """(w, cost, residual, Σ μᵀμ, Σ μᵀy) of one candidate (ω, φ₀): the grid's scoring at a
+    single point (``mu``, ``mtm`` the tables of the scored channels). With ``offset_prec``
+    (Dc,) the walker's posture offset ``b ~ N(0, diag(1/offset_prec))`` is estimated with the
+    style, as adaptation's M-step does (``core.gait.em``: ``b`` eliminated, a J × J system),
+    and the cost is the minimum over both."""
+    phase = phi0 + omega * np.arange(len(ys))
+    idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE
+    a_sum = mtm[idx].sum(axis=0)
+    b_sum = np.einsum("td,tjd->j", ys, mu[idx])
+    r = ctx.r
+    lhs = a_sum / r + ctx.w_prec
+    rhs = b_sum / r + ctx.w_prec @ ctx.w_mean
+    if offset_prec is not None:
+        m_sum = mu[idx].sum(axis=0)                                       # (J, Dc)
+        y_sum = ys.sum(axis=0)
+        diag = len(ys) / r + offset_prec                                  # D = n/r + λ
+        mr = m_sum / r
+        lhs = lhs - (mr / diag) @ mr.T
+        rhs = rhs - (mr / diag) @ (y_sum / r)
+    w = np.linalg.solve(lhs, rhs)
+    resid = yy - 2.0 * w @ b_sum + w @ a_sum @ w
+    cost = max(resid, 0.0) / r
+    if offset_prec is not None:
+        s = (y_sum - m_sum.T @ w) / r                                     # b = s / D
+        cost = cost - float(np.sum(s * s / diag))
+    dw = w - ctx.w_mean
+    cost = cost + dw @ ctx.w_prec @ dw + float(_cadence_prior(ctx, np.array([omega]))[0])
+    return w, float(cost), float(max(resid, 0.0)), a_sum, b_sum

@@ -367,9 +367,17 @@ class GaitModel:
         return out
 
     def to_bytes(self):
-        """The model as ``.npz`` bytes (what :meth:`save` writes)."""
+        """The model as ``.npz`` bytes (what :meth:`save` writes): the same model gives the same
+        bytes (entries in name order, no timestamps: ``np.savez`` stamps each entry with the
+        time of writing), so a rebuilt stock library is byte-identical when its values are."""
         buffer = io.BytesIO()
-        np.savez(buffer, **self._arrays())
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
+            for name, value in sorted(self._arrays().items()):
+                info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.external_attr = 0o644 << 16
+                entry = io.BytesIO()
+                np.lib.format.write_array(entry, np.asanyarray(value), allow_pickle=False)
+                archive.writestr(info, entry.getvalue())
         return buffer.getvalue()
 
     def save(self, path):

@@ -13,9 +13,10 @@ from pathlib import Path
 
 from .model import GaitModel, GaitModelFileError
 
-__all__ = ["STOCK_NAME", "STOCK_PATH", "STOCK_RECIPE", "STOCK_VERSION", "load_stock_library"]
+__all__ = ["STOCK_LAG_RANGE", "STOCK_NAME", "STOCK_PATH", "STOCK_RECIPE", "STOCK_VERSION",
+           "load_stock_library"]
 
-STOCK_VERSION = 1
+STOCK_VERSION = 2
 STOCK_NAME = "Stock Gaits"
 STOCK_PATH = Path(__file__).resolve().parent / "data" / "stock_gaits.npz"
 
@@ -30,7 +31,12 @@ STOCK_RECIPE = {
     "bouncy": ("132_29", "132_30", "132_31", "132_32"),
     "careful": ("139_29", "139_31", "139_32"),
     "run": ("35_17", "35_18", "35_20", "35_21"),
+    "dribble": ("06_02", "06_03"),
+    "stiff": ("74_01", "74_20"),
+    "sneaking": ("120_09", "120_10", "120_11"),
 }
+# Periods searched when learning (seconds): the sneaking walks of 120 take 2.0-2.5 s a stride.
+STOCK_LAG_RANGE = (0.5, 3.0)
 
 _CACHE = {}
 

@@ -258,7 +258,9 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     expected = along[:, None] * heading_directions(mid, frame)[0]
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift)
     # (velocities and carrying of the steps into frames -(m-2) … n)
-    vel = smooth(vel, SMOOTH_S * fps)
+    # A run changes feet across a flight (its velocity interpolated there): little to smooth,
+    # and smoothing would spread the flight's speed into the stance (the foot would slide).
+    vel = smooth(vel, SMOOTH_S * fps * (1.0 - 0.75 * float(np.mean(flight))))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
         vel[m - 2]

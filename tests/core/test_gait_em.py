@@ -6,7 +6,7 @@ import pytest
 from core.gait import adapt, estimate_period, m_step, predict
 from core.gait.ekf import make_context
 from core.gait.em import m_step_offset, offset_statistics, sufficient_statistics
-from core.gait.initial_phase import N_TABLE, grid_search
+from core.gait.initial_phase import N_TABLE, _score_one, grid_search, phase_tables
 from tests.gait_data import observations, small_model
 
 
@@ -31,6 +31,68 @@ def test_grid_recovers_a_grid_candidate_exactly():
     assert res.residual < 1e-3 * np.sum((obs / ctx.scale) ** 2)
     assert res.costs.shape == (24, 36)
     assert N_TABLE % 36 == 0
+
+
+def test_one_candidates_score_is_the_grids_and_with_the_offset_the_joint_least_squares():
+    """At a grid point the single-candidate score is the grid's cost; with the offset prior it
+    is the minimum over (w, b) of the stacked least squares with both priors (plus the same
+    cadence term)."""
+    model = small_model()
+    ctx = make_context(model)
+    ys = observations("35_03")[:40] / ctx.scale
+    grid = grid_search(ctx, ys)
+    mu, mtm = phase_tables(ctx)
+    yy = float(np.sum(ys * ys))
+    i, j = 7, 11
+    omega, phi0 = grid.omegas[i], grid.phis[j]
+    w, cost, _, _, _ = _score_one(ctx, ys, mu, mtm, omega, phi0, yy)
+    np.testing.assert_allclose(cost, grid.costs[i, j], rtol=1e-9)
+    np.testing.assert_allclose(w, grid.styles[i, j], rtol=1e-9)
+    w_b, cost_b, _, _, _ = _score_one(ctx, ys, mu, mtm, omega, phi0, yy, ctx.offset_prec)
+    idx = np.rint((phi0 + omega * np.arange(len(ys))) * N_TABLE / (2 * np.pi)).astype(int)
+    rows = mu[idx % N_TABLE].transpose(0, 2, 1)                       # (N, D, J)
+    n, d, jb = rows.shape
+    design = np.hstack([rows.reshape(n * d, jb), np.tile(np.eye(d), (n, 1))]) / np.sqrt(ctx.r)
+    chol_w = np.linalg.cholesky(ctx.w_prec).T
+    prior = np.zeros((jb + d, jb + d))
+    prior[:jb, :jb] = chol_w
+    prior[jb:, jb:] = np.diag(np.sqrt(ctx.offset_prec))
+    target = np.concatenate([ys.ravel() / np.sqrt(ctx.r), chol_w @ ctx.w_mean, np.zeros(d)])
+    stacked = np.vstack([design, prior])
+    sol = np.linalg.lstsq(stacked, target, rcond=None)[0]
+    ls_offset = float(np.sum((stacked @ sol - target) ** 2))
+    np.testing.assert_allclose(w_b, sol[:jb], rtol=1e-7, atol=1e-9)
+    plain = np.vstack([design[:, :jb], chol_w])
+    plain_target = target[:n * d + jb]
+    sol0 = np.linalg.lstsq(plain, plain_target, rcond=None)[0]
+    ls_plain = float(np.sum((plain @ sol0 - plain_target) ** 2))
+    # Both scores carry the same cadence term: they differ by the two least-squares minima.
+    np.testing.assert_allclose(cost_b - cost, ls_offset - ls_plain, rtol=1e-7)
+    assert cost_b < cost
+
+
+@pytest.mark.parametrize("trial", ["35_03", "35_06"])
+def test_refined_start_hardly_moves_when_the_walker_holds_a_posture_offset(trial):
+    """A walker whose mean pose is off by one prior standard deviation per channel (a rig read
+    through another skeleton's rest directions) starts adaptation where the walk itself does,
+    to a fraction of a grid cell; the plain grid jumps whole cells."""
+    model = small_model()
+    ctx = make_context(model)
+    n = 40                                                              # 0.67 s at 60 fps
+    ys = observations(trial)[:n] / ctx.scale
+    ref = grid_search(ctx, ys, refine=True)
+    step = np.log(ref.omegas[1] / ref.omegas[0])
+    mid = (n - 1) / 2.0
+    sd = 1.0 / np.sqrt(ctx.offset_prec)
+    rng = np.random.default_rng(1)
+    jumps = []
+    for _ in range(6):
+        moved = grid_search(ctx, ys + rng.normal(size=ys.shape[1]) * sd, refine=True)
+        dphi = (moved.phi0 + moved.omega * mid) - (ref.phi0 + ref.omega * mid)
+        dphi = (dphi + np.pi) % (2.0 * np.pi) - np.pi
+        jumps.append((abs(np.log(moved.omega / ref.omega)) / step, abs(dphi) / (2 * np.pi / 36)))
+    jumps = np.array(jumps)
+    assert jumps[:, 0].max() < 0.35 and jumps[:, 1].max() < 0.15, jumps
 
 
 def test_m_step_is_the_ridge_least_squares_solution():

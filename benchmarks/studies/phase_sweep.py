@@ -4,8 +4,8 @@ over the six outer folds), the strictly nested choice (each outer fold picks its
 candidate) and the outer scores (diagnostic only, never used to choose). docs/gait.md, *Leave
 one walker out*, second round.
 
-    python benchmarks/phase_sweep.py single   # phase_var_scale (the shipped default: 20)
-    python benchmarks/phase_sweep.py [mix|pq|nu|span|blend|hold|lc|replay]   # alternatives tried
+    python benchmarks/studies/phase_sweep.py single   # phase_var_scale (the shipped default: 20)
+    python benchmarks/studies/phase_sweep.py [mix|pq|nu|span|blend|hold|lc|replay]   # alternatives tried
 
 Candidates are (mode, parameter): ``ekf`` γ (the filter's phase variance × γ), ``rel`` an
 extra relative cadence spread, ``mix`` both, ``pq`` separate factors for the covariance and the
@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
 from core.gait.phase_average import averaged_kernel, phase_variances  # noqa: E402
 
 FPS, BLEND = 60.0, 0.15
@@ -126,7 +127,7 @@ def hold(cases, window, bin_=None, only_lc=False):
 
 
 def main(grid):
-    data = pickle.load(open(Path(__file__).resolve().parent.parent / "build" / "exp"
+    data = pickle.load(open(ROOT / "build" / "exp"
                             / "lowo_pieces.pkl", "rb"))
     d = data["outer"]["35"][0]
     n = len(d["truth"])
@@ -166,7 +167,7 @@ def main(grid):
 
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "nu":
-        data = pickle.load(open(Path(__file__).resolve().parent.parent / "build" / "exp"
+        data = pickle.load(open(ROOT / "build" / "exp"
                                 / "lowo_pieces.pkl", "rb"))
         for w in WINDOWS:
             nus = [d["nu"] for v in data["inner"].values() for d in v if d["window"] == w]

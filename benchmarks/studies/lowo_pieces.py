@@ -8,8 +8,8 @@ cycle read at the model's predicted phases: a tried and not adopted alternative,
 About 4 min on the 2-core machine; writes
 build/exp/lowo_pieces.pkl (about 120 MB).
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/lowo_pieces.py
-    OPENBLAS_NUM_THREADS=1 python benchmarks/phase_sweep.py single
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/lowo_pieces.py
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/phase_sweep.py single
 """
 
 import pickle
@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT))
 import gait_lowo as L  # noqa: E402
 from core.gait import adapt, observations_from_dofs  # noqa: E402
 from core.gait.prediction import predicted_phases  # noqa: E402
@@ -182,7 +183,7 @@ def main():
         for s in train:
             data["inner"][(o, s)] = collect(L.fold_model(method, [t for t in train if t != s]), s)
         print("inner", o, flush=True)
-    out = Path(__file__).resolve().parent.parent / "build" / "exp" / "lowo_pieces.pkl"
+    out = ROOT / "build" / "exp" / "lowo_pieces.pkl"
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "wb") as f:
         pickle.dump(data, f)
