@@ -165,7 +165,8 @@ class TrackingOptions:
         scale, ``1.4826 median |r|`` per frame), and the same loss summed in eq. 4 (the
         trajectory judge). ``'clip'``: the tracker before issue 20 (residuals clipped at
         ``robust_clip`` standard deviations of the mean absolute residual, rows unweighted,
-        eq. 4 a sum of squares).
+        eq. 4 a sum of squares) -- the default until Tukey passes the suite's clean-render
+        bounds (docs/tracking.md, *Robust estimation*, *Default*).
     robust_threshold : float
         The M-estimator's threshold ``c`` in units of that scale (Tukey: a residual beyond
         ``c`` scales has no weight; Huber: its weight falls as ``c / |u|``). Chosen by
@@ -278,7 +279,7 @@ class TrackingOptions:
     min_body_pixels: float = 50.0
     warp_iterations: int = 3
     step_tol: float = 1e-4
-    robust_loss: str = "tukey"
+    robust_loss: str = "clip"
     robust_threshold: float = 4.685
     robust_scale: str = "joint"
     robust_gradient: bool = False
