@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from core.gait import adapt, load_stock_library, observations_from_dofs, predict, restyle
-from core.gait.prediction import DEFAULT_VELOCITY_S, cycle_mean, predict_transition, smootherstep
+from core.gait.prediction import (DEFAULT_VELOCITY_FRAMES, cycle_mean, predict_transition,
+                                  smootherstep)
 from core.gait.retiming import cadence_style_direction
 from core.gait.walk import WalkRequest, predict_walk
 from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
@@ -210,14 +211,14 @@ def test_the_join_continues_the_last_step_without_carrying_its_jitter(walker):
     np.testing.assert_allclose(out[0] - res.last_observation, step + (m[2] - 2 * m[1] + m[0]),
                                atol=1e-9)
     carried = np.degrees(np.abs(out - value_only)[:, model.is_angle].max(axis=1))
-    tau_v = DEFAULT_VELOCITY_S * FPS
+    tau_v = DEFAULT_VELOCITY_FRAMES
     # k r^(k-1) peaks at about τ_v / e frames' worth of the jitter, then decays.
     assert carried.max() <= 10.0 * (tau_v / np.e + 1.0)
     assert carried[int(round(0.25 * FPS)):].max() < 1.5      # the old carry: 28° there
     assert carried[int(round(0.5 * FPS)):].max() < 0.05
-    with pytest.raises(ValueError, match="velocity_s"):
+    with pytest.raises(ValueError, match="velocity_frames"):
         predict_transition(model, res.state, res.w, res.w, 9, res.state[0], 3, start_step=step,
-                           velocity_s=0.0, **kw)
+                           velocity_frames=1.0, **kw)
 
 def test_cycle_mean_is_the_mean_of_the_cycle(walker):
     model, _, _, res, _ = walker
