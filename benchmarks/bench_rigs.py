@@ -188,14 +188,53 @@ def keys_on_unmapped(before, after, controls):
     return len(changed), per_kind, sorted({b for b, _ in changed})
 
 
-def _joint_error_cm(obj, spec, fp, frames):
-    """Mean deforming-joint distance (cm) of Blender's evaluation of ``obj`` to the truth."""
+def joint_names():
+    """Names of the 26 deforming joints of :func:`part_joints`, in its order."""
+    from sample_scenes.rig_footage import END_PARTS
+    from sample_scenes.rig_specs import PARTS
+    return list(PARTS) + [f"{p} tip" for p in END_PARTS]
+
+
+#: Body regions of the error breakdown: the joints (:func:`joint_names`) whose part starts so.
+REGIONS = (("trunk", ("hips", "spine", "chest", "neck")), ("head", ("head",)),
+           ("arms", ("clavicle", "upper_arm", "forearm", "hand")), ("legs", ("thigh", "shin")),
+           ("feet", ("foot", "toe")))
+
+
+def region_of(joint):
+    """The region (:data:`REGIONS`) of a joint name such as ``'toe.L tip'``."""
+    part = joint.split(" ")[0].split(".")[0]
+    return next(region for region, parts in REGIONS if part in parts)
+
+
+def _joint_errors_cm(obj, spec, fp, frames):
+    """Distance (cm) of each deforming joint of Blender's evaluation of ``obj`` to the truth:
+    (len(frames), 26)."""
     from sample_scenes.rig_walk import read_truth
     got = read_truth(obj, spec, frames)
     rows = np.asarray(frames) - 1
     truth = part_joints(fp.heads[rows], fp.tails[rows], fp.names, fp.parts)
     mine = part_joints(got.heads, got.tails, got.names, got.parts)
-    return float(100 * np.linalg.norm(mine - truth, axis=-1).mean())
+    return 100 * np.linalg.norm(mine - truth, axis=-1)
+
+
+def error_breakdown(errors, frames, keys):
+    """Where the error is: per region, per joint and per frame (cm), the in-between frames'
+    mean per region/joint and the keys' own error (should be ~0: the keys are the truth).
+
+    ``errors``: (F, 26) of :func:`_joint_errors_cm` at ``frames`` (every frame of the clip).
+    """
+    frames = np.asarray(frames)
+    at_keys = np.isin(frames, keys)
+    inner = errors[~at_keys]
+    names = joint_names()
+    regions = {region: float(inner[:, [region_of(n) == region for n in names]].mean())
+               for region, _ in REGIONS}
+    return {"in_between_by_region_cm": regions,
+            "in_between_by_joint_cm": {n: float(e) for n, e in zip(names, inner.mean(axis=0))},
+            "per_frame_cm": [float(e) for e in errors.mean(axis=1)],
+            "at_keys_cm": float(errors[at_keys].mean()),
+            "at_keys_max_cm": float(errors[at_keys].max())}
 
 
 def worker_track(kind, every, render, extension):
@@ -211,7 +250,10 @@ def worker_track(kind, every, render, extension):
     obj, fp = open_rig_scene(render, keys)
     bpy.context.scene.track_and_stride_track.processes = 1
     controls = set(spec.controls) or set(spec.deform_bones)
-    out = {"keys": keys, "interpolation_cm": _joint_error_cm(obj, spec, fp, interior)}
+    every_frame = list(range(1, n + 1))
+    interpolated = _joint_errors_cm(obj, spec, fp, every_frame)
+    out = {"keys": keys, "interpolation_cm": float(interpolated[np.asarray(interior) - 1].mean()),
+           "interpolation_breakdown": error_breakdown(interpolated, every_frame, keys)}
     before = _key_state(obj)
     printed = []
     tic = time.perf_counter()
@@ -231,7 +273,14 @@ def worker_track(kind, every, render, extension):
                fcurves_before=len(before), fcurves_after=len(after))
     if result == {"FINISHED"}:
         out["status"] = "tracked"
-        out["tracker_cm"] = _joint_error_cm(obj, spec, fp, interior)
+        tracked = _joint_errors_cm(obj, spec, fp, every_frame)
+        out["tracker_cm"] = float(tracked[np.asarray(interior) - 1].mean())
+        out["tracker_breakdown"] = error_breakdown(tracked, every_frame, keys)
+        # The share of the tracked motion each body part kept per interval ('Tracked: <part>'
+        # curves: 1 = the footage's, 0 = the keys' in-between).
+        out["tracked_share"] = {path[len('["Tracked: '):-2]: [float(v) for v in st["co"][:, 1]]
+                                for (path, _), st in after.items()
+                                if path.startswith('["Tracked: ')}
         out["ratio"] = out["tracker_cm"] / out["interpolation_cm"]
     else:
         out["status"] = "refused"

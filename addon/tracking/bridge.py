@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ...core.rigs import anatomical_dof_mask
+from ...core.rigs import anatomical_dof_mask, hip_pivot
+from ...core.tracking.pivot import from_moved_roots, move_root_origin, to_moved_roots
 from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
@@ -88,6 +89,9 @@ class TrackRequest:
         The cameras' names, same order.
     written : int
         Keys written (set by :func:`apply_result`).
+    root_pivot : ndarray, shape (3,), or None
+        Where the root turns while tracking, in the root joint's frame (metres; a mapped rig:
+        between its hip joints, ``core.rigs.hip_pivot``); None: the root joint's origin.
     """
 
     obj_name: str
@@ -109,6 +113,7 @@ class TrackRequest:
     footages: list = field(default_factory=list)
     view_names: list = field(default_factory=list)
     written: int = 0              # keys written by apply_result
+    root_pivot: np.ndarray = None
 
     @property
     def n_views(self):
@@ -376,7 +381,8 @@ def prepare_tracking(context, settings):
         footage=footages[0], footages=footages, view_names=names,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
-        tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced)
+        tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced,
+        root_pivot=hip_pivot(rig.model) if isinstance(rig, MappedRig) else None)
 
 
 def _check_footage(footage, size, key_frames, camera_name=None):
@@ -454,12 +460,25 @@ def run_core(request, frames, progress=None, cancel=None):
     Raises ``TrackingCancelled`` when ``cancel`` is set, :class:`TrackError` on invalid input.
     """
     tic = time.perf_counter()
+    problem, key_roots, pivot = request.problem, request.key_roots, request.root_pivot
+    moved = pivot is not None and np.any(pivot != 0)
     try:
-        result = track_keyframes(request.problem, frames, request.key_frames - request.first,
-                                 request.key_roots, request.key_locals, request.options,
+        if moved:
+            # The root turns about the rig's hip joints, as the CMU skeleton's does
+            # (core.tracking.pivot); the result comes back for the root joint's own origin.
+            problem = move_root_origin(problem, pivot)
+            key_roots = to_moved_roots(request.problem.skeleton, key_roots, request.key_locals,
+                                       pivot)
+        result = track_keyframes(problem, frames, request.key_frames - request.first,
+                                 key_roots, request.key_locals, request.options,
                                  processes=request.processes, progress=progress, cancel=cancel)
     except TrackingError as exc:
         raise TrackError(str(exc)) from None
+    if moved:
+        skeleton = request.problem.skeleton
+        for part in [result] + list(result.intervals):
+            part.root_translations = from_moved_roots(skeleton, part.root_translations,
+                                                      part.local_rotations, pivot)
     request.timings["track"] = time.perf_counter() - tic
     return result
 

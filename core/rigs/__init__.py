@@ -14,7 +14,7 @@ from .body_map import (BodyMap, BodyMapError, LimbMap, PartMap, Toggle, body_map
 from .ik import (axis_rotation, bend_angle_error, bend_direction, ik_targets_from_pose,
                  pole_position, solve_two_bone)
 from .gait_space import GaitSpace, gait_space
-from .model import ModelSkeleton, anatomical_dof_mask, model_skeleton
+from .model import ModelSkeleton, anatomical_dof_mask, hip_pivot, model_skeleton
 from .parts import (LIMBS, OPTIONAL, PARENT, PARTS, REQUIRED, body_region, limb_of_part,
                     present_parent, side_of_part)
 from .recognise import (BoneConstraint, RigBones, best_body_map, pattern_body_map, recognise_body_map,
@@ -28,7 +28,7 @@ from .retarget import (RIGID, ROTATE, TRANSLATE, basis_from_pose, basis_matrix,
 __all__ = [
     "BodyMap", "BodyMapError", "BoneConstraint", "GaitSpace", "LIMBS", "LimbMap", "ModelSkeleton", "OPTIONAL",
     "PARENT", "PARTS", "PartMap", "REQUIRED", "RIGID", "ROTATE", "RigBones", "TRANSLATE",
-    "Toggle", "anatomical_dof_mask", "axis_rotation", "basis_from_pose", "basis_matrix", "bend_angle_error",
+    "Toggle", "anatomical_dof_mask", "hip_pivot", "axis_rotation", "basis_from_pose", "basis_matrix", "bend_angle_error",
     "bend_direction", "best_body_map", "body_map_from_dict", "body_map_from_json", "body_map_to_dict",
     "body_map_to_json", "body_region", "control_targets", "corrected_basis", "gait_space",
     "ik_targets_from_pose", "joint_world_poses", "limb_of_part", "minimal_rotation",
