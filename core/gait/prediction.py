@@ -191,8 +191,9 @@ def predict_transition(model, state, w_from, w_to, n_frames, omega_to, blend_fra
         ``start``): the continuation then matches the velocity too,
         ``e_k = e ρᵏ + k rᵏ⁻¹ (ė + e (1 − ρ))``, ``ρ = exp(−1/τ)`` (τ = ``blend_s`` × fps
         frames), ``r = exp(−1/τ_v)`` (τ_v = ``velocity_frames``), ė = the observed step minus
-        the model's: the first predicted step is the observed one exactly (it moves on as the
-        reference moved instead of turning round), and the velocity difference is then gone
+        the model's: the first predicted step is the observed one (plus the model's own change
+        of step there; it moves on as the reference moved instead of turning round), and the
+        velocity difference is then gone
         within a few frames, so that a noisy last step (marker jitter) is not carried into
         the walk.
     velocity_frames : float
