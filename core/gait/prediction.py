@@ -35,10 +35,17 @@ from .phase_average import DEFAULT_PHASE_VAR_SCALE, averaged_kernel, phase_varia
 from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
-__all__ = ["DEFAULT_BLEND_S", "cycle_mean", "interpolate_styles", "mix_styles", "predict",
+__all__ = ["DEFAULT_BLEND_S", "DEFAULT_VELOCITY_FRAMES", "cycle_mean", "interpolate_styles",
+           "mix_styles", "predict",
            "predict_dofs", "predict_transition", "dofs_from_observations", "predicted_phases", "restyle", "smootherstep"]
 
 DEFAULT_BLEND_S = 0.15     # seconds: decay of the continuation from the last observed frame
+# frames: decay of the join's velocity term (predict_transition(start_step=)), chosen on nested
+# leave-one-walker-out folds at 60 fps and checked on the rigs at 30 fps (docs/gait.md, *The
+# join's velocity*). In frames, not seconds: it keeps the step between keyed frames continuous
+# without carrying one frame's marker jitter, and 0.05 s at 30 fps (1.5 frames) stops the
+# velocity dead after one frame (the rigs' stance feet slid at the join).
+DEFAULT_VELOCITY_FRAMES = 3.0
 
 
 def _check_state(state):
@@ -146,7 +153,8 @@ def smootherstep(x):
 
 def predict_transition(model, state, w_from, w_to, n_frames, omega_to, blend_frames,
                        rate_scale_to=1.0, residual=None, offset=None, start=None, fps=None,
-                       blend_s=DEFAULT_BLEND_S, keep_walker=True, start_step=None):
+                       blend_s=DEFAULT_BLEND_S, keep_walker=True, start_step=None,
+                       velocity_frames=DEFAULT_VELOCITY_FRAMES):
     """Predicted observations of a walk that changes smoothly into another style and cadence.
 
     Frame k (1 … n) advances the phase by ``ω_k = ω + (ω_to − ω) s_k`` and reads the model with
@@ -181,8 +189,16 @@ def predict_transition(model, state, w_from, w_to, n_frames, omega_to, blend_fra
     start_step : array_like, shape (D,), optional
         The last observed step (``start`` minus the frame before it, physical units; with
         ``start``): the continuation then matches the velocity too,
-        ``e_k = (e + k (ė + e/τ)) exp(−k/τ)`` (τ = ``blend_s`` × fps frames), so the first
-        predicted frame moves on as the reference moved instead of turning round.
+        ``e_k = e ρᵏ + k rᵏ⁻¹ (ė + e (1 − ρ))``, ``ρ = exp(−1/τ)`` (τ = ``blend_s`` × fps
+        frames), ``r = exp(−1/τ_v)`` (τ_v = ``velocity_frames``), ė = the observed step minus
+        the model's: the first predicted step is the observed one (plus the model's own change
+        of step there; it moves on as the reference moved instead of turning round), and the
+        velocity difference is then gone
+        within a few frames, so that a noisy last step (marker jitter) is not carried into
+        the walk.
+    velocity_frames : float
+        Decay time of the velocity term, frames (≥ 1.5: below 1/ln 2 ≈ 1.44 frames the second
+        predicted step would turn round).
 
     Returns
     -------
@@ -226,30 +242,35 @@ def predict_transition(model, state, w_from, w_to, n_frames, omega_to, blend_fra
     if start is not None:
         rate = model.fps if fps is None else fps
         if start_step is not None:
-            out = _continue_with_velocity(model, out, start, start_step, rate, blend_s)
+            out = _continue_with_velocity(model, out, start, start_step, rate, blend_s,
+                                          velocity_frames)
         else:
             out = _continue_from(model, out, start, rate, blend_s)
     return out, phases, weights
 
 
-def _continue_with_velocity(model, frames, start, step, fps, blend_s):
+def _continue_with_velocity(model, frames, start, step, fps, blend_s, velocity_frames):
     """``frames[2:]`` continued from ``start`` (``frames[1]`` the model's value there,
-    ``frames[0]`` one frame earlier) matching the value and the step ``step``."""
+    ``frames[0]`` one frame earlier) matching the value and the step ``step``:
+    ``e_k = e ρᵏ + k rᵏ⁻¹ c``, ``c = ė + e (1 − ρ)`` (:func:`predict_transition`)."""
     step = np.asarray(step, dtype=float)
     if step.shape != (model.n_channels,) or np.any(np.isinf(step)):
         raise ValueError(f"start_step must be {model.n_channels} values (NaN = unobserved), "
                          f"got shape {step.shape}")
-    out = _continue_from(model, frames[1:], start, fps, blend_s)     # value, decayed
+    if not (np.isfinite(velocity_frames) and velocity_frames >= 1.5):
+        raise ValueError(f"velocity_frames must be at least 1.5, got {velocity_frames}")
+    out = _continue_from(model, frames[1:], start, fps, blend_s)     # e ρᵏ
     if blend_s == 0:
         return out
     slope = step - (frames[1] - frames[0])
     slope[model.is_angle] = (slope[model.is_angle] + np.pi) % (2.0 * np.pi) - np.pi
     diff = np.asarray(start, dtype=float) - frames[1]
     diff[model.is_angle] = (diff[model.is_angle] + np.pi) % (2.0 * np.pi) - np.pi
-    tau = blend_s * fps
-    slope = np.where(np.isfinite(slope) & np.isfinite(diff), slope + diff / tau, 0.0)
+    rho = np.exp(-1.0 / (blend_s * fps))
+    c = np.where(np.isfinite(slope) & np.isfinite(diff), slope + diff * (1.0 - rho), 0.0)
     k = np.arange(1, len(out) + 1)
-    return out + (k * np.exp(-k / tau))[:, None] * slope
+    r = np.exp(-1.0 / velocity_frames)
+    return out + (k * r ** (k - 1))[:, None] * c
 
 
 def cycle_mean(model, w, residual=None, offset=None, n_phases=360):

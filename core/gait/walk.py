@@ -27,8 +27,8 @@ import numpy as np
 
 from .features import observations_from_dofs
 from .planting import pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
-from .prediction import (DEFAULT_BLEND_S, cycle_mean, dofs_from_observations,
-                         predict_transition, smootherstep)
+from .prediction import (DEFAULT_BLEND_S, DEFAULT_VELOCITY_FRAMES, cycle_mean,
+                         dofs_from_observations, predict_transition, smootherstep)
 from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
     root_rotations
 from .walk_figures import CMU_FEET
@@ -126,7 +126,8 @@ class WalkResult:
 
 def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=WalkRequest(),
                  offset=None, residual=None, start=None, feet=CMU_FEET,
-                 cadence_style=None, blend_s=DEFAULT_BLEND_S):
+                 cadence_style=None, blend_s=DEFAULT_BLEND_S,
+                 velocity_frames=DEFAULT_VELOCITY_FRAMES):
     """Predicted DOF rows of the walk an animator asked for (module docstring).
 
     Parameters
@@ -149,6 +150,9 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         Left and right contact joints (the balls of the feet).
     cadence_style : array_like, shape (J,), optional
         The style's change per unit log cadence (default: the model's).
+    blend_s, velocity_frames : float
+        Decay times of the continuation from the last reference frame (s) and of its
+        velocity (frames) (:func:`.prediction.predict_transition`).
 
     Returns
     -------
@@ -182,7 +186,7 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         step = tail[-1] - tail[-2]
     obs, _, weights = predict_transition(model, state, w, w_to, n_frames, omega_to, blend,
                                          rate_to, residual, offset, start, fps, blend_s,
-                                         request.keep_walker, step)
+                                         request.keep_walker, step, velocity_frames)
     speed = None
     if model.root_travel:
         yaw, fwd = model.channel_index(["root.yaw_rate", "root.v_forward"])

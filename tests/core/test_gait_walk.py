@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from core.gait import adapt, load_stock_library, observations_from_dofs, predict, restyle
-from core.gait.prediction import cycle_mean, predict_transition, smootherstep
+from core.gait.prediction import (DEFAULT_VELOCITY_FRAMES, cycle_mean, predict_transition,
+                                  smootherstep)
 from core.gait.retiming import cadence_style_direction
 from core.gait.walk import WalkRequest, predict_walk
 from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
@@ -187,6 +188,37 @@ def test_transition_without_a_change_is_the_prediction(walker):
     assert 0 < smootherstep(h) < 11 * h**3 and 0 < 1 - smootherstep(1 - h) < 11 * h**3
     assert smootherstep(-1.0) == 0 and smootherstep(2.0) == 1
 
+
+
+def test_the_join_continues_the_last_step_without_carrying_its_jitter(walker):
+    """The first predicted step is the observed one exactly, every channel; the velocity
+    difference is gone within a few frames. Before, a marker's one-frame spike (a thumb at
+    10.7°/frame, CMU 07_05) was carried over 0.15 s and moved the walk by 35° (10°/frame:
+    33° at 0.15 s, 28° at 0.25 s)."""
+    model, _, _, res, _ = walker
+    kw = dict(residual=res.residual, offset=res.offset, start=res.last_observation, fps=FPS)
+    value_only, _, _ = predict_transition(model, res.state, res.w, res.w, 90, res.state[0], 30,
+                                          **kw)
+    back = [res.state[0], res.state[1] - 2 * res.state[0]]
+    m = predict_transition(model, back, res.w, res.w, 3, res.state[0], 30,
+                           residual=res.residual, offset=res.offset)[0]   # the model at -1, 0, 1
+    jitter = np.zeros(model.n_channels)
+    jitter[model.is_angle] = np.radians(10.0)               # every angle jumps 10° in a frame
+    step = (m[1] - m[0]) + jitter
+    out, _, _ = predict_transition(model, res.state, res.w, res.w, 90, res.state[0], 30,
+                                   start_step=step, **kw)
+    # The observed step, plus the model's own change of step there (its acceleration).
+    np.testing.assert_allclose(out[0] - res.last_observation, step + (m[2] - 2 * m[1] + m[0]),
+                               atol=1e-9)
+    carried = np.degrees(np.abs(out - value_only)[:, model.is_angle].max(axis=1))
+    tau_v = DEFAULT_VELOCITY_FRAMES
+    # k r^(k-1) peaks at about τ_v / e frames' worth of the jitter, then decays.
+    assert carried.max() <= 10.0 * (tau_v / np.e + 1.0)
+    assert carried[int(round(0.25 * FPS)):].max() < 1.5      # the old carry: 28° there
+    assert carried[int(round(0.5 * FPS)):].max() < 0.05
+    with pytest.raises(ValueError, match="velocity_frames"):
+        predict_transition(model, res.state, res.w, res.w, 9, res.state[0], 3, start_step=step,
+                           velocity_frames=1.0, **kw)
 
 def test_cycle_mean_is_the_mean_of_the_cycle(walker):
     model, _, _, res, _ = walker
