@@ -171,7 +171,7 @@ def test_the_motion_estimate_ignores_what_covers_part_of_the_next_image():
     v, u = np.mgrid[0:cam.height, 0:cam.width]
     patch = (u > 95) & (u < 140) & (v > 40) & (v < 110)
     covered[6][patch] = (0.5 + 0.35 * np.sin(0.9 * u + 0.4 * v))[patch]
-    options = TrackingOptions()
+    options = TrackingOptions(robust_loss="tukey")        # the opt-in robust estimate
     clean, _ = _step_error(sk, body, cam, roots, local, frames, options)
     robust, fm = _step_error(sk, body, cam, roots, local, covered, options)
     old, _ = _step_error(sk, body, cam, roots, local, covered,
