@@ -38,6 +38,7 @@ from core.kinematics import Skeleton, exp_so3, local_rotations_from_dofs
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
 from core.tracking.body_model import BodyModel, body_model_from_skeleton
 from core.tracking.camera import camera_from_blender
+from sample_scenes.cache_lock import cache_lock
 
 ROOT = Path(__file__).resolve().parent.parent
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
@@ -407,17 +408,30 @@ def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, py
     ``view``: a camera of :data:`VIEWS` (None: the scene's usual camera). ``condition``: a hard
     condition of ``conditions.CONDITIONS`` (None: the plain scene). Returns the output folder.
     """
-    import subprocess
-    import sys
-
     from sample_scenes.conditions import check_condition
     view = _view_name(view, width, height)
     check_condition(condition)
     out = footage_dir(motion, width, height, frames, step, start, root, view, condition)
     params = render_params(motion, width, height, frames, step, start, view, condition)
+    with cache_lock(out):                 # another suite may be rendering the same clip
+        if not _is_current_footage(out, params):
+            _render_footage(motion, width, height, frames, step, start, out, python, view,
+                            condition)
+    return out
+
+
+def _is_current_footage(out, params):
+    """Whether ``out`` holds a finished render of ``params`` (its stamp is written last)."""
     stamp = out / "params.json"
-    if stamp.exists() and json.loads(stamp.read_text()) == params and (out / "ground_truth.npz").exists():
-        return out
+    return (stamp.exists() and json.loads(stamp.read_text()) == params
+            and (out / "ground_truth.npz").exists())
+
+
+def _render_footage(motion, width, height, frames, step, start, out, python, view, condition):
+    """Run ``render_footage.py`` into ``out`` in a subprocess; RuntimeError with its output."""
+    import subprocess
+    import sys
+
     cmd = [python or sys.executable, str(ROOT / "sample_scenes" / "render_footage.py"),
            "--motion", motion, "--width", str(width), "--height", str(height),
            "--frames", str(frames), "--step", str(step), "--start", str(start),
@@ -427,7 +441,6 @@ def ensure_footage(motion, width, height, frames, step=1, start=0, root=None, py
     if result.returncode != 0:
         raise RuntimeError(f"rendering failed ({' '.join(cmd)}):\n{result.stdout[-3000:]}\n"
                            f"{result.stderr[-3000:]}")
-    return out
 
 
 def ensure_views(motion, views, width, height, frames, step=1, start=0, root=None, python=None,

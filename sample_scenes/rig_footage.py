@@ -45,6 +45,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from sample_scenes.cache_lock import cache_lock  # noqa: E402
+
 FOOTAGE_ROOT = ROOT / "build" / "rig_footage"
 #: Version of the scene/render builders (part of the cache stamps).
 FOOTAGE_VERSION = 2
@@ -365,11 +367,12 @@ def ensure_rig_footage(kind, width=640, height=360, frames=61, trial="35_01", st
     render = folder / f"{width}x{height}"
     args = ["footage", kind, "--trial", trial, "--frames", str(frames), "--start", str(start),
             "--width", str(width), "--height", str(height), "--output", str(folder)]
-    if not _is_current(kind, trial, frames, start, folder, render, width, height):
-        scene_ok = _read_json(folder / "scene.json") == scene_stamp(kind, trial, frames, start)
-        if kind == "cmu" and extension is None and not scene_ok:
-            raise ValueError("building the cmu scene needs the extension zip (its importer)")
-        _run(args, extension, python)
+    with cache_lock(folder):              # another suite may be building the same scene
+        if not _is_current(kind, trial, frames, start, folder, render, width, height):
+            scene_ok = _read_json(folder / "scene.json") == scene_stamp(kind, trial, frames, start)
+            if kind == "cmu" and extension is None and not scene_ok:
+                raise ValueError("building the cmu scene needs the extension zip (its importer)")
+            _run(args, extension, python)
     return render
 
 

@@ -56,6 +56,7 @@ if str(ROOT) not in sys.path:
 
 import bpy  # noqa: E402
 
+from sample_scenes.cache_lock import cache_lock  # noqa: E402
 from sample_scenes.rig_specs import RIG_KINDS, RIG_SPECS  # noqa: E402,F401  (re-exported)
 
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
@@ -320,8 +321,14 @@ def rig_blend_path(kind, cache=None):
 def ensure_rig_blend(kind, cache=None, python=None):
     """Path of ``kind``'s cached rig .blend, built in a subprocess when missing."""
     path = rig_blend_path(kind, cache)
-    if path.exists():
-        return path
+    with cache_lock(path):                # another suite may be building the same rig
+        if not path.exists():
+            _build_rig_blend(kind, path, python)
+    return path
+
+
+def _build_rig_blend(kind, path, python):
+    """Build ``kind``'s rig into ``path`` in a subprocess; RuntimeError with its output."""
     env = dict(os.environ)
     # The builder's Blender user folder is its own (Rigify enabled there only).
     env["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp(prefix="ts-rig-build-")
@@ -331,7 +338,6 @@ def ensure_rig_blend(kind, cache=None, python=None):
     if result.returncode != 0 or not path.exists():
         raise RuntimeError(f"building the {kind} rig failed ({' '.join(cmd)}):\n"
                            f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
-    return path
 
 
 def import_cmu(scene=None, trial="35_01", fps=30):

@@ -26,7 +26,7 @@ from .keys import classify_frames
 
 #: Simplified Joints warns when the keyed poses turn a bone it keeps (thighs, upper arms,
 #: head) this far (degrees, path length over the keys) about the axes it locks there. On the
-#: rendered benchmarks (``benchmarks/bench_dof_preset.py``, docs/track_blender.md) the walk,
+#: rendered benchmarks (``benchmarks/studies/bench_dof_preset.py``, docs/track_blender.md) the walk,
 #: where the preset tracked 3-22 % worse, turns its upper arms 277° that way over its 61 frames
 #: (214° / 93° / 24° seen from keys every 10 / 20 / 30 frames); the run, where the preset
 #: tracked 3-17 % better, at most 56° (28° / 20° / 11°). 75° parts the two wherever the keys

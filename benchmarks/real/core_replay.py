@@ -5,7 +5,7 @@ the operator built (problem, options, keys: ``<cam>_<every>.pkl``, classes of th
 extension) and the decoded frames (``<cam>_frames.npy``), plus the reference joints
 (``reference.npz``). This module loads them with the classes mapped back to this checkout's
 ``core`` and scores poses against the reference, so that settings of the core (e.g. the
-acceptance rule, ``benchmarks/tune_acceptance.py``) can be compared in seconds instead of a
+acceptance rule, ``benchmarks/studies/tune_acceptance.py``) can be compared in seconds instead of a
 5-minute benchmark run. Not used by ``make bench-real``.
 """
 

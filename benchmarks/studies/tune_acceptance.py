@@ -13,7 +13,7 @@ candidate rules offline (the rule only mixes the two trajectories, so no re-trac
 
 ::
 
-    .venv/bin/python benchmarks/tune_acceptance.py --dump build/dump --cameras cam01 \
+    .venv/bin/python benchmarks/studies/tune_acceptance.py --dump build/dump --cameras cam01 \
         --clips cmu_08_04,... --rule 0.04,1.0,0.0 --rule 0.03,1.5,0.0,whole,2
 
 Prints, per case, MPJPE (cm) of slerp, the raw tracking and each rule; with ``--parts``, per
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from core.kinematics import forward_kinematics  # noqa: E402

@@ -18,12 +18,12 @@ gives the operator's figures (``make bench-real``) to the hundredth.
 
 To make the inputs (a few minutes; the dump from ``bench_real.py --dump-core-inputs``)::
 
-    .venv/bin/python benchmarks/tune_acceptance.py --dump build/dump \\
+    .venv/bin/python benchmarks/studies/tune_acceptance.py --dump build/dump \\
         --cameras cam01,cam02,cam03,cam04 --cache build/tune_cams.pkl --raw build/raw_cams.pkl
-    .venv/bin/python benchmarks/tune_acceptance.py --cache build/tune_clips.pkl \\
+    .venv/bin/python benchmarks/studies/tune_acceptance.py --cache build/tune_clips.pkl \\
         --clips cmu_08_04,cmu_35_02,cmu_35_05,cmu_35_08,cmu_08_07_v20,cmu_35_20 \\
         --raw build/raw_clips.pkl
-    .venv/bin/python benchmarks/blend_acceptance.py --raw build/raw_cams.pkl \\
+    .venv/bin/python benchmarks/studies/blend_acceptance.py --raw build/raw_cams.pkl \\
         --raw build/raw_clips.pkl
 """
 
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from core.tracking.acceptance import (AcceptanceRule, blend_trajectories,  # noqa: E402
@@ -51,7 +51,7 @@ class _Unpickler(pickle.Unpickler):
 
     def find_class(self, module, name):
         if module == "__main__":
-            module = "benchmarks.tune_acceptance"
+            module = "benchmarks.studies.tune_acceptance"
         return super().find_class(module, name)
 
 

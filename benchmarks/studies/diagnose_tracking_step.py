@@ -14,8 +14,8 @@ shows). Predictions:
 
 Run on the validation clips (never the benchmark's 08_01)::
 
-    .venv/bin/python benchmarks/diagnose_tracking_step.py --clips cmu_08_04,cmu_35_02
-    .venv/bin/python benchmarks/diagnose_tracking_step.py --views oblique,above
+    .venv/bin/python benchmarks/studies/diagnose_tracking_step.py --clips cmu_08_04,cmu_35_02
+    .venv/bin/python benchmarks/studies/diagnose_tracking_step.py --views oblique,above
 
 With ``--views`` the step is estimated from several cameras at once (``footage_scenes.VIEWS``);
 depth and across are measured along and across the first camera's line of sight.
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from core.kinematics import forward_kinematics  # noqa: E402

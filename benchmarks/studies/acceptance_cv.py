@@ -19,7 +19,7 @@ slack`` (1.005: half a percent worse at most).
 
 ::
 
-    .venv/bin/python benchmarks/acceptance_cv.py --cache build/tune_tune.pkl \
+    .venv/bin/python benchmarks/studies/acceptance_cv.py --cache build/tune_tune.pkl \
         --cache build/tune_cams.pkl
 """
 
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from core.tracking.acceptance import AcceptanceRule, judge_parts  # noqa: E402

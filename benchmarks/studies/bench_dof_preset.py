@@ -1,6 +1,6 @@
 """Does the *Simplified Joints* DOF preset (Yamamoto Table 1) help? Issue 14 measurement.
 
-``python benchmarks/bench_dof_preset.py`` (writes ``build/bench/dof_preset.json``): on the
+``python benchmarks/studies/bench_dof_preset.py`` (writes ``build/bench/dof_preset.json``): on the
 rendered CMU 08_01 walk and 35_17 run (640x360, 61 frames, ``render_footage.py``), keys every
 10, 20 and 30 frames, MPJPE (cm, 17 joints, interior frames) of
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.bench_tracking import walk_metrics  # noqa: E402
