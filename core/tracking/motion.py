@@ -680,7 +680,9 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     One view: exactly the single-camera tracker (no view weighting, nothing stacked).
 
     ``'clip'`` (the tracker before issue 20): residuals clipped per view, rows unweighted, the
-    system decomposed once per level.
+    system decomposed once per level. A robust loss takes the same ``'clip'`` update on each
+    level's first ``options.robust_start`` re-linearisations and IRLS after them (the weights
+    at an estimate converged on the level: a limb still converging is not set aside).
 
     Returns
     -------

@@ -195,8 +195,9 @@ class TrackingOptions:
         warp_iterations``: the ``'clip'`` motion estimate with the robust eq. 4. Default 2 of
         the 3 re-linearisations (docs/tracking.md, *Robust estimation*, *Default*).
     robust_clip : float
-        ``robust_loss='clip'`` (and the first ``robust_start`` re-linearisations) only: photometric residuals are clipped at this many standard
-        deviations (estimated per frame from the mean absolute residual).
+        ``robust_loss='clip'`` (and the first ``robust_start`` re-linearisations) only:
+        photometric residuals are clipped at this many standard deviations (estimated per
+        frame from the mean absolute residual).
     max_iterations : int
         Trajectory iterations (track, accumulate, correct, score).
     patience : int
