@@ -522,17 +522,24 @@ def load_footage(folder, color=False):
     return out
 
 
+def second_walker_model(arrays):
+    """(skeleton, body) of the ``two_people`` condition's second walker from the ground-truth
+    arrays (``second_skeleton_*``, ``second_body_*``)."""
+    sk = skeleton_from_arrays({k[len("second_skeleton_"):]: v for k, v in arrays.items()
+                               if k.startswith("second_skeleton_")})
+    body = BodyModel(n_joints=sk.n_joints, joints=arrays["second_body_joints"],
+                     starts=arrays["second_body_starts"], ends=arrays["second_body_ends"],
+                     radii=arrays["second_body_radii"],
+                     names=tuple(str(n) for n in arrays["second_body_names"]))
+    return sk, body
+
+
 def _second_walker(d, camera):
     """The ``two_people`` condition's second walker as a namespace (``skeleton``, ``body``,
     ``root_translation``, ``local_rotations``, ``trial``), or None."""
     if "second_root_translation" not in d:
         return None
-    sk = skeleton_from_arrays({k[len("second_skeleton_"):]: v for k, v in d.items()
-                               if k.startswith("second_skeleton_")})
-    body = BodyModel(n_joints=sk.n_joints, joints=d["second_body_joints"],
-                     starts=d["second_body_starts"], ends=d["second_body_ends"],
-                     radii=d["second_body_radii"],
-                     names=tuple(str(n) for n in d["second_body_names"]))
+    sk, body = second_walker_model(d)
     return SimpleNamespace(skeleton=sk, body=body, camera=camera,
                            root_translation=d["second_root_translation"],
                            local_rotations=d["second_local_rotations"],

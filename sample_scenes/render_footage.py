@@ -37,7 +37,7 @@ from mathutils import Matrix  # noqa: E402
 from core.kinematics import forward_kinematics  # noqa: E402
 from sample_scenes import conditions  # noqa: E402
 from sample_scenes.footage_scenes import (part_texture, render_params,  # noqa: E402
-                                          scene_arrays, skeleton_from_arrays)
+                                          scene_arrays, second_walker_model)
 
 SEGMENTS = 48
 # Metres covered by one texture tile on the body parts.
@@ -280,13 +280,7 @@ def main(argv=None):
 
     second = None
     if condition == "two_people":
-        from core.tracking.body_model import BodyModel
-        sk2 = skeleton_from_arrays({k[len("second_skeleton_"):]: v for k, v in arrays.items()
-                                    if k.startswith("second_skeleton_")})
-        body2 = BodyModel(n_joints=sk2.n_joints, joints=arrays["second_body_joints"],
-                          starts=arrays["second_body_starts"], ends=arrays["second_body_ends"],
-                          radii=arrays["second_body_radii"],
-                          names=tuple(str(n) for n in arrays["second_body_names"]))
+        sk2, body2 = second_walker_model(arrays)
         second = (_body_parts(body2, condition, 3000),
                   forward_kinematics(sk2, arrays["second_local_rotations"],
                                      arrays["second_root_translation"]))

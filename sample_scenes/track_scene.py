@@ -73,6 +73,19 @@ def add_footage_camera(scene, folder):
     return camera
 
 
+def add_clip_camera(scene, folder, name):
+    """A further camera named ``name`` that rendered ``folder``'s footage, with that footage
+    opened as a movie clip behind it (as Open Footage does); the scene camera stays."""
+    camera = scene.camera
+    added = add_footage_camera(scene, folder)
+    added.name = name
+    clip = bpy.data.movieclips.load(str(Path(folder) / "frame_0000.png"))
+    background = added.data.background_images.new()
+    background.source, background.clip = "MOVIE_CLIP", clip
+    scene.camera = camera
+    return added
+
+
 def build_walk_scene(folder, step=20, source="FILE", movie=None):
     """The scene described in the module docstring; returns the armature object.
 

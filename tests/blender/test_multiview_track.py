@@ -17,7 +17,7 @@ from blender_support import bpy, datablock_counts
 from core.kinematics import log_so3
 from core.tracking import track_keyframes
 from sample_scenes.footage_scenes import ensure_views, load_footage
-from sample_scenes.track_scene import add_footage_camera, build_walk_scene, joint_errors
+from sample_scenes.track_scene import add_clip_camera, build_walk_scene, joint_errors
 from test_track import RecordingLayout, _modal_run, bridge, same_keys, settings, snapshot
 
 N_FRAMES, KEYS = 41, (1, 21, 41)
@@ -40,16 +40,10 @@ def build_two_camera_scene(folders):
     does), a second camera with its own footage clip behind it, and Find Cameras."""
     obj = build_walk_scene(folders[0], source="CLIP")
     scene = bpy.context.scene
-    first = scene.camera
-    second = add_footage_camera(scene, folders[1])
-    second.name = "Above"
-    clip = bpy.data.movieclips.load(str(folders[1] / "frame_0000.png"))
-    bg = second.data.background_images.new()
-    bg.source, bg.clip = "MOVIE_CLIP", clip
-    scene.camera = first
+    add_clip_camera(scene, folders[1], "Above")
     bpy.context.view_layer.update()
     assert bpy.ops.track_and_stride.find_cameras() == {"FINISHED"}
-    assert [e.camera.name for e in settings().cameras] == ["Above", first.name]
+    assert [e.camera.name for e in settings().cameras] == ["Above", scene.camera.name]
     settings().processes = 1
     return obj
 

@@ -23,7 +23,7 @@ from mathutils import Matrix
 from blender_support import bpy, datablock_counts
 from core.kinematics import forward_kinematics
 from sample_scenes.footage_scenes import ensure_views, load_footage, second_walker
-from sample_scenes.track_scene import (CMU, H36M_JOINTS, add_footage_camera, build_walk_scene,
+from sample_scenes.track_scene import (CMU, H36M_JOINTS, add_clip_camera, build_walk_scene,
                                        joint_errors, keep_keys_at, set_envelopes_to_body)
 from test_track import bridge, same_keys, settings, snapshot
 
@@ -59,13 +59,7 @@ def build_people_scene(folders, cameras=2):
     Returns (first armature, second armature)."""
     first = build_walk_scene(folders[0], source="CLIP")
     scene = bpy.context.scene
-    camera = scene.camera
-    mirror = add_footage_camera(scene, folders[1])
-    mirror.name = "Opposite"
-    clip = bpy.data.movieclips.load(str(folders[1] / "frame_0000.png"))
-    background = mirror.data.background_images.new()
-    background.source, background.clip = "MOVIE_CLIP", clip
-    scene.camera = camera
+    add_clip_camera(scene, folders[1], "Opposite")
     fp = load_footage(folders[0])
     trial, _, _, _, rotation, translation = second_walker("walk", N_FRAMES, 1, 0, 16 / 9,
                                                           fp.root_translation)
