@@ -36,6 +36,23 @@ MODULES = {
     "ekf": ("core/gait/ekf.py", ["tests/core/test_gait_ekf.py"]),
 }
 
+#: Slow tests that a two-stage run (``--two-stage``) leaves out at first: tests of the wiring
+#: around a module (tracking whole intervals, every shipped trial), each costing every surviving
+#: mutant many seconds. A mutant the other tests kill is killed by the whole set as well; the
+#: first stage's survivors (and mutants no remaining test ran) are then run against every test.
+SLOW = {
+    "amc": ["tests/core/test_acclaim.py::test_all_shipped_trials_parse_with_frame_count_of_file",
+            "tests/core/test_acclaim.py::"
+            "test_vectorised_and_line_by_line_parsers_agree_on_any_number_spelling"],
+    "distortion": ["tests/core/test_tracking_distortion.py::"
+                   "test_distorted_footage_tracks_like_undistorted_footage"],
+    "acceptance": [f"tests/core/test_tracking_acceptance.py::{name}" for name in (
+        "test_track_interval_reports_evidence_and_applies_the_rule",
+        "test_several_cameras_record_the_evidence_but_revert_only_when_asked",
+        "test_track_interval_blends_each_part_by_its_share_and_keeps_the_keys",
+        "test_body_parts_from_a_body_maps_regions_override_the_names")],
+}
+
 #: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
 #: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
 _EKF = "core.gait.ekf."
@@ -57,6 +74,10 @@ EQUIVALENT = {
         "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
     f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
         "ys[...] = None on a float array stores NaN, the same as = np.nan",
+    "core.gait.checks.x_rhythm__mutmut_102":
+        "continue -> break when a comparison has no energy on one side: the energies only "
+        "shrink as the period grows (both ranges lose frames from one end, and a comparison "
+        "once too short stays off), so every later period has none either and is skipped too",
     "core.mocap.amc.x_format_amc__mutmut_65":
         "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
     "core.mocap.amc.x__scaled_progress__mutmut_12":
@@ -103,14 +124,20 @@ def _scratch(name, module, tests):
                             ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.blend1"))
         else:
             shutil.copy2(source, folder / item)
+    _configure(folder, module, tests)
+    return folder
+
+
+def _configure(folder, module, tests, deselect=()):
+    """Write the scratch copy's mutmut configuration (``deselect``: test ids left out)."""
+    extra = "".join(f" --deselect {test}" for test in deselect)
     (folder / "setup.cfg").write_text(
         "[mutmut]\n"
         "source_paths = core\n"
         f"only_mutate = {module}\n"
         f"tests_dir = {' '.join(tests)}\n"
         "also_copy =\n    tests\n    sample_scenes\n    pytest.ini\n"
-        "pytest_add_cli_args = -p no:cacheprovider -q -x\n")
-    return folder
+        f"pytest_add_cli_args = -p no:cacheprovider -q -x{extra}\n")
 
 
 def _results(folder):
@@ -166,17 +193,40 @@ def equivalent_kind(diff):
     return None
 
 
-def run_module(name, module, tests, jobs, run=True):
+def _mutmut_run(folder, jobs, names=()):
+    subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs),
+                    *names], cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+
+
+def run_module(name, module, tests, jobs, run=True, two_stage=False):
     """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
     already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
-    ``mutmut run NAME...``)."""
+    ``mutmut run NAME...``). ``two_stage``: first without the module's :data:`SLOW` tests,
+    then only the mutants that stage did not kill against every test (the first stage's
+    verdicts are kept in ``build/mutate/<name>/stage1.json``: mutmut forgets every verdict
+    when its test options change)."""
     folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
+    stage1 = folder / "stage1.json"
     if run:
         folder = _scratch(name, module, tests)
-        subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
-                       cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+        if two_stage and SLOW.get(name):
+            _configure(folder, module, tests, deselect=SLOW[name])
+            _mutmut_run(folder, jobs)
+            first = _results(folder)
+            stage1.write_text(json.dumps(first, indent=1) + "\n")
+            again = sorted(k for k, v in first.items() if v != "killed")
+            _configure(folder, module, tests)
+            (folder / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
+            if again:
+                _mutmut_run(folder, jobs, again)
+        else:
+            _mutmut_run(folder, jobs)
     statuses = _results(folder)
+    if stage1.exists():                   # a two-stage run: the first stage's kills stand
+        first = json.loads(stage1.read_text())
+        statuses = {k: "killed" if first.get(k) == "killed" else v
+                    for k, v in statuses.items()}
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
     kinds = {k: EQUIVALENT.get(k) or equivalent_kind(diffs.get(k)) for k in survived}
@@ -199,11 +249,15 @@ def main(argv=None):
     parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
     parser.add_argument("--no-run", action="store_true",
                         help="score the results of an earlier run (build/mutate/<module>/)")
+    parser.add_argument("--two-stage", action="store_true",
+                        help="first without the module's slow tests (SLOW), then the "
+                             "survivors against every test")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
         module, tests = MODULES[name]
-        row = run_module(name, module, tests, args.jobs, run=not args.no_run)
+        row = run_module(name, module, tests, args.jobs, run=not args.no_run,
+                         two_stage=args.two_stage)
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "
