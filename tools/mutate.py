@@ -62,6 +62,10 @@ _EKF_INPUTS = ("FilterContext keeps ctx.inputs (the GP inputs [cos, sin] of the 
 _EKF_CACHE_KEY = ("the cache key's string only keeps steps() and decay() entries apart; "
                   "('XXsteps', n) / ('STEPS', n) do that as well (and their tuples differ in "
                   "length)")
+_ACC = "core.tracking.acceptance."
+_ACC_TYPED = ("np.asarray(x, dtype=int / bool) -> np.asarray(x): the argument is documented and "
+              "passed as that type (parents and part_of int arrays from body_parts, tracked the "
+              "bool array of judge_parts), which NumPy keeps")
 EQUIVALENT = {
     **{f"{_EKF}xǁFilterContextǁ__post_init____mutmut_{i}": _EKF_INPUTS for i in (7, 11, 12, 16)},
     **{f"{_EKF}xǁFilterContextǁ{name}__mutmut_{i}": _EKF_CACHE_KEY
@@ -78,6 +82,37 @@ EQUIVALENT = {
         "continue -> break when a comparison has no energy on one side: the energies only "
         "shrink as the period grows (both ranges lose frames from one end, and a comparison "
         "once too short stays off), so every later period has none either and is skipped too",
+    **{f"{_ACC}{name}__mutmut_{i}": _ACC_TYPED
+       for name, numbers in (("x_keep_interpolation", (4, 6)), ("x_blend_weights", (3, 5)),
+                             ("x_blend_trajectories", (43, 45)), ("x_body_parts", (3, 5)))
+       for i in numbers},
+    f"{_ACC}x__drift_share__mutmut_21":
+        "departure > 0 -> >= 0: at departure 0 the odds are inf or NaN (drift / 0), which "
+        "isfinite already sends to 1",
+    f"{_ACC}x__drift_share__mutmut_27":
+        "the share without evidence 1.0 -> 2.0: its only caller, blend_weights, clips every "
+        "share to [0, 1]",
+    f"{_ACC}x_blend_trajectories__mutmut_61":
+        "bones of share 0 also through the slerp (w >= 0): R_i exp(0 · log(...)) = R_i · I, "
+        "exactly R_i, the value they were given just before",
+    f"{_ACC}x_blend_trajectories__mutmut_82":
+        "np.swapaxes(ri, -1, +2) of a 4-D array: axis 2 is axis -2",
+    **{f"{_ACC}x_blend_weights__mutmut_{i}":
+       "one of the two means without keepdims: the other keeps its dimension and "
+       "broadcasting gives the same (1,) array" for i in (40, 41, 45, 46)},
+    **{f"{_ACC}x_blend_weights__mutmut_{i}":
+       "a clip bound of the shares removed or 1 -> 2: 1 / (1 + odds) with finite odds >= 0 "
+       "(drift, departure and blend_drift are not negative) lies in (0, 1] already"
+       for i in (70, 71, 76)},
+    **{f"{_ACC}x_body_parts__mutmut_{i}":
+       "p >= 0 -> p > 0 / p >= 1: bone 0 is a root (parents before children) and a root's "
+       "part is always the torso (0), so full[0] != 0 is false and p = 0 skips the branch "
+       "either way" for i in (14, 15)},
+    **{f"{_ACC}x_body_parts__mutmut_{i}":
+       "the fill of remap (-1 -> +1 / -2) is the value of the absent parts, which no bone "
+       "indexes" for i in (57, 58)},
+    f"{_ACC}x_judge_parts__mutmut_54":
+        "drifted[0] = None on a bool array stores False, the same as = False",
     "core.mocap.amc.x_format_amc__mutmut_65":
         "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
     "core.mocap.amc.x__scaled_progress__mutmut_12":
@@ -129,15 +164,24 @@ def _scratch(name, module, tests):
 
 
 def _configure(folder, module, tests, deselect=()):
-    """Write the scratch copy's mutmut configuration (``deselect``: test ids left out)."""
-    extra = "".join(f" --deselect {test}" for test in deselect)
+    """Write the scratch copy's mutmut configuration (``deselect``: test ids left out).
+
+    mutmut reads a list option one item a line: every test file and every pytest argument
+    on its own line (``-p no:cacheprovider -q -x`` on one line reaches pytest as one
+    argument, and two test files on one line as one path)."""
+    def items(values):
+        return "".join(f"\n    {value}" for value in values)
+
+    args = ["-p", "no:cacheprovider", "-q", "-x"]
+    for test in deselect:
+        args += ["--deselect", test]
     (folder / "setup.cfg").write_text(
         "[mutmut]\n"
         "source_paths = core\n"
         f"only_mutate = {module}\n"
-        f"tests_dir = {' '.join(tests)}\n"
+        f"tests_dir ={items(tests)}\n"
         "also_copy =\n    tests\n    sample_scenes\n    pytest.ini\n"
-        f"pytest_add_cli_args = -p no:cacheprovider -q -x{extra}\n")
+        f"pytest_add_cli_args ={items(args)}\n")
 
 
 def _results(folder):
@@ -215,7 +259,10 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False):
             _mutmut_run(folder, jobs)
             first = _results(folder)
             stage1.write_text(json.dumps(first, indent=1) + "\n")
-            again = sorted(k for k, v in first.items() if v != "killed")
+            diffs = mutant_diffs(folder, module)
+            again = sorted(k for k, v in first.items() if v != "killed"
+                           and not (v == "survived" and (k in EQUIVALENT
+                                                         or equivalent_kind(diffs.get(k)))))
             _configure(folder, module, tests)
             (folder / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
             if again:
@@ -223,9 +270,9 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False):
         else:
             _mutmut_run(folder, jobs)
     statuses = _results(folder)
-    if stage1.exists():                   # a two-stage run: the first stage's kills stand
-        first = json.loads(stage1.read_text())
-        statuses = {k: "killed" if first.get(k) == "killed" else v
+    if stage1.exists():                   # a two-stage run: the first stage's kills stand,
+        first = json.loads(stage1.read_text())  # and its equivalent survivors (not run again)
+        statuses = {k: first[k] if first.get(k) == "killed" or v == "not checked" else v
                     for k, v in statuses.items()}
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
