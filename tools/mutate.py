@@ -15,6 +15,7 @@ the extension nor the main test venv gain it.
 """
 
 import argparse
+import fnmatch
 import json
 import re
 import shutil
@@ -111,6 +112,16 @@ EQUIVALENT = {
     **{f"{_ACC}x_body_parts__mutmut_{i}":
        "the fill of remap (-1 -> +1 / -2) is the value of the absent parts, which no bone "
        "indexes" for i in (57, 58)},
+    f"{_ACC}x_outlier_shares__mutmut_39":
+        "the divisor's guard points > 0 -> > 1: points are counts (FrameMotions.joint_points, "
+        "whole numbers), so a guarded part has 1 point or more and 1 point divides as 1.0",
+    **{f"{_ACC}{name}":
+       "the stand-in divisor of the masked entries (1.0 -> 2.0): the outer np.where replaces "
+       "those entries whatever they are"
+       for name in ("x_outlier_shares__mutmut_40", "x_seen_shares__mutmut_40")},
+    **{f"{_ACC}x_parts_from_regions__mutmut_{i}":
+       "np.array([...], dtype=int) -> without dtype: a list of Python ints is an int array "
+       "either way (regions has one entry per joint, never none)" for i in (12, 14)},
     f"{_ACC}x_judge_parts__mutmut_54":
         "drifted[0] = None on a bool array stores False, the same as = False",
     "core.mocap.amc.x_format_amc__mutmut_65":
@@ -242,13 +253,15 @@ def _mutmut_run(folder, jobs, names=()):
                     *names], cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
 
 
-def run_module(name, module, tests, jobs, run=True, two_stage=False):
+def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=()):
     """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
     already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
     ``mutmut run NAME...``). ``two_stage``: first without the module's :data:`SLOW` tests,
     then only the mutants that stage did not kill against every test (the first stage's
     verdicts are kept in ``build/mutate/<name>/stage1.json``: mutmut forgets every verdict
-    when its test options change)."""
+    when its test options change). ``sample``: mutmut name patterns (fnmatch) of the mutants
+    to run, e.g. ``*__mutmut_*[05]`` (every mutant numbered …0 or …5: a fifth of each
+    function's, the same ones every time); the score is then over those only."""
     folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
     stage1 = folder / "stage1.json"
@@ -256,11 +269,11 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False):
         folder = _scratch(name, module, tests)
         if two_stage and SLOW.get(name):
             _configure(folder, module, tests, deselect=SLOW[name])
-            _mutmut_run(folder, jobs)
+            _mutmut_run(folder, jobs, sample)
             first = _results(folder)
             stage1.write_text(json.dumps(first, indent=1) + "\n")
             diffs = mutant_diffs(folder, module)
-            again = sorted(k for k, v in first.items() if v != "killed"
+            again = sorted(k for k, v in first.items() if v not in ("killed", "not checked")
                            and not (v == "survived" and (k in EQUIVALENT
                                                          or equivalent_kind(diffs.get(k)))))
             _configure(folder, module, tests)
@@ -268,19 +281,23 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False):
             if again:
                 _mutmut_run(folder, jobs, again)
         else:
-            _mutmut_run(folder, jobs)
+            _mutmut_run(folder, jobs, sample)
     statuses = _results(folder)
     if stage1.exists():                   # a two-stage run: the first stage's kills stand,
         first = json.loads(stage1.read_text())  # and its equivalent survivors (not run again)
         statuses = {k: first[k] if first.get(k) == "killed" or v == "not checked" else v
                     for k, v in statuses.items()}
+    if sample:
+        statuses = {k: v for k, v in statuses.items()
+                    if any(fnmatch.fnmatch(k, pattern) for pattern in sample)}
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
     kinds = {k: EQUIVALENT.get(k) or equivalent_kind(diffs.get(k)) for k in survived}
     equivalent = {k: v for k, v in kinds.items() if v}
     counted = len(statuses) - len(equivalent)
     killed = sum(v == "killed" for v in statuses.values())
-    return {"module": module, "tests": tests, "mutants": len(statuses), "killed": killed,
+    return {"module": module, "tests": tests, "sample": list(sample), "mutants": len(statuses),
+            "killed": killed,
             "survived": [k for k in survived if k not in equivalent],
             "survived_diffs": {k: diffs.get(k) for k in survived if k not in equivalent},
             "equivalent": equivalent,
@@ -296,6 +313,9 @@ def main(argv=None):
     parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
     parser.add_argument("--no-run", action="store_true",
                         help="score the results of an earlier run (build/mutate/<module>/)")
+    parser.add_argument("--sample", nargs="+", default=(), metavar="PATTERN",
+                        help="run (and score) only the mutants whose names match, e.g. "
+                             "'*__mutmut_*[05]'")
     parser.add_argument("--two-stage", action="store_true",
                         help="first without the module's slow tests (SLOW), then the "
                              "survivors against every test")
@@ -304,7 +324,7 @@ def main(argv=None):
     for name in args.only or MODULES:
         module, tests = MODULES[name]
         row = run_module(name, module, tests, args.jobs, run=not args.no_run,
-                         two_stage=args.two_stage)
+                         two_stage=args.two_stage, sample=tuple(args.sample))
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "

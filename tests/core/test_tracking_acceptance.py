@@ -387,14 +387,15 @@ def test_blend_weights_without_evidence_or_parts():
     off = AcceptanceRule(blend_drift=0.0, blend_power=0.0)
     np.testing.assert_array_equal(blend_weights(off, [0.05, 0.01], [0.02, 0.02],
                                                 [True, False]), [1.0, 0.0])
-    assert blend_weights(rule, [], [], []).shape == (0,)
+    for torso in ("own", "whole", "min"):
+        assert blend_weights(AcceptanceRule(blend_torso=torso), [], [], []).shape == (0,)
 
 
 def test_seen_shares_of_small_areas_overfull_parts_and_per_frame():
     """Areas below a pixel are shares like any other; a part seen more than its own area
     (overlapping samples) is seen whole (1); per_frame keeps every frame."""
     part_of = np.array([0, 1, 1])
-    seen = np.array([[0.25, 3.0, 1.0], [0.5, 1.0, 1.0]])
+    seen = np.array([[0.25, 3.0, 2.0], [0.5, 1.0, 1.0]])
     whole = np.array([[0.5, 2.0, 2.0], [0.5, 2.0, 2.0]])
     per = seen_shares(part_of, seen, whole, per_frame=True)
     np.testing.assert_allclose(per, [[0.5, 1.0], [1.0, 0.5]], rtol=1e-15)
@@ -402,12 +403,13 @@ def test_seen_shares_of_small_areas_overfull_parts_and_per_frame():
 
 
 def test_outlier_shares_are_one_minus_the_mean_weight_of_each_parts_points():
-    part_of = np.array([0, 1, 1, 2])
-    weights = np.array([[3.0, 1.0, 2.0, 0.0], [1.0, 1.0, 0.0, 0.0]])
-    points = np.array([[4.0, 2.0, 2.0, 0.0], [4.0, 2.0, 2.0, 0.0]])
+    part_of = np.array([0, 1, 1, 2, 3])
+    weights = np.array([[3.0, 1.0, 2.0, 0.0, 0.25], [1.0, 1.0, 0.0, 0.0, 0.0]])
+    points = np.array([[4.0, 2.0, 2.0, 0.0, 1.0], [4.0, 2.0, 2.0, 0.0, 0.0]])
     got = outlier_shares(part_of, weights, points)
-    np.testing.assert_allclose(got[:2], [1 - 4 / 8, 1 - 4 / 8], rtol=1e-15)
-    assert np.isnan(got[2])                         # a part without points
+    assert got.shape == (4,)
+    np.testing.assert_allclose(got[[0, 1, 3]], [1 - 4 / 8, 1 - 4 / 8, 0.75], rtol=1e-15)
+    assert np.isnan(got[2])                         # a part without points; part 3: one point
     got = outlier_shares(part_of, weights * 0.5, points)
     np.testing.assert_allclose(got[:2], [0.75, 0.75], rtol=1e-15)
 
