@@ -124,6 +124,21 @@ EQUIVALENT = {
        "either way (regions has one entry per joint, never none)" for i in (12, 14)},
     f"{_ACC}x_judge_parts__mutmut_54":
         "drifted[0] = None on a bool array stores False, the same as = False",
+    **{f"core.tracking.distortion.{name}":
+       "jacobian=False -> True where the caller discards the Jacobian (``d, _ = _distort(...)``"
+       "): the same points, only computed with a Jacobian nobody reads"
+       for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
+                    "x__undistort__mutmut_120")},
+    "core.tracking.distortion.x__undistortion_table__mutmut_95":
+        "the coarse table's accurate flag False -> None: it is read only as "
+        "``not self.table.accurate``, true for both",
+    "core.tracking.distortion.x__undistort__mutmut_130":
+        "the converged mask from the largest error of all points (max(axis=None)) instead of "
+        "each point's: its only reader, LensDistortion.for_image, asks np.all(converged), "
+        "which is false in both versions as soon as one point has not converged",
+    "core.tracking.distortion.xǁLensDistortionǁshift_within__mutmut_10":
+        "profile_shifts[-2] for [-1]: for_image builds the profile from "
+        "np.append(ring[1:], ring[-1]), so its last two entries are equal",
     "core.mocap.amc.x_format_amc__mutmut_65":
         "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
     "core.mocap.amc.x__scaled_progress__mutmut_12":
@@ -148,6 +163,9 @@ EQUIVALENT_KINDS = (
      "einsum subscripts in capitals: the same contraction"),
     ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
      'float("-INF") is float("-inf")'),
+    ("jacobian-none", r"jacobian=False\)", r"jacobian=None\)",
+     "_distort(..., jacobian=False) -> jacobian=None: the flag is only tested for truth "
+     "(``if not jacobian``), and None is false as False is"),
     ("reshape-negative", r"\.reshape\((?:[^()]|\([^()]*\))*-1\)",
      r"\.reshape\((?:[^()]|\([^()]*\))*-2\)",
      "reshape(..., -1) -> reshape(..., -2): NumPy takes any negative size as the one inferred "

@@ -298,13 +298,16 @@ def test_four_coefficients_have_no_k3():
     np.testing.assert_array_equal(coefficients_array(np.array(WIDE)[None, :]), WIDE)
 
 
-def test_the_radius_limit_is_a_quarter_beyond_the_farthest_corner():
+@pytest.mark.parametrize("cx, cy", [(CX, CY), (W - 1 - CX, H - 1 - CY)])
+def test_the_radius_limit_is_a_quarter_beyond_the_farthest_corner(cx, cy):
     """A lens that does not fold: the limit is 1.25 times the largest ideal radius of the
     image's border, which for this lens (ideal radius growing with the distorted one) is at
-    a corner."""
-    lens = _camera(DEMO).distortion
+    the farthest corner (bottom right for the demo camera, top left with its principal point
+    mirrored). The lens is immutable."""
+    lens = PinholeCamera(FX, FY, cx, cy, W, H, distortion=DEMO).distortion
+    assert not lens.coefficients.flags.writeable
     corners = (np.array([[-0.5, -0.5], [W - 0.5, -0.5], [-0.5, H - 0.5], [W - 0.5, H - 0.5]])
-               - [CX, CY]) / [FX, FY]
+               - [cx, cy]) / [FX, FY]
     corner = np.linalg.norm(lens.undistort(corners), axis=1).max()
     assert lens.radius_limit == pytest.approx(1.25 * corner, rel=1e-9)
     # Within the limit the model is OpenCV's polynomial, beyond it the radial extension.
@@ -360,3 +363,56 @@ def test_undistort_is_the_exact_inverse_within_and_beyond_the_image():
         np.testing.assert_allclose(lens.undistort(lens.distort(ideal)), ideal, atol=1e-10)
         back = lens.undistort(lens.distort(ideal))
         np.testing.assert_allclose(lens.distort(back), lens.distort(ideal), atol=1e-12)
+
+
+def test_the_undistortion_table_covers_the_image_and_a_twentieth_more_on_every_side():
+    lens = _camera(DEMO).distortion
+    table = lens.table
+    lo = np.array([(-0.5 - CX) / FX, (-0.5 - CY) / FY])
+    hi = np.array([(W - 0.5 - CX) / FX, (H - 0.5 - CY) / FY])
+    pad = 0.05 * (hi - lo)
+    rows, cols = table.shape
+    np.testing.assert_allclose(table.origin, lo - pad, rtol=1e-12)
+    np.testing.assert_allclose(table.origin + table.step * [cols - 1, rows - 1], hi + pad,
+                               rtol=1e-12)
+    assert cols in (65, 129, 257) and rows == round(cols * (hi - lo)[1] / (hi - lo)[0])
+
+
+def test_points_outside_the_table_are_undistorted_by_newton():
+    """undistort_fast beyond the table (just past each side, and far outside the image) is
+    undistort's answer; the table says which points it holds."""
+    lens = _camera(DEMO).distortion
+    table = lens.table
+    rows, cols = table.shape
+    far = table.origin + table.step * [cols - 1, rows - 1]
+    near = np.array([[table.origin[0] - 1e-3, 0.0], [far[0] + 1e-3, 0.0],
+                     [0.0, table.origin[1] - 1e-3], [0.0, far[1] + 1e-3]])
+    points = np.vstack([near, [[-40.0, 3.0], [25.0, -60.0]], [[0.01, -0.02]]])
+    _, inside = table.interpolate(points)
+    assert inside.tolist() == [False] * 6 + [True]
+    got = lens.undistort_fast(points)
+    # Newton's answer outside (the same code on the same points), the table's inside.
+    np.testing.assert_array_equal(got[:6], lens.undistort(points[:6]))
+    np.testing.assert_allclose(lens.distort(got[:6]), points[:6], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(got[6:], table.interpolate(points[6:])[0])
+
+
+def test_the_table_is_the_first_guess_of_newtons_method(monkeypatch):
+    """From the table's guess one Newton step is exact to ~1e-12 (quadratic convergence),
+    even for the wide-angle lens whose table is too coarse to be used alone; from the
+    second-order guess ``2t - d(t)`` (off by ~1e-2 near the corners) one step leaves ~4e-4."""
+    import core.tracking.distortion as distortion
+    wide = _camera(WIDE).distortion
+    assert not wide.table.accurate
+    pixels = RNG.uniform([-0.5, -0.5], [W - 0.5, H - 0.5], (2000, 2))
+    targets = (pixels - [CX, CY]) / [FX, FY]
+    exact = wide.undistort(targets)
+    monkeypatch.setattr(distortion, "_NEWTON_ITERATIONS", 1)
+    np.testing.assert_allclose(wide.undistort(targets), exact, rtol=0, atol=1e-10)
+    one_step, _ = distortion._undistort(targets, wide.coefficients, wide.radius_limit ** 2)
+    assert np.abs(one_step - exact).max() > 1e-5
+
+
+def test_opencv_coefficients_from_blender_are_floats():
+    got = opencv_from_brown(0, 0, 0, 0, 1, 0)
+    assert got.dtype == float and got.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]
