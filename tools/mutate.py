@@ -128,7 +128,17 @@ EQUIVALENT = {
        "jacobian=False -> True where the caller discards the Jacobian (``d, _ = _distort(...)``"
        "): the same points, only computed with a Jacobian nobody reads"
        for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
-                    "x__undistort__mutmut_120")},
+                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205")},
+    "core.tracking.distortion.x__distort__mutmut_155":
+        "``s is not None and np.any(outside)`` -> ``or``: s is set (not None) exactly when "
+        "np.any(outside), so both conditions are the same",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_225":
+        "the profile's closing value ring[-1] -> ring[+1]: np.maximum.accumulate makes the "
+        "last entry the largest of ring[1:] and the appended value, and both candidates are "
+        "among ring[1:]",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_65":
+        "np.stack of two 1-D arrays along axis +1 instead of -1: for the 2-D result they are "
+        "the same axis",
     "core.tracking.distortion.x__undistortion_table__mutmut_95":
         "the coarse table's accurate flag False -> None: it is read only as "
         "``not self.table.accurate``, true for both",
