@@ -129,6 +129,9 @@ EQUIVALENT = {
        "): the same points, only computed with a Jacobian nobody reads"
        for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
                     "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205")},
+    "core.tracking.distortion.x__undistortion_table__mutmut_80":
+        "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
+        "dimension",
     "core.tracking.distortion.x__distort__mutmut_155":
         "``s is not None and np.any(outside)`` -> ``or``: s is set (not None) exactly when "
         "np.any(outside), so both conditions are the same",
