@@ -54,6 +54,9 @@ DEFAULT_BLEND = (0.4, 2.0)
 
 
 def _robust(loss, c, scale="frame", **more):
+    # robust_start 0 unless named: the candidates measured before it existed (IRLS from a
+    # level's first re-linearisation; their cached raw intervals stay valid).
+    more.setdefault("robust_start", 0)
     return dict(robust_loss=loss, robust_threshold=c, robust_scale=scale, **more)
 
 
@@ -78,6 +81,15 @@ CANDIDATES = {
         "tukey_4.685_joint_rw1": _robust("tukey", 4.685, "joint", robust_reweight=1),
         "tukey_4.685_joint_rw2": _robust("tukey", 4.685, "joint", robust_reweight=2),
         "tukey_4.685_joint_rw3": _robust("tukey", 4.685, "joint", robust_reweight=3),
+    },
+    # When a pyramid level starts IRLS (robust_start): from its first re-linearisation (0) or
+    # after one unweighted ('clip') update (1, the default since 2026-11-26: on a clean render
+    # a limb still converging is not set aside by weights of the estimate the coarser level
+    # left).
+    "start": {
+        "tukey_4.685_joint_start1": _robust("tukey", 4.685, "joint", robust_start=1),
+        "tukey_4.685_start1": _robust("tukey", 4.685, "frame", robust_start=1),
+        "tukey_4.685_start2": _robust("tukey", 4.685, "frame", robust_start=2),
     },
 }
 #: Blends replayed on every candidate (blend_drift k, blend_power q); (0, 2): no blend.

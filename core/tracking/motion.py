@@ -680,7 +680,9 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     One view: exactly the single-camera tracker (no view weighting, nothing stacked).
 
     ``'clip'`` (the tracker before issue 20): residuals clipped per view, rows unweighted, the
-    system decomposed once per level.
+    system decomposed once per level. A robust loss takes the same ``'clip'`` update on each
+    level's first ``options.robust_start`` re-linearisations and IRLS after them (the weights
+    at an estimate converged on the level: a limb still converging is not set aside).
 
     Returns
     -------
@@ -717,12 +719,15 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
             warped = [_warped_residuals(sk, view, t, moved_pose)
                       for view, t in zip(views, templates)]
             rms = _rms(warped, measured)
-            if clip:
+            warm = not clip and iteration < options.robust_start
+            if clip or warm:
                 clipped = [_robust_clip(r, inside, options.robust_clip) for r, inside in warped]
                 rows, scale = [None] * len(views), np.stack([c[1] for c in clipped])
                 b_views = [c[0] for c in clipped]
             else:
-                if iteration % options.robust_reweight == 0:
+                if iteration == options.robust_start:
+                    system = None
+                if (iteration - options.robust_start) % options.robust_reweight == 0:
                     # IRLS (robust.py): weights at the current estimate, each view's own
                     # scale; the weights changed, so the system is decomposed again. In
                     # between (robust_reweight > 1) the level keeps both: the decomposition
@@ -738,7 +743,7 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                 if single:
                     a = a_views[0]
                 else:
-                    if weights is None or not clip:
+                    if weights is None or not (clip or warm):
                         weights = view_weights(options.view_weighting, templates, scale)
                     a = np.concatenate([w[:, None, None] * av
                                         for w, av in zip(weights, a_views)], axis=1)

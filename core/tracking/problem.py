@@ -165,8 +165,8 @@ class TrackingOptions:
         scale, ``1.4826 median |r|`` per frame), and the same loss summed in eq. 4 (the
         trajectory judge). ``'clip'``: the tracker before issue 20 (residuals clipped at
         ``robust_clip`` standard deviations of the mean absolute residual, rows unweighted,
-        eq. 4 a sum of squares) -- the default until Tukey passes the suite's clean-render
-        bounds (docs/tracking.md, *Robust estimation*, *Default*).
+        eq. 4 a sum of squares). Default ``'tukey'`` with ``robust_scale='frame'`` and
+        ``robust_start=2`` (docs/tracking.md, *Robust estimation*, *Default*).
     robust_threshold : float
         The M-estimator's threshold ``c`` in units of that scale (Tukey: a residual beyond
         ``c`` scales has no weight; Huber: its weight falls as ``c / |u|``). Chosen by
@@ -186,9 +186,18 @@ class TrackingOptions:
         unweighted tracker's one decomposition per level -- faster on the real footage, but
         it fails the core tests' accuracy bounds on clean renders (docs/tracking.md, *Robust
         estimation: its cost*).
+    robust_start : int
+        Re-linearisations of each pyramid level taken with the ``'clip'`` update (residuals
+        clipped, rows unweighted) before IRLS weights the rows: the weights are computed at an
+        estimate that has converged on the level, so a limb still converging (large residuals
+        that are signal, not outliers) is not set aside on a clean render. 0: IRLS from the
+        level's first re-linearisation (the robust estimate as it came in); ``>=
+        warp_iterations``: the ``'clip'`` motion estimate with the robust eq. 4. Default 2 of
+        the 3 re-linearisations (docs/tracking.md, *Robust estimation*, *Default*).
     robust_clip : float
-        ``robust_loss='clip'`` only: photometric residuals are clipped at this many standard
-        deviations (estimated per frame from the mean absolute residual).
+        ``robust_loss='clip'`` (and the first ``robust_start`` re-linearisations) only:
+        photometric residuals are clipped at this many standard deviations (estimated per
+        frame from the mean absolute residual).
     max_iterations : int
         Trajectory iterations (track, accumulate, correct, score).
     patience : int
@@ -279,11 +288,12 @@ class TrackingOptions:
     min_body_pixels: float = 50.0
     warp_iterations: int = 3
     step_tol: float = 1e-4
-    robust_loss: str = "clip"
+    robust_loss: str = "tukey"
     robust_threshold: float = 4.685
-    robust_scale: str = "joint"
+    robust_scale: str = "frame"
     robust_gradient: bool = False
     robust_reweight: int = 1
+    robust_start: int = 2
     robust_clip: float = 3.0
     max_iterations: int = 4
     patience: int = 2
@@ -321,6 +331,8 @@ class TrackingOptions:
         if self.robust_scale not in ("frame", "joint", "pooled"):
             raise ValueError(f"robust_scale must be 'frame', 'joint' or 'pooled', got "
                              f"{self.robust_scale!r}")
+        if not (isinstance(self.robust_start, (int, np.integer)) and self.robust_start >= 0):
+            raise ValueError(f"robust_start must be an integer >= 0, got {self.robust_start!r}")
         if not self.robust_threshold > 0.0:
             raise ValueError(f"robust_threshold must be > 0, got {self.robust_threshold}")
         if self.view_weighting not in VIEW_WEIGHTINGS:

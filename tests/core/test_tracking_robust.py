@@ -182,3 +182,9 @@ def test_the_motion_estimate_ignores_what_covers_part_of_the_next_image():
     # The support says which joints lost points to the patch.
     share = 1 - fm.joint_weights[0] / np.maximum(fm.joint_points[0], 1)
     assert share.max() > 0.2
+
+
+@pytest.mark.parametrize("start", [-1, 1.5, None])
+def test_robust_start_must_be_a_count_of_re_linearisations(start):
+    with pytest.raises(ValueError, match="robust_start"):
+        TrackingOptions(robust_start=start)
