@@ -2,8 +2,8 @@
 
 Keyframes split a clip into independent intervals (Yamamoto §2.2: each interval is tracked
 between its two keyed poses). :func:`track_keyframes` runs them one after the other or in a
-process pool; the frames are shared with the workers through memory-mapped files, one per
-camera (no copy per interval), and every worker runs exactly the serial code on exactly the
+process pool; a worker process gets the frames of each interval it takes through a
+memory-mapped file per camera, and every worker runs exactly the serial code on exactly the
 same data, so the results are bit-identical (checked in ``tests/core/test_tracking_parallel.py``).
 
 Several cameras: ``frames`` holds one stack per camera of the problem, each with its frame
@@ -28,9 +28,10 @@ parent packages of the core (``bl_ext``, ``bl_ext.<repo>``, ``bl_ext.<repo>.trac
 their ``__path__`` is the matching folder), imports the core by its full name -- the core only
 uses relative imports inside itself, so no ``bpy`` and no add-on code runs -- and only then
 unpickles the work. With the core imported as a top-level ``core`` (tests, benchmarks) there is
-nothing to stand in for. The frames go to the workers as temporary ``.npy`` files, one per
-camera, memory mapped by each (no copy per interval). A worker whose parent dies sees its stdin
-close and exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and
+nothing to stand in for. The frames go to a child as temporary ``.npy`` files, one per
+camera, written for each interval it takes when it takes it (only the frames that interval
+cuts, :func:`view_frames`) and memory mapped by the child. A worker whose parent dies sees its
+stdin close and exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and
 its copy of the frames.
 
 Progress and cancelling
@@ -175,8 +176,17 @@ def view_frames(stack, offset, a, b):
 def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None,
               occluders=()):
     a, b = keys[i], keys[i + 1]
-    start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
     stacks = [view_frames(f, o, a, b) for f, o in zip(frames, offsets)]
+    return _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progress,
+                               occluders)
+
+
+def _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progress=None,
+                        occluders=()):
+    """Interval ``i`` from each camera's frames ``keys[i] .. keys[i + 1]`` (:func:`view_frames`:
+    None where the camera filmed none of them)."""
+    a, b = keys[i], keys[i + 1]
+    start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
     # Other bodies, their frames counted from this interval's start key.
     occluders = [replace(occ, first=occ.first - int(a)) for occ in occluders or ()]
     if problem.n_views == 1:
@@ -290,24 +300,27 @@ def _receive(stream):
 
 
 def serve(channel_in, channel_out):
-    """Worker main loop: set-up message, then interval indices until ``'stop'`` or EOF.
+    """Worker main loop: set-up message, then tasks ``(i, paths)`` until ``'stop'`` or EOF.
 
-    Sends ``('progress', i, fraction)``, ``('result', i, IntervalResult)`` or
-    ``('error', i, exception, traceback text)`` for each interval.
+    ``paths``: per camera, the ``.npy`` file of the interval's frames (:func:`view_frames` of
+    ``keys[i] .. keys[i + 1]``, written by the parent for this task), or None where the camera
+    filmed none of them. Sends ``('progress', i, fraction)``, ``('result', i, IntervalResult)``
+    or ``('error', i, exception, traceback text)`` for each interval.
     """
     setup = _receive(channel_in)
     if setup is None:
         return
-    frames_paths, (problem, options, offsets, keys, roots, local, occluders) = setup
-    frames = [np.load(path, mmap_mode="r") for path in frames_paths]
+    problem, options, offsets, keys, roots, local, occluders = setup
     while True:
-        i = _receive(channel_in)
-        if i is None or i == "stop":
+        task = _receive(channel_in)
+        if task is None or task == "stop":
             return
+        i, paths = task
         try:
-            result = _interval(problem, options, frames, offsets, keys, roots, local, i,
-                               lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)),
-                               occluders)
+            stacks = [None if path is None else np.load(path, mmap_mode="r") for path in paths]
+            result = _interval_of_stacks(
+                problem, options, stacks, keys, roots, local, i,
+                lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)), occluders)
         except Exception as exc:  # reported to the parent, which re-raises it
             try:
                 pickle.dumps(exc)
@@ -383,24 +396,53 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
         with lock:
             return todo.pop(0) if todo else None
 
+    offsets = work[2]
+
     with tempfile.TemporaryDirectory(prefix="ts-track-") as folder:
-        frames_paths = [os.path.join(folder, f"frames_{v}.npy") for v in range(len(frames))]
+        written = {}                       # interval -> its frames files (one per camera)
+
+        def give(k, task):
+            """Send child ``k`` its next interval, its frames written for it first; or stop."""
+            if task is None:
+                _send(procs[k].stdin, "stop")
+                stopped.add(k)
+                return
+            a, b = keys[task], keys[task + 1]
+            paths = []
+            for v, (stack, offset) in enumerate(zip(frames, offsets)):
+                cut = view_frames(stack, offset, a, b)
+                if cut is None:
+                    paths.append(None)
+                    continue
+                paths.append(os.path.join(folder, f"interval_{task}_view_{v}.npy"))
+                np.save(paths[-1], np.ascontiguousarray(cut))
+            written[task] = [p for p in paths if p is not None]
+            _send(procs[k].stdin, (task, paths))
+
+        def forget(task):
+            """Remove an interval's frames files once its result is in (best effort: a
+            system that cannot delete a file still mapped leaves it to the folder's removal)."""
+            for path in written.pop(task, ()):
+                try:
+                    os.remove(path)
+                except OSError:
+                    pass
+
         procs, stopped = [], set()
         try:
-            # This process starts on its first interval while the frames files (one per
-            # camera) are written for the children (0.1 s for 61 frames at 1080x1920).
+            # This process starts on its first interval at once; the children start their
+            # interpreters meanwhile, and each child is sent only the frames of the interval
+            # it takes, written when it takes it (the whole clip once for all children cost
+            # 0.67-4.3 s for 100 frames at 1080x1920 before a child could start,
+            # docs/tracking.md *Speed on real footage*).
             local.start()
-            for path, stack in zip(frames_paths, frames):
-                np.save(path, np.ascontiguousarray(stack))
             for k in range(workers - 1):
                 proc = _start_worker()
                 procs.append(proc)
                 threading.Thread(target=_reader, args=(k, proc.stdout, inbox), daemon=True).start()
-                _send(proc.stdin, (frames_paths, work))
-                task = next_task()
-                _send(proc.stdin, "stop" if task is None else task)
-                if task is None:
-                    stopped.add(k)
+            for k, proc in enumerate(procs):
+                _send(proc.stdin, work)
+                give(k, next_task())
             while any(r is None for r in results):
                 try:
                     k, message = inbox.get(timeout=0.05)
@@ -421,10 +463,8 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
                 elif message:
                     results[message[1]], fractions[message[1]] = message[2], 1.0
                     if k >= 0:
-                        task = next_task()
-                        _send(procs[k].stdin, "stop" if task is None else task)
-                        if task is None:
-                            stopped.add(k)
+                        forget(message[1])
+                        give(k, next_task())
                 report(float(np.dot(weights, fractions)))
         finally:
             stop.set()

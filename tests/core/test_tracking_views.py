@@ -207,6 +207,25 @@ def test_pool_equals_serial_with_two_views(depth_scene):
         np.testing.assert_array_equal(a.view_samples, b.view_samples)
 
 
+def test_pool_equals_serial_with_unsynchronised_cameras(depth_scene):
+    """A child process gets only the frames of the interval it takes (cut per camera: a view,
+    a NaN-padded copy, or nothing where the camera filmed none of them): the serial results."""
+    sk, body, cams, roots, local, frames = depth_scene
+    problem = TrackingProblem(sk, body, cams)
+    options = TrackingOptions(max_iterations=1)
+    k = [0, 3, 4, 6, 7, 10]
+    stacks = [frames[0][:5], frames[1][6:]]
+    runs = [track_keyframes(problem, stacks, k, roots[k], local[k], options, processes=p,
+                            frame_offsets=[0, 6]) for p in (1, 3)]
+    np.testing.assert_array_equal(runs[0].root_translations, runs[1].root_translations)
+    np.testing.assert_array_equal(runs[0].local_rotations, runs[1].local_rotations)
+    for a, b in zip(runs[0].intervals, runs[1].intervals):
+        np.testing.assert_array_equal(a.errors, b.errors)
+        np.testing.assert_array_equal(a.view_samples, b.view_samples)
+        assert a.reason == b.reason
+    assert "no camera filmed frames 4..6" not in runs[1].intervals[2].reason
+
+
 def test_frame_offsets(depth_scene):
     """A camera's stack starting later (offset) is cut at the right frames; frames a camera did
     not film give no rows in it; an interval no camera filmed keeps the interpolation."""
