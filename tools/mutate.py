@@ -15,6 +15,7 @@ the extension nor the main test venv gain it.
 """
 
 import argparse
+import fnmatch
 import json
 import re
 import shutil
@@ -36,6 +37,23 @@ MODULES = {
     "ekf": ("core/gait/ekf.py", ["tests/core/test_gait_ekf.py"]),
 }
 
+#: Slow tests that a two-stage run (``--two-stage``) leaves out at first: tests of the wiring
+#: around a module (tracking whole intervals, every shipped trial), each costing every surviving
+#: mutant many seconds. A mutant the other tests kill is killed by the whole set as well; the
+#: first stage's survivors (and mutants no remaining test ran) are then run against every test.
+SLOW = {
+    "amc": ["tests/core/test_acclaim.py::test_all_shipped_trials_parse_with_frame_count_of_file",
+            "tests/core/test_acclaim.py::"
+            "test_vectorised_and_line_by_line_parsers_agree_on_any_number_spelling"],
+    "distortion": ["tests/core/test_tracking_distortion.py::"
+                   "test_distorted_footage_tracks_like_undistorted_footage"],
+    "acceptance": [f"tests/core/test_tracking_acceptance.py::{name}" for name in (
+        "test_track_interval_reports_evidence_and_applies_the_rule",
+        "test_several_cameras_record_the_evidence_but_revert_only_when_asked",
+        "test_track_interval_blends_each_part_by_its_share_and_keeps_the_keys",
+        "test_body_parts_from_a_body_maps_regions_override_the_names")],
+}
+
 #: Survivors that are equivalent mutants (same behaviour for every valid input), by mutant
 #: name (mutmut's ``module.x_function__mutmut_N``), with why; docs/testing.md lists them.
 _EKF = "core.gait.ekf."
@@ -45,6 +63,10 @@ _EKF_INPUTS = ("FilterContext keeps ctx.inputs (the GP inputs [cos, sin] of the 
 _EKF_CACHE_KEY = ("the cache key's string only keeps steps() and decay() entries apart; "
                   "('XXsteps', n) / ('STEPS', n) do that as well (and their tuples differ in "
                   "length)")
+_ACC = "core.tracking.acceptance."
+_ACC_TYPED = ("np.asarray(x, dtype=int / bool) -> np.asarray(x): the argument is documented and "
+              "passed as that type (parents and part_of int arrays from body_parts, tracked the "
+              "bool array of judge_parts), which NumPy keeps")
 EQUIVALENT = {
     **{f"{_EKF}xǁFilterContextǁ__post_init____mutmut_{i}": _EKF_INPUTS for i in (7, 11, 12, 16)},
     **{f"{_EKF}xǁFilterContextǁ{name}__mutmut_{i}": _EKF_CACHE_KEY
@@ -57,6 +79,79 @@ EQUIVALENT = {
         "the initial value of outliers (-1 -> -2) is overwritten for every frame by _update",
     f"{_EKF}xǁFilterResultǁmasked__mutmut_11":
         "ys[...] = None on a float array stores NaN, the same as = np.nan",
+    "core.gait.checks.x_rhythm__mutmut_102":
+        "continue -> break when a comparison has no energy on one side: the energies only "
+        "shrink as the period grows (both ranges lose frames from one end, and a comparison "
+        "once too short stays off), so every later period has none either and is skipped too",
+    **{f"{_ACC}{name}__mutmut_{i}": _ACC_TYPED
+       for name, numbers in (("x_keep_interpolation", (4, 6)), ("x_blend_weights", (3, 5)),
+                             ("x_blend_trajectories", (43, 45)), ("x_body_parts", (3, 5)))
+       for i in numbers},
+    f"{_ACC}x__drift_share__mutmut_21":
+        "departure > 0 -> >= 0: at departure 0 the odds are inf or NaN (drift / 0), which "
+        "isfinite already sends to 1",
+    f"{_ACC}x__drift_share__mutmut_27":
+        "the share without evidence 1.0 -> 2.0: its only caller, blend_weights, clips every "
+        "share to [0, 1]",
+    f"{_ACC}x_blend_trajectories__mutmut_61":
+        "bones of share 0 also through the slerp (w >= 0): R_i exp(0 · log(...)) = R_i · I, "
+        "exactly R_i, the value they were given just before",
+    f"{_ACC}x_blend_trajectories__mutmut_82":
+        "np.swapaxes(ri, -1, +2) of a 4-D array: axis 2 is axis -2",
+    **{f"{_ACC}x_blend_weights__mutmut_{i}":
+       "one of the two means without keepdims: the other keeps its dimension and "
+       "broadcasting gives the same (1,) array" for i in (40, 41, 45, 46)},
+    **{f"{_ACC}x_blend_weights__mutmut_{i}":
+       "a clip bound of the shares removed or 1 -> 2: 1 / (1 + odds) with finite odds >= 0 "
+       "(drift, departure and blend_drift are not negative) lies in (0, 1] already"
+       for i in (70, 71, 76)},
+    **{f"{_ACC}x_body_parts__mutmut_{i}":
+       "p >= 0 -> p > 0 / p >= 1: bone 0 is a root (parents before children) and a root's "
+       "part is always the torso (0), so full[0] != 0 is false and p = 0 skips the branch "
+       "either way" for i in (14, 15)},
+    **{f"{_ACC}x_body_parts__mutmut_{i}":
+       "the fill of remap (-1 -> +1 / -2) is the value of the absent parts, which no bone "
+       "indexes" for i in (57, 58)},
+    f"{_ACC}x_outlier_shares__mutmut_39":
+        "the divisor's guard points > 0 -> > 1: points are counts (FrameMotions.joint_points, "
+        "whole numbers), so a guarded part has 1 point or more and 1 point divides as 1.0",
+    **{f"{_ACC}{name}":
+       "the stand-in divisor of the masked entries (1.0 -> 2.0): the outer np.where replaces "
+       "those entries whatever they are"
+       for name in ("x_outlier_shares__mutmut_40", "x_seen_shares__mutmut_40")},
+    **{f"{_ACC}x_parts_from_regions__mutmut_{i}":
+       "np.array([...], dtype=int) -> without dtype: a list of Python ints is an int array "
+       "either way (regions has one entry per joint, never none)" for i in (12, 14)},
+    f"{_ACC}x_judge_parts__mutmut_54":
+        "drifted[0] = None on a bool array stores False, the same as = False",
+    **{f"core.tracking.distortion.{name}":
+       "jacobian=False -> True where the caller discards the Jacobian (``d, _ = _distort(...)``"
+       "): the same points, only computed with a Jacobian nobody reads"
+       for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
+                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205")},
+    "core.tracking.distortion.x__undistortion_table__mutmut_80":
+        "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
+        "dimension",
+    "core.tracking.distortion.x__distort__mutmut_155":
+        "``s is not None and np.any(outside)`` -> ``or``: s is set (not None) exactly when "
+        "np.any(outside), so both conditions are the same",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_225":
+        "the profile's closing value ring[-1] -> ring[+1]: np.maximum.accumulate makes the "
+        "last entry the largest of ring[1:] and the appended value, and both candidates are "
+        "among ring[1:]",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_65":
+        "np.stack of two 1-D arrays along axis +1 instead of -1: for the 2-D result they are "
+        "the same axis",
+    "core.tracking.distortion.x__undistortion_table__mutmut_95":
+        "the coarse table's accurate flag False -> None: it is read only as "
+        "``not self.table.accurate``, true for both",
+    "core.tracking.distortion.x__undistort__mutmut_130":
+        "the converged mask from the largest error of all points (max(axis=None)) instead of "
+        "each point's: its only reader, LensDistortion.for_image, asks np.all(converged), "
+        "which is false in both versions as soon as one point has not converged",
+    "core.tracking.distortion.xǁLensDistortionǁshift_within__mutmut_10":
+        "profile_shifts[-2] for [-1]: for_image builds the profile from "
+        "np.append(ring[1:], ring[-1]), so its last two entries are equal",
     "core.mocap.amc.x_format_amc__mutmut_65":
         "np.arange(1, N + 2) as frame numbers: zip() with the N rows stops after N, the same",
     "core.mocap.amc.x__scaled_progress__mutmut_12":
@@ -81,6 +176,9 @@ EQUIVALENT_KINDS = (
      "einsum subscripts in capitals: the same contraction"),
     ("inf-case", r'float\("-inf"\)', r'float\("-INF"\)',
      'float("-INF") is float("-inf")'),
+    ("jacobian-none", r"jacobian=False\)", r"jacobian=None\)",
+     "_distort(..., jacobian=False) -> jacobian=None: the flag is only tested for truth "
+     "(``if not jacobian``), and None is false as False is"),
     ("reshape-negative", r"\.reshape\((?:[^()]|\([^()]*\))*-1\)",
      r"\.reshape\((?:[^()]|\([^()]*\))*-2\)",
      "reshape(..., -1) -> reshape(..., -2): NumPy takes any negative size as the one inferred "
@@ -103,14 +201,29 @@ def _scratch(name, module, tests):
                             ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.blend1"))
         else:
             shutil.copy2(source, folder / item)
+    _configure(folder, module, tests)
+    return folder
+
+
+def _configure(folder, module, tests, deselect=()):
+    """Write the scratch copy's mutmut configuration (``deselect``: test ids left out).
+
+    mutmut reads a list option one item a line: every test file and every pytest argument
+    on its own line (``-p no:cacheprovider -q -x`` on one line reaches pytest as one
+    argument, and two test files on one line as one path)."""
+    def items(values):
+        return "".join(f"\n    {value}" for value in values)
+
+    args = ["-p", "no:cacheprovider", "-q", "-x"]
+    for test in deselect:
+        args += ["--deselect", test]
     (folder / "setup.cfg").write_text(
         "[mutmut]\n"
         "source_paths = core\n"
         f"only_mutate = {module}\n"
-        f"tests_dir = {' '.join(tests)}\n"
+        f"tests_dir ={items(tests)}\n"
         "also_copy =\n    tests\n    sample_scenes\n    pytest.ini\n"
-        "pytest_add_cli_args = -p no:cacheprovider -q -x\n")
-    return folder
+        f"pytest_add_cli_args ={items(args)}\n")
 
 
 def _results(folder):
@@ -166,24 +279,56 @@ def equivalent_kind(diff):
     return None
 
 
-def run_module(name, module, tests, jobs, run=True):
+def _mutmut_run(folder, jobs, names=()):
+    subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs),
+                    *names], cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+
+
+def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=()):
     """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
     already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
-    ``mutmut run NAME...``)."""
+    ``mutmut run NAME...``). ``two_stage``: first without the module's :data:`SLOW` tests,
+    then only the mutants that stage did not kill against every test (the first stage's
+    verdicts are kept in ``build/mutate/<name>/stage1.json``: mutmut forgets every verdict
+    when its test options change). ``sample``: mutmut name patterns (fnmatch) of the mutants
+    to run, e.g. ``*__mutmut_*[05]`` (every mutant numbered …0 or …5: a fifth of each
+    function's, the same ones every time); the score is then over those only."""
     folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
+    stage1 = folder / "stage1.json"
     if run:
         folder = _scratch(name, module, tests)
-        subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs)],
-                       cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+        if two_stage and SLOW.get(name):
+            _configure(folder, module, tests, deselect=SLOW[name])
+            _mutmut_run(folder, jobs, sample)
+            first = _results(folder)
+            stage1.write_text(json.dumps(first, indent=1) + "\n")
+            diffs = mutant_diffs(folder, module)
+            again = sorted(k for k, v in first.items() if v not in ("killed", "not checked")
+                           and not (v == "survived" and (k in EQUIVALENT
+                                                         or equivalent_kind(diffs.get(k)))))
+            _configure(folder, module, tests)
+            (folder / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
+            if again:
+                _mutmut_run(folder, jobs, again)
+        else:
+            _mutmut_run(folder, jobs, sample)
     statuses = _results(folder)
+    if stage1.exists():                   # a two-stage run: the first stage's kills stand,
+        first = json.loads(stage1.read_text())  # and its equivalent survivors (not run again)
+        statuses = {k: first[k] if first.get(k) == "killed" or v == "not checked" else v
+                    for k, v in statuses.items()}
+    if sample:
+        statuses = {k: v for k, v in statuses.items()
+                    if any(fnmatch.fnmatch(k, pattern) for pattern in sample)}
     survived = sorted(k for k, v in statuses.items() if v == "survived")
     diffs = mutant_diffs(folder, module)
     kinds = {k: EQUIVALENT.get(k) or equivalent_kind(diffs.get(k)) for k in survived}
     equivalent = {k: v for k, v in kinds.items() if v}
     counted = len(statuses) - len(equivalent)
     killed = sum(v == "killed" for v in statuses.values())
-    return {"module": module, "tests": tests, "mutants": len(statuses), "killed": killed,
+    return {"module": module, "tests": tests, "sample": list(sample), "mutants": len(statuses),
+            "killed": killed,
             "survived": [k for k in survived if k not in equivalent],
             "survived_diffs": {k: diffs.get(k) for k in survived if k not in equivalent},
             "equivalent": equivalent,
@@ -199,11 +344,18 @@ def main(argv=None):
     parser.add_argument("--output", type=Path, default=ROOT / "build/mutate/scores.json")
     parser.add_argument("--no-run", action="store_true",
                         help="score the results of an earlier run (build/mutate/<module>/)")
+    parser.add_argument("--sample", nargs="+", default=(), metavar="PATTERN",
+                        help="run (and score) only the mutants whose names match, e.g. "
+                             "'*__mutmut_*[05]'")
+    parser.add_argument("--two-stage", action="store_true",
+                        help="first without the module's slow tests (SLOW), then the "
+                             "survivors against every test")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
         module, tests = MODULES[name]
-        row = run_module(name, module, tests, args.jobs, run=not args.no_run)
+        row = run_module(name, module, tests, args.jobs, run=not args.no_run,
+                         two_stage=args.two_stage, sample=tuple(args.sample))
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "

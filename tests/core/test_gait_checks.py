@@ -270,3 +270,285 @@ def test_a_poor_fit_is_predicted_with_a_warning_that_quotes_it(shift, shown):
     percent = shown if shown is not None else f"{100 * fit:.0f}"
     assert warned.warning == (f"the gait model explains only {percent} % of the leg motion in "
                               f"frames 1–100 of Late (fit score {fit:.2f}): check the result")
+
+
+# ------------------------------------------------------------------- issue 26, mutation testing:
+# which side of each threshold a measurement equal to it falls on, every measurement kept in
+# every outcome, the rhythm search's range of periods, regularity().
+import dataclasses                                                      # noqa: E402
+
+from core.gait.checks import (GaitCheck, alternation_deg, regularity,    # noqa: E402
+                              rhythm)
+
+HIPS = ("lfemur.rx", "rfemur.rx")
+
+
+def walk_range(n=100):
+    """The stock model and 100 frames (1.67 s) of CMU 35_07, a walk every check takes."""
+    model = load_stock_library()
+    return model, observe(model, *trial("35_07"))[:n].copy()
+
+
+def with_root(model, obs, tilt_end=(0.1, 0.2, -0.2), speed=(0.3, -0.4)):
+    """``obs`` with constructed root channels: the tilt (radians, rotation vector) growing
+    linearly from 0 to ``tilt_end`` (its largest norm: ``|tilt_end|`` on the last frame), the
+    horizontal velocity constant at ``speed`` (m/s) with the first frame unknown (NaN, as the
+    online stream gives it)."""
+    obs = obs.copy()
+    ramp = np.linspace(0.0, 1.0, len(obs))[:, None]
+    obs[:, model.channel_index(["root.tilt_x", "root.tilt_y", "root.tilt_z"])] = \
+        ramp * np.asarray(tilt_end)
+    speed_cols = model.channel_index(["root.v_forward", "root.v_left"])
+    obs[:, speed_cols] = speed
+    obs[0, speed_cols] = np.nan
+    return obs
+
+
+def test_a_measurement_equal_to_a_threshold_passes_it(monkeypatch):
+    """The module docstring's rules: motion, alternation, travel and rhythm strength *reach*
+    their minimum, the tilt stays *within* its maximum, a fit *below* WARN_FIT warns. Each
+    threshold set to the very value the check measured (the same code on the same numbers,
+    so exact) is passed; one float step beyond it is not."""
+    model, obs = walk_range()
+    res = adapt(model, obs)
+    base = check_gait(model, obs, 60.0, res)
+    assert base.refusal is None and base.warning is None
+    hips = [tuple(model.channel_names.index(c) for c in HIPS)]
+    stepping = alternation_deg(obs, hips)
+    cases = [("MIN_MOTION_DEG", base.motion_deg, np.inf, "The legs hold still"),
+             ("MAX_TILT_DEG", base.tilt_deg, -np.inf, "The body is not upright"),
+             ("MIN_ALTERNATION_DEG", stepping, np.inf, "Both legs move together"),
+             ("MIN_TRAVEL", base.travel, np.inf, "The walker stays in place"),
+             ("MIN_STRENGTH", base.strength, np.inf, "No steady rhythm")]
+    for name, value, beyond, refusal in cases:
+        monkeypatch.setattr(checks, name, value)
+        at = check_gait(model, obs, 60.0, res)
+        assert at.refusal is None and at.warning is None, name
+        monkeypatch.setattr(checks, name, np.nextafter(value, beyond))
+        assert check_gait(model, obs, 60.0, res).refusal.startswith(refusal), name
+        monkeypatch.undo()
+    monkeypatch.setattr(checks, "WARN_FIT", base.fit)
+    assert check_gait(model, obs, 60.0, res).warning is None
+    monkeypatch.setattr(checks, "WARN_FIT", np.nextafter(base.fit, np.inf))
+    assert check_gait(model, obs, 60.0, res).warning.startswith("the gait model explains only")
+    monkeypatch.undo()
+    # Half a cycle (no whole cycle to compare): a strength below the minimum only warns.
+    half = check_gait(model, obs[:30], 60.0)
+    assert half.strength is not None and half.refusal is None
+    monkeypatch.setattr(checks, "MIN_STRENGTH", half.strength)
+    assert check_gait(model, obs[:30], 60.0).warning is None
+    monkeypatch.setattr(checks, "MIN_STRENGTH", np.nextafter(half.strength, np.inf))
+    weak = check_gait(model, obs[:30], 60.0)
+    assert weak.refusal is None and "its steps repeat weakly" in weak.warning
+
+
+def test_every_outcome_keeps_what_was_measured():
+    """The motion (RMS of the hip and knee flexion), the largest tilt and the mean horizontal
+    speed (constructed root channels: |(0.1, 0.2, -0.2)| = 0.3 rad, |(0.3, -0.4)| = 0.5 m/s)
+    in a passing check and in each refusal made after they were measured."""
+    model, obs = walk_range()
+    obs = with_root(model, obs)
+    legs = obs[:, [model.channel_names.index(c) for c in checks.LEG_FLEXION]]
+    motion = np.degrees(np.sqrt(np.mean((legs - legs.mean(axis=0)) ** 2)))
+    passed = check_gait(model, obs, 60.0)
+    assert passed.refusal is None and passed.fit is None
+    assert passed.motion_deg == pytest.approx(motion, rel=1e-12)
+    assert passed.tilt_deg == pytest.approx(np.degrees(0.3), rel=1e-12)
+    assert passed.travel == pytest.approx(0.5, rel=1e-12)
+    # Tilted 70 degrees on the last frame: refused, with the motion, tilt and travel.
+    tilted = with_root(model, obs, tilt_end=(np.radians(70.0), 0.0, 0.0))
+    bent = check_gait(model, tilted, 60.0)
+    assert bent.refusal.startswith("The body is not upright in the observed frames (tilted 70°")
+    assert bent.motion_deg == passed.motion_deg
+    assert bent.tilt_deg == pytest.approx(70.0, rel=1e-12)
+    assert bent.travel == pytest.approx(0.5, rel=1e-12)
+    assert bent.strength is None and bent.legs_together is None
+    # A jump that travels: refused for its legs, the root figures kept.
+    jump = with_root(model, observe(model, *jump_dofs()))
+    together = check_gait(model, jump, 60.0)
+    assert together.refusal.startswith("Both legs move together")
+    assert together.tilt_deg == pytest.approx(np.degrees(0.3), rel=1e-12)
+    assert together.travel == pytest.approx(0.5, rel=1e-12)
+    # A walk lost in jitter: refused for its rhythm, the root figures kept.
+    _, noisy = noisy_walk(0.4)
+    jitter = check_gait(model, with_root(model, noisy), 60.0)
+    assert jitter.refusal.startswith("No steady rhythm")
+    assert jitter.tilt_deg == pytest.approx(np.degrees(0.3), rel=1e-12)
+    assert jitter.travel == pytest.approx(0.5, rel=1e-12)
+
+
+def test_two_warnings_are_joined():
+    """Less than a step, adapted poorly (on the same walk a quarter of a cycle later): both
+    cautions, in that order, joined by '; '."""
+    model, obs = walk_range()
+    res = adapt(model, obs[25:49])
+    fit = fit_score(model, obs[10:34], res)
+    check = check_gait(model, obs[10:34], 60.0, res, what="frames 11–34")
+    assert fit < WARN_FIT and check.fit == fit
+    assert check.warning == ("frames 11–34 is shorter than a step: its rhythm was not tested; "
+                             f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
+                             f"leg motion in frames 11–34 (fit score {fit:.2f}): check the result")
+
+
+def test_a_rig_without_cmu_leg_names_is_checked_on_its_gait_channels():
+    """A model whose channels are not CMU's (``lthigh`` for ``lfemur``, ``lshin`` for
+    ``ltibia``): the motion is measured on the model's gait channels and the legs on their
+    left/right pairs among them."""
+    model, obs = walk_range()
+
+    def rename(name):
+        return name.replace("femur", "thigh").replace("tibia", "shin")
+
+    other = dataclasses.replace(model, channel_names=tuple(map(rename, model.channel_names)),
+                                dof_names=tuple(map(rename, model.dof_names)))
+    cols = gait_channels(other)
+    assert not set(checks.LEG_FLEXION) & set(other.channel_names)
+    check = check_gait(other, obs, 60.0)
+    assert check.refusal is None
+    legs = obs[:, cols]
+    assert check.motion_deg == pytest.approx(
+        np.degrees(np.sqrt(np.mean((legs - legs.mean(axis=0)) ** 2))), rel=1e-12)
+    pairs = checks._leg_pairs(other, cols)
+    assert [(other.channel_names[a], other.channel_names[b]) for a, b in pairs][0] == \
+        ("lthigh.rx", "rthigh.rx")
+    assert check.legs_together == legs_together(obs, pairs)
+    jump = check_gait(other, with_root(model, observe(model, *jump_dofs())), 60.0)
+    assert jump.refusal.startswith("Both legs move together")
+
+
+def test_only_a_model_of_alternating_legs_refuses_legs_that_move_together():
+    """The alternation refusal applies to models whose mean cycle alternates its hips
+    (correlation below 0). A model whose right hip follows the left one an eighth of a cycle
+    later (correlation about +0.7), or stands still in the mean cycle (correlation exactly
+    0), does not refuse a travelling jump for its legs."""
+    model = load_stock_library()
+    left, right = model.channel_index(HIPS)
+    jump = with_root(model, observe(model, *jump_dofs()))
+    assert check_gait(model, jump, 60.0).refusal.startswith("Both legs move together")
+    closed = model.bases.shape[1] - 1                       # the last sample repeats the first
+    follow = model.bases.copy()
+    follow[:, :closed, right] = np.roll(model.bases[:, :closed, left], closed // 8, axis=1)
+    follow[:, closed, right] = follow[:, 0, right]
+    still = model.bases.copy()
+    still[:, :, right] = 0.0
+    for bases, corr in ((follow, (0.3, 0.99)), (still, (0.0, 0.0))):
+        other = dataclasses.replace(model, bases=bases)
+        cycle = np.einsum("j,jcd->cd", other.style_mean, other.bases)[:-1]
+        assert corr[0] <= legs_together(cycle, [(left, right)]) <= corr[1]
+        refusal = check_gait(other, jump, 60.0).refusal
+        assert refusal is None or not refusal.startswith("Both legs"), refusal
+
+
+def test_alternation_is_the_rms_of_each_pairs_half_difference_about_its_own_mean():
+    """Two pairs with different constant offsets (a leg held bent, an ankle turned in) and
+    sinusoidal half differences of amplitude a and b over whole cycles: RMS sqrt((a²+b²)/4)."""
+    t = np.arange(120) / 120.0 * 2 * np.pi * 3
+    a, b = 0.2, 0.1
+    left = np.column_stack([0.5 + a * np.sin(t), -0.3 + b * np.cos(2 * t)])
+    right = np.column_stack([0.5 - a * np.sin(t), 0.4 - b * np.cos(2 * t)])
+    values = np.hstack([left, right])
+    got = alternation_deg(values, [(0, 2), (1, 3)])
+    assert got == pytest.approx(np.degrees(np.sqrt((a ** 2 + b ** 2) / 4)), rel=1e-12)
+
+
+@pytest.mark.parametrize("strength, expected", [(None, 0.5), (0.3, 0.0), (0.55, 0.5),
+                                                (0.8, 1.0), (0.1, 0.0), (0.95, 1.0)])
+def test_regularity_scales_the_rhythm_strength(strength, expected):
+    """(strength - 0.3) / 0.5, clipped to [0, 1]; a range too short to test: 0.5."""
+    assert regularity(GaitCheck(2.0, strength=strength)) == pytest.approx(expected, abs=1e-12)
+
+
+def test_regularity_of_a_walk():
+    model, obs = walk_range()
+    check = check_gait(model, obs, 60.0)
+    assert regularity(check) == pytest.approx(
+        min(1.0, (check.strength - checks.MIN_STRENGTH) / 0.5), rel=1e-12)
+
+
+def alternating_hips(model, wave, n):
+    """Observations (n, D): every channel still except the hips, ``wave`` and ``-wave``."""
+    obs = np.zeros((n, model.n_channels))
+    left, right = model.channel_index(HIPS)
+    obs[:, left], obs[:, right] = wave, -wave
+    return obs
+
+
+def sine(period, n):
+    return 0.4 * np.sin(2 * np.pi * np.arange(n) / period)
+
+
+def test_rhythm_searches_the_training_periods_within_the_cadence_spread():
+    """The stock model's walkers step every 44.7 … 135.1 frames at 60 Hz: periods from
+    floor(44.7 / 1.25) = 35 to ceil(135.1 × 1.25) = 169 frames are searched. Hips alternating
+    sinusoidally at 169 frames (two cycles observed): found; at 170: not (the nearest
+    searched period wins)."""
+    model = load_stock_library()
+    frames = model.periods / model.fps * 60.0
+    hi = int(np.ceil(frames.max() * 1.25))
+    assert hi == 169
+    for period, found in ((hi, hi), (hi + 1, hi)):
+        n = 2 * period                                   # two whole cycles
+        got, strength, whole = rhythm(model, alternating_hips(model, sine(period, n), n), 60.0)
+        assert got == pytest.approx(found / 60.0, abs=1e-12) and whole
+        assert strength > 0.99
+    # The correlation does not depend on the size of the motion (1e-3 rad hips).
+    n = 2 * hi
+    strength = rhythm(model, alternating_hips(model, sine(hi, n), n), 60.0)[1]
+    small = rhythm(model, alternating_hips(model, 1e-3 * sine(hi, n), n), 60.0)
+    assert small[0] == pytest.approx(hi / 60.0) and small[1] == pytest.approx(strength)
+
+
+def test_rhythm_at_a_low_frame_rate_searches_from_four_frames():
+    """At 6 frames/s the training periods are 4.5 … 13.5 frames: the search starts at 4
+    frames (never shorter) and compares a cycle later with at least 4 frames of overlap. A
+    range of exactly one 4-frame cycle and 4 frames more holds a whole cycle."""
+    model = load_stock_library()
+    wave = np.tile([0.0, 0.4, 0.0, -0.4], 2)
+    period, strength, whole = rhythm(model, alternating_hips(model, wave, 8), 6.0)
+    assert period == pytest.approx(4 / 6.0) and whole and strength > 0.99
+
+
+def test_rhythm_holds_a_whole_cycle_with_exactly_the_minimum_overlap():
+    """60 frames/s: the overlap is round(0.2 × 60) = 12 frames. 48 frames of a 36-frame
+    cycle: the cycle is found and compared whole (the last 12 frames with the first 12)."""
+    model = load_stock_library()
+    period, strength, whole = rhythm(model, alternating_hips(model, square(36, 48), 48), 60.0)
+    assert period == pytest.approx(36 / 60.0) and whole and strength > 0.9
+
+
+def square(period, n):
+    """±1 steps, ``period`` (even) frames per cycle: its products and sums are exact."""
+    return np.where((np.arange(n) % period) < period // 2, 1.0, -1.0)
+
+
+def test_rhythm_takes_the_shortest_of_equally_strong_periods():
+    """A square wave of 36 frames over 4 whole cycles correlates exactly 1 with itself at 36
+    and 108 frames (one and three cycles, the other leg's step half of each): 36 is the
+    rhythm."""
+    model = load_stock_library()
+    period, strength, whole = rhythm(model, alternating_hips(model, square(36, 144), 144), 60.0)
+    assert strength == 1.0 and period == pytest.approx(36 / 60.0) and whole
+
+
+@pytest.mark.parametrize("held_first", [True, False])
+def test_rhythm_skips_comparisons_with_nothing_moving_on_one_side(held_first):
+    """Hips held exactly still for 150 frames before (or after) one 36-frame cycle: at the
+    longer periods one side of the comparison holds no motion at all; those periods are
+    skipped (no 0/0: a RuntimeWarning from core fails the test) and a rhythm is still
+    found at a shorter one."""
+    model = load_stock_library()
+    wave = np.concatenate([np.zeros(150), square(36, 36)])
+    if not held_first:
+        wave = wave[::-1].copy()
+    period, strength, _ = rhythm(model, alternating_hips(model, wave, len(wave)), 60.0)
+    assert period is not None and np.isfinite(strength)
+
+
+def test_fit_score_is_measured_in_the_models_scaled_units():
+    """A model that scales every channel by 2: observations of exactly its prediction
+    (physical = scaled × 2) score 1."""
+    model = load_stock_library()
+    scaled = dataclasses.replace(model, channel_scale=2.0 * model.channel_scale)
+    result, fitted = _exact_result(scaled, 40, None, np.random.default_rng(6))
+    assert fit_score(scaled, fitted * scaled.channel_scale, result) == pytest.approx(1.0,
+                                                                                     abs=1e-9)

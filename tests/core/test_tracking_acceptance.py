@@ -269,3 +269,177 @@ def test_body_parts_from_a_body_maps_regions_override_the_names(swing):
     from core.tracking.problem import TrackingError
     with pytest.raises(TrackingError, match="regions"):
         TrackingProblem(sk, problem.body, problem.camera, regions=[TORSO])
+
+
+# ------------------------------------------------------------- issue 26, mutation testing: every
+# bone-name pattern, each threshold's side, the parts' helpers the tracker calls.
+from types import SimpleNamespace                                         # noqa: E402
+
+from core.tracking.acceptance import (PartVerdicts, outlier_shares,      # noqa: E402
+                                      parts_from_regions, problem_parts)
+
+_PREFIXES = ("hip", "femur", "tibia", "foot", "toe", "clav", "humer", "radius", "wrist", "hand",
+             "finger", "thumb", "shoulder", "upperarm", "knee", "ankle", "elbow", "forearm",
+             "thigh", "shin", "calf", "leg", "arm")
+#: One name per pattern of side_of (each matches that pattern only), both sides.
+SIDED_NAMES = [(n.format(s="L", side="Left"), "left") for n in (
+    "{side}Hand", "Shoulder{side}", "thigh.{s}", "thigh_{s}", "thigh-{s}", "Thigh {s}",
+    "{s}_thigh", "{s}.thigh", "{s}-thigh", "mixamorig:{side}Arm")] + \
+    [(n.format(s="R", side="Right"), "right") for n in (
+        "{side}Hand", "Shoulder{side}", "thigh.{s}", "thigh_{s}", "thigh-{s}", "Thigh {s}",
+        "{s}_thigh", "{s}.thigh", "{s}-thigh", "mixamorig:{side}Arm")] + \
+    [("l" + p, "left") for p in _PREFIXES] + [("R" + p.upper(), "right") for p in _PREFIXES] + \
+    [(n, None) for n in ("spine", "Hips", "neck", "head", "lowerback", "root", "pelvis",
+                         "Spine1", "mixamorig:Hips", "chest")]
+
+
+@pytest.mark.parametrize("name, side", SIDED_NAMES)
+def test_every_bone_name_pattern_gives_its_side(name, side):
+    assert side_of(name) == side
+
+
+def test_a_drift_exactly_at_a_threshold_is_not_beyond_it():
+    """Drift must *exceed* the threshold and drift_ratio × departure, seen fall *below*
+    min_seen (values exact in binary: 0.5, 0.25)."""
+    rule = AcceptanceRule(max_drift=0.5, drift_ratio=1.0, min_seen=0.25, torso="own",
+                          drift_growth=0.0)
+    at = judge_parts(rule, [0.5, 0.75], [0.25, 0.75], [0.25, 0.25])
+    assert at[0].tolist() == [True, True] and at[1] == (TRACKED, TRACKED)
+    above = judge_parts(rule, [np.nextafter(0.5, 1), 0.75], [0.25, np.nextafter(0.75, 0)],
+                        [0.25, 0.25])
+    assert above[0].tolist() == [False, False]
+    assert judge_parts(rule, [0.0], [0.0], [np.nextafter(0.25, 0)])[1] == (HIDDEN,)
+    # The whole body at a threshold: its mean drift equal to max_drift (0.5, and above 1.0 ×
+    # its mean departure 0.25), or equal to 1.0 × its mean departure (0.75, above max_drift).
+    whole = AcceptanceRule(max_drift=0.5, drift_ratio=1.0, torso="whole", drift_growth=0.0)
+    for drift, departure in ((0.5, 0.25), (0.75, 0.75)):
+        kept, _ = judge_parts(whole, np.full(3, drift), np.full(3, departure), np.ones(3))
+        assert kept.tolist() == [True, True, True], (drift, departure)
+    # A float step less departure (two parts: their mean is exact): every part reverted.
+    kept, _ = judge_parts(whole, np.full(2, 0.75), np.full(2, np.nextafter(0.75, 0)),
+                          np.ones(2))
+    assert not np.any(kept)
+
+
+def test_the_default_interval_is_ten_frames():
+    """max_drift is the threshold of a 10-frame interval: 3.3 cm drifted at 10 frames (the
+    default), not at 11 (threshold 3 × 1.1² = 3.63 cm)."""
+    rule = AcceptanceRule(max_drift=0.03, drift_ratio=1.0, torso="own", drift_growth=2.0)
+    drift, departure = np.array([0.033]), np.array([0.01])
+    assert judge_parts(rule, drift, departure, [1.0])[0].tolist() == [False]
+    assert judge_parts(rule, drift, departure, [1.0], 10)[0].tolist() == [False]
+    assert judge_parts(rule, drift, departure, [1.0], 11)[0].tolist() == [True]
+
+
+def _limb_first_skeleton():
+    """Bone 1 is a limb (the left thigh hangs from the root), the torso goes on after it."""
+    names = ("hips", "thigh_l", "shin_l", "spine", "upperarm_r")
+    up = [0.0, 0.3, 0.0]
+    return Skeleton(names=names, parents=[-1, 0, 1, 0, 3],
+                    offsets=[[0, 0, 1.0], [0.1, 0, 0], up, up, up],
+                    rest_rotations=np.broadcast_to(np.eye(3), (5, 3, 3)),
+                    tails=np.array([up] * 5), dof_axes=((0, 1, 2),) * 5, limits=None,
+                    root_translation=True)
+
+
+def test_the_root_translation_moves_only_the_part_that_holds_the_root_bone():
+    """Two trajectories that differ only in the root translation (0.1 m, then 0.3 m along x):
+    the torso (it holds the root bone) moves by exactly that, frame by frame; the limbs, held
+    at the base trajectory's root, not at all."""
+    sk = _limb_first_skeleton()
+    parts, part_of = body_parts(sk.names, sk.parents)
+    assert parts == (TORSO, RIGHT_ARM, LEFT_LEG) and part_of.tolist() == [0, 2, 2, 0, 1]
+    local = exp_so3(np.random.default_rng(2).normal(0, 0.3, (2, 5, 3)))
+    base = np.zeros((2, 3))
+    moved = np.array([[0.1, 0.0, 0.0], [0.3, 0.0, 0.0]])
+    d = part_distances(sk, part_of, moved, local, base, local, base, local)
+    np.testing.assert_allclose(d[:, 0], [0.1, 0.3], rtol=1e-12)
+    np.testing.assert_array_equal(d[:, 1:], 0.0)
+
+
+def test_blending_keeps_the_tracked_keys_even_where_the_interpolation_differs():
+    """blend_trajectories's first and last frames are the tracked trajectory's, whatever the
+    interpolation holds there; the root translation follows the root bone's part's share (here
+    bone 1 is a limb with another share), and a full share keeps the tracked translation bit
+    for bit (1e-20 m next to 1 m: ``a + 1 × (b - a)`` would round it away)."""
+    rng = np.random.default_rng(9)
+    part_of = np.array([0, 1, 1, 0, 2])
+    local, interp_local = exp_so3(rng.normal(size=(2, 6, 5, 3)))
+    roots, interp_roots = rng.normal(size=(2, 6, 3))
+    r, lo = blend_trajectories(part_of, [0.25, 0.75, 0.5], roots, local, interp_roots,
+                               interp_local)
+    for end in (0, -1):
+        assert np.array_equal(r[end], roots[end]) and np.array_equal(lo[end], local[end])
+    np.testing.assert_allclose(r[1:-1], interp_roots[1:-1] + 0.25 * (roots - interp_roots)[1:-1],
+                               rtol=1e-12)
+    tiny = np.full((6, 3), 1e-20)
+    r, _ = blend_trajectories(part_of, [1.0, 0.5, 0.5], tiny, local, np.ones((6, 3)),
+                              interp_local)
+    assert np.array_equal(r, tiny)
+
+
+def test_blend_weights_without_evidence_or_parts():
+    """No drift and no departure (0/0) keeps the tracking, without a warning; blend_drift 0
+    is no blend whatever the power; a rig without parts has no shares."""
+    rule = AcceptanceRule(blend_drift=0.4, blend_torso="own")
+    np.testing.assert_array_equal(blend_weights(rule, [0.0, 0.02], [0.0, 0.04], [True, True]),
+                                  [1.0, 1 / (1 + 0.2 ** 2)])
+    off = AcceptanceRule(blend_drift=0.0, blend_power=0.0)
+    np.testing.assert_array_equal(blend_weights(off, [0.05, 0.01], [0.02, 0.02],
+                                                [True, False]), [1.0, 0.0])
+    for torso in ("own", "whole", "min"):
+        assert blend_weights(AcceptanceRule(blend_torso=torso), [], [], []).shape == (0,)
+
+
+def test_seen_shares_of_small_areas_overfull_parts_and_per_frame():
+    """Areas below a pixel are shares like any other; a part seen more than its own area
+    (overlapping samples) is seen whole (1); per_frame keeps every frame."""
+    part_of = np.array([0, 1, 1])
+    seen = np.array([[0.25, 3.0, 2.0], [0.5, 1.0, 1.0]])
+    whole = np.array([[0.5, 2.0, 2.0], [0.5, 2.0, 2.0]])
+    per = seen_shares(part_of, seen, whole, per_frame=True)
+    np.testing.assert_allclose(per, [[0.5, 1.0], [1.0, 0.5]], rtol=1e-15)
+    np.testing.assert_allclose(seen_shares(part_of, seen, whole), [0.75, 0.75], rtol=1e-15)
+
+
+def test_outlier_shares_are_one_minus_the_mean_weight_of_each_parts_points():
+    part_of = np.array([0, 1, 1, 2, 3])
+    weights = np.array([[3.0, 1.0, 2.0, 0.0, 0.25], [1.0, 1.0, 0.0, 0.0, 0.0]])
+    points = np.array([[4.0, 2.0, 2.0, 0.0, 1.0], [4.0, 2.0, 2.0, 0.0, 0.0]])
+    got = outlier_shares(part_of, weights, points)
+    assert got.shape == (4,)
+    np.testing.assert_allclose(got[[0, 1, 3]], [1 - 4 / 8, 1 - 4 / 8, 0.75], rtol=1e-15)
+    assert np.isnan(got[2])                         # a part without points; part 3: one point
+    got = outlier_shares(part_of, weights * 0.5, points)
+    np.testing.assert_allclose(got[:2], [0.75, 0.75], rtol=1e-15)
+
+
+def test_part_verdicts_default_shares_behind_and_outliers():
+    v = PartVerdicts(parts=(TORSO, LEFT_ARM, RIGHT_ARM), drift=np.zeros(3), gap=np.zeros(3),
+                     departure=np.zeros(3), seen=np.ones(3),
+                     tracked=np.array([True, False, True]))
+    np.testing.assert_array_equal(v.shares, [1.0, 0.0, 1.0])
+    assert v.shares.dtype == float
+    np.testing.assert_array_equal(v.behind, np.zeros(3))
+    assert v.outliers.shape == (3,) and np.all(np.isnan(v.outliers))
+    given = PartVerdicts(parts=(TORSO,), drift=np.zeros(1), gap=np.zeros(1),
+                         departure=np.zeros(1), seen=np.ones(1), tracked=np.array([True]),
+                         shares=np.array([0.4]), behind=np.array([0.2]),
+                         outliers=np.array([0.1]))
+    assert (given.shares[0], given.behind[0], given.outliers[0]) == (0.4, 0.2, 0.1)
+
+
+def test_parts_from_regions_and_problem_parts():
+    regions = [LEFT_ARM, TORSO, LEFT_LEG, LEFT_ARM]
+    parts, part_of = parts_from_regions(regions)
+    assert parts == (TORSO, LEFT_ARM, LEFT_LEG) and part_of.tolist() == [1, 0, 2, 1]
+    assert part_of.dtype.kind == "i"
+    with pytest.raises(ValueError, match=r"unknown body parts \['tail'\]; known: \['torso"):
+        parts_from_regions([TORSO, "tail"])
+    sk = _chain_skeleton()
+    mapped = problem_parts(SimpleNamespace(regions=[TORSO] * 5 + [RIGHT_LEG], skeleton=sk))
+    assert mapped[0] == (TORSO, RIGHT_LEG) and mapped[1].tolist() == [0] * 5 + [1]
+    guessed = body_parts(sk.names, sk.parents)
+    for problem in (SimpleNamespace(regions=None, skeleton=sk), SimpleNamespace(skeleton=sk)):
+        got = problem_parts(problem)
+        assert got[0] == guessed[0] and got[1].tolist() == guessed[1].tolist()

@@ -273,3 +273,147 @@ def test_undistortion_table_is_accurate_and_used():
     assert inside.all()
     np.testing.assert_allclose(ideal, lens.undistort(between), atol=_TABLE_TOL, rtol=0)
     np.testing.assert_array_equal(lens.undistort_fast(between), ideal)
+
+
+# ------------------------------------------------------------- issue 26, mutation testing: the
+# coefficient vectors accepted, the radius limit, the shift bound beyond the image, the table.
+@pytest.mark.parametrize("size", [8, 12, 14])
+def test_opencvs_longer_vectors_with_zero_higher_terms_are_the_five(size):
+    longer = np.zeros(size)
+    longer[:5] = WIDE
+    np.testing.assert_array_equal(coefficients_array(longer), WIDE)
+    longer[size - 1] = 1e-3
+    with pytest.raises(ValueError, match="Only the Brown–Conrady coefficients .* the "
+                                         "higher-order ones are not zero"):
+        coefficients_array(longer)
+
+
+@pytest.mark.parametrize("size", [1, 3, 6, 7, 9, 13, 15])
+def test_other_vector_lengths_are_refused(size):
+    with pytest.raises(ValueError, match=f"4 or 5 distortion coefficients .*got {size}"):
+        coefficients_array(np.zeros(size))
+
+
+def test_four_coefficients_have_no_k3():
+    np.testing.assert_array_equal(coefficients_array(WIDE[:4]), WIDE[:4] + [0.0])
+    np.testing.assert_array_equal(coefficients_array(np.array(WIDE)[None, :]), WIDE)
+
+
+@pytest.mark.parametrize("cx, cy", [(CX, CY), (W - 1 - CX, H - 1 - CY)])
+def test_the_radius_limit_is_a_quarter_beyond_the_farthest_corner(cx, cy):
+    """A lens that does not fold: the limit is 1.25 times the largest ideal radius of the
+    image's border, which for this lens (ideal radius growing with the distorted one) is at
+    the farthest corner (bottom right for the demo camera, top left with its principal point
+    mirrored). The lens is immutable."""
+    lens = PinholeCamera(FX, FY, cx, cy, W, H, distortion=DEMO).distortion
+    assert not lens.coefficients.flags.writeable
+    corners = (np.array([[-0.5, -0.5], [W - 0.5, -0.5], [-0.5, H - 0.5], [W - 0.5, H - 0.5]])
+               - [cx, cy]) / [FX, FY]
+    corner = np.linalg.norm(lens.undistort(corners), axis=1).max()
+    assert lens.radius_limit == pytest.approx(1.25 * corner, rel=1e-9)
+    # Within the limit the model is OpenCV's polynomial, beyond it the radial extension.
+    inside = corners * 1.2
+    np.testing.assert_allclose(lens.distort(inside), distort_points(inside, DEMO), atol=1e-15)
+    outside = corners * 1.3
+    assert np.abs(lens.distort(outside) - distort_points(outside, DEMO)).max() > 1e-9
+
+
+def test_the_radius_limit_stops_before_the_polynomial_folds():
+    """k1 = -0.25: x (1 + k1 r²) turns back at r = 1 / sqrt(3 × 0.25) = 1.1547, inside a
+    quarter beyond this image's corners (ideal radius 0.945, × 1.25 = 1.18): the limit is
+    the last ring of the one-to-one test before the fold (rings 2 × corner / 192 apart)."""
+    lens = PinholeCamera(1000.0, 1000.0, 639.5, 359.5, 1280, 720,
+                         distortion=[-0.25, 0.0, 0, 0, 0]).distortion
+    fold = 1.0 / np.sqrt(0.75)
+    corner = np.linalg.norm(lens.undistort(np.array([[-640.0, -360.0]]) / 1000.0))
+    assert 0.94 < corner < 0.95 and 1.25 * corner > fold
+    ring = 2.0 * corner / 192
+    assert fold - ring < lens.radius_limit <= fold
+    # The extension is one-to-one outward: the distorted radius keeps growing.
+    r = np.linspace(0.01, 5.0, 500)
+    moved = np.linalg.norm(lens.distort(np.stack([r, 0 * r], -1)), axis=1)
+    assert np.all(np.diff(moved) > 0)
+
+
+def test_the_shift_bound_holds_beyond_the_image_and_grows_linearly():
+    """shift_within(r) bounds how far the lens moves any ideal point within radius r; beyond
+    the sampled profile it grows in proportion to r (the radial extension scales the shift
+    with the radius)."""
+    lens = _camera(WIDE).distortion
+    r_end, s_end = lens.profile_radii[-1], lens.profile_shifts[-1]
+    np.testing.assert_allclose(lens.shift_within([2 * r_end, 3.5 * r_end]),
+                               [2 * s_end, 3.5 * s_end], rtol=1e-12)
+    np.testing.assert_allclose(lens.shift_within(lens.profile_radii), lens.profile_shifts,
+                               rtol=1e-12)
+    radii = np.linspace(0.0, 3 * r_end, 400)
+    bound = lens.shift_within(radii)
+    assert np.all(np.diff(bound) >= 0)
+    angle = np.linspace(0, 2 * np.pi, 360, endpoint=False)
+    for radius, limit in zip(radii[1::7], bound[1::7]):
+        p = radius * np.stack([np.cos(angle), np.sin(angle)], -1)
+        assert np.linalg.norm(lens.distort(p) - p, axis=1).max() <= limit
+    # max_shift: the bound over the image (the profile within the corners).
+    assert lens.max_shift == pytest.approx(
+        lens.profile_shifts[lens.profile_radii <= lens.radius_limit / 1.25 * 1.01].max())
+
+
+def test_undistort_is_the_exact_inverse_within_and_beyond_the_image():
+    lens = _camera(WIDE).distortion
+    for scale in (0.3, 0.7, 3.0):
+        ideal = RNG.normal(0, scale, (500, 2))
+        np.testing.assert_allclose(lens.undistort(lens.distort(ideal)), ideal, atol=1e-10)
+        back = lens.undistort(lens.distort(ideal))
+        np.testing.assert_allclose(lens.distort(back), lens.distort(ideal), atol=1e-12)
+
+
+def test_the_undistortion_table_covers_the_image_and_a_twentieth_more_on_every_side():
+    lens = _camera(DEMO).distortion
+    table = lens.table
+    lo = np.array([(-0.5 - CX) / FX, (-0.5 - CY) / FY])
+    hi = np.array([(W - 0.5 - CX) / FX, (H - 0.5 - CY) / FY])
+    pad = 0.05 * (hi - lo)
+    rows, cols = table.shape
+    np.testing.assert_allclose(table.origin, lo - pad, rtol=1e-12)
+    np.testing.assert_allclose(table.origin + table.step * [cols - 1, rows - 1], hi + pad,
+                               rtol=1e-12)
+    assert cols in (65, 129, 257) and rows == round(cols * (hi - lo)[1] / (hi - lo)[0])
+
+
+def test_points_outside_the_table_are_undistorted_by_newton():
+    """undistort_fast beyond the table (just past each side, and far outside the image) is
+    undistort's answer; the table says which points it holds."""
+    lens = _camera(DEMO).distortion
+    table = lens.table
+    rows, cols = table.shape
+    far = table.origin + table.step * [cols - 1, rows - 1]
+    near = np.array([[table.origin[0] - 1e-3, 0.0], [far[0] + 1e-3, 0.0],
+                     [0.0, table.origin[1] - 1e-3], [0.0, far[1] + 1e-3]])
+    points = np.vstack([near, [[-40.0, 3.0], [25.0, -60.0], [-500.0, 0.0]], [[0.01, -0.02]]])
+    _, inside = table.interpolate(points)
+    assert inside.tolist() == [False] * 7 + [True]
+    got = lens.undistort_fast(points)
+    # Newton's answer outside (the same code on the same points), the table's inside.
+    np.testing.assert_array_equal(got[:7], lens.undistort(points[:7]))
+    np.testing.assert_allclose(lens.distort(got[:7]), points[:7], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(got[7:], table.interpolate(points[7:])[0])
+
+
+def test_the_table_is_the_first_guess_of_newtons_method(monkeypatch):
+    """From the table's guess one Newton step is exact to ~1e-12 (quadratic convergence),
+    even for the wide-angle lens whose table is too coarse to be used alone; from the
+    second-order guess ``2t - d(t)`` (off by ~1e-2 near the corners) one step leaves ~4e-4."""
+    import core.tracking.distortion as distortion
+    wide = _camera(WIDE).distortion
+    assert not wide.table.accurate
+    pixels = RNG.uniform([-0.5, -0.5], [W - 0.5, H - 0.5], (2000, 2))
+    targets = (pixels - [CX, CY]) / [FX, FY]
+    exact = wide.undistort(targets)
+    monkeypatch.setattr(distortion, "_NEWTON_ITERATIONS", 1)
+    np.testing.assert_allclose(wide.undistort(targets), exact, rtol=0, atol=1e-10)
+    one_step, _ = distortion._undistort(targets, wide.coefficients, wide.radius_limit ** 2)
+    assert np.abs(one_step - exact).max() > 1e-5
+
+
+def test_opencv_coefficients_from_blender_are_floats():
+    got = opencv_from_brown(0, 0, 0, 0, 1, 0)
+    assert got.dtype == float and got.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]
