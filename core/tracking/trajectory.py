@@ -35,6 +35,7 @@ from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_g
                          sample_silhouette)
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
+from .hinge_twist import hinge_joints, retwist, untwist
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
 from .motion import MotionView, estimate_view_motions
@@ -767,6 +768,9 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     options = options or TrackingOptions()
     report = progress if progress is not None else (lambda fraction: None)
     tic = time.perf_counter()
+    # Hinges tracked in one frame whatever the keys' split of their twist (.hinge_twist).
+    keys = (start, end)
+    start, end, initial, twists = _untwisted(problem, start, end, initial)
     start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial,
                                       occluders)
     report(_PROGRESS_PYRAMID)
@@ -784,7 +788,46 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     report(1.0)
     result = scores.result(problem, views, reason, diverged, timings)
     result.acceptance = verdicts
+    if twists is not None:
+        _retwist_result(problem, result, keys, *twists)
     return result
+
+
+def _untwisted(problem, start, end, initial):
+    """The keys (and ``initial``) with every hinge's twist moved to its children
+    (:func:`.hinge_twist.untwist`), and the removed twists ``(hinges, start (H,), end (H,))``;
+    None for the twists where no key has one."""
+    hinges = hinge_joints(problem.skeleton, problem.dof_mask, problem.body)
+    if len(hinges) == 0:
+        return start, end, initial, None
+    sk = problem.skeleton
+    try:
+        keyed = np.stack([np.asarray(start.local_rotations, float),
+                          np.asarray(end.local_rotations, float)])
+    except (ValueError, TypeError):
+        return start, end, initial, None        # malformed keys: prepare_views reports them
+    if keyed.shape[1:] != (sk.n_joints, 3, 3):
+        return start, end, initial, None
+    local, twist = untwist(sk, keyed, hinges)
+    if not np.any(twist):
+        return start, end, initial, None
+    start = Pose(start.root_translation, local[0])
+    end = Pose(end.root_translation, local[1])
+    if initial is not None:
+        initial = (initial[0], untwist(sk, np.asarray(initial[1], float), hinges)[0])
+    return start, end, initial, (hinges, twist[0], twist[1])
+
+
+def _retwist_result(problem, result, keys, hinges, start_twist, end_twist):
+    """The twists :func:`_untwisted` removed, given back to the tracked trajectory (and its
+    history), the keys exactly as they were."""
+    sk = problem.skeleton
+    result.local_rotations = retwist(sk, result.local_rotations, hinges, start_twist,
+                                     end_twist)
+    result.local_rotations[0] = np.asarray(keys[0].local_rotations, float)
+    result.local_rotations[-1] = np.asarray(keys[1].local_rotations, float)
+    result.history = [(roots, retwist(sk, local, hinges, start_twist, end_twist))
+                      for roots, local in result.history]
 
 
 def _accept_parts(problem, options, views, start, end, scores):
