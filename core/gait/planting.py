@@ -313,7 +313,8 @@ def _runs(mask):
 def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05):
     """Leg inverse kinematics: move each contact point towards ``p + weight × (target − p)``
     by changing the rotation DOFs between the root and the foot (hip, knee, ankle), damped
-    least squares with analytic Jacobians, in place on ``dofs`` (joint limits respected).
+    least squares with analytic Jacobians, in place on ``dofs`` (joint limits respected: a DOF
+    never moves beyond them, nor further beyond where it already was).
 
     Parameters
     ----------
@@ -350,6 +351,11 @@ def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05)
         cols = [c for j in chain for c, _ in columns[j]]
         owner = [j for j in chain for _ in columns[j]]
         sub = dofs[rows]
+        # The limits never snap a DOF the prediction already put beyond them (a brisk walk's
+        # hip extension past the skeleton's 20°): only pinned frames pass through here, so
+        # clipping those alone made the leg jump as a foot was released (8 cm at toe-off).
+        lower = np.minimum(limits[cols, 0], sub[:, cols])
+        upper = np.maximum(limits[cols, 1], sub[:, cols])
         for _ in range(iterations):
             positions, axes = chain_kinematics(skeleton, sub, [joint])
             error = goal[rows, f] - positions[joint]                       # (M, 3)
@@ -357,8 +363,7 @@ def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05)
                             for c, j in zip(cols, owner)], axis=2)          # (M, 3, K)
             normal = jac @ np.swapaxes(jac, 1, 2) + damping**2 * np.eye(3)
             step = np.swapaxes(jac, 1, 2) @ np.linalg.solve(normal, error[:, :, None])
-            sub[:, cols] = np.clip(sub[:, cols] + step[:, :, 0], limits[cols, 0],
-                                   limits[cols, 1])
+            sub[:, cols] = np.clip(sub[:, cols] + step[:, :, 0], lower, upper)
         positions, _ = chain_kinematics(skeleton, sub, [joint])
         remaining[rows, f] = np.linalg.norm(goal[rows, f] - positions[joint], axis=1)
         dofs[rows] = sub

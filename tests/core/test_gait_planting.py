@@ -144,5 +144,30 @@ def test_pin_feet_moves_the_ball_onto_its_target_within_the_joint_limits():
         {"lfemur", "ltibia", "lfoot", "rfemur", "rtibia", "rfoot"}
     assert np.array_equal(pinned[:5], rows[:5]) and np.array_equal(pinned[30:], rows[30:])
     limits = skeleton.dof_limits()           # (the capture itself leaves them here and there)
-    inside = (pinned >= limits[:, 0] - 1e-12) & (pinned <= limits[:, 1] + 1e-12)
-    assert np.all(inside | (pinned == rows))
+    beyond = np.maximum(limits[:, 0] - pinned, 0) + np.maximum(pinned - limits[:, 1], 0)
+    beyond_before = np.maximum(limits[:, 0] - rows, 0) + np.maximum(rows - limits[:, 1], 0)
+    assert np.all(beyond <= beyond_before + 1e-12)
+
+
+def test_pin_feet_leaves_a_pose_beyond_the_limits_where_its_foot_already_is():
+    """A predicted hip past its extension limit, with the foot pinned where it is: nothing to
+    move (before: the IK snapped the hip into its limits on the pinned frames only, and the
+    foot jumped centimetres at toe-off)."""
+    skeleton, values = walker()
+    rows = values[60:100].copy()
+    names = skeleton.dof_names()
+    limits = skeleton.dof_limits()
+    hip = names.index("rfemur.rx")
+    rows[:, hip] = limits[hip, 1] + np.radians(8.0)           # 8° past the hip's extension
+    feet = ("ltoes", "rtoes")
+    index = [skeleton.index(f) for f in feet]
+    positions = chain_kinematics(skeleton, rows, index)[0]
+    here = np.stack([positions[i] for i in index], axis=1)
+    weights = np.zeros((len(rows), 2))
+    weights[:, 1] = 1.0
+    pinned = rows.copy()
+    remaining = pin_feet(skeleton, pinned, feet, here, weights)
+    assert remaining.max() < 1e-4
+    after = chain_kinematics(skeleton, pinned, index)[0][index[1]]
+    np.testing.assert_allclose(after, here[:, 1], atol=1e-4)
+    assert np.all(pinned[:, hip] >= limits[hip, 1] + np.radians(8.0) - np.radians(0.5))

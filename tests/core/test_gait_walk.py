@@ -50,6 +50,17 @@ def figures(walker, out):
     return walk_summary(skeleton, out.dofs, FPS, 2 * np.pi / out.omega, floor=floor)
 
 
+@pytest.mark.parametrize("style", ["brisk", "dribble", "run"])
+def test_retimed_up_the_feet_leave_the_floor_without_a_slip(walker, style):
+    """Issue 25: at cadence 1.6 the stance foot jumped forward a few centimetres in the frame it
+    was released and back in the next (brisk: slip +10 cm/s, root / legs 1.03): the leg's
+    inverse kinematics snapped a hip the prediction had put past its limit, on the pinned
+    frames only."""
+    f = figures(walker, walk(walker, style, cadence=1.6))
+    assert abs(f["slip_cm_s"]) <= 5.0 and abs(f["root_vs_legs"] - 1.0) <= 0.05
+    assert f["skate_cm_s"] <= 20.0 and abs(f["lowest_foot_cm"]) <= 2.0
+
+
 @pytest.mark.parametrize("style", ["long stride", "stroll", "slow", "brisk"])
 def test_restyled_feet_stay_on_the_floor_of_the_reference(walker, style):
     """Issue 25: the hips dropped 8-14 cm (the style source's legs), feet −7 … −15 cm."""
@@ -63,9 +74,7 @@ def test_a_restyled_run_does_not_moonwalk(walker):
     """Issue 25: Keep Feet Planted scaled the run's travel to 0.58 (hips 1.88 m/s, legs 3.35):
     the stance foot slid a foot-length backwards per step (166 cm/s skate)."""
     f = figures(walker, walk(walker, "run"))
-    # (|slip| ≤ 5 cm/s is met on the held-out walker of bench-gait; on this walker the
-    # landing foot still comes down a little fast: about 7 cm/s forward.)
-    assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 10.0
+    assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0
     assert f["skate_cm_s"] <= 20.0 and f["speed_m_s"] > 2.2     # a run's speed, carried
     # Off, the model's own root speed: the legs and the root disagree again.
     free = figures(walker, walk(walker, "run", plant=False))
