@@ -159,6 +159,8 @@ EQUIVALENT = {
     "core.mocap.amc.x__scaled_progress__mutmut_18":
         "max(lines, 2) for max(lines, 1): the line-by-line parser reports only after "
         "_SLOW_STEP_LINES lines, so lines > 1 whenever a fraction is computed",
+    **{f"core.mocap.amc.{name}": '.decode("UTF-8") is .decode("utf-8") (codec names ignore '
+       'case)' for name in ("x__first_frame_bones__mutmut_25", "x__parse_header__mutmut_30")},
     "core.mocap.amc.x_write_amc__mutmut_12":
         'encoding="UTF-8" is encoding="utf-8" (codec names ignore case)',
 }
