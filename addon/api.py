@@ -94,7 +94,7 @@ def _object(name_or_object, kind, error):
 # ------------------------------------------------------------------------------ tracking
 @_door(TrackError)
 def track(armature=None, camera=None, frames=None, processes=None, suggest=False, scene=None,
-          between=None, every=None):
+          between=None, every=None, keep_feet_planted=None):
     """Track Keyframes on a scene, synchronously (``tracking.batch.track_armature``).
 
     Parameters
@@ -118,6 +118,8 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
         The keyed poses to track between (*Track Between*); default: the Track panel's.
     every : int, optional
         N of *Every Nth Key*; default: the Track panel's.
+    keep_feet_planted : bool, optional
+        *Keep Feet Planted* (the tracker's foot lock); default: the Track panel's (on).
 
     Returns
     -------
@@ -135,10 +137,11 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
             armature = objects[0]
         else:
             return track_armatures(scene, objects, _object(camera, "CAMERA", TrackError),
-                                   frames, processes, suggest, between, every)
+                                   frames, processes, suggest, between, every,
+                                   keep_feet_planted)
     return track_armature(scene, _object(armature, "ARMATURE", TrackError),
                           _object(camera, "CAMERA", TrackError), frames, processes, suggest,
-                          between, every)
+                          between, every, keep_feet_planted)
 
 
 # ------------------------------------------------------------------------------ gait

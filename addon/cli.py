@@ -105,6 +105,11 @@ def build_parser():
                             "scene's markers; the other keys between them are replaced")
     track.add_argument("--every", metavar="N",
                        help="N of --between every-nth (default: the Track panel's, 10)")
+    track.add_argument("--no-keep-feet-planted", dest="keep_feet_planted",
+                       action="store_const", const=False, default=None,
+                       help="leave the tracked feet as tracked (default: the Track panel's "
+                            "Keep Feet Planted, on: a standing foot is locked so it does not "
+                            "slide)")
     track.add_argument("--suggest", action="store_true",
                        help="also mark suggested keyframes (timeline markers at residual "
                             "spikes)")
@@ -325,7 +330,7 @@ def run_track(args):
     camera = _named("--camera", args.camera, "CAMERA")
     between = TRACK_BETWEEN[args.between] if args.between else None
     return api.track(armature, camera, args.frames, args.processes, args.suggest, scene,
-                     between, args.every)
+                     between, args.every, args.keep_feet_planted)
 
 
 def run_predict(args):

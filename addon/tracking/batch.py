@@ -49,7 +49,7 @@ BETWEEN = ("ALL", "SELECTED", "NTH", "MARKERS")
 
 
 def batch_settings(scene, armature=None, camera=None, frame_range=None, processes=None,
-                   between=None, every=None):
+                   between=None, every=None, keep_feet_planted=None):
     """(context, settings) for the bridge: the scene's Track settings, overridden by the
     arguments that are given (see :func:`track_armature`)."""
     settings = track_settings(scene)
@@ -84,6 +84,8 @@ def batch_settings(scene, armature=None, camera=None, frame_range=None, processe
                          frame_end=frame_range[1])
     if processes is not None:
         overrides["processes"] = processes
+    if keep_feet_planted is not None:
+        overrides["keep_feet_planted"] = bool(keep_feet_planted)
     view = _SettingsView(settings, **overrides)
     return _BatchContext(scene, armature or default_armature(scene)), view
 
@@ -123,6 +125,13 @@ def interval_summaries(request, result):
     return out
 
 
+def foot_lock_summaries(request, result):
+    """The contacts *Keep Feet Planted* locked, in scene frames (see :func:`track_armature`)."""
+    return [{"side": lk.side, "frames": [request.first + lk.first, request.first + lk.last],
+             "keys": [request.first + k for k in lk.keys], "shift_cm": round(100 * lk.shift, 2)}
+            for lk in getattr(result, "foot_locks", [])]
+
+
 def part_summaries(verdicts):
     """Per body part of one interval: ``result`` 'tracked' or 'in-between' (kept the keys'
     interpolation), ``share_tracked`` (share of the tracked motion kept on top of the
@@ -148,7 +157,7 @@ def part_summaries(verdicts):
 
 
 def track_armature(scene, armature=None, camera=None, frame_range=None, processes=None,
-                   suggest=False, between=None, every=None):
+                   suggest=False, between=None, every=None, keep_feet_planted=None):
     """Track an armature through the scene's footage between its keyframes, synchronously.
 
     Parameters
@@ -173,6 +182,8 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         and last of them are replaced. Default: the Track panel's.
     every : int, optional
         N of *Every Nth Key* (2 or more). Default: the Track panel's.
+    keep_feet_planted : bool, optional
+        The tracker's foot lock (*Keep Feet Planted*). Default: the Track panel's (on).
 
     Returns
     -------
@@ -185,7 +196,9 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         'diverged', ``reason``, ``error_vs_interpolation`` (photometric error of the kept
         trajectory / the interpolation's, the paper's eq. 4 total), ``mean_residual``,
         ``min_rank``, ``parts``: per body part whether it kept the tracking or the keys'
-        in-between and why, :func:`part_summaries`), ``bones``, ``keys`` (keys written), ``suggested`` (frames; only with
+        in-between and why, :func:`part_summaries`), ``bones``, ``keys`` (keys written),
+        ``foot_locks`` (the contacts *Keep Feet Planted* locked: ``side``, ``frames`` [first,
+        last], ``keys`` inside, ``shift_cm`` the largest correction), ``suggested`` (frames; only with
         ``suggest``), ``seconds`` ({'read', 'track', 'write'}), ``warnings``, ``message``.
 
     Raises
@@ -194,7 +207,7 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         The run cannot be carried out (the message says why); nothing was changed.
     """
     context, settings = batch_settings(scene, armature, camera, frame_range, processes,
-                                       between, every)
+                                       between, every, keep_feet_planted)
     tic = time.perf_counter()
     request = prepare_tracking(context, settings)
     frames = read_all_footage(request)          # every switched-on camera's (Cameras list)
@@ -213,6 +226,7 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
         "intervals": intervals,
         "bones": len(request.tracked_bones),
         "keys": int(request.written),
+        "foot_locks": foot_lock_summaries(request, result),
         "seconds": {"read": read_s, "track": request.timings.get("track", 0.0),
                     "write": request.timings.get("write", 0.0)},
         "warnings": list(warnings),
@@ -226,7 +240,7 @@ def track_armature(scene, armature=None, camera=None, frame_range=None, processe
 
 
 def track_armatures(scene, armatures, camera=None, frame_range=None, processes=None,
-                    suggest=False, between=None, every=None):
+                    suggest=False, between=None, every=None, keep_feet_planted=None):
     """Track several armatures together through the scene's footage, each hiding the others
     (several people in the footage; ``group.py``), synchronously.
 
@@ -234,7 +248,7 @@ def track_armatures(scene, armatures, camera=None, frame_range=None, processes=N
     ----------
     armatures : sequence of bpy.types.Object
         Two or more armatures, each keyed over the same footage.
-    camera, frame_range, processes, suggest, between, every
+    camera, frame_range, processes, suggest, between, every, keep_feet_planted
         As :func:`track_armature` (the same for every armature).
 
     Returns
@@ -259,7 +273,7 @@ def track_armatures(scene, armatures, camera=None, frame_range=None, processes=N
         if obj.type != "ARMATURE":
             raise TrackError(f"{obj.name} is not an armature")
     context, settings = batch_settings(scene, armatures[0], camera, frame_range, processes,
-                                       between, every)
+                                       between, every, keep_feet_planted)
     tic = time.perf_counter()
     group = prepare_group(context, settings, armatures)
     frames = read_group_footage(group)

@@ -372,7 +372,9 @@ def prepare_tracking(context, settings):
         tracked_bones = [n for n in rig.bone_names if n in bones]
     _check_writable(obj, rig, tracked_bones, tracked_before)
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
-                              estimate_depth=settings.estimate_depth)
+                              estimate_depth=settings.estimate_depth,
+                              foot_lock=bool(settings.keep_feet_planted),
+                              frame_rate=scene.render.fps / scene.render.fps_base)
     # With several cameras the acceptance rule is not applied (AcceptanceRule.several_views,
     # core): its thresholds were chosen on single cameras.
     return TrackRequest(
@@ -557,7 +559,20 @@ def apply_result(context, request, result):
     if request.replaced:
         summary += (f"; tracked between {len(request.key_frames)} chosen poses, "
                     f"{len(request.replaced)} keyed frames between them replaced")
+    if request.options.foot_lock:
+        summary += "; " + foot_lock_note(result, request.first)
+        warnings.extend(f"Keep Feet Planted left the {note}"
+                        for note in getattr(result, "foot_lock_notes", []))
     return summary, warnings
+
+
+def foot_lock_note(result, first):
+    """The report's words on the planted feet: which contacts were locked (scene frames)."""
+    locks = getattr(result, "foot_locks", [])
+    if not locks:
+        return "no foot stood still long enough to keep planted"
+    spans = ", ".join(f"{lk.side} {first + lk.first}–{first + lk.last}" for lk in locks)
+    return f"feet kept planted: {spans}"
 
 
 #: A mapped rig whose controlled parts end up further than this from the tracked pose (its

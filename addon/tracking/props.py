@@ -88,6 +88,11 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
         description="Worker processes for the intervals (0 = automatic: Tracking Processes of "
                     "the add-on's preferences, one per CPU unless set there; at most one per "
                     "interval; 1 = all in Blender's process)")
+    keep_feet_planted: BoolProperty(
+        name="Keep Feet Planted", default=True,
+        description="Where a tracked foot stands on the floor (low and slow), solve the leg so "
+                    "that it does not slide; keyed frames are never changed (the tracker's "
+                    "foot lock; the report names the contacts locked)")
     estimate_depth: BoolProperty(
         name="Estimate Depth", default=False,
         description="Also estimate motion along the camera's axis (rigid objects, whose size "

@@ -124,6 +124,7 @@ def _draw_frames(layout, context, settings, obj):
     if obj is not None and obj.animation_data is not None and obj.animation_data.action:
         _draw_poses(col, context, settings, obj, first, last)
     col.prop(settings, "iterations")
+    col.prop(settings, "keep_feet_planted")
 
 
 def _draw_poses(col, context, settings, obj, first, last):

@@ -392,6 +392,10 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
               "notes": notes, "operator_wall_s": wall, "frames_read": int(n),
               "phases_s": {k[:-2]: v for k, v in rec.log.items() if k.endswith("_s")},
               "summary": summary, "warnings": list(warnings), "intervals": intervals,
+              "foot_locks": [{"side": lk.side, "frames": [int(request.first + lk.first),
+                                                          int(request.first + lk.last)],
+                              "shift_cm": round(100 * lk.shift, 2)}
+                             for lk in getattr(core_result, "foot_locks", [])],
               "tracker_camera": camera_record(request.problem.camera),
               "armature2world": np.asarray(request.rig.armature2world).tolist(),
               "radii": radii, "processes": int(plan["processes"]),

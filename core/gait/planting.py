@@ -28,6 +28,7 @@ lengths) and plain arrays.
 
 import numpy as np
 
+from ..kinematics.contacts import runs as _runs, smootherstep as smootherstep_weights
 from ..kinematics.fk import chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
@@ -296,18 +297,6 @@ def swing_clearance(points, weights, floor, fps, reference_frames=0):
 def running_max_2d(values, half_width):
     """:func:`running_max` of every column."""
     return np.stack([running_max(c, half_width) for c in np.asarray(values).T], axis=1)
-
-
-def smootherstep_weights(x):
-    """``6x⁵ − 15x⁴ + 10x³`` of values clipped to [0, 1]."""
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
-
-
-def _runs(mask):
-    padded = np.concatenate(([False], np.asarray(mask, dtype=bool), [False]))
-    edges = np.flatnonzero(np.diff(padded.astype(int)))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05):

@@ -12,7 +12,8 @@ loop), ``parallel`` (several intervals), ``acceptance`` (per body part: the trac
 interpolation), ``presets`` (Table 1), ``problem`` (inputs and
 options), ``suggest`` (where one more keyframe pays off), ``overlay`` (the body model drawn over
 frames, contact sheets), ``robust`` (M-estimators: IRLS weights, eq. 4's loss), ``occluders``
-and ``bodies`` (several people tracked together, each hiding the others).
+and ``bodies`` (several people tracked together, each hiding the others), ``foot_lock`` (planted
+feet: a standing foot locked by its leg chain).
 """
 
 from .acceptance import AcceptanceRule, PartVerdicts, body_parts
@@ -59,5 +60,7 @@ __all__ = [
 from .key_choice import PoseChoice, choose_poses  # noqa: E402  (Track Between)
 from .bodies import BodyTrack, track_bodies  # noqa: E402  (several people, issue 20)
 from .occluders import Occluder  # noqa: E402
+from .foot_lock import FootLock, FootLockRule, lock_feet  # noqa: E402  (planted feet)
 
-__all__ += ["PoseChoice", "choose_poses", "BodyTrack", "track_bodies", "Occluder"]
+__all__ += ["PoseChoice", "choose_poses", "BodyTrack", "track_bodies", "Occluder", "FootLock",
+            "FootLockRule", "lock_feet"]

@@ -52,11 +52,12 @@ import sys
 import tempfile
 import threading
 import traceback
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from .foot_lock import FootLock, lock_feet
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, interpolated_interval, track_interval
 
@@ -99,12 +100,19 @@ class SequenceResult:
     local_rotations : ndarray, shape (F, B, 3, 3)
     intervals : list of IntervalResult
         One per pair of consecutive keys.
+    foot_locks : list of FootLock
+        The contacts whose foot was locked (``TrackingOptions.foot_lock``, :mod:`.foot_lock`),
+        in clip frames; the intervals' own trajectories are the tracker's, before the lock.
+    foot_lock_notes : list of str
+        Legs the lock left alone and why.
     """
 
     frames: np.ndarray
     root_translations: np.ndarray
     local_rotations: np.ndarray
     intervals: list
+    foot_locks: list = field(default_factory=list)
+    foot_lock_notes: list = field(default_factory=list)
 
     @property
     def diverged(self):
@@ -276,7 +284,23 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     else:
         results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders)),
                             frames, workers, weights, report, stop_requested)
-    return _assemble(keys, results)
+    result = _assemble(keys, results)
+    if options.foot_lock:
+        _lock_feet(problem, options, keys, result)
+    return result
+
+
+def _lock_feet(problem, options, keys, result):
+    """Planted feet (:mod:`.foot_lock`) on an assembled sequence, in place."""
+    index = np.asarray(keys) - int(keys[0])
+    _, local, locks, notes = lock_feet(problem, index, result.root_translations,
+                                       result.local_rotations, options.frame_rate)
+    result.local_rotations = local
+    first = int(result.frames[0])
+    result.foot_locks = [FootLock(side, first + a, first + b,
+                                  tuple(first + k for k in inside), shift)
+                         for side, a, b, inside, shift in locks]
+    result.foot_lock_notes = notes
 
 
 # -- worker processes --------------------------------------------------------------------------

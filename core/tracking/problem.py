@@ -277,6 +277,11 @@ class TrackingOptions:
         (``core.tracking.acceptance``; variant and thresholds chosen in docs/tracking.md *Never
         worse than the interpolation*). None: every part keeps the tracked motion (the
         evidence is still reported in ``IntervalResult.acceptance``, nothing rejected).
+    foot_lock : bool
+        Planted feet: where a tracked foot stands (low and slow), the leg is solved so that it
+        does not slide (:mod:`core.tracking.foot_lock`); keys unchanged. On by default.
+    frame_rate : float
+        Frames per second of the clip (the foot lock's "slow" is a speed).
     """
 
     tau: float = 0.02
@@ -315,8 +320,12 @@ class TrackingOptions:
     limit_action: str = None
     occluder_margin: float = 0.03
     acceptance: AcceptanceRule = AcceptanceRule()
+    foot_lock: bool = True
+    frame_rate: float = 24.0
 
     def __post_init__(self):
+        if not (np.isfinite(self.frame_rate) and self.frame_rate > 0):
+            raise ValueError(f"frame_rate must be a positive number, got {self.frame_rate}")
         if self.seed not in ("interpolation", "forward", "bidirectional"):
             raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got "
                              f"{self.seed!r}")

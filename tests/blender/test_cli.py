@@ -64,7 +64,7 @@ def test_track_saves_the_tracked_keys_and_reports_each_interval(walk_folder, tmp
     before = digest(shot)
     out = tmp_path / "tracked.blend"
     code, summary, _ = run(capfd, "track", shot, "--output", out, "--processes", 1, "--suggest",
-                           "--summary", tmp_path / "summary.json")
+                           "--no-keep-feet-planted", "--summary", tmp_path / "summary.json")
     assert code == 0 and summary["status"] in ("ok", "warning"), summary["message"]
     assert summary["command"] == "track" and summary["saved"] and summary["output"] == str(out)
     assert summary["armature"] == name and summary["keyframes"] == list(KEYS)
@@ -79,6 +79,7 @@ def test_track_saves_the_tracked_keys_and_reports_each_interval(walk_folder, tmp
             if any(p["result"] == "in-between" for p in i["parts"].values())]
     assert len(summary["warnings"]) == len(kept)           # one plain line per such interval
     assert summary["keys"] > 0 and isinstance(summary["suggested"], list)
+    assert summary["foot_locks"] == [] and "planted" not in summary["message"]
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
     assert digest(shot) == before                         # --output: the shot is left alone
     # The saved file holds the tracked walk, as accurate as the operator's (test_track.py).

@@ -112,6 +112,48 @@ def test_image_sequence_tracks_like_the_core_and_the_ground_truth(walk_folder, w
     assert mpjpe < 0.5 * 100 * interpolation_errors(walk, KEYS).mean()
 
 
+def test_keep_feet_planted_reports_its_contacts_and_off_is_the_tracking_alone(walk_folder):
+    """Keep Feet Planted (issue 24 §3), through the API: on (the default), the summary and the
+    message name every contact locked and the keys stay bit for bit; off, the written poses
+    are the core's tracking without the lock and nothing is said about feet."""
+    from dataclasses import replace
+    api = bridge("api")
+    obj = build_walk_scene(walk_folder)
+    before = snapshot(obj)
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    assert request.options.foot_lock and request.options.frame_rate == bpy.context.scene.render.fps
+    off = api.track(obj.name, processes=1, keep_feet_planted=False)
+    assert off["foot_locks"] == [] and "planted" not in off["message"]
+    frames = bridge("tracking.footage").read_frames(request.footage, request.scene_frames.tolist())
+    core = track_keyframes(request.problem, frames, request.key_frames - 1, request.key_roots,
+                           request.key_locals, replace(request.options, foot_lock=False),
+                           processes=1)
+    roots, local = bridge("common.pose_bridge").read_pose(request.rig, request.scene_frames)
+    tracked = [request.rig.bone_names.index(b) for b in request.tracked_bones]
+    rel = np.swapaxes(local, -1, -2) @ core.local_rotations
+    assert np.degrees(np.linalg.norm(log_so3(rel[:, tracked]), axis=-1)).max() < 1e-3
+    assert settings().keep_feet_planted                  # the API left the panel's setting alone
+    bpy.ops.wm.read_homefile(use_empty=True)
+    obj = build_walk_scene(walk_folder)
+    on = api.track(obj.name, processes=1)
+    same_keys(before, snapshot(obj), KEYS)               # the keyframes' keys, bit for bit
+    assert on["foot_locks"], on["message"]               # a walk stands on a foot somewhere
+    for lock in on["foot_locks"]:
+        first, last = lock["frames"]
+        assert lock["side"] in ("left", "right") and 1 <= first <= last <= N_FRAMES
+        assert f"{lock['side']} {first}–{last}" in on["message"]
+    assert "feet kept planted" in on["message"]
+    # The lock moved the legs only: every other bone as without it.
+    rig = bridge("tracking.bridge").tracking_rig(obj)
+    roots_on, local_on = bridge("common.pose_bridge").read_pose(rig, request.scene_frames)
+    legs = [i for i, n in enumerate(request.rig.bone_names) if n[0] in "lr" and any(
+        k in n for k in ("femur", "tibia", "foot"))]
+    others = [i for i in tracked if i not in legs]
+    rel = np.swapaxes(local_on, -1, -2) @ local
+    assert np.degrees(np.linalg.norm(log_so3(rel[:, others]), axis=-1)).max() < 1e-3
+    np.testing.assert_allclose(roots_on, roots, atol=2e-6)
+
+
 def test_parallel_equals_serial_through_the_operator(walk_folder):
     states = []
     for processes in (1, 2):

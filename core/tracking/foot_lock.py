@@ -1,0 +1,337 @@
+"""Planted feet in tracking (issue 24 §3): where a foot stands, the tracked motion does not
+slide it.
+
+The tracker follows image gradients; a foot standing on the floor can drift with them (the
+bench-real clip: the tracked feet moved 25 cm/s while standing, the slerp of the keys 18).
+After the intervals are tracked (:func:`~.parallel.track_keyframes`), every foot that stands
+is locked and the leg chain solved to keep it there:
+
+* **Contact** — *low and slow*, judged on the tracked trajectory and the keys: a foot stands at
+  frame f when its lowest point (the foot bone's head and tail, its toes' tails) is within
+  ``FootLockRule.low`` of the floor, the floor being the lowest such point over the **keys**
+  (the animator's poses say where the ground is; world Z up, Blender's), and its tracked speed
+  over ``span`` frames centred on f is under ``slow`` (a sliding stance foot is much slower
+  than a swinging one). Runs shorter than ``min_frames`` are left alone.
+* **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
+  run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
+  the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
+* **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive bones of the leg
+  and the one after them) is solved for it: two-bone IK puts the ankle on the target with the
+  knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`, the rigs' shared IK),
+  the foot takes the target orientation. The pin is eased in and out over ``ramp`` frames
+  outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
+  Planted*) but never over a key. Key frames are returned bit for bit.
+
+A leg whose bones turn about some axes only (``problem.dof_mask``: a mapped rig's hinge knee
+and untwisting foot, Table 1) is solved on those axes only (damped Gauss-Newton, the
+tracker's right perturbations), as close as they allow.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics import exp_so3, forward_kinematics, log_so3
+from ..kinematics.contacts import runs, smootherstep
+from ..rigs.ik import solve_two_bone
+from .acceptance import LEFT_LEG, RIGHT_LEG, problem_parts
+
+__all__ = ["FootLock", "FootLockRule", "leg_chain", "lock_feet"]
+
+
+@dataclass(frozen=True)
+class FootLockRule:
+    """When a foot counts as standing and how the lock eases in (module docstring).
+
+    Attributes
+    ----------
+    low : float
+        Metres above the keys' floor within which a foot is low.
+    slow : float
+        Metres per second under which a low foot stands (a swinging foot moves at 1-4 m/s).
+    span : int
+        Frames over which the speed is measured (centred; odd).
+    min_frames : int
+        Shortest run of standing frames that is locked.
+    ramp : float
+        Seconds over which the lock eases in before a run and out after it.
+    """
+
+    low: float = 0.05
+    slow: float = 0.4
+    span: int = 5
+    min_frames: int = 3
+    ramp: float = 0.05
+
+
+@dataclass(frozen=True)
+class FootLock:
+    """One locked contact: ``side`` ('left' / 'right'), the standing frames ``first`` ..
+    ``last`` (clip frames, inclusive), the keys inside it, and the largest shift of the
+    ankle the lock made (metres)."""
+
+    side: str
+    first: int
+    last: int
+    keys: tuple
+    shift: float
+
+
+def leg_chain(skeleton, bones):
+    """(thigh, shin, foot, points): the leg's IK chain among ``bones`` (indices of one leg
+    part) and the bones whose heads/tails make the foot's contact points (the foot and every
+    bone below it), or None when the leg has no such chain."""
+    bones = set(int(b) for b in bones)
+    top = [b for b in bones if skeleton.parents[b] not in bones]
+    if len(top) != 1:
+        return None
+    chain, b = [top[0]], top[0]
+    while True:
+        kids = [c for c in skeleton.children(b) if c in bones]
+        if not kids:
+            break
+        # Follow the child with the longest descent (the leg, not a twist or helper bone).
+        b = max(kids, key=lambda c: _depth(skeleton, c, bones))
+        chain.append(b)
+    if len(chain) < 3:
+        return None
+    seg = [np.linalg.norm(skeleton.offsets[c]) for c in chain[1:]]   # length of chain[i]
+    best = max(range(len(seg) - 1), key=lambda i: seg[i] + seg[i + 1]) if len(seg) > 1 else None
+    if best is None or best + 2 >= len(chain):
+        return None
+    thigh, shin, foot = chain[best], chain[best + 1], chain[best + 2]
+    below = [j for j in bones if foot in skeleton.chain(j)]
+    return thigh, shin, foot, sorted(below)
+
+
+def _depth(skeleton, b, bones):
+    kids = [c for c in skeleton.children(b) if c in bones]
+    return 1 + max((_depth(skeleton, c, bones) for c in kids), default=0)
+
+
+def _foot_points(skeleton, rot, pos, below):
+    """Heads and tails (N, 2 len(below), 3) of the foot and the bones below it."""
+    tails = pos[:, below] + np.einsum("nbij,bj->nbi", rot[:, below], skeleton.tails[below])
+    return np.concatenate([pos[:, below], tails], axis=1)
+
+
+def _span_speed(points, span, fps):
+    """Speed (N,) of the mean of ``points`` (N, P, 3) over ``span`` frames centred (edges:
+    the span shrinks)."""
+    mid = points.mean(axis=1)
+    n, half = len(mid), span // 2
+    lo = np.clip(np.arange(n) - half, 0, n - 1)
+    hi = np.clip(np.arange(n) + half, 0, n - 1)
+    steps = np.maximum(hi - lo, 1)
+    return np.linalg.norm(mid[hi] - mid[lo], axis=1) * fps / steps
+
+
+def _mean_rotation(rotations):
+    """Chordal mean (3, 3) of rotations (N, 3, 3)."""
+    u, _, vt = np.linalg.svd(rotations.sum(axis=0))
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def _anchor(ankle, foot_rot, a, b, inside_keys):
+    """Target ankle positions (b - a, 3) and foot rotations (b - a, 3, 3) of run [a, b)."""
+    n = b - a
+    if not inside_keys:
+        return (np.repeat(ankle[a:b].mean(axis=0)[None], n, axis=0),
+                np.repeat(_mean_rotation(foot_rot[a:b])[None], n, axis=0))
+    frames = np.arange(a, b)
+    ks = np.array(inside_keys)
+    pos = np.stack([np.interp(frames, ks, ankle[ks, c]) for c in range(3)], axis=1)
+    rot = np.empty((n, 3, 3))
+    for i, f in enumerate(frames):
+        j = np.searchsorted(ks, f, side="right") - 1
+        if j < 0:
+            rot[i] = foot_rot[ks[0]]
+        elif j >= len(ks) - 1:
+            rot[i] = foot_rot[ks[-1]]
+        else:
+            s = (f - ks[j]) / (ks[j + 1] - ks[j])
+            r0, r1 = foot_rot[ks[j]], foot_rot[ks[j + 1]]
+            rot[i] = r0 @ exp_so3(s * log_so3(r0.T @ r1))
+    return pos, rot
+
+
+def _minimal_rotation(u, v):
+    """Rotations (N, 3, 3) turning directions ``u`` onto ``v`` (N, 3) about ``u x v``."""
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    v = v / np.linalg.norm(v, axis=1, keepdims=True)
+    axis = np.cross(u, v)
+    s = np.linalg.norm(axis, axis=1)
+    angle = np.arctan2(s, np.sum(u * v, axis=1))
+    axis = axis / np.where(s > 1e-12, s, 1.0)[:, None]
+    return exp_so3(axis * angle[:, None])
+
+
+def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot_goal):
+    """New local rotations of thigh, shin and foot at ``rows`` putting the ankle on
+    ``ankle_goal`` (M, 3) and the foot's world frame on ``foot_goal`` (M, 3, 3)."""
+    rot, pos = forward_kinematics(skeleton, local[rows], roots[rows])
+    hip, knee, ankle = pos[:, thigh], pos[:, shin], pos[:, foot]
+    upper = np.linalg.norm(knee - hip, axis=1)
+    lower = np.linalg.norm(ankle - knee, axis=1)
+    new_knee = solve_two_bone(hip, ankle_goal, upper, lower, knee)
+    turn_thigh = _minimal_rotation(knee - hip, new_knee - hip)
+    g_thigh = turn_thigh @ rot[:, thigh]
+    shin_dir = np.einsum("nij,nj->ni", turn_thigh, ankle - knee)
+    g_shin = _minimal_rotation(shin_dir, ankle_goal - new_knee) @ turn_thigh @ rot[:, shin]
+    parent = skeleton.parents[thigh]
+    g_parent = rot[:, parent] if parent >= 0 else np.eye(3)[None]
+    rest = skeleton.rest_rotations
+    out = local[rows].copy()
+    out[:, thigh] = rest[thigh].T @ np.swapaxes(g_parent, -1, -2) @ g_thigh
+    out[:, shin] = rest[shin].T @ np.swapaxes(g_thigh, -1, -2) @ g_shin
+    out[:, foot] = rest[foot].T @ np.swapaxes(g_shin, -1, -2) @ foot_goal
+    return out
+
+
+def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foot_goal,
+                      iterations=12, reach=0.15):
+    """As :func:`_solve_leg` for a leg whose bones turn about some axes only (``axes`` (3, 3)
+    bool per chain bone, the tracker's ``dof_mask``; a hinge knee, a foot that does not
+    twist): damped Gauss-Newton on the free axes (right perturbations ``R <- R exp(d e_a)``,
+    as the tracker's), the ankle's position and the foot's orientation (radians times
+    ``reach`` metres) as residuals."""
+    thigh, shin, foot = chain
+    out = local[rows].copy()
+    r = roots[rows]
+    cols = [(b, a) for b, ok in zip(chain, axes) for a in range(3) if ok[a]]
+
+    def residual(lo):
+        rot, pos = forward_kinematics(skeleton, lo, r)
+        turn = log_so3(np.swapaxes(rot[:, foot], -1, -2) @ foot_goal)
+        world_turn = np.einsum("nij,nj->ni", rot[:, foot], turn)
+        return np.concatenate([ankle_goal - pos[:, foot], reach * world_turn], axis=1), rot, pos
+
+    res, rot, pos = residual(out)
+    damping = np.full(len(rows), 1e-6)
+    for _ in range(iterations):
+        jac = np.zeros((len(rows), 6, len(cols)))
+        for k, (b, a) in enumerate(cols):
+            omega = rot[:, b, :, a]                              # world axis of the turn
+            jac[:, :3, k] = np.cross(omega, pos[:, foot] - pos[:, b]) if b != foot else 0.0
+            jac[:, 3:, k] = reach * omega
+        normal = np.swapaxes(jac, 1, 2) @ jac
+        normal += damping[:, None, None] * np.eye(len(cols))
+        step = np.linalg.solve(normal, (np.swapaxes(jac, 1, 2) @ res[..., None]))[..., 0]
+        trial = out.copy()
+        for k, (b, a) in enumerate(cols):
+            turn = np.zeros((len(rows), 3))
+            turn[:, a] = step[:, k]
+            trial[:, b] = trial[:, b] @ exp_so3(turn)
+        new_res, new_rot, new_pos = residual(trial)
+        better = np.sum(new_res ** 2, 1) <= np.sum(res ** 2, 1)
+        out[better], res[better] = trial[better], new_res[better]
+        rot[better], pos[better] = new_rot[better], new_pos[better]
+        damping = np.where(better, damping / 3.0, damping * 10.0)
+    return out
+
+
+def lock_feet(problem, key_index, roots, local, fps, rule=None):
+    """Lock the standing feet of a tracked sequence (module docstring).
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+        Its skeleton, body parts (``regions`` or guessed from the names) and ``dof_mask``.
+    key_index : array_like, shape (K,), int
+        Indices into the sequence of the keyed frames (returned unchanged).
+    roots, local : ndarray, shape (N, 3), (N, B, 3, 3)
+        The tracked sequence.
+    fps : float
+        Frames per second of the clip.
+    rule : FootLockRule, optional
+
+    Returns
+    -------
+    roots : ndarray, shape (N, 3)
+        Unchanged (the root is not moved).
+    local : ndarray, shape (N, B, 3, 3)
+        A new array, the legs changed where a foot was locked.
+    locks : list of (side, first index, last index, keys inside, shift)
+        Every locked run, indices into the sequence.
+    skipped : list of str
+        Legs not locked and why.
+    """
+    rule = rule or FootLockRule()
+    sk = problem.skeleton
+    roots = np.asarray(roots, dtype=float)
+    local = np.array(local, dtype=float)
+    n = len(local)
+    keys = sorted(set(int(k) for k in key_index))
+    key_set = set(keys)
+    parts, part_of = problem_parts(problem)
+    mask = problem.dof_mask
+    legs, skipped = {}, []
+    for side, name in (("left", LEFT_LEG), ("right", RIGHT_LEG)):
+        if name not in parts:
+            continue
+        bones = np.flatnonzero(part_of == parts.index(name))
+        chain = leg_chain(sk, bones)
+        if chain is None:
+            skipped.append(f"{side} leg: no thigh, shin and foot found")
+            continue
+        legs[side] = chain
+    if not legs or n < 3:
+        return roots, local, [], skipped
+    rot, pos = forward_kinematics(sk, local, roots)
+    points = {s: _foot_points(sk, rot, pos, c[3]) for s, c in legs.items()}
+    floor = min(float(p[keys][..., 2].min()) for p in points.values())
+    ramp = max(1, int(round(rule.ramp * fps)))
+    out = local.copy()
+    locks = []
+    for side, (thigh, shin, foot, _) in legs.items():
+        low = points[side][..., 2].min(axis=1) <= floor + rule.low
+        slow = _span_speed(points[side], rule.span, fps) <= rule.slow
+        ankle, foot_rot = pos[:, foot], rot[:, foot]
+        goal_pos, goal_rot = ankle.copy(), foot_rot.copy()
+        weight = np.zeros(n)
+        found = []
+        for a, b in runs(low & slow):
+            if b - a < rule.min_frames:
+                continue
+            inside = [k for k in keys if a <= k < b]
+            p, r = _anchor(ankle, foot_rot, a, b, inside)
+            goal_pos[a:b], goal_rot[a:b], weight[a:b] = p, r, 1.0
+            # Ease in before the run and out after it, never across a key.
+            before = [k for k in keys if k < a]
+            after = [k for k in keys if k >= b]
+            lo = max(a - ramp, (before[-1] + 1) if before else 0)
+            hi = min(b + ramp, after[0] if after else n)
+            for f in range(lo, a):
+                w = smootherstep((f - (a - ramp - 1)) / (ramp + 1))
+                if w > weight[f]:
+                    weight[f], goal_pos[f], goal_rot[f] = w, p[0], r[0]
+            for f in range(b, hi):
+                w = smootherstep(((b - 1 + ramp + 1) - f) / (ramp + 1))
+                if w > weight[f]:
+                    weight[f], goal_pos[f], goal_rot[f] = w, p[-1], r[-1]
+            found.append((a, b, inside))
+        weight[keys] = 0.0
+        rows = np.flatnonzero(weight > 0)
+        if not len(rows):
+            continue
+        w = weight[rows]
+        ankle_goal = ankle[rows] + w[:, None] * (goal_pos[rows] - ankle[rows])
+        partial = log_so3(np.swapaxes(foot_rot[rows], -1, -2) @ goal_rot[rows])
+        foot_goal = foot_rot[rows] @ exp_so3(w[:, None] * partial)
+        axes = (np.ones((3, 3), dtype=bool) if mask is None
+                else np.asarray(mask, dtype=bool)[[thigh, shin, foot]])
+        if axes.all():
+            solved = _solve_leg(sk, roots, out, thigh, shin, foot, rows, ankle_goal, foot_goal)
+        else:
+            solved = _solve_leg_masked(sk, roots, out, (thigh, shin, foot), axes, rows,
+                                       ankle_goal, foot_goal)
+        out[rows] = solved
+        shift = np.linalg.norm(ankle_goal - ankle[rows], axis=1)
+        for a, b, inside in found:
+            sel = (rows >= a) & (rows < b)
+            locks.append((side, a, b - 1, tuple(inside),
+                          float(shift[sel].max()) if sel.any() else 0.0))
+    out[keys] = local[keys]
+    locks.sort(key=lambda x: (x[1], x[0]))
+    return roots, out, locks, skipped

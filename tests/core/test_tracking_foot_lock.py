@@ -1,0 +1,153 @@
+"""Planted feet in tracking (issue 24 §3, ``core.tracking.foot_lock``): a standing foot that
+the tracked motion slides is pinned by the leg chain, keys stay bit for bit, a swinging foot
+and the rest of the body are left alone, and with the option off the tracker never calls it."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from core.kinematics import exp_so3, forward_kinematics
+from core.mocap import asf_to_skeleton
+from core.mocap.bvh import cmu_template_asf
+from core.tracking import foot_lock
+from core.tracking.foot_lock import leg_chain, lock_feet
+from core.tracking.acceptance import problem_parts
+
+FPS = 30.0
+
+
+@pytest.fixture(scope="module")
+def skeleton():
+    return asf_to_skeleton(cmu_template_asf())
+
+
+def _clip(sk, n=31):
+    """Keys at both ends with the feet where they stand; in between the body sways 8 cm
+    sideways (the left foot, still low, slides with it) and the right leg swings up."""
+    s = np.linspace(0.0, 1.0, n)
+    local = np.broadcast_to(np.eye(3), (n, sk.n_joints, 3, 3)).copy()
+    roots = np.zeros((n, 3))
+    roots[:, 0] = 0.08 * np.sin(np.pi * s)
+    lift = 0.9 * np.sin(np.pi * s) ** 2
+    local[:, sk.index("rfemur")] = exp_so3(np.stack([-lift, 0 * s, 0 * s], 1))
+    local[:, sk.index("rtibia")] = exp_so3(np.stack([1.2 * lift, 0 * s, 0 * s], 1))
+    # the standing leg's knee a little bent (a straight knee is a hinge's singular pose)
+    local[:, sk.index("lfemur")] = exp_so3(np.tile([-0.15, 0.0, 0.0], (n, 1)))
+    local[:, sk.index("ltibia")] = exp_so3(np.tile([0.3, 0.0, 0.0], (n, 1)))
+    local[:, sk.index("lfoot")] = exp_so3(np.tile([-0.15, 0.0, 0.0], (n, 1)))
+    return roots, local
+
+
+def _problem(sk, dof_mask=None):
+    return SimpleNamespace(skeleton=sk, regions=None, dof_mask=dof_mask)
+
+
+def test_leg_chain_of_the_cmu_skeleton(skeleton):
+    parts, part_of = problem_parts(_problem(skeleton))
+    bones = np.flatnonzero(part_of == parts.index("left leg"))
+    thigh, shin, foot, points = leg_chain(skeleton, bones)
+    assert [skeleton.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
+    assert [skeleton.names[b] for b in points] == ["lfoot", "ltoes"]
+
+
+def test_a_sliding_standing_foot_is_pinned_and_keys_kept(skeleton):
+    sk = skeleton
+    roots, local = _clip(sk)
+    keys = [0, len(roots) - 1]
+    rot, pos = forward_kinematics(sk, local, roots)
+    foot = sk.index("lfoot")
+    slide = np.linalg.norm(pos[:, foot, :2] - pos[0, foot, :2], axis=1)
+    assert slide.max() > 0.07                      # the input slides the left foot 8 cm
+    out_roots, out, locks, skipped = lock_feet(_problem(sk), keys, roots, local, FPS)
+    assert skipped == []
+    rot2, pos2 = forward_kinematics(sk, out, out_roots)
+    # Pinned: the ankle stays where the keys put it, the foot keeps the keys' orientation.
+    np.testing.assert_allclose(pos2[:, foot], np.broadcast_to(pos[0, foot], pos2[:, foot].shape),
+                               atol=1e-6)
+    np.testing.assert_allclose(rot2[:, foot], np.broadcast_to(rot[0, foot], rot2[:, foot].shape),
+                               atol=1e-6)
+    # Keys bit for bit; the root and every bone outside the left leg untouched.
+    np.testing.assert_array_equal(out[keys], local[keys])
+    np.testing.assert_array_equal(out_roots, roots)
+    left = {sk.index(n) for n in ("lfemur", "ltibia", "lfoot")}
+    right = {sk.index(n) for n in ("rfemur", "rtibia", "rfoot")}
+    others = [b for b in range(sk.n_joints) if b not in left | right]
+    np.testing.assert_array_equal(out[:, others], local[:, others])
+    # The lifted right foot is not standing in the middle of the clip: untouched there.
+    mid = slice(10, 21)
+    np.testing.assert_array_equal(out[mid][:, sorted(right)], local[mid][:, sorted(right)])
+    # The thigh and shin keep their lengths (rigid bones): the knee moved, not the joints apart.
+    knee = sk.index("ltibia")
+    np.testing.assert_allclose(np.linalg.norm(pos2[:, knee] - pos2[:, sk.index("lfemur")], axis=1),
+                               np.linalg.norm(pos[:, knee] - pos[:, sk.index("lfemur")], axis=1),
+                               atol=1e-9)
+    # Reported: the left foot's whole-clip contact, with both keys inside and the shift made.
+    left_locks = [lk for lk in locks if lk[0] == "left"]
+    assert len(left_locks) == 1
+    side, first, last, inside, shift = left_locks[0]
+    assert (first, last, inside) == (0, len(roots) - 1, tuple(keys))
+    assert shift == pytest.approx(slide.max(), abs=0.01)
+
+
+def test_nothing_standing_changes_nothing(skeleton):
+    sk = skeleton
+    roots, local = _clip(sk)
+    roots = roots.copy()
+    roots[:, 0] += np.linspace(0.0, 2.0, len(roots))      # 2 m/s: every foot is moving
+    keys = [0, 15, 30]
+    out_roots, out, locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+    assert locks == []
+    np.testing.assert_array_equal(out, local)
+
+
+def test_a_hinge_knee_is_solved_on_its_own_axes(skeleton):
+    """A mapped rig's anatomy (``core.rigs.anatomical_dof_mask``): the knee bends about X
+    only, the foot does not twist. The leg still pins the foot (hip 3 + knee 1 + foot 2
+    axes) nearly in place, and the locked axes stay where they were."""
+    sk = skeleton
+    roots, local = _clip(sk)
+    mask = np.ones((sk.n_joints, 3), dtype=bool)
+    knee, foot = sk.index("ltibia"), sk.index("lfoot")
+    mask[knee, 1:] = False
+    mask[foot, 1] = False
+    keys = [0, len(roots) - 1]
+    _, out, locks, skipped = lock_feet(_problem(sk, mask), keys, roots, local, FPS)
+    assert skipped == [] and [lk[0] for lk in locks].count("left") == 1
+    rot, pos = forward_kinematics(sk, local, roots)
+    rot2, pos2 = forward_kinematics(sk, out, roots)
+    # As close as those axes allow (the damped steps converge slowly on this pose): the
+    # 8 cm slide is down to a few millimetres.
+    before = np.linalg.norm(pos[:, foot] - pos[0, foot], axis=1).max()
+    after = np.linalg.norm(pos2[:, foot] - pos2[0, foot], axis=1).max()
+    assert before > 0.07 and after < 0.1 * before
+    from core.kinematics import log_so3
+    np.testing.assert_allclose(log_so3(out[:, knee])[:, 1:], 0.0, atol=1e-12)
+    np.testing.assert_array_equal(out[keys], local[keys])
+
+
+def test_off_never_calls_the_lock(monkeypatch):
+    """``TrackingOptions(foot_lock=False)``: the tracker's result is the intervals as tracked."""
+    from core.tracking import parallel
+    from core.tracking.problem import TrackingOptions, TrackingProblem
+    from tests.core.test_tracking_trajectory import _sequence
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the foot lock ran with foot_lock=False")
+
+    sk, body, cam, roots, local, frames = _sequence(6)
+    problem = TrackingProblem(sk, body, cam)
+    calls = []
+    monkeypatch.setattr(parallel, "lock_feet",
+                        lambda *a, **k: calls.append(1) or foot_lock.lock_feet(*a, **k))
+    on = parallel.track_keyframes(problem, frames, [0, 6], roots[[0, 6]], local[[0, 6]],
+                                  TrackingOptions(max_iterations=1), processes=1)
+    assert calls == [1]
+    monkeypatch.setattr(parallel, "lock_feet", refuse)
+    off = parallel.track_keyframes(problem, frames, [0, 6], roots[[0, 6]], local[[0, 6]],
+                                   TrackingOptions(max_iterations=1, foot_lock=False),
+                                   processes=1)
+    np.testing.assert_array_equal(off.local_rotations, off.intervals[0].local_rotations)
+    # (the two-arm body has no legs: with the lock on nothing changed either)
+    np.testing.assert_array_equal(on.local_rotations, off.local_rotations)
+    assert off.foot_locks == [] and on.foot_locks == []
