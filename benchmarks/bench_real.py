@@ -493,6 +493,9 @@ def parse_args():
                         help="development: save what the operator handed the core (problem, "
                              "keys, decoded frames) and the reference into this folder, for "
                              "benchmarks/real/core_replay.py")
+    parser.add_argument("--no-keep-feet-planted", action="store_true",
+                        help="track with the Track panel's Keep Feet Planted off (the foot "
+                             "lock, issue 24 §3; on by default as in the panel)")
     parser.add_argument("--detector-pass", default="reference", choices=("peer", "reference"),
                         help="the MediaPipe pass the keys + detector recipe fits (reference: "
                              "the tracked camera's landmarks without smoothing, default; peer: "
@@ -555,6 +558,7 @@ def main():
             "view_sets": view_sets,
             "n_frames": int(n_frames), "fps": FPS, "rotation_mode": args.rotation_mode,
             "camera_setup": args.camera_setup, "processes": args.processes,
+            "keep_feet_planted": not args.no_keep_feet_planted,
             "timed_spacing": 20 if 20 in args.spacings else args.spacings[0],
             "radii_operator": args.radii_operator, "poses": str(poses_path),
             "output": str(work / "blender"),
@@ -664,6 +668,7 @@ def main():
                   "radii_source": radii_source,
                   "radii": dict(zip(rigmod.BONE_NAMES, radii.round(4).tolist())),
                   "rotation_mode": args.rotation_mode, "processes": args.processes,
+                  "keep_feet_planted": not args.no_keep_feet_planted,
                   "bone_lengths_m": dict(zip(rigmod.BONE_NAMES, rig.lengths.round(4).tolist())),
                   "keys": {f"keys_every_{e}": key_frames(n_frames, e) for e in args.spacings},
                   "frames": int(n_frames), "fps": FPS, "cameras": list(args.cameras)},

@@ -352,6 +352,7 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
     scene.frame_start, scene.frame_end = 1, n
     settings = scene.track_and_stride_track
     settings.processes = int(plan["processes"])
+    settings.keep_feet_planted = bool(plan.get("keep_feet_planted", True))
     obj = build_armature(bpy, plan)
     keys = key_frames(n, every)
     key_poses(bpy, obj, plan, poses["roots"], poses["locals"], keys)
