@@ -2,12 +2,19 @@
 
 A camera's keypoints (:class:`CameraKeypoints`: pixels per frame and joint, the detector's
 confidence, and the skeleton joint each one marks) add rows to every frame pair's system of
-eq. 5 (:func:`~.motion._coarse_to_fine`). For frame pair ``j -> j+1`` and keypoint ``k`` on
+eq. 5 (:func:`~.motion._coarse_to_fine`). For frame pair ``a -> b`` and keypoint ``k`` on
 joint ``i_k`` at the point ``p_k`` of its frame, with ``q_k(x)`` the projection of that point
-after the motion ``x``:
+after the motion ``x`` from the trajectory's pose of frame ``a``:
 
-    rows   s_k J_k,    J_k = d q_k / d x  at the pose of frame j   (2 rows: u and v)
-    b      s_k (t_k - q_k(x)),   t_k = keypoint of frame j+1 minus its offset at the keys
+    rows   s_k J_k,    J_k = d q_k / d x  at the pose of frame a     (2 rows: u and v)
+    b      s_k (q_k(0) + t_k(b) - t_k(a) - q_k(x))
+
+``t_k(f)``: the keypoint of frame ``f`` minus its offset at the keys. The target is the
+keypoints' own motion, not their position: the tracker accumulates the frame pairs' motions
+from the start key (eq. 2), so an absolute target would only hold where the new trajectory's
+pose of ``a`` is the old one's (tried first: the loop oscillated and the keypoints made eq. 4
+worse than the interpolation), while the keypoints' motions accumulated from the start key
+telescope to ``t_k(b)`` itself -- the keypoints add no drift (:func:`pair_targets`).
 
 * **Offsets at the keys.** A detector marks a joint where *it* thinks it is (MediaPipe's hip
   sits a few centimetres off the skeleton's hip joint, a knee keypoint sits on the kneecap):
@@ -17,13 +24,15 @@ after the motion ``x``:
   themselves satisfy the rows exactly. A keypoint missing at one key takes the other key's
   offset; missing at both, it is not used in that interval.
 * **Confidence and robustness.** ``s_k = weight * sqrt(c_k w_k) * (image scale / keypoint
-  scale)``: ``c_k`` the detector's confidence; ``w_k`` Tukey's biweight of the keypoint's
-  residual distance ``|t_k - q_k|`` over ``robust_threshold`` times the keypoints' own robust
-  scale (:func:`~.robust.robust_scale` of the distances of all keypoints of the call, floored
-  at :data:`SCALE_FLOOR_PX`; :mod:`.robust`'s conventions), re-weighted whenever the image
-  rows are (IRLS). A left/right swap or a detection on something else lands many scales from
+  scale)``: ``c_k`` the detector's confidence (the smaller of the two frames'); ``w_k`` the
+  product of Tukey's biweights of (1) the residual distance (the keypoints' motion against
+  the estimate) and (2) the keypoint's distance from the trajectory's poses of ``a`` and
+  ``b``, each over ``robust_threshold`` times its own robust scale
+  (:func:`~.robust.robust_scale` over all keypoints of the call, floored at
+  :data:`SCALE_FLOOR_PX`; :mod:`.robust`'s conventions), re-weighted whenever the image rows
+  are (IRLS). A left/right swap or a detection on something else lands many scales from
   where the image rows put the joint and gets weight 0; ``'clip'`` (the tracker before
-  issue 20) uses the same biweight for the keypoints. The ratio of the image rows' noise scale
+  issue 20) uses the same biweights for the keypoints. The ratio of the image rows' noise scale
   (per view and frame) to the keypoints' puts a keypoint pixel on the image rows' footing;
   ``weight`` (``TrackingOptions.keypoint_weight``) says how many image samples' worth one
   keypoint coordinate is.
