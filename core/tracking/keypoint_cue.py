@@ -55,7 +55,7 @@ from .robust import robust_scale, robust_weights
 
 #: Floor of the keypoints' robust scale, pixels of the camera's full image (a detector is
 #: rarely better than this; a perfect synthetic keypoint must not make every other an outlier).
-SCALE_FLOOR_PX = 2.0
+SCALE_FLOOR_PX = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +76,9 @@ class CameraKeypoints:
         bone's head).
     first : int
         Frame (clip frame, or interval frame inside the tracker) of row 0.
+    mirror : ndarray, shape (J,), int, optional
+        The same joint on the other side (left knee <-> right knee), -1 for none: a pair
+        the trajectory fits better swapped is not used (:func:`pair_targets`).
     """
 
     uv: np.ndarray
@@ -83,6 +86,7 @@ class CameraKeypoints:
     joints: np.ndarray
     points: np.ndarray = None
     first: int = 0
+    mirror: np.ndarray = None
 
     def __post_init__(self):
         uv = np.asarray(self.uv, dtype=float)
@@ -101,6 +105,12 @@ class CameraKeypoints:
         object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "first", int(self.first))
+        mirror = np.full(j, -1) if self.mirror is None else np.asarray(self.mirror, int)
+        if mirror.shape != (j,) or np.any(mirror >= j) or np.any(
+                (mirror >= 0) & (mirror[np.maximum(mirror, 0)] != np.arange(j))):
+            raise TrackingError(f"keypoints: mirror must pair keypoints both ways ((J,) = {j}, "
+                                f"-1 for none), got {mirror.tolist()}")
+        object.__setattr__(self, "mirror", mirror)
 
     def cut(self, a, b):
         """Frames ``a .. b`` (same frame numbers as ``first``), rows missing where it has none;
@@ -142,9 +152,15 @@ def keypoints_for_parts(uv, confidence, part_columns, part_joints, first=0):
     if not parts:
         return None
     cols = [part_columns[p] for p in parts]
+    other = {"left": "right", "right": "left"}
+    mirror = []
+    for p in parts:
+        side, _, rest = p.partition(" ")
+        twin = f"{other[side]} {rest}" if side in other else None
+        mirror.append(parts.index(twin) if twin in parts else -1)
     return CameraKeypoints(uv=np.asarray(uv, float)[:, cols],
                            confidence=np.asarray(confidence, float)[:, cols],
-                           joints=[part_joints[p] for p in parts], first=first)
+                           joints=[part_joints[p] for p in parts], first=first, mirror=mirror)
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,6 +175,7 @@ class IntervalKeypoints:
     confidence: np.ndarray
     joints: np.ndarray
     points: np.ndarray
+    mirror: np.ndarray = None
 
 
 def project_keypoints(skeleton, camera, roots, local, joints, points):
@@ -205,7 +222,8 @@ def interval_keypoints(problem, keypoints, view_camera, full_camera, start, end)
     if not np.any(conf[1:] > 0):
         return None
     return IntervalKeypoints(target=np.where(conf[..., None] > 0, target, 0.0), confidence=conf,
-                             joints=keypoints.joints, points=keypoints.points)
+                             joints=keypoints.joints, points=keypoints.points,
+                             mirror=keypoints.mirror)
 
 
 def keypoint_rows(problem, camera, frames_cam, keypoints, cols, column_factor, jacobian):
@@ -260,15 +278,30 @@ def pair_targets(problem, camera, keypoints, image_pairs, frames_cam, next_cam=N
     conf = np.where(p0[..., 2] > 0, conf, 0.0)
     target = q0 + keypoints.target[b] - keypoints.target[a]
     deviation = np.linalg.norm(keypoints.target[a] - q0, axis=-1)
+    conf = np.where(_swapped(keypoints, a, q0), 0.0, conf)
     if next_cam is not None:
         rot1, org1 = next_cam
         p1 = np.einsum("fjab,jb->fja", rot1[:, joints], points) + org1[:, joints]
         q1 = camera.project(np.where(p1[..., 2:] > 0, p1, 1.0))
         deviation = np.maximum(deviation, np.linalg.norm(keypoints.target[b] - q1, axis=-1))
-        conf = np.where(p1[..., 2] > 0, conf, 0.0)
+        conf = np.where((p1[..., 2] > 0) & ~_swapped(keypoints, b, q1), conf, 0.0)
     ok = conf > 0
     return PairTargets(target=np.where(ok[..., None], target, 0.0), confidence=conf,
                        deviation=np.where(ok, deviation, 0.0))
+
+
+def _swapped(keypoints, frames, q):
+    """(n, J) bool: keypoints of a left/right pair (``mirror``) that lie closer to the
+    trajectory's projections ``q`` (n, J, 2) of their twins than to their own (summed over the
+    pair): a detector that swapped the sides, or one the trajectory cannot tell apart."""
+    mirror = keypoints.mirror
+    if mirror is None or not np.any(mirror >= 0):
+        return np.zeros(q.shape[:2], dtype=bool)
+    twin = np.maximum(mirror, 0)
+    t = keypoints.target[frames]
+    own = np.linalg.norm(t - q, axis=-1)
+    crossed = np.linalg.norm(t - q[:, twin], axis=-1)
+    return (mirror >= 0) & (crossed + crossed[:, twin] < own + own[:, twin])
 
 
 def keypoint_residuals(problem, camera, keypoints, targets, moved_pose):

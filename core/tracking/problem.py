@@ -318,7 +318,7 @@ class TrackingOptions:
     view_tau: float = 0.01
     limit_action: str = None
     occluder_margin: float = 0.03
-    keypoint_weight: float = 30.0
+    keypoint_weight: float = 10.0
     acceptance: AcceptanceRule = AcceptanceRule()
 
     def __post_init__(self):
