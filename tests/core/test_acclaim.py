@@ -805,10 +805,53 @@ def test_a_single_frame_read_line_by_line_keeps_its_bone_order_and_integer_numbe
 
 
 def test_text_lines_of_a_range_that_stops_before_the_data_ends():
-    """Pieces never reach past ``end`` (newlines after it are not this range's)."""
-    data = b"xx\nab\ncdef\n\ng h\ni\nj\nk\n"
-    end = data.index(b"i") + 1
-    for begin in (0, 3):
-        for piece in range(1, end + 2):
+    """A range that ends at a line's end before the data's (as the parser's does): pieces
+    never reach past ``end``, also pieces longer than 255 bytes."""
+    data = b"".join(f"line {k} {'x' * k}\n\n".encode() for k in range(40))
+    end = data.index(b"line 30 ") - 2
+    assert data[end] == ord("\n") and data[end - 1] == ord("x")
+    for begin in (0, data.index(b"line 3 ")):
+        for piece in (*range(1, 9), 255, 256, 300, 700, end + 1):
             got = list(amc_module._text_lines(data, begin, end, piece=piece))
             assert got == data[begin:end].decode().split("\n"), (begin, piece)
+
+
+@pytest.mark.parametrize("trailing", ["", "\n", "\n\n \n"])
+def test_a_last_frame_of_only_its_number_is_truncated(walk, trailing):
+    """The file ends with a frame number and no bones (blank lines after it or not): that
+    frame is truncated, at its line (the one-character last line is not dropped)."""
+    asf, lines = walk
+    text = "\n".join(_head(lines, 3) + ["4"]) + trailing
+    err = amc_error(text, asf)
+    assert (err.path, err.line) == ("walk.amc", len(_head(lines, 3)) + 1)
+    assert err.reason.startswith("frame 4 is truncated: it lacks root, ")
+
+
+def test_root_rotations_and_radian_files_have_the_angle_limit(walk):
+    """The angle limit (10 000 degrees) holds for the root's rotations too (in both parsers),
+    and in a :RADIANS file it is 174.5 radians: 100 is read, 175 refused."""
+    asf, lines = walk
+    regular = _head(lines, 3)
+    slow = _regular_then_reversed()
+    for text, k in ((regular, regular.index("2") + 1), (slow, slow.index("25") + 1)):
+        k = next(j for j in range(k, len(text)) if text[j].startswith("root "))
+        parts = text[k].split()
+        parts[4] = "1e5"
+        err = amc_error(text[:k] + [" ".join(parts)] + text[k + 1:], asf)
+        assert (err.path, err.line) == ("walk.amc", k + 1)
+        assert err.reason.startswith("bone 'root': angle is 100000 degrees, beyond 10000 degrees")
+    in_radians = dataclasses.replace(asf, angle_unit="rad")
+    text = format_amc(in_radians, _quarter_turn_motion(in_radians)).splitlines()
+    k = next(j for j, line in enumerate(text) if line.startswith("lfemur "))
+    for value, ok in (("100", True), ("-174", True), ("175", False)):
+        parts = text[k].split()
+        parts[1] = value
+        changed = text[:k] + [" ".join(parts)] + text[k + 1:]
+        if ok:
+            motion = parse_amc(changed, in_radians)
+            names = asf_to_skeleton(in_radians).dof_names()
+            assert motion.values[0, names.index("lfemur.rx")] == float(value)
+        else:
+            err = amc_error(changed, in_radians)
+            assert err.line == k + 1
+            assert err.reason.startswith(f"bone 'lfemur': angle is {value} radians, beyond 10000")
