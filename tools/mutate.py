@@ -311,9 +311,14 @@ def _all_tests(folder, tests):
 
 
 def _but_slow(all_tests, slow):
-    """The ids of ``all_tests`` that are none of the ``slow`` tests (a parametrised slow
-    test's id covers its cases ``id[...]``)."""
-    return [t for t in all_tests if t not in slow and t.split("[")[0] not in slow]
+    """``--deselect`` ids of every test of ``all_tests`` but the ``slow`` ones (a parametrised
+    test by its function's id: pytest deselects by id prefix, and case ids may hold spaces,
+    which setup.cfg cannot)."""
+    out = sorted({t.split("[")[0] for t in all_tests if t.split("[")[0] not in slow})
+    hit = [t for t in slow if t.startswith(tuple(out))]
+    if hit:
+        raise ValueError(f"deselecting the fast tests would deselect slow ones too: {hit}")
+    return out
 
 
 def _results(folder):
@@ -400,21 +405,25 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=(), 
     when its test options change). ``sample``: mutmut name patterns (fnmatch) of the mutants
     to run, e.g. ``*__mutmut_*[05]`` (every mutant numbered …0 or …5: a fifth of each
     function's, the same ones every time); the score is then over those only. ``resume``:
-    go on with the first stage of a run that was stopped (``build/mutate/<name>/`` kept,
-    its tests refreshed; verdicts already reached stand)."""
+    go on with a run that was stopped (``build/mutate/<name>/`` kept, its tests refreshed;
+    verdicts already reached stand; after a finished first stage, its ``stage1.json``)."""
     folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
     stage1 = folder / "stage1.json"
     if run:
-        if resume and (folder / "mutants").exists() and not stage1.exists():
+        resuming = resume and (folder / "mutants").exists()
+        if resuming:
             _refresh_tests(folder)        # same mutants, same options: mutmut goes on
         else:
             folder = _scratch(name, module, tests)
         if two_stage and SLOW.get(name):
-            _configure(folder, module, tests, deselect=SLOW[name])
-            _mutmut_run(folder, jobs, sample)
-            first = _results(folder)
-            stage1.write_text(json.dumps(first, indent=1) + "\n")
+            if resuming and stage1.exists():          # stopped in the second stage
+                first = json.loads(stage1.read_text())
+            else:
+                _configure(folder, module, tests, deselect=SLOW[name])
+                _mutmut_run(folder, jobs, sample)
+                first = _results(folder)
+                stage1.write_text(json.dumps(first, indent=1) + "\n")
             diffs = mutant_diffs(folder, module)
             # Timeouts stay timeouts (not killed): re-running a hang costs its whole limit.
             again = sorted(k for k, v in first.items() if v == "survived"
@@ -465,8 +474,8 @@ def main(argv=None):
                         help="first without the module's slow tests (SLOW), then the "
                              "survivors against every test")
     parser.add_argument("--resume", action="store_true",
-                        help="go on with a stopped run's first stage in build/mutate/<module>/ "
-                             "instead of starting afresh")
+                        help="go on with a stopped run in build/mutate/<module>/ instead of "
+                             "starting afresh")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
