@@ -128,7 +128,24 @@ EQUIVALENT = {
        "jacobian=False -> True where the caller discards the Jacobian (``d, _ = _distort(...)``"
        "): the same points, only computed with a Jacobian nobody reads"
        for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
-                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205")},
+                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205",
+                    "xǁLensDistortionǁdistort__mutmut_16")},
+    **{f"core.tracking.distortion.{name}":
+       "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
+       "dimension" for name in ("x__undistortion_table__mutmut_121",
+                                "xǁLensDistortionǁundistort_fast__mutmut_16")},
+    "core.tracking.distortion.x__undistort__mutmut_126":
+        "np.all(np.isfinite(q)) over every point instead of each point's: the mask is only "
+        "read as np.all(converged) (for_image), false in both versions as soon as one point "
+        "is not finite",
+    "core.tracking.distortion.x_coefficients_array__mutmut_21":
+        "c.size >= 5 for > 5: at size 5 c[5:] is empty and np.any of it is False",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_226":
+        "the profile's closing value ring[-1] -> ring[-2]: np.maximum.accumulate makes the "
+        "last entry the largest of ring[1:] and the appended value, which is among ring[1:]",
+    "core.tracking.distortion.xǁLensDistortionǁundistort_fast__mutmut_21":
+        "np.all(None) is False, so the Newton fallback also runs when every point is inside "
+        "the table: on an empty selection, which changes nothing",
     "core.tracking.distortion.x__undistortion_table__mutmut_80":
         "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
         "dimension",
