@@ -64,3 +64,11 @@ from .foot_lock import FootLock, FootLockRule, lock_feet  # noqa: E402  (planted
 
 __all__ += ["PoseChoice", "choose_poses", "BodyTrack", "track_bodies", "Occluder", "FootLock",
             "FootLockRule", "lock_feet"]
+from .keypoint_cue import CameraKeypoints, keypoints_for_parts  # noqa: E402
+from .keypoint_files import (JOINT_SETS, KEYPOINT_PARTS, KeypointFileError,  # noqa: E402
+                             Keypoints2D, read_keypoints, read_keypoints_csv, read_openpose_json,
+                             write_openpose_json)
+
+__all__ += ["CameraKeypoints", "keypoints_for_parts", "JOINT_SETS", "KEYPOINT_PARTS",
+            "KeypointFileError", "Keypoints2D", "read_keypoints", "read_keypoints_csv",
+            "read_openpose_json", "write_openpose_json"]
