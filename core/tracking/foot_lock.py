@@ -20,7 +20,8 @@ is locked and the leg chain solved to keep it there:
   knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`, the rigs' shared IK),
   the foot takes the target orientation. The pin is eased in and out over ``ramp`` frames
   outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
-  Planted*) but never over a key. Key frames are returned bit for bit.
+  Planted*) but never over a key. Key frames are returned bit for bit, and so are the frames of
+  an interval that kept the keys' in-between (the footage did not support tracking there).
 
 A leg whose bones turn about some axes only (``problem.dof_mask``: a mapped rig's hinge knee
 and untwisting foot, Table 1) is solved on those axes only (damped Gauss-Newton, the
@@ -231,7 +232,7 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
     return out
 
 
-def lock_feet(problem, key_index, roots, local, fps, rule=None):
+def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
     """Lock the standing feet of a tracked sequence (module docstring).
 
     Parameters
@@ -245,6 +246,10 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None):
     fps : float
         Frames per second of the clip.
     rule : FootLockRule, optional
+    keep : sequence of int, optional
+        Indices left exactly as they are besides the keys (the tracker passes the frames of
+        intervals that kept the keys' in-between: what the report calls the in-between stays
+        the in-between).
 
     Returns
     -------
@@ -312,6 +317,7 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None):
                     weight[f], goal_pos[f], goal_rot[f] = w, p[-1], r[-1]
             found.append((a, b, inside))
         weight[keys] = 0.0
+        weight[list(keep)] = 0.0
         rows = np.flatnonzero(weight > 0)
         if not len(rows):
             continue
@@ -333,5 +339,6 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None):
             locks.append((side, a, b - 1, tuple(inside),
                           float(shift[sel].max()) if sel.any() else 0.0))
     out[keys] = local[keys]
+    out[list(keep)] = local[list(keep)]
     locks.sort(key=lambda x: (x[1], x[0]))
     return roots, out, locks, skipped

@@ -320,8 +320,12 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
 def _lock_feet(problem, options, keys, result):
     """Planted feet (:mod:`.foot_lock`) on an assembled sequence, in place."""
     index = np.asarray(keys) - int(keys[0])
+    # An interval that kept the keys' in-between (nothing tracked beat it, or it diverged)
+    # stays the in-between: the report says so.
+    keep = [f for i, r in enumerate(result.intervals) if r.kept_iteration == 0 or r.diverged
+            for f in range(index[i] + 1, index[i + 1])]
     _, local, locks, notes = lock_feet(problem, index, result.root_translations,
-                                       result.local_rotations, options.frame_rate)
+                                       result.local_rotations, options.frame_rate, keep=keep)
     result.local_rotations = local
     first = int(result.frames[0])
     result.foot_locks = [FootLock(side, first + a, first + b,

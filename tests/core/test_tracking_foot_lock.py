@@ -151,3 +151,14 @@ def test_off_never_calls_the_lock(monkeypatch):
     # (the two-arm body has no legs: with the lock on nothing changed either)
     np.testing.assert_array_equal(on.local_rotations, off.local_rotations)
     assert off.foot_locks == [] and on.foot_locks == []
+
+
+def test_frames_kept_as_they_are_stay_bit_for_bit(skeleton):
+    """``keep``: the tracker's intervals that kept the keys' in-between are not locked (the
+    report calls them the in-between); the lock eases out before them."""
+    sk = skeleton
+    roots, local = _clip(sk)
+    keep = list(range(16, 30))
+    _, out, locks, _ = lock_feet(_problem(sk), [0, 15, 30], roots, local, FPS, keep=keep)
+    np.testing.assert_array_equal(out[keep], local[keep])
+    assert not np.array_equal(out[1:15], local[1:15])     # the other interval was locked
