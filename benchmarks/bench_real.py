@@ -108,7 +108,9 @@ def run_detection(cameras, cache):
 # ----------------------------------------------------------------------------- reference
 
 def build_reference(detections, views):
-    """Triangulate the reference and passes (2 per camera); figures for real.json."""
+    """Triangulate the reference and passes (2 per camera); figures for real.json; and per
+    camera the held-out reference, ``{camera: (F, 33, 3)}`` triangulated without that camera's
+    views (issue 24)."""
     names = [v.name for v in views]
     passes = ("reference", "flipped")
     pixels = np.stack([detections[c][p].pixels for p in passes for c in names])
@@ -128,13 +130,14 @@ def build_reference(detections, views):
     used = np.where(ref.inliers[:, :, BODY], body_err, np.nan)
     confident = np.where(ref.confident[:, :, BODY], body_err, np.nan)
     # Held out: each camera's detections against the points of the other cameras only.
-    heldout, bias = {}, {}
+    heldout, bias, heldout_points = {}, {}, {}
     for k, c in enumerate(names):
         keep = [i for i in range(2 * n) if i % n != k]
         other = robust_triangulate(pixels[keep], confidence[keep], [all_views[i] for i in keep],
                                    THRESHOLD_PX, MIN_CONFIDENCE)
         heldout[c], bias[c] = heldout_residuals(other.points, pixels, confidence, ref.mirrored,
                                                 all_views, (k, k + n))
+        heldout_points[c] = other.points
     points = ref.points
     bones = {}
     for name, (a, b) in BONE_PAIRS.items():
@@ -159,7 +162,7 @@ def build_reference(detections, views):
         "detector_passes_per_camera": list(passes),
         "triangulation_s": seconds,
     }
-    return ref, figures
+    return ref, figures, heldout_points
 
 
 def heldout_residuals(points, pixels, confidence, mirrored, views, indices):
@@ -327,6 +330,128 @@ def peer_scores(detections, reference_joints):
             "mediapipe_frames_detected": int(np.isfinite(world[:, 0, 0]).sum())}
 
 
+# ----------------------------------------------------------------------------- held out
+
+#: Methods of the held-out table and foot skate (issue 24; ``tracker_keypoints`` is added by
+#: the keypoint cue's rows when present).
+HELD_OUT_METHODS = ("tracker", "detector_raw", "detector_corrected", "slerp", "bezier")
+#: The camera the detector recipe's prior weight is chosen on (and only it).
+WEIGHT_CAMERA = "cam01"
+
+
+def detector_inputs(detections, cam, detector_pass):
+    """The detector's scored joints of one camera: pixels (F, J, 2), confidence (F, J)."""
+    d = detections[cam][detector_pass]
+    return d.pixels[:, rigmod.JOINT_LANDMARKS], d.visibility[:, rigmod.JOINT_LANDMARKS]
+
+
+def held_out_scores(rig, roots, local, all_joints, heldout_points, detections, views, cameras,
+                    spacings, n_frames, detector_pass, weight_camera=WEIGHT_CAMERA,
+                    huber_px=None):
+    """Issue 24 §1: every method against the reference triangulated without the tracked camera
+    (in-between frames, 3D MPJPE cm), per camera and mean; the keys + detector recipe's prior
+    weight chosen on ``weight_camera`` only (lowest mean over the spacings), per variant.
+
+    Returns
+    -------
+    held_out : dict
+        ``{camera: {keys_every_k: {method_cm}}, "mean": {...}, "detector": {...}}``
+    joints : dict
+        ``{(camera, every): {method: (F, J, 3)}}`` of the detector recipe's variants.
+    """
+    from benchmarks.real.detector_recipe import WEIGHTS, detector_recipe
+    names = list(cameras)
+    view_of = dict(zip(names, views))
+    truth = {c: heldout_points[c][:, rigmod.JOINT_LANDMARKS] for c in names}
+
+    def run(cam, every, weight, corrected):
+        keys = key_frames(n_frames, every)
+        pixels, confidence = detector_inputs(detections, cam, detector_pass)
+        return detector_recipe(rig, roots, local, keys, pixels, confidence, view_of[cam],
+                               weight, corrected, MIN_CONFIDENCE, huber_px)
+
+    def error(est, cam, every):
+        inside = interior_frames(key_frames(n_frames, every), n_frames)
+        return float(100 * nanmean(joint_errors(est[inside], truth[cam][inside])))
+
+    chosen, grid = {}, {}
+    for variant, corrected in (("raw", False), ("corrected", True)):
+        grid[variant] = {}
+        if weight_camera in names:
+            for w in WEIGHTS:
+                grid[variant][w] = {f"keys_every_{e}": error(run(weight_camera, e, w, corrected),
+                                                             weight_camera, e)
+                                    for e in spacings}
+            chosen[variant] = min(WEIGHTS, key=lambda w: np.mean(list(grid[variant][w].values())))
+        else:
+            chosen[variant] = WEIGHTS[len(WEIGHTS) // 2]
+    out, joints = {}, {}
+    for cam in names:
+        for every in spacings:
+            rows = {}
+            got = all_joints.get((cam, every), {})
+            for method in ("tracker", "slerp", "bezier"):
+                if method in got:
+                    rows[f"{method}_cm"] = error(got[method], cam, every)
+            det = {f"detector_{v}": run(cam, every, chosen[v], v == "corrected")
+                   for v in ("raw", "corrected")}
+            for method, est in det.items():
+                rows[f"{method}_cm"] = error(est, cam, every)
+            joints[(cam, every)] = det
+            out.setdefault(cam, {})[f"keys_every_{every}"] = rows
+    mean = {}
+    for every in spacings:
+        k = f"keys_every_{every}"
+        fields = set.intersection(*(set(out[c][k]) for c in names))
+        mean[k] = {f: float(np.mean([out[c][k][f] for c in names])) for f in sorted(fields)}
+    out["mean"] = mean
+    out["detector"] = {
+        "pass": detector_pass, "huber_px": huber_px,
+        "weight": chosen, "weight_chosen_on": weight_camera,
+        "weight_units": "pixels^2 per rad^2 (root: per (0.1 m)^2)",
+        "weight_grid_cm": {v: {str(w): r for w, r in g.items()} for v, g in grid.items()},
+        "what": "keys + MediaPipe 2D landmarks of the tracked camera: every in-between frame "
+                "fitted to the landmarks (confidence-weighted, reprojection in pixels) with a "
+                "prior towards the slerp of the keys; corrected: the landmarks shifted by the "
+                "detector's offset at the keys, interpolated between keys; one prior weight "
+                f"per variant chosen on {weight_camera} only (lowest mean over the spacings) "
+                "and applied to every camera"}
+    out["what"] = ("3D MPJPE (cm) on the in-between frames against the reference triangulated "
+                   "WITHOUT the tracked camera (its two passes left out): the tracked camera's "
+                   "own detections cannot favour a method")
+    return out, joints
+
+
+def foot_skate_scores(reference_joints, all_joints, detector_joints, cameras, spacings):
+    """``foot_skate_cm_s`` (mean over cameras and spacings per method, and the reference's own)
+    and its detail per spacing and camera (``benchmarks/real/feet.py``: the contact rule)."""
+    from benchmarks.real import feet
+    contact = feet.contact_frames(reference_joints, FPS)
+    detail = {}
+    for every in spacings:
+        k = f"keys_every_{every}"
+        for cam in cameras:
+            methods = {**all_joints.get((cam, every), {}), **detector_joints.get((cam, every),
+                                                                                 {})}
+            for method in HELD_OUT_METHODS:
+                if method in methods:
+                    detail.setdefault(k, {}).setdefault(method, {})[cam] = feet.foot_skate(
+                        methods[method], contact, FPS)
+        for method, per in detail.get(k, {}).items():
+            per["mean"] = float(np.mean([per[c] for c in cameras if c in per]))
+    summary = {m: float(np.mean([detail[k][m]["mean"] for k in detail if m in detail[k]]))
+               for m in HELD_OUT_METHODS if any(m in detail[k] for k in detail)}
+    summary["reference"] = feet.foot_skate(reference_joints, contact, FPS)
+    rule = {"low_m": feet.LOW_M, "floor_percentile": feet.FLOOR_PERCENTILE,
+            "slow_m_s": feet.SLOW_M_S, "span_frames": feet.SPAN,
+            "contact_frames": {s: int(c.sum()) for s, c in contact.items()},
+            "what": "horizontal speed (cm/s) of heel and toe from frame to frame where the foot "
+                    "stands at both (contact judged on the reference for the whole clip: low = "
+                    "within low_m of that foot's floor percentile, slow = reference speed over "
+                    "span_frames under slow_m_s); per method the mean over cameras and spacings"}
+    return summary, {"by_spacing": detail, "rule": rule}
+
+
 # ----------------------------------------------------------------------------- main
 
 def parse_args():
@@ -368,6 +493,13 @@ def parse_args():
                         help="development: save what the operator handed the core (problem, "
                              "keys, decoded frames) and the reference into this folder, for "
                              "benchmarks/real/core_replay.py")
+    parser.add_argument("--detector-pass", default="reference", choices=("peer", "reference"),
+                        help="the MediaPipe pass the keys + detector recipe fits (reference: "
+                             "the tracked camera's landmarks without smoothing, default; peer: "
+                             "MediaPipe's defaults, landmark smoothing on)")
+    parser.add_argument("--detector-huber-px", type=float, default=20.0,
+                        help="the detector recipe's fit under Huber's loss beyond this many "
+                             "pixels (default 20; 0: plain least squares)")
     parser.add_argument("--reuse-blender", action="store_true",
                         help="score the Blender stage's last output again (development only)")
     return parser.parse_args()
@@ -394,7 +526,7 @@ def main():
     n_frames = len(detections[args.cameras[0]]["reference"].pixels)
 
     print("2/5 reference: triangulation", flush=True)
-    ref, ref_figures = build_reference(detections, views)
+    ref, ref_figures, heldout_points = build_reference(detections, views)
     reference_joints = ref.points[:, rigmod.JOINT_LANDMARKS]
     stages["reference"], tic = time.perf_counter() - tic, time.perf_counter()
 
@@ -466,6 +598,12 @@ def main():
             key = "all" if sorted(cams) == sorted(args.cameras) else run
             multi.setdefault(key, {})[f"keys_every_{every}"] = scores
         all_joints[(run, every)] = joints
+    held_out, detector_joints = held_out_scores(
+        rig, roots, local, all_joints, heldout_points, detections, views, args.cameras,
+        args.spacings, n_frames, args.detector_pass,
+        huber_px=args.detector_huber_px if args.detector_huber_px > 0 else None)
+    skate, skate_detail = foot_skate_scores(reference_joints, all_joints, detector_joints,
+                                            args.cameras, args.spacings)
     for cam in args.cameras:
         single.setdefault(cam, {}).update(peer_scores(detections[cam]["peer"], reference_joints))
         single[cam]["tracker_camera_vs_calibration"] = camera_checks.get(cam)
@@ -516,6 +654,9 @@ def main():
                                              (100 * nanmean(residuals, axis=0)).round(3).tolist())),
             "rig_fit_s": fit_s},
         "single_view": single,
+        "held_out": held_out,
+        "foot_skate_cm_s": skate,
+        "foot_skate": skate_detail,
         **({"multi_view": multi} if multi else {}),
         "mean_over_cameras": mean_over,
         "speed": speed,
@@ -644,6 +785,21 @@ def print_tables(results, args):
     for e, m in results["mean_over_cameras"].items():
         print(f"  mean {e}: {m['tracker_cm']:.2f} / {m['slerp_cm']:.2f} / {m['bezier_cm']:.2f} cm "
               f"(x{m['tracker_over_slerp']:.2f})")
+    ho = results["held_out"]
+    print("\nHeld-out reference (triangulated without the tracked camera): 3D MPJPE cm on "
+          "in-between frames; detector prior weight chosen on "
+          f"{ho['detector']['weight_chosen_on']} only: {ho['detector']['weight']}")
+    cols = [m for m in HELD_OUT_METHODS + ("tracker_keypoints",)]
+    print("  " + " " * 22 + "".join(f"{m:>20s}" for m in cols))
+    for c in list(args.cameras) + ["mean"]:
+        for e in args.spacings:
+            r = ho[c][f"keys_every_{e}"]
+            print(f"  {c:5s} keys every {e:2d}:    " + "".join(
+                f"{r[m + '_cm']:20.2f}" if m + "_cm" in r else f"{'-':>20s}" for m in cols))
+    print("\nFoot skate cm/s (mean over cameras and spacings; contact judged on the reference): "
+          + ", ".join(f"{m} {v:.1f}" for m, v in results["foot_skate_cm_s"].items()))
+    for k, rows in results["foot_skate"]["by_spacing"].items():
+        print(f"  {k}: " + ", ".join(f"{m} {v['mean']:.1f}" for m, v in rows.items()))
     s = results["speed"]
     print(f"\nSpeed: Track Keyframes {s['tracker_fps']:.1f} frames/s (without Blender's "
           f"decoding {s['tracker_fps_without_decoding']:.1f}, the core alone "

@@ -240,3 +240,85 @@ def test_similarity_alignment_recovers_a_similarity():
     # A mirror image cannot be aligned by a proper rotation: the error stays.
     mirrored = dst * [1.0, 1.0, -1.0]
     assert aligned_errors(src[None], mirrored[None]).mean() > 0.05
+
+
+# ----------------------------------------------------------------------------- issue 24
+
+def _keyed_clip(rig, n_frames=21, keys=(1, 11, 21)):
+    """A smooth clip (every frame's pose) and its keys: slerp-able but not a slerp."""
+    from benchmarks.real.detector_recipe import slerp_of_keys
+    nb = len(rig.parents)
+    t = np.linspace(0.0, 1.0, n_frames)[:, None, None]
+    axes = RNG.normal(0, 0.3, (nb, 3))
+    wobble = RNG.normal(0, 0.15, (nb, 3))
+    local = exp_so3(axes[None] * t + wobble[None] * np.sin(3 * np.pi * t))
+    local[:, rig.locked] = np.eye(3)
+    roots = np.column_stack([np.linspace(0, 0.3, n_frames), np.zeros(n_frames),
+                             0.05 * np.sin(np.linspace(0, 3, n_frames))])
+    return roots, local, list(keys), slerp_of_keys(rig, roots, local, list(keys))
+
+
+def test_detector_recipe_follows_exact_detections_and_its_prior():
+    """With exact 2D landmarks and a weak prior the fit reprojects onto them; with a very
+    strong prior it is the slerp of the keys; the keys stay the keys."""
+    from benchmarks.real.detector_recipe import detector_recipe
+    rig = rigmod.build_rig(SIZE)
+    roots, local, keys, (s_roots, s_local) = _keyed_clip(rig)
+    view = _views(1)[0]
+    truth = rig.pose_joints(roots, local)
+    pixels = project(truth, view)
+    confidence = np.ones(pixels.shape[:2])
+    weak = detector_recipe(rig, roots, local, keys, pixels, confidence, view, 1e-3, False)
+    # (one view: a few frames settle in a local minimum, a limb bent the mirrored way in depth)
+    error = np.linalg.norm(project(weak, view) - pixels, axis=-1)
+    assert np.nanmedian(error) < 1e-3 and np.nanmean(error) < 0.1
+    slerp = rig.pose_joints(s_roots, s_local)
+    # the slerp is far off the detections: the fit did move
+    assert np.nanmean(np.linalg.norm(project(slerp, view) - pixels, axis=-1)) > 5.0
+    strong = detector_recipe(rig, roots, local, keys, pixels, confidence, view, 1e12, False)
+    np.testing.assert_allclose(strong, slerp, atol=1e-6)
+    key_idx = np.array(keys) - 1
+    np.testing.assert_allclose(weak[key_idx], truth[key_idx], atol=1e-12)
+
+
+def test_key_offset_correction_removes_a_detector_bias():
+    """A detector that puts every joint 25 px to the right (a constant per joint) and drops a
+    joint at a key: corrected, the recipe fits as if the detections were unbiased."""
+    from benchmarks.real.detector_recipe import detector_recipe, key_offsets
+    rig = rigmod.build_rig(SIZE)
+    roots, local, keys, _ = _keyed_clip(rig)
+    view = _views(1)[0]
+    exact = project(rig.pose_joints(roots, local), view)
+    bias = RNG.normal(0, 15, (1, exact.shape[1], 2)) + [25.0, 0.0]
+    confidence = np.ones(exact.shape[:2])
+    confidence[10, 3] = 0.1                     # no detection of joint 3 at the middle key
+    offsets = key_offsets(rig, roots, local, exact + bias, confidence, keys, view)
+    np.testing.assert_allclose(offsets, np.broadcast_to(-bias, offsets.shape), atol=1e-9)
+    clean = detector_recipe(rig, roots, local, keys, exact, confidence, view, 1e2, False)
+    corrected = detector_recipe(rig, roots, local, keys, exact + bias, confidence, view, 1e2,
+                                True)
+    raw = detector_recipe(rig, roots, local, keys, exact + bias, confidence, view, 1e2, False)
+    np.testing.assert_allclose(corrected, clean, atol=1e-6)
+    assert np.nanmean(np.linalg.norm(raw - clean, axis=-1)) > 0.01
+
+
+def test_foot_skate_counts_a_standing_foot_that_slides():
+    """The contact rule finds the standing foot (low, slow on the reference) and not the
+    swinging one; skate = a method's heel/toe speed there, 0 for the reference's still foot."""
+    from benchmarks.real import feet
+    n, fps = 60, 60.0
+    names = rigmod.JOINT_NAMES
+    ref = np.zeros((n, len(names), 3))
+    ref[..., 2] = 1.0                                  # everything else high
+    t = np.arange(n) / fps
+    for name in ("left_heel", "left_foot_index"):      # left foot stands still on the floor
+        ref[:, names.index(name)] = [0.1, 0.0, 0.02]
+    for name in ("right_heel", "right_foot_index"):    # right foot swings forward, low
+        ref[:, names.index(name)] = np.column_stack([1.0 * t, 0.3 + 0 * t, 0.03 + 0 * t])
+    contact = feet.contact_frames(ref, fps)
+    assert contact["left"][2:-2].all() and not contact["right"].any()
+    assert feet.foot_skate(ref, contact, fps) == pytest.approx(0.0)
+    sliding = ref.copy()
+    for name in ("left_heel", "left_foot_index"):
+        sliding[:, names.index(name), 0] += 0.2 * t    # 20 cm/s along X
+    assert feet.foot_skate(sliding, contact, fps) == pytest.approx(20.0)
