@@ -10,6 +10,8 @@ join over the leave-one-walker-out windows.
 2. **Runs.** The captured runs' cadence, stride, hip swing and speed; a cadence direction
    learned from the runs alone by the walks' recipe (:mod:`core.gait.retiming`), applied to
    the restyled run at 1.3 and 1.6 against the walks' direction and the fast-forward.
+   (Sections 1-2 use that model with every piece under its own name, named styles as the mean
+   of their pieces, which is what ``learn_model`` ships.)
 3. **The join.** The six fold models and the windows Predict Gait accepts (``check_gait``),
    ``predict_walk`` with defaults: per subject, the windows whose root acceleration across the
    join exceeds the trial's 99th percentile, against the captured continuation, and how many
@@ -32,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 import gait_lowo as L  # noqa: E402
 import gait_restyle as R  # noqa: E402
 from build_stock_gaits import FPS, training_pieces  # noqa: E402
-from core.gait import adapt, observations_from_dofs, restyle  # noqa: E402
+from core.gait import adapt, observations_from_dofs  # noqa: E402
 from core.gait.checks import check_gait  # noqa: E402
 from core.gait.learning import learn_model  # noqa: E402
 from core.gait.prediction import cycle_mean  # noqa: E402
@@ -67,28 +69,38 @@ def figures(model, who, w, factor, cadence, retime="natural", cadence_style=None
 
 
 def careful_and_runs():
+    """Sections 1 and 2 on the fold model learned with every piece under its own name (the
+    same pieces, bases and cadence direction as ``gait_restyle``'s fold; a named style is the
+    mean of its pieces, as ``learn_model`` merges them)."""
     seqs, names, styles, walkers = training_pieces(STOCK_RECIPE, exclude_subjects=["07"])
     labels = np.array(styles)
     own = learn_model(seqs, names, FPS, [f"{s}#{i}" for i, s in enumerate(styles)],
                       walkers=walkers, lag_range=STOCK_LAG_RANGE)
-    fold = L.fold_model(L.Method("method"), [s for s in L.SUBJECTS if s != "07"])
-    who = walker(fold)
+    who = walker(own)
+
+    def named(label):
+        return own.styles[labels == label].mean(axis=0), \
+            float(np.exp(np.log(own.periods[labels == label]).mean()))
+
     print("1. careful pieces (fold without 07): period (frames at 60 Hz), style")
     pieces = own.styles[labels == "careful"]
     for p, s in zip(own.periods[labels == "careful"], pieces):
         print(f"   {p:6.1f}  {np.round(s, 2)}")
     medoid = pieces[np.argmin(np.linalg.norm(pieces[:, None] - pieces[None], axis=2).sum(1))]
-    fwd = fold.channel_index(["root.v_forward"])[0]
-    for tag, style in (("mean (shipped)", fold.style("careful")), ("medoid", medoid)):
-        w = who[2].w + style - fold.style("normal")
-        _, factor = restyle(fold, who[2].w, "normal", "careful", 1.0)
-        speed = cycle_mean(fold, w, who[2].residual, who[2].offset)[fwd]
+    normal, t_normal = named("normal")
+    mean, t_careful = named("careful")
+    factor = t_normal / t_careful
+    fwd = own.channel_index(["root.v_forward"])[0]
+    for tag, style in (("mean (shipped)", mean), ("medoid", medoid)):
+        w = who[2].w + style - normal
+        speed = cycle_mean(own, w, who[2].residual, who[2].offset)[fwd]
         print(f"   careful {tag}: model speed {speed:.2f} m/s on 07_04")
         for c in R.CADENCES:
-            print(f"     {c:g}  natural  {figures(fold, who, w, factor, c)}")
-            print(f"          fast-fwd {figures(fold, who, w, factor, c, 'fast_forward')}")
+            print(f"     {c:g}  natural  {figures(own, who, w, factor, c)}")
+            print(f"          fast-fwd {figures(own, who, w, factor, c, 'fast_forward')}")
+    zero = cycle_mean(own, 0 * own.cadence_style)[fwd]
     print("   cadence direction: speed change per unit log cadence "
-          f"{cycle_mean(fold, fold.cadence_style)[fwd] - cycle_mean(fold, 0 * fold.cadence_style)[fwd]:.2f} m/s")
+          f"{cycle_mean(own, own.cadence_style)[fwd] - zero:.2f} m/s")
     for trial in STOCK_RECIPE["careful"]:
         f = R.captured_figures(trial)
         print(f"   captured {trial}: " + "  ".join(f"{k.split('_')[0]} {f[k]:6.2f}"
@@ -109,11 +121,12 @@ def careful_and_runs():
     gamma = (cadence @ pace) / (cadence @ cadence)
     run_direction = gamma * (pace @ (runs - runs.mean(axis=0)) / (pace @ pace))
     print(f"   run direction (runs only, gamma {gamma:.2f}): {np.round(run_direction, 2)}")
-    w, factor = restyle(fold, who[2].w, "normal", "run", 1.0)
+    run, t_run = named("run")
+    w, factor = who[2].w + run - normal, t_normal / t_run
     for c in (1.3, 1.6):
-        print(f"   run {c:g} walks' direction {figures(fold, who, w, factor, c)}")
-        print(f"       runs' direction  {figures(fold, who, w, factor, c, cadence_style=run_direction)}")
-        print(f"       fast-forward     {figures(fold, who, w, factor, c, 'fast_forward')}")
+        print(f"   run {c:g} walks' direction {figures(own, who, w, factor, c)}")
+        print(f"       runs' direction  {figures(own, who, w, factor, c, cadence_style=run_direction)}")
+        print(f"       fast-forward     {figures(own, who, w, factor, c, 'fast_forward')}")
 
 
 def join():
