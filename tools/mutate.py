@@ -128,7 +128,24 @@ EQUIVALENT = {
        "jacobian=False -> True where the caller discards the Jacobian (``d, _ = _distort(...)``"
        "): the same points, only computed with a Jacobian nobody reads"
        for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
-                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205")},
+                    "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205",
+                    "xǁLensDistortionǁdistort__mutmut_16")},
+    **{f"core.tracking.distortion.{name}":
+       "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
+       "dimension" for name in ("x__undistortion_table__mutmut_121",
+                                "xǁLensDistortionǁundistort_fast__mutmut_16")},
+    "core.tracking.distortion.x__undistort__mutmut_126":
+        "np.all(np.isfinite(q)) over every point instead of each point's: the mask is only "
+        "read as np.all(converged) (for_image), false in both versions as soon as one point "
+        "is not finite",
+    "core.tracking.distortion.x_coefficients_array__mutmut_21":
+        "c.size >= 5 for > 5: at size 5 c[5:] is empty and np.any of it is False",
+    "core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_226":
+        "the profile's closing value ring[-1] -> ring[-2]: np.maximum.accumulate makes the "
+        "last entry the largest of ring[1:] and the appended value, which is among ring[1:]",
+    "core.tracking.distortion.xǁLensDistortionǁundistort_fast__mutmut_21":
+        "np.all(None) is False, so the Newton fallback also runs when every point is inside "
+        "the table: on an empty selection, which changes nothing",
     "core.tracking.distortion.x__undistortion_table__mutmut_80":
         "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
         "dimension",
@@ -163,6 +180,75 @@ EQUIVALENT = {
        'case)' for name in ("x__first_frame_bones__mutmut_25", "x__parse_header__mutmut_30")},
     "core.mocap.amc.x_write_amc__mutmut_12":
         'encoding="UTF-8" is encoding="utf-8" (codec names ignore case)',
+    **{f"core.mocap.amc.{name}": '"UTF-8" is "utf-8" (codec names ignore case), and '
+       'str.encode\'s default codec is UTF-8'
+       for name in ("x__text_lines__mutmut_27", "x_parse_amc_steps__mutmut_9",
+                    "x_parse_amc_steps__mutmut_12")},
+    "core.mocap.amc.x__parse_header__mutmut_11":
+        "while pos <= len(data): the one more turn (pos == len(data)) happens only when every "
+        "line was header and the data ends with a newline; it reads an empty line, leaves "
+        "offset at len(data) and only counts one more header line, and parse_amc_steps then "
+        "refuses 'no frames' with a line count of its own",
+    "core.mocap.amc.x__parse_header__mutmut_58":
+        ":RADIANS sets degrees = None for False: the flag is only tested for truth "
+        "(_value_units, _to_core_units)",
+    **{f"core.mocap.amc.x__parse_slow__mutmut_{i}":
+       "_parse_slow's own 'the file has no frames' cannot be reached: its lines are a "
+       "non-empty range (begin < end), and the first line either raises (blank, not a "
+       "frame number) or starts a frame, so current is never None after the loop"
+       for i in range(158, 168)},
+    "core.mocap.amc.x__text_lines__mutmut_2":
+        "while pos <= end: pos reaches end only when a piece ends at a newline at end - 1, "
+        "and the caller's end is the end of a non-blank line (_end_of_last_line)",
+    "core.mocap.amc.x__text_lines__mutmut_9":
+        "if cut <= end: at cut == end the search of the empty range finds nothing and cut "
+        "stays end",
+    **{f"core.mocap.amc.x__text_lines__mutmut_{i}":
+       "a piece that ends at another newline before end, or at end itself (rfind, a "
+       "pattern never found, `or True`): the same lines, split into other pieces"
+       for i in (17, 18, 21)},
+    **{f"core.mocap.amc.x__text_lines__mutmut_{i}":
+       "newline <= 0 / < 1 for < 0: the search starts at cut = pos + piece >= 1, so it finds "
+       "-1 or a position >= 1, never 0" for i in (22, 23)},
+    **{f"core.mocap.amc.x__end_of_last_line__mutmut_{i}":
+       "newline > 0 / >= 1 for >= 0: a newline at byte 0 would need offset 0 (no header) and "
+       "a blank first line, but a blank line is header (_parse_header), so offset > 0 then"
+       for i in (17, 18, 25, 26)},
+    **{f"core.mocap.amc.x__end_of_last_line__mutmut_{i}":
+       "when no newline is left in [offset, end) the range is the first body line, which is "
+       "never blank (_parse_header stops at the first line that is not blank, a comment or "
+       "a keyword): the search from the data's start finds the header's last newline, "
+       "offset - 1 (the same begin); begin 0 instead of offset and end = -1 are never "
+       "reached or read, as that line returns at once"
+       for i in (5, 14, 24)},
+    "core.mocap.amc.x__end_of_last_line__mutmut_21":
+        '.decode("UTF-8") is .decode("utf-8") (codec names ignore case)',
+    "core.mocap.amc.x__first_frame_bones__mutmut_8":
+        "one line more (len(layout.bones) + 3): at that line names already holds "
+        "len(layout.bones) + 1 entries or the loop broke, so the bones never match either way",
+    "core.mocap.amc.x__first_frame_bones__mutmut_18":
+        "the second-last body line read up to the body's end (i + 2 < len): it then holds the "
+        "last line's tokens too; its first token (bone name, frame number) is unchanged, a "
+        "first line with more tokens is refused as before, and a blank one now takes the last "
+        "bone's name, which the last line adds again, so the names never match",
+    "core.mocap.amc.x__first_frame_bones__mutmut_28":
+        "a first line that is not one frame number (`and` for `or`) goes on to the "
+        "vectorised parser, which checks every frame-number line itself (one token, ASCII "
+        "digits) and hands that frame to the line-by-line parser: the same error",
+    **{f"core.mocap.amc.x__text_lines__mutmut_{i}":
+       "the newline search to the data's end or from end: the caller's end is a line's end "
+       "(data[end] is a newline, or end is len(data)), so the first newline found is at end "
+       "at the latest and the piece ends at a newline or at end: the same lines"
+       for i in (13, 15, 16)},
+    **{f"core.mocap.amc.x_parse_amc_steps__mutmut_{i}":
+       "the empty start (numbers, values) when _first_frame_bones finds no complete first "
+       "frame: the line-by-line parser then refuses that first frame (no frame number, a "
+       "blank line, a missing, unknown or repeated bone), so these arrays are never returned"
+       for i in (86, 88, 89, 91)},
+    "core.mocap.amc.x_parse_amc_steps__mutmut_121":
+        "bone_order from the first frame's bones also when the vectorised parser read no "
+        "frame (`or`): the line-by-line parser then reads that same first frame and its "
+        "order is those bones in the same order, so `bone_order or slow_order` is the same",
 }
 
 #: Kinds of change that cannot alter behaviour here, recognised in a surviving mutant's diff
@@ -219,6 +305,8 @@ def _configure(folder, module, tests, deselect=()):
     args = ["-p", "no:cacheprovider", "-q", "-x"]
     for test in deselect:
         args += ["--deselect", test]
+    if any(" " in test for test in deselect):
+        raise ValueError("a test id with a space cannot be written to setup.cfg")
     (folder / "setup.cfg").write_text(
         "[mutmut]\n"
         "source_paths = core\n"
@@ -226,6 +314,28 @@ def _configure(folder, module, tests, deselect=()):
         f"tests_dir ={items(tests)}\n"
         "also_copy =\n    tests\n    sample_scenes\n    pytest.ini\n"
         f"pytest_add_cli_args ={items(args)}\n")
+
+
+def _all_tests(folder, tests):
+    """Every test id pytest collects from ``tests`` in the scratch copy ``folder``."""
+    done = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q",
+                           "-p", "no:cacheprovider", *tests], cwd=folder,
+                          capture_output=True, text=True)
+    found = [line.strip() for line in done.stdout.splitlines() if "::" in line]
+    if done.returncode != 0 or not found:
+        raise RuntimeError(f"cannot list the tests of {tests}:\n{done.stdout}{done.stderr}")
+    return found
+
+
+def _but_slow(all_tests, slow):
+    """``--deselect`` ids of every test of ``all_tests`` but the ``slow`` ones (a parametrised
+    test by its function's id: pytest deselects by id prefix, and case ids may hold spaces,
+    which setup.cfg cannot)."""
+    out = sorted({t.split("[")[0] for t in all_tests if t.split("[")[0] not in slow})
+    hit = [t for t in slow if t.startswith(tuple(out))]
+    if hit:
+        raise ValueError(f"deselecting the fast tests would deselect slow ones too: {hit}")
+    return out
 
 
 def _results(folder):
@@ -286,7 +396,24 @@ def _mutmut_run(folder, jobs, names=()):
                     *names], cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
 
 
-def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=()):
+def _merged(first, second):
+    """A mutant's verdict from its first-stage one and the slow tests' (``second``: 'not
+    checked' when stage 2 did not run it, 'no tests' when no slow test calls its function)."""
+    if "killed" in (first, second):
+        return "killed"
+    if second == "timeout":               # a slow test hangs: the whole file would
+        return second
+    return first or second
+
+
+def _refresh_tests(folder):
+    """Copy the project's current tests into an existing scratch copy (mutmut keeps every
+    verdict and maps the new tests to the functions they call)."""
+    shutil.copytree(ROOT / "tests", folder / "tests", dirs_exist_ok=True,
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.blend1"))
+
+
+def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=(), resume=False):
     """Mutate ``module`` in a fresh scratch copy and score it; ``run=False``: score the results
     already in ``build/mutate/<name>/`` (e.g. after re-running some mutants there with
     ``mutmut run NAME...``). ``two_stage``: first without the module's :data:`SLOW` tests,
@@ -294,32 +421,43 @@ def run_module(name, module, tests, jobs, run=True, two_stage=False, sample=()):
     verdicts are kept in ``build/mutate/<name>/stage1.json``: mutmut forgets every verdict
     when its test options change). ``sample``: mutmut name patterns (fnmatch) of the mutants
     to run, e.g. ``*__mutmut_*[05]`` (every mutant numbered …0 or …5: a fifth of each
-    function's, the same ones every time); the score is then over those only."""
+    function's, the same ones every time); the score is then over those only. ``resume``:
+    go on with a run that was stopped (``build/mutate/<name>/`` kept, its tests refreshed;
+    verdicts already reached stand; after a finished first stage, its ``stage1.json``)."""
     folder = ROOT / "build" / "mutate" / name
     tic = time.perf_counter()
     stage1 = folder / "stage1.json"
     if run:
-        folder = _scratch(name, module, tests)
+        resuming = resume and (folder / "mutants").exists()
+        if resuming:
+            _refresh_tests(folder)        # same mutants, same options: mutmut goes on
+        else:
+            folder = _scratch(name, module, tests)
         if two_stage and SLOW.get(name):
-            _configure(folder, module, tests, deselect=SLOW[name])
-            _mutmut_run(folder, jobs, sample)
-            first = _results(folder)
-            stage1.write_text(json.dumps(first, indent=1) + "\n")
+            if resuming and stage1.exists():          # stopped in the second stage
+                first = json.loads(stage1.read_text())
+            else:
+                _configure(folder, module, tests, deselect=SLOW[name])
+                _mutmut_run(folder, jobs, sample)
+                first = _results(folder)
+                stage1.write_text(json.dumps(first, indent=1) + "\n")
             diffs = mutant_diffs(folder, module)
-            again = sorted(k for k, v in first.items() if v not in ("killed", "not checked")
-                           and not (v == "survived" and (k in EQUIVALENT
-                                                         or equivalent_kind(diffs.get(k)))))
-            _configure(folder, module, tests)
+            # Timeouts stay timeouts (not killed): re-running a hang costs its whole limit.
+            again = sorted(k for k, v in first.items() if v == "survived"
+                           and not (k in EQUIVALENT or equivalent_kind(diffs.get(k))))
+            # The second stage runs the slow tests only: killed by the whole file <=> killed
+            # by the fast tests (stage 1) or by the slow ones.
+            _configure(folder, module, tests,
+                       deselect=_but_slow(_all_tests(folder, tests), SLOW[name]))
             (folder / "mutants" / "mutmut-stats.json").unlink(missing_ok=True)
             if again:
                 _mutmut_run(folder, jobs, again)
         else:
             _mutmut_run(folder, jobs, sample)
     statuses = _results(folder)
-    if stage1.exists():                   # a two-stage run: the first stage's kills stand,
-        first = json.loads(stage1.read_text())  # and its equivalent survivors (not run again)
-        statuses = {k: first[k] if first.get(k) == "killed" or v == "not checked" else v
-                    for k, v in statuses.items()}
+    if stage1.exists():                   # a two-stage run: the first stage's verdicts stand
+        first = json.loads(stage1.read_text())  # unless the slow tests killed the mutant
+        statuses = {k: _merged(first.get(k), v) for k, v in statuses.items()}
     if sample:
         statuses = {k: v for k, v in statuses.items()
                     if any(fnmatch.fnmatch(k, pattern) for pattern in sample)}
@@ -352,12 +490,16 @@ def main(argv=None):
     parser.add_argument("--two-stage", action="store_true",
                         help="first without the module's slow tests (SLOW), then the "
                              "survivors against every test")
+    parser.add_argument("--resume", action="store_true",
+                        help="go on with a stopped run in build/mutate/<module>/ instead of "
+                             "starting afresh")
     args = parser.parse_args(argv)
     rows = []
     for name in args.only or MODULES:
         module, tests = MODULES[name]
         row = run_module(name, module, tests, args.jobs, run=not args.no_run,
-                         two_stage=args.two_stage, sample=tuple(args.sample))
+                         two_stage=args.two_stage, sample=tuple(args.sample),
+                         resume=args.resume)
         rows.append(row)
         print(f"{module}: {row['killed']}/{row['mutants']} killed, "
               f"{len(row['equivalent'])} equivalent, score {row['score']} "

@@ -676,3 +676,182 @@ def test_bone_order_of_a_file_read_line_by_line_is_its_first_frames(walk):
     frames[-1] = [frames[-1][0]] + frames[-1][1:][::-1]
     motion = parse_amc(head + [l for f in frames for l in f], asf)
     assert motion.bone_order == tuple(l.split()[0] for l in first)
+
+
+# --------------------------------------------------------------------------- header, units, edges
+
+def test_without_an_angle_keyword_the_file_is_in_the_skeletons_unit():
+    """No :DEGREES / :RADIANS line: the angles are in the ASF's unit ('deg' for CMU's 08.asf,
+    else radians), exactly as if the keyword were there."""
+    asf = read_asf(cmu_path("08.asf"))
+    lines = _head(raw_lines(cmu_path("08_01.amc")), 3)
+    assert lines[2] == ":DEGREES"
+    bare = lines[:2] + lines[3:]
+    np.testing.assert_array_equal(parse_amc(bare, asf).values, parse_amc(lines, asf).values)
+    in_radians = dataclasses.replace(asf, angle_unit="rad")
+    small = _quarter_turn_motion(in_radians)          # π/2 in the file: a plausible radian
+    text = format_amc(in_radians, small).splitlines()
+    assert text[2] == ":RADIANS"
+    np.testing.assert_array_equal(parse_amc(text[:2] + text[3:], in_radians).values,
+                                  parse_amc(text, in_radians).values)
+    # The same file read with the degree skeleton: its π/2 is taken as π/2 degrees.
+    np.testing.assert_allclose(parse_amc(text[:2] + text[3:], asf).values,
+                               small.values * np.pi / 180.0, rtol=1e-15)
+
+
+def test_header_less_and_blank_first_line_files_parse_with_their_line_numbers():
+    """A file that starts with its first frame (no header), or with a blank line: the same
+    motion, and errors name the line as an editor counts it."""
+    asf = read_asf(cmu_path("08.asf"))
+    lines = _head(raw_lines(cmu_path("08_01.amc")), 3)
+    reference = parse_amc(lines, asf)
+    body = lines[3:]
+    np.testing.assert_array_equal(parse_amc(body, asf).values, reference.values)
+    np.testing.assert_array_equal(parse_amc([""] + lines, asf).values, reference.values)
+    bad = list(body)
+    bad[1] = bad[1] + " 7"                               # the root line of frame 1
+    err = amc_error(bad, asf)
+    assert (err.path, err.line) == ("walk.amc", 2) and "needs 6 values, got 7" in err.reason
+    err = amc_error([""] + lines[:4] + [bad[1]] + lines[5:], asf)
+    assert (err.path, err.line) == ("walk.amc", 6)
+    slow = _regular_then_reversed(4, 2)[3:]             # header-less, line-by-line from frame 3
+    frame3 = slow.index("3")
+    bad = slow[:frame3 + 1] + [slow[frame3 + 1] + " 7"] + slow[frame3 + 2:]
+    err = amc_error(bad, asf)
+    count = len(slow[frame3 + 1].split()) - 1
+    assert (err.path, err.line) == ("walk.amc", frame3 + 2)
+    assert err.reason.endswith(f"needs {count} values, got {count + 1}")
+
+
+def test_unknown_header_keyword_names_file_line_and_keyword(walk):
+    asf, lines = walk
+    err = amc_error(lines[:1] + [":SOMETHING-ELSE"] + lines[1:], asf)
+    assert (err.path, err.line, err.reason) == ("walk.amc", 2,
+                                                "unknown header keyword ':SOMETHING-ELSE'")
+    assert str(err) == "walk.amc:2: unknown header keyword ':SOMETHING-ELSE'"
+
+
+@pytest.mark.parametrize("trailing", ["", "\n", "\n\n  \n"])
+def test_a_file_without_frames_names_its_last_line(walk, trailing):
+    """Only a header (and blank lines): 'the file has no frames' at the file's last line as
+    an editor counts it; an empty file names no line."""
+    asf, lines = walk
+    text = "\n".join(lines[:3]) + trailing
+    expected = len(text.splitlines())
+    for source in (text, text.encode()):
+        err = amc_error(source, asf)
+        assert (err.path, err.line, err.reason) == ("walk.amc", expected,
+                                                    "the file has no frames")
+    err = amc_error(b"", asf)
+    assert (err.path, err.line, err.reason) == ("walk.amc", None, "the file has no frames")
+
+
+def test_text_that_is_not_utf8_is_refused_naming_the_file():
+    """A lone surrogate in a str, or bytes that are not UTF-8: MocapParseError naming the file
+    (not a UnicodeError from the encoder)."""
+    asf = read_asf(cmu_path("08.asf"))
+    for source in ("1\nroot 0 0 0 0 0 \ud800\n", b"1\nroot 0 0 0 0 0 \xff\n"):
+        err = amc_error(source, asf)
+        assert err.path == "walk.amc" and err.line is None and "not a text file" in err.reason
+
+
+def test_parsed_text_is_named_string_by_default(walk):
+    asf, lines = walk
+    assert parse_amc(_head(lines, 2), asf).path == "<string>"
+    assert run_steps(amc_module.parse_amc_steps(_head(lines, 2), asf)).path == "<string>"
+    with pytest.raises(MocapParseError) as info:
+        parse_amc(lines[:3], asf)
+    assert str(info.value).startswith("<string>:3: ")
+    with pytest.raises(MocapParseError) as info:
+        run_steps(amc_module.parse_amc_steps(lines[:3], asf))
+    assert str(info.value).startswith("<string>:3: ")
+
+
+def test_line_by_line_value_errors_name_bone_counts_and_the_last_value(walk):
+    """In the line-by-line part: a wrong value count with both counts, a word with its bone,
+    and a value beyond the limit in the *last* column of a bone (each value checked)."""
+    asf, _ = walk
+    lines = _regular_then_reversed()
+    k = next(j for j in range(lines.index("25") + 1, len(lines)) if lines[j].startswith("lfemur "))
+    parts = lines[k].split()
+    cases = [(parts + ["1"], "bone 'lfemur' needs 3 values, got 4"),
+             (parts[:2], "bone 'lfemur' needs 3 values, got 1"),
+             (parts[:2] + ["abc", parts[3]], "bone 'lfemur': 'abc' is not a number")]
+    for changed, reason in cases:
+        err = amc_error(lines[:k] + [" ".join(changed)] + lines[k + 1:], asf)
+        assert (err.path, err.line, err.reason) == ("walk.amc", k + 1, reason)
+    for column in (1, 2, 3):
+        changed = list(parts)
+        changed[column] = "1e12"
+        err = amc_error(lines[:k] + [" ".join(changed)] + lines[k + 1:], asf)
+        assert (err.path, err.line) == ("walk.amc", k + 1), column
+        assert err.reason.startswith("bone 'lfemur': angle is 1e+12 degrees, beyond 10000"), column
+
+
+def test_a_single_frame_read_line_by_line_keeps_its_bone_order_and_integer_number(walk):
+    """One frame that only the line-by-line parser reads ('1_0'): its bone order, frame
+    number 1 (int64, as the vectorised parser's) and one row of values."""
+    asf, _ = walk
+    head, frames = _frames(_head(raw_lines(cmu_path("08_01.amc")), 1))
+    first = frames[0][1:][::-1]
+    parts = first[0].split()
+    parts[1] = parts[1] + "_0"
+    first[0] = " ".join(parts)
+    motion = parse_amc(head + [frames[0][0]] + first, asf)
+    assert motion.bone_order == tuple(l.split()[0] for l in first)
+    assert motion.frame_numbers.dtype == np.int64
+    np.testing.assert_array_equal(motion.frame_numbers, [1])
+    assert motion.values.shape == (1, 62)
+
+
+def test_text_lines_of_a_range_that_stops_before_the_data_ends():
+    """A range that ends at a line's end before the data's (as the parser's does): pieces
+    never reach past ``end``, also pieces longer than 255 bytes."""
+    data = b"".join(f"line {k} {'x' * k}\n\n".encode() for k in range(40))
+    end = data.index(b"line 30 ") - 2
+    assert data[end] == ord("\n") and data[end - 1] == ord("x")
+    for begin in (0, data.index(b"line 3 ")):
+        for piece in (*range(1, 9), 255, 256, 300, 700, end + 1):
+            got = list(amc_module._text_lines(data, begin, end, piece=piece))
+            assert got == data[begin:end].decode().split("\n"), (begin, piece)
+
+
+@pytest.mark.parametrize("trailing", ["", "\n", "\n\n \n"])
+def test_a_last_frame_of_only_its_number_is_truncated(walk, trailing):
+    """The file ends with a frame number and no bones (blank lines after it or not): that
+    frame is truncated, at its line (the one-character last line is not dropped)."""
+    asf, lines = walk
+    text = "\n".join(_head(lines, 3) + ["4"]) + trailing
+    err = amc_error(text, asf)
+    assert (err.path, err.line) == ("walk.amc", len(_head(lines, 3)) + 1)
+    assert err.reason.startswith("frame 4 is truncated: it lacks root, ")
+
+
+def test_root_rotations_and_radian_files_have_the_angle_limit(walk):
+    """The angle limit (10 000 degrees) holds for the root's rotations too (in both parsers),
+    and in a :RADIANS file it is 174.5 radians: 100 is read, 175 refused."""
+    asf, lines = walk
+    regular = _head(lines, 3)
+    slow = _regular_then_reversed()
+    for text, k in ((regular, regular.index("2") + 1), (slow, slow.index("25") + 1)):
+        k = next(j for j in range(k, len(text)) if text[j].startswith("root "))
+        parts = text[k].split()
+        parts[4] = "1e5"
+        err = amc_error(text[:k] + [" ".join(parts)] + text[k + 1:], asf)
+        assert (err.path, err.line) == ("walk.amc", k + 1)
+        assert err.reason.startswith("bone 'root': angle is 100000 degrees, beyond 10000 degrees")
+    in_radians = dataclasses.replace(asf, angle_unit="rad")
+    text = format_amc(in_radians, _quarter_turn_motion(in_radians)).splitlines()
+    k = next(j for j, line in enumerate(text) if line.startswith("lfemur "))
+    for value, ok in (("100", True), ("-174", True), ("175", False)):
+        parts = text[k].split()
+        parts[1] = value
+        changed = text[:k] + [" ".join(parts)] + text[k + 1:]
+        if ok:
+            motion = parse_amc(changed, in_radians)
+            names = asf_to_skeleton(in_radians).dof_names()
+            assert motion.values[0, names.index("lfemur.rx")] == float(value)
+        else:
+            err = amc_error(changed, in_radians)
+            assert err.line == k + 1
+            assert err.reason.startswith(f"bone 'lfemur': angle is {value} radians, beyond 10000")

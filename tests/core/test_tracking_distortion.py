@@ -417,3 +417,55 @@ def test_the_table_is_the_first_guess_of_newtons_method(monkeypatch):
 def test_opencv_coefficients_from_blender_are_floats():
     got = opencv_from_brown(0, 0, 0, 0, 1, 0)
     assert got.dtype == float and got.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]
+
+
+# ------------------------------------------------------------- issue 26, mutation testing (third
+# session): the refusal's numbers, shapes kept, the first guess outside the table, and the
+# table's accuracy checked at every cell when the principal point is far off-centre.
+def test_higher_order_refusal_lists_exactly_the_higher_order_coefficients():
+    longer = np.zeros(8)
+    longer[:5] = WIDE
+    longer[5] = 1e-3
+    with pytest.raises(ValueError) as info:
+        coefficients_array(longer)
+    assert str(info.value).endswith("the higher-order ones are not zero: [0.001, 0.0, 0.0]")
+
+
+def test_undistort_fast_keeps_the_points_shape():
+    lens = _camera(DEMO).distortion
+    pixels = RNG.uniform([-0.5, -0.5], [W - 0.5, H - 0.5], (3, 4, 2))
+    points = (pixels - [CX, CY]) / [FX, FY]
+    got = lens.undistort_fast(points)
+    assert got.shape == (3, 4, 2)
+    np.testing.assert_array_equal(got.reshape(-1, 2), lens.undistort_fast(points.reshape(-1, 2)))
+
+
+def test_first_guess_outside_the_table_is_the_second_order_one_of_the_limited_model():
+    """_table_guess: the table's value inside it, ``2 t - distort(t)`` (the lens with its
+    radius limit) outside, also beyond the radius limit (the same code on the same points)."""
+    lens = _camera(WIDE).distortion
+    far = np.array([[3.0 * lens.radius_limit, 0.5], [-40.0, 3.0], [0.2, -2.5 * lens.radius_limit]])
+    inner = np.array([[0.01, -0.02], [0.1, 0.2]])
+    points = np.vstack([far, inner])
+    _, inside = lens.table.interpolate(points)
+    assert inside.tolist() == [False, False, False, True, True]
+    guess = lens._table_guess(points)
+    np.testing.assert_array_equal(guess[:3], 2.0 * far - lens.distort(far))
+    np.testing.assert_array_equal(guess[3:], lens.table.interpolate(inner)[0])
+
+
+@pytest.mark.parametrize("cx, cy", [(0.1 * W, 0.5 * H), (0.9 * W, 0.15 * H)])
+def test_an_accurate_table_is_accurate_at_every_cell_centre(cx, cy):
+    """A table that says it is accurate is within _TABLE_TOL of Newton's inverse at the
+    centre of every cell (where bilinear interpolation is worst), also with the principal
+    point near one side, where the cells far from it bend most."""
+    import core.tracking.distortion as distortion
+    lens = LensDistortion.for_image(RAW, FX, FY, cx, cy, W, H)
+    table = lens.table
+    assert table.accurate
+    rows, cols = table.shape
+    ix, iy = np.meshgrid(np.arange(cols - 1) + 0.5, np.arange(rows - 1) + 0.5)
+    centres = table.origin + np.stack([ix, iy], -1).reshape(-1, 2) * table.step
+    exact, _ = distortion._undistort(centres, lens.coefficients, lens.radius_limit ** 2)
+    error = np.abs(table.interpolate(centres)[0] - exact).max()
+    assert error <= distortion._TABLE_TOL
