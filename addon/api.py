@@ -35,8 +35,10 @@ from .common.pose_bridge import only_armature
 from .preferences import preferences
 from .tracking.batch import track_armature, track_armatures
 from .tracking.bridge import TrackError
+from .tracking.keypoints import KeypointLinkError
+from .tracking.keypoints import link_keypoints as _link_keypoints
 
-__all__ = ["track", "predict", "import_acclaim", "learn", "export_model", "import_model",
+__all__ = ["track", "link_keypoints", "predict", "import_acclaim", "learn", "export_model", "import_model",
            "open_blend", "save_blend", "find_model", "ERRORS", "TrackError", "GaitError",
            "AcclaimError", "MocapParseError"]
 
@@ -139,6 +141,51 @@ def track(armature=None, camera=None, frames=None, processes=None, suggest=False
     return track_armature(scene, _object(armature, "ARMATURE", TrackError),
                           _object(camera, "CAMERA", TrackError), frames, processes, suggest,
                           between, every)
+
+
+@_door(TrackError)
+def link_keypoints(camera, path, person=0, joint_set=None, start_frame=None, scene=None):
+    """Link 2D keypoints of another tool to a camera (*File › Import › 2D Keypoints*):
+    ``track`` then adds them to that camera's image evidence (``docs/tracking.md``, *2D
+    keypoints*).
+
+    Parameters
+    ----------
+    camera : str or bpy.types.Object
+    path : str
+        A folder of OpenPose/Pose2Sim JSON files (one per frame), one of them, or a CSV of
+        x, y, confidence per joint; ``//`` paths are relative to the .blend.
+    person : int
+        Entry of each JSON file's ``people`` list.
+    joint_set : {'body25', 'coco18', 'coco17', 'halpe26', 'mediapipe33'}, optional
+        Default: told by the joint count.
+    start_frame : int, optional
+        Scene frame of the keypoints' frame 0; default: where the camera's footage shows its
+        first frame, else the scene's start.
+    scene : str or bpy.types.Scene, optional
+
+    Returns
+    -------
+    dict
+        ``camera``, ``path``, ``start_frame``, ``message``.
+
+    Raises
+    ------
+    TrackError
+        Not a camera, or a file that cannot be read (the message names the file and line);
+        the camera is unchanged.
+    """
+    scene = _scene(scene)
+    camera = _object(camera, "CAMERA", TrackError)
+    if camera is None:
+        raise TrackError("link_keypoints: name the camera")
+    try:
+        message = _link_keypoints(scene, camera, str(path), person, joint_set, start_frame)
+    except KeypointLinkError as exc:
+        raise TrackError(str(exc)) from None
+    link = camera.data.track_and_stride_keypoints
+    return {"camera": camera.name, "path": link.filepath, "start_frame": link.start_frame,
+            "message": message}
 
 
 # ------------------------------------------------------------------------------ gait

@@ -105,6 +105,10 @@ def build_parser():
                             "scene's markers; the other keys between them are replaced")
     track.add_argument("--every", metavar="N",
                        help="N of --between every-nth (default: the Track panel's, 10)")
+    track.add_argument("--keypoints", metavar="CAMERA=PATH", action="append",
+                       help="link 2D keypoints of another tool to a camera first (a folder of "
+                            "OpenPose/Pose2Sim JSON files or a CSV; as File > Import > 2D "
+                            "Keypoints); give it once per camera")
     track.add_argument("--suggest", action="store_true",
                        help="also mark suggested keyframes (timeline markers at residual "
                             "spikes)")
@@ -324,6 +328,15 @@ def run_track(args):
     armature = armatures if len(armatures) > 1 else (armatures[0] if armatures else None)
     camera = _named("--camera", args.camera, "CAMERA")
     between = TRACK_BETWEEN[args.between] if args.between else None
+    for item in args.keypoints or []:
+        name, sep, path = item.partition("=")
+        if not sep or not path:
+            raise UsageError(f"--keypoints {item}: give CAMERA=PATH")
+        target = _named("--keypoints", name, "CAMERA")
+        try:
+            api.link_keypoints(target, path, scene=scene)
+        except api.TrackError as exc:
+            raise UsageError(f"--keypoints {item}: {exc}") from None
     return api.track(armature, camera, args.frames, args.processes, args.suggest, scene,
                      between, args.every)
 

@@ -38,6 +38,7 @@ from .cameras import CameraListError, camera_image, listed_cameras, uses_camera_
 from ..common.body_bridge import envelope_radii_as_drawn
 from ..common.fcurves import not_editable, object_channelbag
 from .footage import FootageError, FootageReader, footage_from_clip, footage_from_path
+from .keypoints import KeypointLinkError, request_keypoints
 from ..common.pose_bridge import RigError, read_pose, rigid_armature2world
 from ..common.rig_bridge import MappedRig, tracking_rig, verify_pose
 from .keys import (channel_state, classify_frames, evaluate_channels_at,
@@ -92,6 +93,10 @@ class TrackRequest:
     root_pivot : ndarray, shape (3,), or None
         Where the root turns while tracking, in the root joint's frame (metres; a mapped rig:
         between its hip joints, ``core.rigs.hip_pivot``); None: the root joint's origin.
+    keypoints : list or None
+        Per camera (problem order), the 2D keypoints linked to it (``core.tracking.
+        CameraKeypoints``, frame 0 = the first keyframe) or None; None when no camera has any
+        (:mod:`.keypoints`).
     """
 
     obj_name: str
@@ -114,6 +119,7 @@ class TrackRequest:
     view_names: list = field(default_factory=list)
     written: int = 0              # keys written by apply_result
     root_pivot: np.ndarray = None
+    keypoints: list = None
 
     @property
     def n_views(self):
@@ -336,7 +342,10 @@ def prepare_tracking(context, settings):
     key_frames, replaced = choice.poses, choice.replaced.tolist()
     if several:
         footages, cameras, names = _listed_views(scene, settings, rig, key_frames)
+        listed = listed_cameras(scene, settings)
+        camera_objs, offsets = [v.camera for v in listed], [v.offset for v in listed]
     else:
+        camera_objs, offsets = [camera_obj], [0]
         footage = resolve_footage(settings)
         mismatch = render_size_mismatch(scene, footage.width, footage.height)
         if mismatch:
@@ -371,6 +380,10 @@ def prepare_tracking(context, settings):
             bones.add(rig.bone_names[0])
         tracked_bones = [n for n in rig.bone_names if n in bones]
     _check_writable(obj, rig, tracked_bones, tracked_before)
+    try:
+        keypoints = request_keypoints(camera_objs, offsets, rig, int(key_frames[0]))
+    except KeypointLinkError as exc:
+        raise TrackError(str(exc)) from None
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth)
     # With several cameras the acceptance rule is not applied (AcceptanceRule.several_views,
@@ -382,7 +395,8 @@ def prepare_tracking(context, settings):
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced,
-        root_pivot=hip_pivot(rig.model) if isinstance(rig, MappedRig) else None)
+        root_pivot=hip_pivot(rig.model) if isinstance(rig, MappedRig) else None,
+        keypoints=keypoints)
 
 
 def _check_footage(footage, size, key_frames, camera_name=None):
@@ -471,7 +485,8 @@ def run_core(request, frames, progress=None, cancel=None):
                                        pivot)
         result = track_keyframes(problem, frames, request.key_frames - request.first,
                                  key_roots, request.key_locals, request.options,
-                                 processes=request.processes, progress=progress, cancel=cancel)
+                                 processes=request.processes, progress=progress, cancel=cancel,
+                                 keypoints=request.keypoints)
     except TrackingError as exc:
         raise TrackError(str(exc)) from None
     if moved:

@@ -14,7 +14,9 @@ datablock, and Blender does not see it; these handlers rebase it the same way:
 A path that is absolute, empty, or in a file never saved (nothing to be relative to) is left
 alone, as Blender leaves it; one that cannot be made relative to the new folder (another drive
 on Windows) becomes absolute. Movie clips -- the footage of every camera in the Cameras list --
-are datablocks and Blender rebases them itself.
+are datablocks and Blender rebases them itself. Each camera's 2D keypoints path
+(:mod:`.keypoints`, a property of the camera's data that Blender does not see either) is
+rebased the same way.
 """
 
 import os
@@ -22,6 +24,7 @@ import os
 import bpy
 from bpy.app.handlers import persistent
 
+from .keypoints import KEYPOINTS
 from .props import track_settings
 
 __all__ = ["rebase_path", "rebase_track_paths", "register", "unregister"]
@@ -45,8 +48,9 @@ def rebase_path(path, old_dir, new_dir):
 
 
 def rebase_track_paths(old_blend, new_blend):
-    """Rebase every scene's Track *File* from ``old_blend``'s folder to ``new_blend``'s;
-    returns ``[(scene name, old value)]`` of what changed."""
+    """Rebase every scene's Track *File* and every camera's keypoints path from
+    ``old_blend``'s folder to ``new_blend``'s; returns ``[(scene name or ('camera', camera
+    data name), old value)]`` of what changed."""
     if not old_blend or not new_blend:
         return []
     old_dir = os.path.dirname(os.path.abspath(old_blend))
@@ -60,6 +64,15 @@ def rebase_track_paths(old_blend, new_blend):
         if new != settings.filepath:
             changed.append((scene.name, settings.filepath))
             settings.filepath = new
+    # Each camera's 2D keypoints (.keypoints): a camera datablock's entry, ("camera", name).
+    for camera in bpy.data.cameras:
+        link = getattr(camera, KEYPOINTS, None)
+        if link is None or not link.filepath:
+            continue
+        new = rebase_path(link.filepath, old_dir, new_dir)
+        if new != link.filepath:
+            changed.append((("camera", camera.name), link.filepath))
+            link.filepath = new
     return changed
 
 
@@ -79,6 +92,11 @@ def _restore_after_copy(filepath=None, *args):
     if os.path.normpath(bpy.data.filepath) == os.path.normpath(filepath):
         return                          # Save As: the open file moved with its paths
     for name, value in changed:
+        if isinstance(name, tuple):
+            camera = bpy.data.cameras.get(name[1])
+            if camera is not None:
+                getattr(camera, KEYPOINTS).filepath = value
+            continue
         scene = bpy.data.scenes.get(name)
         if scene is not None:
             track_settings(scene).filepath = value

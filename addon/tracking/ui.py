@@ -11,6 +11,7 @@ import textwrap
 import bpy
 import numpy as np
 
+from .keypoints_ops import draw_camera_keypoints
 from .camera_bridge import render_size
 from ..common.pose_bridge import RigError
 from ..common.rig_bridge import cached_tracking_rig
@@ -161,6 +162,7 @@ def draw_track_panel(layout, context, in_clip_editor=False):
     _draw_footage(layout, context, settings, in_clip_editor)
     _draw_camera(layout, context, settings)
     draw_camera_list(layout, context, settings)
+    draw_camera_keypoints(layout.column(align=True), context)
     _draw_frames(layout, context, settings, obj)
     col = layout.column(align=True)
     row = col.row()

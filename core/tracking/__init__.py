@@ -61,3 +61,11 @@ from .bodies import BodyTrack, track_bodies  # noqa: E402  (several people, issu
 from .occluders import Occluder  # noqa: E402
 
 __all__ += ["PoseChoice", "choose_poses", "BodyTrack", "track_bodies", "Occluder"]
+from .keypoint_cue import CameraKeypoints, keypoints_for_parts  # noqa: E402
+from .keypoint_files import (JOINT_SETS, KEYPOINT_PARTS, KeypointFileError,  # noqa: E402
+                             Keypoints2D, read_keypoints, read_keypoints_csv, read_openpose_json,
+                             write_openpose_json)
+
+__all__ += ["CameraKeypoints", "keypoints_for_parts", "JOINT_SETS", "KEYPOINT_PARTS",
+            "KeypointFileError", "Keypoints2D", "read_keypoints", "read_keypoints_csv",
+            "read_openpose_json", "write_openpose_json"]

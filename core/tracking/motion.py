@@ -54,6 +54,7 @@ import numpy as np
 from .body_model import joint_frames_in_camera
 from .image import bilinear, sample_with_gradient
 from .jacobians import apply_motion, image_gradient_rows
+from .keypoint_cue import keypoint_residuals, keypoint_rows, keypoint_weights, pair_targets
 from .robust import irls_weights, masked_median
 
 @dataclass(frozen=True, eq=False)
@@ -320,6 +321,9 @@ class MotionView:
     available : ndarray, shape (F,), bool, optional
         Images of the stack the camera filmed (False: a frame outside its footage, e.g. an
         unsynchronised start); a pair with a missing image gives no rows in this view.
+    keypoints : IntervalKeypoints, optional
+        This camera's 2D keypoints of the stack's images (:mod:`.keypoint_cue`): their rows
+        join the view's.
     """
 
     camera: object
@@ -332,6 +336,7 @@ class MotionView:
     next_samples: object = None
     top_level: int = None
     available: np.ndarray = None
+    keypoints: object = None
 
     def levels(self, options):
         """(finest, top): the pyramid levels this view is tracked on."""
@@ -709,6 +714,16 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
     ranks = np.zeros(n, dtype=int)
     rms = np.full(n, np.nan)
     support = np.zeros((2, n, sk.n_joints))
+    # 2D keypoints (.keypoint_cue): rows at the start poses, the same on every level.
+    cued = [v for v, view in enumerate(views) if view.keypoints is not None] \
+        if options.keypoint_weight > 0 else []
+    cue_rows = {v: keypoint_rows(problem, views[v].camera, views[v].frames_cam,
+                                 views[v].keypoints, cols, column_factor, _jacobian)
+                for v in cued}
+    cue_targets = {v: pair_targets(problem, views[v].camera, views[v].keypoints,
+                                   views[v].image_pairs, views[v].frames_cam, views[v].next_cam)
+                   for v in cued}
+    cue_factor = {}
     for step_index in range(steps, -1, -1):
         templates = [_level_template(problem, view, pts, min(finest + step_index, top), cols,
                                      column_factor)
@@ -737,6 +752,8 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                     scale = np.stack([s for _, s in robust])
                     system = None
                 b_views = [root * r for root, (r, _) in zip(rows, warped)]
+            cue = {v: keypoint_residuals(problem, views[v].camera, views[v].keypoints,
+                                         cue_targets[v], moved_pose) for v in cued}
             if system is None:
                 a_views = [t.a if root is None else root[..., None] * t.a
                            for root, t in zip(rows, templates)]
@@ -747,10 +764,18 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
                         weights = view_weights(options.view_weighting, templates, scale)
                     a = np.concatenate([w[:, None, None] * av
                                         for w, av in zip(weights, a_views)], axis=1)
+                if cued:
+                    cue_factor = _cue_factors(options, cue, cue_targets, scale,
+                                              None if single else weights)
+                    a = np.concatenate([a] + [np.repeat(cue_factor[v], 2, axis=1)[..., None]
+                                              * cue_rows[v] for v in cued], axis=1)
                 system = rank_decompositions(a, tau)
                 ranks = system.rank
             b = b_views[0] if single else np.concatenate(
                 [w[:, None] * bv for w, bv in zip(weights, b_views)], axis=1)
+            if cued:
+                b = np.concatenate([b] + [(cue_factor[v][..., None] * cue[v][0]).reshape(n, -1)
+                                          for v in cued], axis=1)
             particular = system.pseudo_inverse_solve(b)
             # eq. 10 for the update: the null-space part of x is pulled to the prediction.
             step = particular + system.null_projection(y_s - x_s)
@@ -761,6 +786,21 @@ def _coarse_to_fine(problem, options, views, points, poses, y_s, measured, cols,
         if step_index == 0:
             support = _support(sk.n_joints, templates, rows, warped)
     return x_s, ranks, rms, support
+
+
+def _cue_factors(options, cue, targets, scale, weights):
+    """Row factors (n, J) of every cued view's keypoints (:mod:`.keypoint_cue`): confidence,
+    robust weight and the ratio of the view's image noise scale (per frame) to the keypoints'
+    scale, times ``keypoint_weight`` (and the view's weight when views are stacked)."""
+    out = {}
+    for v, (residual, conf) in cue.items():
+        root, kp_scale = keypoint_weights(residual, conf, targets[v].deviation,
+                                          options.robust_threshold)
+        factor = options.keypoint_weight * scale[v] / kp_scale
+        if weights is not None:
+            factor = factor * weights[v]
+        out[v] = root * factor[:, None]
+    return out
 
 
 def _irls(options, warped, templates, n_joints):

@@ -57,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .keypoint_cue import CameraKeypoints
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, interpolated_interval, track_interval
 
@@ -158,6 +159,22 @@ def _check_keys(problem, frames, key_frames, key_roots, key_locals, frame_offset
     return frames, offsets, keys, roots, local
 
 
+def _check_keypoints(problem, keypoints):
+    """``keypoints`` as a list (one entry per camera) or None."""
+    if keypoints is None:
+        return None
+    if isinstance(keypoints, CameraKeypoints):
+        keypoints = [keypoints]
+    keypoints = list(keypoints)
+    if len(keypoints) != problem.n_views:
+        raise TrackingError(f"keypoints: expected one entry per camera ({problem.n_views}), "
+                            f"got {len(keypoints)}")
+    for kp in keypoints:
+        if kp is not None:
+            kp.check(problem.skeleton.n_joints)
+    return keypoints if any(kp is not None for kp in keypoints) else None
+
+
 def view_frames(stack, offset, a, b):
     """Clip frames ``a .. b`` of one camera's stack whose first frame is clip frame ``offset``:
     a view of the stack when it covers them all, None when it covers none, else a copy with
@@ -174,36 +191,40 @@ def view_frames(stack, offset, a, b):
 
 
 def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None,
-              occluders=()):
+              occluders=(), keypoints=None):
     a, b = keys[i], keys[i + 1]
     stacks = [view_frames(f, o, a, b) for f, o in zip(frames, offsets)]
     return _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progress,
-                               occluders)
+                               occluders, keypoints)
 
 
 def _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progress=None,
-                        occluders=()):
+                        occluders=(), keypoints=None):
     """Interval ``i`` from each camera's frames ``keys[i] .. keys[i + 1]`` (:func:`view_frames`:
     None where the camera filmed none of them)."""
     a, b = keys[i], keys[i + 1]
     start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
     # Other bodies, their frames counted from this interval's start key.
     occluders = [replace(occ, first=occ.first - int(a)) for occ in occluders or ()]
+    # 2D keypoints (.keypoint_cue): their frames counted from this interval's start key too.
+    if keypoints is not None:
+        keypoints = [None if kp is None else replace(kp, first=kp.first - int(a))
+                     for kp in keypoints]
     if problem.n_views == 1:
         return track_interval(problem, stacks[0], start, end, options, progress=progress,
-                              occluders=occluders)
+                              occluders=occluders, keypoints=keypoints)
     if all(s is None for s in stacks):
         if progress is not None:
             progress(1.0)
         return interpolated_interval(problem, start, end, int(b - a),
                                      f"no camera filmed frames {a}..{b}: the interpolation is kept")
     return track_interval(problem, stacks, start, end, options, progress=progress,
-                          occluders=occluders)
+                          occluders=occluders, keypoints=keypoints)
 
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
                     processes=None, progress=None, cancel=None, frame_offsets=None,
-                    occluders=()):
+                    occluders=(), keypoints=None):
     """Track every interval between consecutive keyframes.
 
     Parameters
@@ -238,6 +259,10 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         Other bodies in the footage, their poses in clip frames (:mod:`.occluders`; several
         bodies are tracked together by :func:`~.bodies.track_bodies`): model points hidden
         behind them are not used.
+    keypoints : CameraKeypoints, or a sequence of them (one per camera, None where a camera
+        has none), optional
+        2D keypoints of another tool, ``first`` in clip frames (:mod:`.keypoint_cue`): their
+        reprojection residuals join the motion estimate. None: nothing changes.
 
     Returns
     -------
@@ -253,6 +278,7 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     options = options or TrackingOptions()
     frames, offsets, keys, roots, local = _check_keys(problem, frames, key_frames, key_roots,
                                                       key_locals, frame_offsets)
+    keypoints = _check_keypoints(problem, keypoints)
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
     weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])
@@ -272,9 +298,10 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                 report(min(1.0, done + weight * fraction))
 
             results.append(_interval(problem, options, frames, offsets, keys, roots, local, i,
-                                     hook, occluders))
+                                     hook, occluders, keypoints))
     else:
-        results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders)),
+        results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders),
+                             keypoints),
                             frames, workers, weights, report, stop_requested)
     return _assemble(keys, results)
 
@@ -310,7 +337,7 @@ def serve(channel_in, channel_out):
     setup = _receive(channel_in)
     if setup is None:
         return
-    problem, options, offsets, keys, roots, local, occluders = setup
+    problem, options, offsets, keys, roots, local, occluders, keypoints = setup
     while True:
         task = _receive(channel_in)
         if task is None or task == "stop":
@@ -320,7 +347,8 @@ def serve(channel_in, channel_out):
             stacks = [None if path is None else np.load(path, mmap_mode="r") for path in paths]
             result = _interval_of_stacks(
                 problem, options, stacks, keys, roots, local, i,
-                lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)), occluders)
+                lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)), occluders,
+                keypoints)
         except Exception as exc:  # reported to the parent, which re-raises it
             try:
                 pickle.dumps(exc)
@@ -354,7 +382,7 @@ def _start_worker():
 
 def _local_worker(work, frames, todo, lock, inbox, stop):
     """The calling process's share: a thread taking intervals from ``todo`` like a worker."""
-    problem, options, offsets, keys, roots, local, occluders = work
+    problem, options, offsets, keys, roots, local, occluders, keypoints = work
     while not stop.is_set():
         with lock:
             if not todo:
@@ -368,7 +396,7 @@ def _local_worker(work, frames, todo, lock, inbox, stop):
 
         try:
             result = _interval(problem, options, frames, offsets, keys, roots, local, i, hook,
-                               occluders)
+                               occluders, keypoints)
         except TrackingCancelled:
             return
         except Exception as exc:  # reported to the caller's loop, which re-raises it

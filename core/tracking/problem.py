@@ -253,6 +253,10 @@ class TrackingOptions:
         divided by its robust residual scale (noise plus model misfit, per frame and pyramid
         level). One camera: no weighting at all. Chosen on the validation clips
         (docs/tracking.md, *Several cameras*).
+    keypoint_weight : float
+        Cameras with 2D keypoints (:mod:`.keypoint_cue`, issue 24): how many image samples'
+        worth one keypoint coordinate is, each in its own noise units (the image rows' robust
+        scale, the keypoints' robust scale in pixels). 0: keypoints are ignored.
     depth_from_views : bool
         Several cameras: estimate the root's motion along every axis in frames that two or
         more views measure (their lines of sight differ, so together they measure depth);
@@ -314,6 +318,7 @@ class TrackingOptions:
     view_tau: float = 0.01
     limit_action: str = None
     occluder_margin: float = 0.03
+    keypoint_weight: float = 10.0
     acceptance: AcceptanceRule = AcceptanceRule()
 
     def __post_init__(self):
@@ -339,6 +344,8 @@ class TrackingOptions:
             raise ValueError(f"view_weighting must be one of "
                              f"{', '.join(map(repr, VIEW_WEIGHTINGS))}, got "
                              f"{self.view_weighting!r}")
+        if not (np.isfinite(self.keypoint_weight) and self.keypoint_weight >= 0.0):
+            raise ValueError(f"keypoint_weight must be >= 0, got {self.keypoint_weight}")
         if not 0.0 <= self.min_improvement < 1.0:
             raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")
         if not 0.0 < self.tau < 1.0:

@@ -38,6 +38,7 @@ from .drift import (accumulate_rotations, accumulate_root_positions, correct_roo
 from .hinge_twist import hinge_joints, retwist, untwist
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
+from .keypoint_cue import CameraKeypoints, interval_keypoints
 from .motion import MotionView, estimate_view_motions
 from .occluders import hide_behind, view_occluders
 from .problem import TrackingError, TrackingOptions
@@ -457,6 +458,8 @@ class ViewInterval:
     occluders : tuple of ViewOccluder
         Other bodies in this camera over the interval (:mod:`.occluders`): samples hidden
         behind them are not used.
+    keypoints : IntervalKeypoints, optional
+        This camera's 2D keypoints over the interval (:mod:`.keypoint_cue`).
     """
 
     index: int
@@ -467,6 +470,7 @@ class ViewInterval:
     exponent: int
     available: np.ndarray = None
     occluders: tuple = ()
+    keypoints: object = None
 
     def silhouette(self, problem, options, rotations, origins, pose_frames):
         """The body's silhouette samples on this view's finest level at N poses (joint frames
@@ -675,7 +679,7 @@ class _Trajectory:
                            image_pairs=pairs, frames_cam=(cam[0][:-1], cam[1][:-1]),
                            samples=samples.poses(0, n), next_cam=(cam[0][1:], cam[1][1:]),
                            next_samples=samples.poses(1, n + 1), top_level=view.top,
-                           available=view.available)
+                           available=view.available, keypoints=view.keypoints)
                 for view, cam, samples in zip(views, self.cams, self.samples)]
 
     def counts(self):
@@ -728,7 +732,7 @@ def eq4_thresholds(problem, options, views, trajectory):
 _PROGRESS_PYRAMID, _PROGRESS_SEED = 0.05, 0.35
 
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
-                   initial=None, progress=None, occluders=None):
+                   initial=None, progress=None, occluders=None, keypoints=None):
     """Track one interval between two keyed poses (the whole of §2.2-§3).
 
     Parameters
@@ -758,6 +762,10 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     occluders : sequence of Occluder, optional
         Other bodies in the footage (:mod:`.occluders`; their ``first`` frame counted from the
         start key): model points hidden behind them are not used.
+    keypoints : CameraKeypoints, or a sequence of them (one per camera, None where a camera
+        has none), optional
+        2D keypoints of another tool (:mod:`.keypoint_cue`; ``first`` counted from the start
+        key): their reprojection residuals join the motion estimate. None: nothing changes.
 
     Returns
     -------
@@ -773,6 +781,8 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     start, end, initial, twists = _untwisted(problem, start, end, initial)
     start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial,
                                       occluders)
+    if keypoints is not None:
+        views = _with_keypoints(problem, views, keypoints, start, end)
     report(_PROGRESS_PYRAMID)
     timings = {"pyramid": time.perf_counter() - tic, "iterations": []}
     roots, local = _initial_trajectory(problem, start, end, len(views[0].pyramid[0]) - 1,
@@ -791,6 +801,27 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     if twists is not None:
         _retwist_result(problem, result, keys, *twists)
     return result
+
+
+def _with_keypoints(problem, views, keypoints, start, end):
+    """The views with their cameras' keypoints of the interval (:func:`.keypoint_cue.
+    interval_keypoints`, offsets at the keys removed)."""
+    if isinstance(keypoints, CameraKeypoints):
+        keypoints = [keypoints]
+    keypoints = list(keypoints)
+    if len(keypoints) != problem.n_views:
+        raise TrackingError(f"keypoints: expected one entry per camera ({problem.n_views}), "
+                            f"got {len(keypoints)}")
+    n = len(views[0].pyramid[0]) - 1
+    out = []
+    for view in views:
+        kp = keypoints[view.index]
+        cut = None if kp is None else kp.cut(0, n)
+        if cut is not None:
+            cut = interval_keypoints(problem, cut, view.camera, problem.cameras[view.index],
+                                     start, end)
+        out.append(replace(view, keypoints=cut) if cut is not None else view)
+    return out
 
 
 def _untwisted(problem, start, end, initial):
@@ -1282,7 +1313,8 @@ def _step_view(problem, options, view, t0, l0, t1, l1, pairs):
     return MotionView(camera=view.camera, pyramid=view.pyramid, finest_level=view.finest,
                       image_pairs=pairs, frames_cam=(rot[:c], org[:c]), samples=both.poses(0, c),
                       next_cam=(rot[c:], org[c:]), next_samples=both.poses(c, 2 * c),
-                      top_level=view.top, available=view.available)
+                      top_level=view.top, available=view.available,
+                      keypoints=view.keypoints)
 
 
 def track_accumulated(problem, frames, start, end, options=None, pyramid=None):

@@ -75,8 +75,9 @@ def test_operators_and_menus_are_registered():
     assert bpy.ops.import_anim.acclaim.idname() == "IMPORT_ANIM_OT_acclaim"
     assert bpy.ops.export_anim.acclaim.idname() == "EXPORT_ANIM_OT_acclaim"
     assert bpy.ops.import_scene.camera_calibration.idname() == "IMPORT_SCENE_OT_camera_calibration"
-    # File › Import: Acclaim Motion Capture and Camera Calibration.
-    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 2
+    assert bpy.ops.import_scene.track_keypoints.idname() == "IMPORT_SCENE_OT_track_keypoints"
+    # File › Import: Acclaim Motion Capture, Camera Calibration and 2D Keypoints.
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 3
     assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_export)) == 1
     assert hasattr(bpy.types, "VIEW3D_PT_track_and_stride")
 
@@ -100,7 +101,7 @@ def test_register_unregister_register_leaves_nothing_stale():
     finally:
         addon_utils.enable(MODULE, default_set=True)
     assert {c.__name__ for c in _our_classes()} == registered
-    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 2  # no duplicate entries
+    assert len(_menu_draw_funcs(bpy.types.TOPBAR_MT_file_import)) == 3  # no duplicate entries
     for menu in (bpy.types.VIEW3D_MT_pose, bpy.types.GRAPH_MT_key, bpy.types.DOPESHEET_MT_key):
         assert len(_menu_draw_funcs(menu)) == 1
     assert len(cli._HANDLES) == 1

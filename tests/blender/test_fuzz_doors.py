@@ -76,7 +76,8 @@ def path_text(tmp):
 
 OPTIONS = {
     "track": {"--frames": 2, "--processes": 1, "--every": 1, "--between": "choice",
-              "--armature": "name", "--camera": "name", "--scene": "name", "--suggest": 0},
+              "--armature": "name", "--camera": "name", "--scene": "name", "--suggest": 0,
+              "--keypoints": "name"},
     "predict": {"--frames": 2, "--length": 1, "--cadence": 1, "--amount": 1, "--stride": 1,
                 "--style": "name", "--restyle": "names", "--model": "name", "--armature": "name",
                 "--on-the-spot": 0, "--let-feet-slide": 0, "--no-mannerisms": 0,
