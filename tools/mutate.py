@@ -141,6 +141,24 @@ EQUIVALENT = {
        "np.stack of two 1-D arrays along axis +1 instead of -1: for the 2-D result they are "
        "the same axis" for i in (42, 77)},
     **{f"core.tracking.distortion.{name}":
+       "axis=+1 for axis=-1 of an (M, 2) array (_undistort works on the flattened points, "
+       "for_image's ideal border points are (N, 2)): the same axis"
+       for name in ("x__undistort__mutmut_128", "x__undistort__mutmut_133",
+                    "xǁLensDistortionǁfor_image__mutmut_98")},
+    "core.tracking.distortion.x__undistort__mutmut_13":
+        "reshape(-2, 2) for reshape(-1, 2): NumPy takes any negative size as the one inferred "
+        "dimension",
+    "core.tracking.distortion.x__undistort__mutmut_138":
+        "the converged mask left flat (reshape(None)): its only reader, for_image, asks "
+        "np.all(converged), the same for any shape",
+    "core.tracking.distortion.x__undistort__mutmut_83":
+        "the stand-in determinant of the singular points (1.0 -> 2.0): the outer np.where "
+        "gives them 0.0 whatever it is",
+    "core.tracking.distortion.xǁLensDistortionǁshift_within__mutmut_28":
+        "r >= r_end for r > r_end: at r == r_end both branches give s_end (np.interp at the "
+        "last sample exactly, s_end * r_end / r_end within one rounding): a bound that "
+        "differs by at most one float step at that one radius",
+    **{f"core.tracking.distortion.{name}":
        "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
        "dimension" for name in ("x__undistortion_table__mutmut_121",
                                 "xǁLensDistortionǁundistort_fast__mutmut_16")},
