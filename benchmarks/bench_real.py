@@ -242,6 +242,24 @@ def interior_frames(keys, n_frames):
     return np.array([f - 1 for f in frames if f not in set(keys)])
 
 
+def write_keypoint_files(detections, cameras, folder, detector_pass):
+    """Issue 24 §2: each camera's MediaPipe landmarks (the detector recipe's pass) written as
+    Pose2Sim JSON (MediaPipe-33 joint set, one file per frame; landmarks under
+    ``MIN_CONFIDENCE`` as missing, as the recipe leaves them out), for *Import 2D Keypoints*.
+    Returns ``{camera: folder}``."""
+    from core.tracking.keypoint_files import JOINT_SETS, Keypoints2D, write_openpose_json
+    out = {}
+    for cam in cameras:
+        d = detections[cam][detector_pass]
+        conf = np.where(d.visibility >= MIN_CONFIDENCE, d.visibility, 0.0)
+        keypoints = Keypoints2D(names=JOINT_SETS["mediapipe33"], uv=d.pixels, confidence=conf,
+                                frames=np.arange(len(d.pixels)), joint_set="mediapipe33",
+                                source=cam)
+        write_openpose_json(folder / cam, keypoints, prefix=cam)
+        out[cam] = str(folder / cam)
+    return out
+
+
 def score_run(rig, arrays, record, reference_joints, views, n_frames):
     """Scores of one run (a set of cameras, one spacing): 2D errors are the mean over the
     run's cameras."""
@@ -334,7 +352,8 @@ def peer_scores(detections, reference_joints):
 
 #: Methods of the held-out table and foot skate (issue 24; ``tracker_keypoints`` is added by
 #: the keypoint cue's rows when present).
-HELD_OUT_METHODS = ("tracker", "detector_raw", "detector_corrected", "slerp", "bezier")
+HELD_OUT_METHODS = ("tracker", "tracker_keypoints", "detector_raw", "detector_corrected",
+                    "slerp", "bezier")
 #: The camera the detector recipe's prior weight is chosen on (and only it).
 WEIGHT_CAMERA = "cam01"
 
@@ -390,7 +409,7 @@ def held_out_scores(rig, roots, local, all_joints, heldout_points, detections, v
         for every in spacings:
             rows = {}
             got = all_joints.get((cam, every), {})
-            for method in ("tracker", "slerp", "bezier"):
+            for method in ("tracker", "tracker_keypoints", "slerp", "bezier"):
                 if method in got:
                     rows[f"{method}_cm"] = error(got[method], cam, every)
             det = {f"detector_{v}": run(cam, every, chosen[v], v == "corrected")
@@ -503,6 +522,10 @@ def parse_args():
     parser.add_argument("--detector-huber-px", type=float, default=20.0,
                         help="the detector recipe's fit under Huber's loss beyond this many "
                              "pixels (default 20; 0: plain least squares)")
+    parser.add_argument("--no-keypoints", action="store_true",
+                        help="leave out the keypoint cue's runs (issue 24 §2: each camera "
+                             "tracked again with MediaPipe's 2D landmarks imported as its "
+                             "keypoints)")
     parser.add_argument("--reuse-blender", action="store_true",
                         help="score the Blender stage's last output again (development only)")
     return parser.parse_args()
@@ -573,6 +596,9 @@ def main():
         np.savez(dump / "reference.npz", joints=reference_joints, joint_bones=rig.joint_bones,
                  joint_offsets=rig.joint_offsets, bone_names=np.array(rigmod.BONE_NAMES),
                  joint_names=np.array(rigmod.JOINT_NAMES))
+    if not args.no_keypoints:
+        plan["keypoints"] = write_keypoint_files(detections, args.cameras, work / "keypoints",
+                                                 args.detector_pass)
     plan_path = work / "plan.json"
     plan_path.write_text(json.dumps(plan, indent=1))
 
@@ -588,8 +614,22 @@ def main():
 
     print("5/5 scores", flush=True)
     single, multi, all_joints, camera_checks = {}, {}, {}, {}
-    for record in blender_json["runs"]:
+    # The keypoint cue's runs (a camera tracked again with its keypoints) after the plain ones.
+    for record in sorted(blender_json["runs"], key=lambda r: bool(r.get("keypoints"))):
         run, cams, every = record["run"], record["cameras"], record["keys_every"]
+        if record.get("keypoints"):
+            arrays = {k.split("/", 2)[2]: blender[k] for k in blender.files
+                      if k.startswith(f"{run}/{every}/")}
+            cam = cams[0]
+            scores, joints = score_run(rig, arrays, record, reference_joints,
+                                       [views[args.cameras.index(cam)]], n_frames)
+            row = single.setdefault(cam, {}).setdefault(f"keys_every_{every}", {})
+            row.update({"tracker_keypoints_cm": scores["tracker_cm"],
+                        "tracker_keypoints_px": scores["tracker_px"],
+                        "tracker_keypoints_intervals": scores["intervals"],
+                        "tracker_keypoints_link": record.get("keypoints_link")})
+            all_joints.setdefault((cam, every), {})["tracker_keypoints"] = joints["tracker"]
+            continue
         arrays = {k.split("/", 2)[2]: blender[k] for k in blender.files
                   if k.startswith(f"{run}/{every}/")}
         run_views = [views[args.cameras.index(c)] for c in cams]
@@ -616,7 +656,8 @@ def main():
     # + inference) and through Track Keyframes (keys every 20: decode + track + write).
     speed_every = 20 if 20 in args.spacings else args.spacings[0]
     runs = [r for r in blender_json["runs"]
-            if r["keys_every"] == speed_every and len(r["cameras"]) == 1]
+            if r["keys_every"] == speed_every and len(r["cameras"]) == 1
+            and not r.get("keypoints")]                   # the keypoint runs reuse the frames
     if not all(r["footage_decoded_by_operator"] for r in runs):
         raise RuntimeError("the timed runs must decode their footage themselves")
     mp_frames = sum(len(detections[c]["peer"].pixels) for c in args.cameras)
@@ -794,7 +835,7 @@ def print_tables(results, args):
     print("\nHeld-out reference (triangulated without the tracked camera): 3D MPJPE cm on "
           "in-between frames; detector prior weight chosen on "
           f"{ho['detector']['weight_chosen_on']} only: {ho['detector']['weight']}")
-    cols = [m for m in HELD_OUT_METHODS + ("tracker_keypoints",)]
+    cols = list(HELD_OUT_METHODS)
     print("  " + " " * 22 + "".join(f"{m:>20s}" for m in cols))
     for c in list(args.cameras) + ["mean"]:
         for e in args.spacings:

@@ -129,7 +129,35 @@ EQUIVALENT = {
        "): the same points, only computed with a Jacobian nobody reads"
        for name in ("x_distort_points__mutmut_15", "x__undistort__mutmut_30",
                     "x__undistort__mutmut_120", "xǁLensDistortionǁfor_image__mutmut_205",
-                    "xǁLensDistortionǁdistort__mutmut_16")},
+                    "xǁLensDistortionǁdistort__mutmut_16",
+                    "xǁLensDistortionǁ_table_guess__mutmut_12")},
+    "core.tracking.distortion.x__distort__mutmut_27":
+        "the stand-in divisor of the points inside the limit (1.0 -> 2.0): the outer "
+        "np.where gives them s = 1.0 whatever it is",
+    "core.tracking.distortion.x_coefficients_array__mutmut_22":
+        "c.size > 6 for > 5: sizes 6 and 7 are refused before, so the accepted sizes (4, 5, "
+        "8, 12, 14) fall on the same side of both",
+    **{f"core.tracking.distortion.xǁLensDistortionǁfor_image__mutmut_{i}":
+       "np.stack of two 1-D arrays along axis +1 instead of -1: for the 2-D result they are "
+       "the same axis" for i in (42, 77)},
+    **{f"core.tracking.distortion.{name}":
+       "axis=+1 for axis=-1 of an (M, 2) array (_undistort works on the flattened points, "
+       "for_image's ideal border points are (N, 2)): the same axis"
+       for name in ("x__undistort__mutmut_128", "x__undistort__mutmut_133",
+                    "xǁLensDistortionǁfor_image__mutmut_98")},
+    "core.tracking.distortion.x__undistort__mutmut_13":
+        "reshape(-2, 2) for reshape(-1, 2): NumPy takes any negative size as the one inferred "
+        "dimension",
+    "core.tracking.distortion.x__undistort__mutmut_138":
+        "the converged mask left flat (reshape(None)): its only reader, for_image, asks "
+        "np.all(converged), the same for any shape",
+    "core.tracking.distortion.x__undistort__mutmut_83":
+        "the stand-in determinant of the singular points (1.0 -> 2.0): the outer np.where "
+        "gives them 0.0 whatever it is",
+    "core.tracking.distortion.xǁLensDistortionǁshift_within__mutmut_28":
+        "r >= r_end for r > r_end: at r == r_end both branches give s_end (np.interp at the "
+        "last sample exactly, s_end * r_end / r_end within one rounding): a bound that "
+        "differs by at most one float step at that one radius",
     **{f"core.tracking.distortion.{name}":
        "reshape(-1, 2) -> reshape(-2, 2): NumPy takes any negative size as the one inferred "
        "dimension" for name in ("x__undistortion_table__mutmut_121",

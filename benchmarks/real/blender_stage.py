@@ -340,9 +340,10 @@ class Recorder:
             setattr(self.bridge, name, original)
 
 
-def run_one(bpy, plan, poses, cameras, every, frames=None):
+def run_one(bpy, plan, poses, cameras, every, frames=None, keypoints=None):
     """One set of cameras (today: one), one key spacing (module docstring); returns (arrays,
-    record, frames read)."""
+    record, frames read). ``keypoints``: a folder of Pose2Sim JSON linked to the (one) camera
+    with *File › Import › 2D Keypoints* before tracking (issue 24 §2)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     n = plan["n_frames"]
@@ -361,6 +362,18 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
         result = getattr(getattr(bpy.ops, module), op)()
         if result != {"FINISHED"}:
             raise RuntimeError(f"{plan['radii_operator']} returned {result}")
+    link = None
+    if keypoints:
+        camera = scene.camera
+        bpy.context.view_layer.objects.active = camera
+        first = sorted(Path(keypoints).glob("*.json"))[0]
+        result = bpy.ops.import_scene.track_keypoints(filepath=str(first))
+        if result != {"FINISHED"}:
+            raise RuntimeError(f"Import 2D Keypoints returned {result}")
+        stored = camera.data.track_and_stride_keypoints
+        link = {"camera": camera.name, "path": stored.filepath,
+                "start_frame": int(stored.start_frame)}
+        bpy.context.view_layer.objects.active = obj
     bpy.context.view_layer.update()
     names = [b["name"] for b in plan["bones"]]
     scene_frames = np.arange(1, n + 1)
@@ -400,7 +413,10 @@ def run_one(bpy, plan, poses, cameras, every, frames=None):
               "tracker_camera": camera_record(request.problem.camera),
               "armature2world": np.asarray(request.rig.armature2world).tolist(),
               "radii": radii, "processes": int(plan["processes"]),
-              "footage_decoded_by_operator": frames is None}
+              "footage_decoded_by_operator": frames is None,
+              "keypoints": bool(keypoints), "keypoints_link": link}
+    if keypoints:
+        record["run"] = f"{name}+keypoints"
     arrays = {"bezier_rot": bezier[0], "bezier_pos": bezier[1], "slerp_rot": slerp_rot,
               "slerp_pos": slerp_pos, "tracked_rot": tracked[0], "tracked_pos": tracked[1],
               "slerp_first_frame": np.array(keys[0])}
@@ -486,6 +502,13 @@ def main():
                 print(f"    warning: {w}", flush=True)
             arrays.update({f"{name}/{every}/{k}": v for k, v in out.items()})
             records.append(record)
+            keypoints = plan.get("keypoints", {}).get(cameras[0]) if len(cameras) == 1 else None
+            if keypoints:
+                out, record, _ = run_one(bpy, plan, poses, cameras, every, frames, keypoints)
+                print(f"  {name} + keypoints, keys every {every}: Track Keyframes "
+                      f"{record['operator_wall_s']:.1f} s; {record['summary']}", flush=True)
+                arrays.update({f"{record['run']}/{every}/{k}": v for k, v in out.items()})
+                records.append(record)
     out = Path(plan["output"])
     np.savez_compressed(out.with_suffix(".npz"), **arrays)
     out.with_suffix(".json").write_text(json.dumps({"runs": records,

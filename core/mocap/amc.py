@@ -291,6 +291,10 @@ def _scaled_progress(steps, done, lines):
         yield done + (1.0 - done) * min(1.0, count / max(lines, 1))
 
 
+#: The largest frame number an .amc may carry (frame numbers are kept as np.int64).
+_MAX_FRAME_NUMBER = int(np.iinfo(np.int64).max)
+
+
 def _is_frame_number(token):
     """ASCII digits only (``str.isdigit`` also accepts e.g. superscripts)."""
     return token.isascii() and token.isdigit()
@@ -344,6 +348,9 @@ def _parse_slow(lines, layout, start, path, units, previous=None):
                 if bone_order is None:
                     bone_order = tuple(current)
             number = int(head)
+            if number > _MAX_FRAME_NUMBER:       # np.int64 below; OverflowError otherwise
+                raise MocapParseError(path, line, f"frame number {head} is too large "
+                                                  f"(at most {_MAX_FRAME_NUMBER})")
             if last is not None and number != last + 1:
                 raise MocapParseError(path, line, f"frame {number} follows frame {last}: frames must be consecutive")
             numbers.append(number)

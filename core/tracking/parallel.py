@@ -433,6 +433,52 @@ def _local_worker(work, frames, todo, lock, inbox, stop):
         inbox.put((-1, ("result", i, result)))
 
 
+#: Prefix of the pool's scratch folders (each interval's frames, removed with the folder).
+SCRATCH_PREFIX = "ts-track-"
+#: A scratch folder untouched this long (seconds) belongs to a run that was killed: a live run
+#: writes into its folder at every interval it hands out.
+STALE_SCRATCH_SECONDS = 24 * 3600.0
+
+
+def sweep_stale_scratch(parent=None, now=None):
+    """Remove the scratch folders of pool runs that were killed (a crash or a killed Blender
+    skips the ``TemporaryDirectory`` clean-up and leaves an interval's frames, hundreds of MB).
+
+    Parameters
+    ----------
+    parent : str or Path, optional
+        Where the folders are (default: ``tempfile.gettempdir()``).
+    now : float, optional
+        The present as ``time.time()`` (s); tests pass their own.
+
+    Returns
+    -------
+    removed : list of Path
+        The folders removed: named ``SCRATCH_PREFIX…`` and unmodified for
+        ``STALE_SCRATCH_SECONDS``. Best effort: a folder that cannot be removed is left.
+    """
+    import shutil
+    import time
+    parent = Path(parent if parent is not None else tempfile.gettempdir())
+    now = time.time() if now is None else now
+    removed = []
+    try:
+        candidates = list(parent.glob(SCRATCH_PREFIX + "*"))
+    except OSError:
+        return removed
+    for folder in candidates:
+        try:
+            if not folder.is_dir() or folder.is_symlink():
+                continue
+            if now - folder.stat().st_mtime < STALE_SCRATCH_SECONDS:
+                continue
+            shutil.rmtree(folder)
+        except OSError:
+            continue
+        removed.append(folder)
+    return removed
+
+
 def _run_pool(work, frames, workers, weights, report, stop_requested):
     """Intervals over ``workers`` processes: this one (a thread) and ``workers - 1`` children.
 
@@ -454,7 +500,8 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
 
     offsets = work[2]
 
-    with tempfile.TemporaryDirectory(prefix="ts-track-") as folder:
+    sweep_stale_scratch()
+    with tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX) as folder:
         written = {}                       # interval -> its frames files (one per camera)
 
         def give(k, task):

@@ -205,6 +205,35 @@ def test_missing_frame_number_and_gaps(walk):
     assert "no frames" in amc_error(lines[:3], asf).reason
 
 
+def _renumbered(lines, first):
+    """``lines`` with frame k (1-based) renumbered ``first + k - 1``; the frame lines' numbers."""
+    out, at = [], []
+    for i, l in enumerate(lines):
+        if l.strip().isdigit():
+            l = str(first + int(l.strip()) - 1)
+            at.append(i + 1)
+        out.append(l)
+    return out, at
+
+
+def test_frame_numbers_past_int64_name_file_and_line(walk):
+    """Frame numbers of 16 digits and more go to the line-by-line parser (the vectorised one
+    takes up to 15); those past np.int64 are refused there, naming the line, not an
+    OverflowError."""
+    asf, lines = walk
+    last = max(i for i, l in enumerate(lines) if l.strip().isdigit() and int(l) == 4)
+    few = lines[:last]                            # frames 1-3
+    big = 2 ** 63 - 2                             # frames 2**63-2, 2**63-1, 2**63
+    bad, at = _renumbered(few, big)
+    err = amc_error(bad, asf)
+    assert err.line == at[2] and f"frame number {2 ** 63} is too large" in err.reason
+    fine, _ = _renumbered(few[:at[2] - 1], big)  # frames 2**63-2 and 2**63-1 fit
+    motion = parse_amc(fine, asf, path="walk.amc")
+    assert motion.frame_numbers.tolist() == [big, big + 1]
+    sixteen, _ = _renumbered(few, 10 ** 15)
+    assert parse_amc(sixteen, asf).frame_numbers.tolist() == [10 ** 15, 10 ** 15 + 1, 10 ** 15 + 2]
+
+
 def asf_error(lines):
     with pytest.raises(MocapParseError) as info:
         parse_asf(lines, path="body.asf")

@@ -469,3 +469,38 @@ def test_an_accurate_table_is_accurate_at_every_cell_centre(cx, cy):
     exact, _ = distortion._undistort(centres, lens.coefficients, lens.radius_limit ** 2)
     error = np.abs(table.interpolate(centres)[0] - exact).max()
     assert error <= distortion._TABLE_TOL
+
+
+def test_any_batch_shape_gives_the_flat_batchs_values():
+    """distort_with_jacobian (also beyond the radius limit, where the radial extension's
+    Jacobian is built) and undistort take points of any shape (..., 2): the same values as
+    the flattened batch, in the batch's shape."""
+    lens = _camera(WIDE).distortion
+    r = lens.radius_limit * np.array([0.2, 0.7, 1.3, 2.5])
+    angle = np.linspace(0.3, 5.0, 3)[:, None]
+    points = np.stack([r * np.cos(angle), r * np.sin(angle)], -1)          # (3, 4, 2)
+    assert (np.hypot(*points.reshape(-1, 2).T) > lens.radius_limit).sum() == 6
+    moved, jac = lens.distort_with_jacobian(points)
+    flat_moved, flat_jac = lens.distort_with_jacobian(points.reshape(-1, 2))
+    assert moved.shape == (3, 4, 2) and jac.shape == (3, 4, 2, 2)
+    np.testing.assert_array_equal(moved.reshape(-1, 2), flat_moved)
+    np.testing.assert_array_equal(jac.reshape(-1, 2, 2), flat_jac)
+    back = lens.undistort(moved)
+    assert back.shape == (3, 4, 2)
+    np.testing.assert_array_equal(back.reshape(-1, 2), lens.undistort(flat_moved))
+
+
+def test_a_border_newton_cannot_invert_is_refused_as_such():
+    """k1 = -0.9 on the demo camera: the image border's distorted points lie beyond the
+    largest radius the lens reaches, so Newton's method ends on finite points that do not
+    distort back to them (not converged, though finite): refused for the border, naming the
+    coefficients and the image size."""
+    import core.tracking.distortion as distortion
+    u = np.linspace(-0.5, W - 0.5, 65)
+    border = (np.stack([u, np.full_like(u, -0.5)], -1) - [CX, CY]) / [FX, FY]
+    q, converged = distortion._undistort(border, coefficients_array([-0.9, 0, 0, 0]), np.inf)
+    assert np.all(np.isfinite(q)) and not np.all(converged)
+    with pytest.raises(ValueError) as info:
+        LensDistortion.for_image([-0.9, 0, 0, 0], FX, FY, CX, CY, W, H)
+    assert str(info.value) == ("Lens distortion [-0.9, 0.0, 0.0, 0.0, 0.0] cannot be inverted at "
+                               "the image border (1088x1920 px): it does not describe this image")

@@ -3,10 +3,12 @@ cancelling, and workers that import the core under an add-on's package name."""
 
 import importlib
 import io
+import os
 import pickle
 import shutil
 import sys
 import threading
+import time
 import types
 from pathlib import Path
 
@@ -139,3 +141,44 @@ def test_a_failing_interval_raises_in_the_caller():
     with pytest.raises(TrackingError, match="not rotation matrices"):
         track_keyframes(problem, frames, [0, 3, 6], roots[[0, 3, 6]], local[[0, 3, 6]],
                         TrackingOptions(max_iterations=1), processes=2)
+
+
+def _aged(path, seconds, now):
+    os.utime(path, (now - seconds, now - seconds))
+    return path
+
+
+def test_sweep_removes_only_stale_pool_scratch_folders(tmp_path):
+    """A killed run's scratch folder (untouched for a day) goes; a live run's, other folders
+    and a file of the same prefix stay."""
+    from core.tracking.parallel import STALE_SCRATCH_SECONDS, sweep_stale_scratch
+    now = time.time()
+    stale = tmp_path / "ts-track-killed"
+    stale.mkdir()
+    np.save(stale / "interval_0_view_0.npy", np.zeros(3))
+    _aged(stale, STALE_SCRATCH_SECONDS + 60, now)
+    live = tmp_path / "ts-track-live"
+    live.mkdir()
+    _aged(live, STALE_SCRATCH_SECONDS - 60, now)
+    other = tmp_path / "someone-else"
+    other.mkdir()
+    _aged(other, 10 * STALE_SCRATCH_SECONDS, now)
+    plain = tmp_path / "ts-track-file"
+    plain.write_bytes(b"x")
+    _aged(plain, 10 * STALE_SCRATCH_SECONDS, now)
+    assert sweep_stale_scratch(tmp_path, now=now) == [stale]
+    assert not stale.exists() and live.is_dir() and other.is_dir() and plain.is_file()
+
+
+def test_pool_sweeps_a_killed_runs_folder_and_leaves_none_of_its_own(tmp_path, monkeypatch):
+    import tempfile
+    from core.tracking.parallel import STALE_SCRATCH_SECONDS
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    stale = tmp_path / "ts-track-killed"
+    stale.mkdir()
+    _aged(stale, 2 * STALE_SCRATCH_SECONDS, time.time())
+    sk, body, cam, roots, local, frames = _sequence(10)
+    keys = [0, 4, 10]
+    track_keyframes(TrackingProblem(sk, body, cam), frames, keys, roots[keys], local[keys],
+                    TrackingOptions(max_iterations=1), processes=2)
+    assert list(tmp_path.iterdir()) == []

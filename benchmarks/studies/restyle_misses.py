@@ -1,0 +1,175 @@
+"""Issue 25's three remaining misses, diagnosed (docs/gait.md, *Restyle and retime: the three
+misses*): the careful walk at cadence 0.7, a run retimed up, and the hips' acceleration at the
+join over the leave-one-walker-out windows.
+
+1. **Careful.** The fold model of ``gait_restyle`` (the stock recipe without subject 07),
+   learned once more with every piece under its own name: the careful pieces' learned styles
+   and periods; the named style (their mean) against the piece nearest all the others (the
+   medoid), each restyled onto CMU 07_04 at cadence 0.7 / 1.0 / 1.3 / 1.6 (stride, hip swing,
+   root / legs), with the captured careful walks beside them.
+2. **Runs.** The captured runs' cadence, stride, hip swing and speed; a cadence direction
+   learned from the runs alone by the walks' recipe (:mod:`core.gait.retiming`), applied to
+   the restyled run at 1.3 and 1.6 against the walks' direction and the fast-forward.
+   (Sections 1-2 use that model with every piece under its own name, named styles as the mean
+   of their pieces, which is what ``learn_model`` ships.)
+3. **The join.** The six fold models and the windows Predict Gait accepts (``check_gait``),
+   ``predict_walk`` with defaults: per subject, the windows whose root acceleration across the
+   join exceeds the trial's 99th percentile, against the captured continuation, and how many
+   of them reach that ratio elsewhere in the prediction as well.
+
+About 3 min on the 2-core machine::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_misses.py
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(ROOT))
+import gait_lowo as L  # noqa: E402
+import gait_restyle as R  # noqa: E402
+from build_stock_gaits import FPS, training_pieces  # noqa: E402
+from core.gait import adapt, observations_from_dofs  # noqa: E402
+from core.gait.checks import check_gait  # noqa: E402
+from core.gait.learning import learn_model  # noqa: E402
+from core.gait.prediction import cycle_mean  # noqa: E402
+from core.gait.stock import STOCK_LAG_RANGE, STOCK_RECIPE  # noqa: E402
+from core.gait.walk import WalkRequest, predict_walk  # noqa: E402
+from core.gait.walk_figures import contact_height, foot_tracks, walk_summary  # noqa: E402
+
+KEYS = ("stride_m", "hip_swing_deg", "knee_range_deg", "steps_per_min", "root_vs_legs",
+        "lowest_foot_cm")
+
+
+def walker(model, trial="07_04", frames=(0, 100)):
+    """(skeleton, reference rows, adapt result, floor) of the held-out walker."""
+    values, names = L.load(trial)
+    ref = np.array(values)[frames[0]:frames[1]]
+    skeleton = R.skeleton_of(trial)
+    cols = [names.index(n) for n in model.dof_names]
+    obs = observations_from_dofs(model, ref[:, cols], model.dof_names, FPS)
+    res = adapt(model, obs, fps=FPS)
+    floor = contact_height(foot_tracks(skeleton, ref, FPS, root_frame=model.root_frame))
+    return skeleton, ref, res, floor
+
+
+def figures(model, who, w, factor, cadence, retime="natural", cadence_style=None):
+    skeleton, ref, res, floor = who
+    out = predict_walk(model, skeleton, ref, FPS, res.state, res.w, int(R.PREDICT_S * FPS),
+                       WalkRequest(w=w, style_cadence=factor, cadence=cadence, retime=retime),
+                       offset=res.offset, residual=res.residual, start=res.last_observation,
+                       cadence_style=cadence_style)
+    f = walk_summary(skeleton, out.dofs, FPS, 2 * np.pi / out.omega, floor=floor)
+    return "  ".join(f"{k.split('_')[0]} {f[k]:6.2f}" for k in KEYS)
+
+
+def careful_and_runs():
+    """Sections 1 and 2 on the fold model learned with every piece under its own name (the
+    same pieces, bases and cadence direction as ``gait_restyle``'s fold; a named style is the
+    mean of its pieces, as ``learn_model`` merges them)."""
+    seqs, names, styles, walkers = training_pieces(STOCK_RECIPE, exclude_subjects=["07"])
+    labels = np.array(styles)
+    own = learn_model(seqs, names, FPS, [f"{s}#{i}" for i, s in enumerate(styles)],
+                      walkers=walkers, lag_range=STOCK_LAG_RANGE)
+    who = walker(own)
+
+    def named(label):
+        return own.styles[labels == label].mean(axis=0), \
+            float(np.exp(np.log(own.periods[labels == label]).mean()))
+
+    print("1. careful pieces (fold without 07): period (frames at 60 Hz), style")
+    pieces = own.styles[labels == "careful"]
+    for p, s in zip(own.periods[labels == "careful"], pieces):
+        print(f"   {p:6.1f}  {np.round(s, 2)}")
+    medoid = pieces[np.argmin(np.linalg.norm(pieces[:, None] - pieces[None], axis=2).sum(1))]
+    normal, t_normal = named("normal")
+    mean, t_careful = named("careful")
+    factor = t_normal / t_careful
+    fwd = own.channel_index(["root.v_forward"])[0]
+    for tag, style in (("mean (shipped)", mean), ("medoid", medoid)):
+        w = who[2].w + style - normal
+        speed = cycle_mean(own, w, who[2].residual, who[2].offset)[fwd]
+        print(f"   careful {tag}: model speed {speed:.2f} m/s on 07_04")
+        for c in R.CADENCES:
+            print(f"     {c:g}  natural  {figures(own, who, w, factor, c)}")
+            print(f"          fast-fwd {figures(own, who, w, factor, c, 'fast_forward')}")
+    zero = cycle_mean(own, 0 * own.cadence_style)[fwd]
+    print("   cadence direction: speed change per unit log cadence "
+          f"{cycle_mean(own, own.cadence_style)[fwd] - zero:.2f} m/s")
+    for trial in STOCK_RECIPE["careful"]:
+        f = R.captured_figures(trial)
+        print(f"   captured {trial}: " + "  ".join(f"{k.split('_')[0]} {f[k]:6.2f}"
+                                                   for k in KEYS[:4]))
+
+    print("2. captured runs: steps/min, stride m, hip swing deg, speed m/s")
+    for trial in STOCK_RECIPE["run"]:
+        f = R.captured_figures(trial)
+        print(f"   {trial}: {f['steps_per_min']:6.1f} {f['stride_m']:5.2f} "
+              f"{f['hip_swing_deg']:5.1f} {f['speed_m_s']:5.2f}")
+    fwd, height = own.channel_index(["root.v_forward", "root.height"])
+    runs = own.styles[labels == "run"]
+    v = np.array([cycle_mean(own, s)[fwd] for s in runs])
+    h = np.array([cycle_mean(own, s)[height] for s in runs])
+    pace = np.log(v / np.sqrt(9.81 * h))
+    cadence = -np.log(own.periods[labels == "run"])
+    pace, cadence = pace - pace.mean(), cadence - cadence.mean()
+    gamma = (cadence @ pace) / (cadence @ cadence)
+    run_direction = gamma * (pace @ (runs - runs.mean(axis=0)) / (pace @ pace))
+    print(f"   run direction (runs only, gamma {gamma:.2f}): {np.round(run_direction, 2)}")
+    run, t_run = named("run")
+    w, factor = who[2].w + run - normal, t_normal / t_run
+    for c in (1.3, 1.6):
+        print(f"   run {c:g} walks' direction {figures(own, who, w, factor, c)}")
+        print(f"       runs' direction  {figures(own, who, w, factor, c, cadence_style=run_direction)}")
+        print(f"       fast-forward     {figures(own, who, w, factor, c, 'fast_forward')}")
+
+
+def join():
+    print("3. root acceleration across the join over the trial's 99th percentile (> 1)")
+    h = max(1, int(round(R.JOIN_SPACING_S * FPS)))
+    total = {"keyed": 0, "captured": 0, "elsewhere": 0, "windows": 0,
+             "prediction_p99_over": 0}
+    for subject in L.SUBJECTS:
+        model = L.fold_model(L.Method("method"), [s for s in L.SUBJECTS if s != subject])
+        counts = {"keyed": 0, "captured": 0, "elsewhere": 0, "windows": 0,
+                  "prediction_p99_over": 0}
+        for trial, t0, stop in L.test_cases(subject):
+            values, names = L.load(trial)
+            values = np.asarray(values)
+            obs = observations_from_dofs(model, values, names, L.FPS)
+            skeleton = L.skeleton_of(trial)
+            cap = values[:, :3]
+            p99 = np.percentile(np.linalg.norm(cap[2 * h:] - 2 * cap[h:-h] + cap[:-2 * h],
+                                               axis=1) * (L.FPS / h) ** 2, 99)
+            for window in L.WINDOWS:
+                a = t0 - round(window * L.FPS)
+                if check_gait(model, obs[a:t0], L.FPS).refusal is not None:
+                    continue
+                res = adapt(model, obs[a:t0], fps=L.FPS)
+                dofs = predict_walk(model, skeleton, values[a:t0], L.FPS, res.state, res.w,
+                                    stop - t0, WalkRequest(), offset=res.offset,
+                                    residual=res.residual, start=res.last_observation).dofs
+                ratio = R.join_ratio(values[a:t0], dofs, values, list(names))[0]
+                rows = dofs[:, :3]
+                inside = np.linalg.norm(rows[2 * h:] - 2 * rows[h:-h] + rows[:-2 * h],
+                                        axis=1) * (L.FPS / h) ** 2 / p99
+                counts["windows"] += 1
+                counts["keyed"] += int(ratio > 1)
+                counts["elsewhere"] += int(ratio > 1 and inside.max() >= ratio)
+                counts["prediction_p99_over"] += int(np.percentile(inside, 99) > 1)
+                counts["captured"] += int(R.join_ratio(values[a:t0], values[t0:stop], values,
+                                                       list(names))[0] > 1)
+        print(f"   {subject}: {counts}")
+        for k in total:
+            total[k] += counts[k]
+    print(f"   all: {total}")
+
+
+if __name__ == "__main__":
+    careful_and_runs()
+    join()
