@@ -292,31 +292,35 @@ def read_openpose_json(path, person=0, joint_set=None):
     return _finish(kind, JOINT_SETS[kind], {k: v[:2] for k, v in rows.items()}, source)
 
 
-def _csv_columns(header, path):
-    """``(names, columns (J, 3))`` from a CSV header (x, y, confidence column of each joint)."""
+def _csv_columns(header, path, line=1):
+    """``(names, columns (J, 3))`` from a CSV header (x, y, confidence column of each joint);
+    ``line``: the header's line in the file."""
     if not header or header[0].strip().lower() not in ("frame", "frames", "frame_number"):
-        raise KeypointFileError(f"{path}, line 1: the header must start with 'frame' and name "
-                                f"<joint>_x, <joint>_y, <joint>_c columns")
+        raise KeypointFileError(f"{path}, line {line}: the header must start with 'frame' and "
+                                f"name <joint>_x, <joint>_y, <joint>_c columns")
+    if len(header) < 2:
+        raise KeypointFileError(f"{path}, line {line}: the header names no joints (after "
+                                f"'frame' come <joint>_x, <joint>_y, <joint>_c columns)")
     joints = {}
     for col, cell in enumerate(header[1:], start=1):
         name = cell.strip()
         m = re.match(r"^(.+?)[_ .:](x|y|" + "|".join(_CONFIDENCE_SUFFIXES) + r")$", name,
                      re.IGNORECASE)
         if not m:
-            raise KeypointFileError(f"{path}, line 1, column {col + 1}: {name!r} is not "
+            raise KeypointFileError(f"{path}, line {line}, column {col + 1}: {name!r} is not "
                                     f"<joint>_x, <joint>_y or <joint>_c")
         joint = canonical_name(m.group(1))
         what = m.group(2).lower()
         what = what if what in ("x", "y") else "c"
         slot = joints.setdefault(joint, {})
         if what in slot:
-            raise KeypointFileError(f"{path}, line 1, column {col + 1}: a second {what} column "
+            raise KeypointFileError(f"{path}, line {line}, column {col + 1}: a second {what} column "
                                     f"for {joint}")
         slot[what] = col
     for joint, slot in joints.items():
         missing = [w for w in ("x", "y", "c") if w not in slot]
         if missing:
-            raise KeypointFileError(f"{path}, line 1: joint {joint} has no "
+            raise KeypointFileError(f"{path}, line {line}: joint {joint} has no "
                                     f"{' or '.join(missing)} column")
     names = list(joints)
     return names, np.array([[joints[j]["x"], joints[j]["y"], joints[j]["c"]] for j in names])
@@ -375,7 +379,7 @@ def read_keypoints_csv(path, text=None):
     if not kept:
         raise KeypointFileError(f"{path}, line 1: empty file (expected a header and rows)")
     header_line, header = kept[0]
-    names, columns = _csv_columns(header, path)
+    names, columns = _csv_columns(header, path, header_line)
     rows = {}
     for line, row in kept[1:]:
         if len(row) != len(header):
