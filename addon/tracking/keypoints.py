@@ -41,6 +41,20 @@ _SETS = (("AUTO", "Automatic", "Told by the number of joints per person"),) + tu
     (key.upper(), key, f"{len(names)} joints") for key, names in JOINT_SETS.items())
 
 
+def person_property():
+    """*Person*: the camera's link and the import operator show the same setting."""
+    return IntProperty(
+        name="Person", default=0, min=0, soft_max=20,
+        description="Which person of each JSON file's people list (Pose2Sim puts the tracked "
+                    "person first)")
+
+
+def joint_set_property():
+    """*Joint Set*, as :func:`person_property`."""
+    return EnumProperty(name="Joint Set", items=_SETS, default="AUTO",
+                        description="The detector's joints, in the file's order")
+
+
 class KeypointLinkError(ValueError):
     """A keypoint link that cannot be made or read (the message says why)."""
 
@@ -53,12 +67,8 @@ class TS_CameraKeypoints(bpy.types.PropertyGroup):
         description="2D keypoints of this camera's footage from another tool (a folder of "
                     "OpenPose/Pose2Sim JSON files, one of them, or a CSV of x, y, confidence "
                     "per joint): Track Keyframes adds them to the image evidence")
-    person: IntProperty(
-        name="Person", default=0, min=0, soft_max=20,
-        description="Which person of each JSON file's people list (Pose2Sim puts the tracked "
-                    "person first)")
-    joint_set: EnumProperty(name="Joint Set", items=_SETS, default="AUTO",
-                            description="The detector's joints, in the file's order")
+    person: person_property()
+    joint_set: joint_set_property()
     start_frame: IntProperty(
         name="Start Frame", default=1,
         description="Scene frame of the keypoints' frame 0 (the footage's first frame)")

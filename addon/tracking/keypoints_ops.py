@@ -1,12 +1,12 @@
 """File › Import › 2D Keypoints, and Clear 2D Keypoints: thin operators over :mod:`.keypoints`."""
 
 import bpy
-from bpy.props import EnumProperty, IntProperty, StringProperty
+from bpy.props import StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from ..common.reporting import one_line
-from .keypoints import _SETS, KeypointLinkError, link_keypoints, linked_keypoints, \
-    unlink_keypoints
+from .keypoints import KeypointLinkError, joint_set_property, link_keypoints, linked_keypoints, \
+    person_property, unlink_keypoints
 from .props import track_settings
 
 
@@ -37,12 +37,8 @@ class TS_OT_import_keypoints(bpy.types.Operator, ImportHelper):
 
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json;*.csv", options={"HIDDEN"})
-    person: IntProperty(
-        name="Person", default=0, min=0, soft_max=20,
-        description="Which person of each JSON file's people list (Pose2Sim puts the tracked "
-                    "person first)")
-    joint_set: EnumProperty(name="Joint Set", items=_SETS, default="AUTO",
-                            description="The detector's joints, in the file's order")
+    person: person_property()
+    joint_set: joint_set_property()
 
     def invoke(self, context, event):
         if target_camera(context) is None:

@@ -131,6 +131,18 @@ class CameraKeypoints:
             raise TrackingError(f"keypoints: joint indices must lie in 0..{n_joints - 1}")
 
 
+def per_camera(keypoints, n_views):
+    """``keypoints`` (one :class:`CameraKeypoints`, or one entry per camera, None where a
+    camera has none) as a list of ``n_views`` entries."""
+    if isinstance(keypoints, CameraKeypoints):
+        keypoints = [keypoints]
+    keypoints = list(keypoints)
+    if len(keypoints) != n_views:
+        raise TrackingError(f"keypoints: expected one entry per camera ({n_views}), "
+                            f"got {len(keypoints)}")
+    return keypoints
+
+
 def keypoints_for_parts(uv, confidence, part_columns, part_joints, first=0):
     """:class:`CameraKeypoints` from a file's keypoints and a body map.
 

@@ -162,6 +162,21 @@ def _line_of(text, needle, start=0):
     return text.count("\n", 0, at) + 1 if at >= 0 else 1
 
 
+def _read_text(path, encoding):
+    """The text of the file at ``path``; :class:`KeypointFileError` naming the file (and the
+    line of the first byte that is not UTF-8)."""
+    try:
+        with open(path, "rb") as handle:
+            raw = handle.read()
+    except OSError as exc:
+        raise KeypointFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return raw.decode(encoding)
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise KeypointFileError(f"{path}, line {line}: not UTF-8 text") from None
+
+
 def read_openpose_frame(path, person=0, joint_set=None, text=None):
     """One OpenPose/Pose2Sim JSON file: ``(joint_set, uv (J, 2), confidence (J,))`` of
     ``people[person]``, or ``(joint_set, None, None)`` when it has no such person.
@@ -172,16 +187,7 @@ def read_openpose_frame(path, person=0, joint_set=None, text=None):
         Naming the file and line.
     """
     if text is None:
-        try:
-            with open(path, "rb") as handle:
-                raw = handle.read()
-        except OSError as exc:
-            raise KeypointFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            line = raw.count(b"\n", 0, exc.start) + 1
-            raise KeypointFileError(f"{path}, line {line}: not UTF-8 text") from None
+        text = _read_text(path, "utf-8")
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -356,16 +362,7 @@ def read_keypoints_csv(path, text=None):
         Naming the file, line and column.
     """
     if text is None:
-        try:
-            with open(path, "rb") as handle:
-                raw = handle.read()
-        except OSError as exc:
-            raise KeypointFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
-        try:
-            text = raw.decode("utf-8-sig")
-        except UnicodeDecodeError as exc:
-            line = raw.count(b"\n", 0, exc.start) + 1
-            raise KeypointFileError(f"{path}, line {line}: not UTF-8 text") from None
+        text = _read_text(path, "utf-8-sig")
     reader = csv.reader(io.StringIO(text, newline=""))
     kept = []
     try:

@@ -58,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from .foot_lock import FootLock, lock_feet
-from .keypoint_cue import CameraKeypoints
+from .keypoint_cue import per_camera
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, interpolated_interval, track_interval
 
@@ -171,12 +171,7 @@ def _check_keypoints(problem, keypoints):
     """``keypoints`` as a list (one entry per camera) or None."""
     if keypoints is None:
         return None
-    if isinstance(keypoints, CameraKeypoints):
-        keypoints = [keypoints]
-    keypoints = list(keypoints)
-    if len(keypoints) != problem.n_views:
-        raise TrackingError(f"keypoints: expected one entry per camera ({problem.n_views}), "
-                            f"got {len(keypoints)}")
+    keypoints = per_camera(keypoints, problem.n_views)
     for kp in keypoints:
         if kp is not None:
             kp.check(problem.skeleton.n_joints)

@@ -38,7 +38,7 @@ from .drift import (accumulate_rotations, accumulate_root_positions, correct_roo
 from .hinge_twist import hinge_joints, retwist, untwist
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
-from .keypoint_cue import CameraKeypoints, interval_keypoints
+from .keypoint_cue import interval_keypoints, per_camera
 from .motion import MotionView, estimate_view_motions
 from .occluders import hide_behind, view_occluders
 from .problem import TrackingError, TrackingOptions
@@ -806,12 +806,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
 def _with_keypoints(problem, views, keypoints, start, end):
     """The views with their cameras' keypoints of the interval (:func:`.keypoint_cue.
     interval_keypoints`, offsets at the keys removed)."""
-    if isinstance(keypoints, CameraKeypoints):
-        keypoints = [keypoints]
-    keypoints = list(keypoints)
-    if len(keypoints) != problem.n_views:
-        raise TrackingError(f"keypoints: expected one entry per camera ({problem.n_views}), "
-                            f"got {len(keypoints)}")
+    keypoints = per_camera(keypoints, problem.n_views)
     n = len(views[0].pyramid[0]) - 1
     out = []
     for view in views:
