@@ -840,7 +840,14 @@ def _untwisted(problem, start, end, initial):
     start = Pose(start.root_translation, local[0])
     end = Pose(end.root_translation, local[1])
     if initial is not None:
-        initial = (initial[0], untwist(sk, np.asarray(initial[1], float), hinges)[0])
+        try:
+            rotations = np.asarray(initial[1], float)
+        except (ValueError, TypeError):
+            rotations = None
+        # A malformed initial trajectory is left as given: _initial_trajectory reports it.
+        if rotations is not None and rotations.ndim == 4 \
+                and rotations.shape[1:] == (sk.n_joints, 3, 3):
+            initial = (initial[0], untwist(sk, rotations, hinges)[0])
     return start, end, initial, (hinges, twist[0], twist[1])
 
 

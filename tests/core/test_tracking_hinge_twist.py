@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core.kinematics import Skeleton, axis_rotation, exp_so3, forward_kinematics
-from core.tracking import TrackingOptions, TrackingProblem
+from core.tracking import TrackingError, TrackingOptions, TrackingProblem
 from core.tracking.body_model import BodyModel
 from core.tracking.hinge_twist import (apply_twist, hinge_joints, retwist, twist_angles,
                                        untwist)
@@ -175,3 +175,14 @@ def test_in_between_does_not_depend_on_how_the_keys_split_a_twist(scene):
         rot, org = forward_kinematics(sk, r.local_rotations, r.root_translations)
         assert np.abs(org - org0).max() < 1e-7, degrees
         assert np.abs(rot[:, others] - rot0[:, others]).max() < 1e-6, degrees
+
+
+def test_a_malformed_initial_trajectory_is_reported_with_twisted_keys(scene):
+    """With a twist in the keys, an initial trajectory of the wrong shape still gets the
+    tracker's own message (it was untwisted first, and failed inside the untwisting)."""
+    sk, problem, frames, roots, local = scene
+    keys = _twisted(sk, local[[0, -1]], [6.0, -6.0])
+    for bad in (local[:, :-1], local[:, :, :2], [[1.0]]):
+        with pytest.raises(TrackingError, match="initial trajectory: expected shapes"):
+            track_interval(problem, frames, Pose(roots[0], keys[0]), Pose(roots[-1], keys[1]),
+                           TrackingOptions(max_iterations=1), initial=(roots, bad))
