@@ -97,8 +97,13 @@ def interval_notes(key_frames, intervals):
         verdicts = r.acceptance
         if verdicts is None or all(x == NOT_TRACKED for x in verdicts.reasons):
             if r.kept_iteration == 0 and int(key_frames[i + 1]) - int(key_frames[i]) > 1:
-                notes.append(f"{span}: kept the in-between of your keys — no tracked motion "
-                             "matched the footage better")
+                if getattr(r, "keypoint_fusion", None) is not None:
+                    notes.append(f"{span}: no tracked motion matched the footage better than "
+                                 "the in-between of your keys; the in-between was fitted to "
+                                 "the 2D keypoints")
+                else:
+                    notes.append(f"{span}: kept the in-between of your keys — no tracked "
+                                 "motion matched the footage better")
             continue
         kept = [p for p, ok in enumerate(verdicts.tracked) if not ok]
         partly = [p for p, ok in enumerate(verdicts.tracked)

@@ -255,8 +255,18 @@ class TrackingOptions:
         (docs/tracking.md, *Several cameras*).
     keypoint_weight : float
         Cameras with 2D keypoints (:mod:`.keypoint_cue`, issue 24): how many image samples'
-        worth one keypoint coordinate is, each in its own noise units (the image rows' robust
-        scale, the keypoints' robust scale in pixels). 0: keypoints are ignored.
+        worth one keypoint coordinate is in the rows of every frame pair, each in its own noise
+        units (the image rows' robust scale, the keypoints' robust scale in pixels). 0 (the
+        default): no such rows -- on the real footage they made the result worse (a
+        detector's jitter enters every frame pair; ``docs/tracking.md``).
+    keypoint_fusion_weight : float
+        Cameras with 2D keypoints: after tracking, every in-between frame is fitted to the
+        keypoints smoothed over time, with the tracked pose as the prior
+        (:mod:`.keypoint_fusion`), and an interval keeps the fused frames where the image
+        (eq. 4) does not fit them worse. The prior's weight, in keypoint noise units per rad^2;
+        0: no fusion. Default chosen on one camera of the real footage.
+    keypoint_smoothing : int
+        Frames on each side of the keypoints' smoothing over time before the fusion (0: none).
     depth_from_views : bool
         Several cameras: estimate the root's motion along every axis in frames that two or
         more views measure (their lines of sight differ, so together they measure depth);
@@ -323,7 +333,9 @@ class TrackingOptions:
     view_tau: float = 0.01
     limit_action: str = None
     occluder_margin: float = 0.03
-    keypoint_weight: float = 10.0
+    keypoint_weight: float = 0.0
+    keypoint_fusion_weight: float = 1000.0
+    keypoint_smoothing: int = 5
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
     frame_rate: float = 24.0
@@ -355,6 +367,12 @@ class TrackingOptions:
                              f"{self.view_weighting!r}")
         if not (np.isfinite(self.keypoint_weight) and self.keypoint_weight >= 0.0):
             raise ValueError(f"keypoint_weight must be >= 0, got {self.keypoint_weight}")
+        if not (np.isfinite(self.keypoint_fusion_weight) and self.keypoint_fusion_weight >= 0.0):
+            raise ValueError(f"keypoint_fusion_weight must be >= 0, got "
+                             f"{self.keypoint_fusion_weight}")
+        if int(self.keypoint_smoothing) != self.keypoint_smoothing or self.keypoint_smoothing < 0:
+            raise ValueError(f"keypoint_smoothing must be a whole number >= 0, got "
+                             f"{self.keypoint_smoothing}")
         if not 0.0 <= self.min_improvement < 1.0:
             raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")
         if not 0.0 < self.tau < 1.0:

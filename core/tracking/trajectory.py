@@ -39,6 +39,7 @@ from .hinge_twist import hinge_joints, retwist, untwist
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
 from .keypoint_cue import interval_keypoints, per_camera
+from .keypoint_fusion import fuse_keypoints
 from .motion import MotionView, estimate_view_motions
 from .occluders import hide_behind, view_occluders
 from .problem import TrackingError, TrackingOptions
@@ -103,6 +104,10 @@ class IntervalResult:
         interpolation (:mod:`.acceptance`; ``TrackingOptions.acceptance``). When a part kept
         the interpolation, the trajectory and ``residuals`` are those of the mixed result;
         ``errors`` and ``kept_iteration`` still describe the trajectories the loop scored.
+    keypoint_fusion : tuple (float, float) or None
+        With keypoints (:mod:`.keypoint_fusion`): eq. 4 of the kept trajectory before and
+        after it was fused with them (internal units); the trajectory and ``residuals`` are the
+        fused ones. None when nothing was fused.
     """
 
     root_translations: np.ndarray
@@ -121,6 +126,7 @@ class IntervalResult:
     view_samples: np.ndarray = None
     view_levels: list = field(default_factory=list)
     acceptance: PartVerdicts = None
+    keypoint_fusion: tuple = None
 
     @property
     def n_frames(self):
@@ -795,9 +801,13 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     reason, diverged = _iterate(problem, options, views, start, end, traj, scores, timings,
                                 report)
     verdicts = _accept_parts(problem, options, views, start, end, scores)
+    fusion = None
+    if keypoints is not None and options.keypoint_fusion_weight > 0:
+        fusion = _fuse(problem, options, views, keypoints, scores)
     report(1.0)
     result = scores.result(problem, views, reason, diverged, timings)
     result.acceptance = verdicts
+    result.keypoint_fusion = fusion
     if twists is not None:
         _retwist_result(problem, result, keys, *twists)
     return result
@@ -817,6 +827,38 @@ def _with_keypoints(problem, views, keypoints, start, end):
                                      start, end)
         out.append(replace(view, keypoints=cut) if cut is not None else view)
     return out
+
+
+def _fuse(problem, options, views, keypoints, scores):
+    """The kept trajectory (the tracked one, or the keys' in-between where nothing tracked beat
+    it) fused with the keypoints (:mod:`.keypoint_fusion`) in its place. Returns eq. 4 of the
+    trajectory before and after (internal units), or None when no keypoint could be used.
+
+    The fused frames are kept whatever eq. 4 says: on the camera the weight was chosen on,
+    every interval gained from the fusion, including some whose eq. 4 grew by a third
+    (``docs/tracking.md``), so eq. 4 could not be the judge without tuning it on the held-out
+    cameras."""
+    best = scores.best
+    traj = best["traj"]
+    n = len(traj.roots) - 1
+    # The keypoints' smoothing reaches half a window past the keys: there the trajectory is
+    # held at the key (only the keys' offsets and the swap test read it).
+    h = int(options.keypoint_smoothing)
+    cut = [None if kp is None else kp.cut(-h, n + h)
+           for kp in per_camera(keypoints, problem.n_views)]
+    roots = np.concatenate([np.repeat(traj.roots[:1], h, 0), traj.roots,
+                            np.repeat(traj.roots[-1:], h, 0)])
+    local = np.concatenate([np.repeat(traj.local[:1], h, 0), traj.local,
+                            np.repeat(traj.local[-1:], h, 0)])
+    roots, local, fused = fuse_keypoints(problem, roots, local, [h, n + h], cut,
+                                         options.keypoint_fusion_weight, h)
+    if not fused.any():
+        return None
+    candidate = _Trajectory(problem, options, views, roots[h:n + h + 1], local[h:n + h + 1])
+    per_frame = scores.eq4(problem, views, candidate)
+    before = float(np.sum(best["residuals"]))
+    best["traj"], best["residuals"] = candidate, per_frame
+    return before, float(np.sum(per_frame))
 
 
 def _untwisted(problem, start, end, initial):

@@ -105,7 +105,9 @@ def footage():
     dropped = conf * (rng.random(conf.shape) > 0.3)  # 30 % of the detections missing
     problem = TrackingProblem(sk, body, cam)
     start, end = Pose(roots[0], local[0]), Pose(roots[-1], local[-1])
-    options = TrackingOptions(max_iterations=3)
+    # The per-pair rows at the weight they were measured with (off by default since the
+    # fusion after tracking replaced them, test_tracking_keypoint_fusion.py), no fusion.
+    options = TrackingOptions(max_iterations=3, keypoint_weight=10.0, keypoint_fusion_weight=0.0)
     alone = track_interval(problem, frames, start, end, options)
     return dict(sk=sk, problem=problem, frames=frames, roots=roots, local=local, start=start,
                 end=end, options=options, alone=alone, clean=clean, swapped=swapped,
@@ -129,7 +131,9 @@ def test_without_keypoints_nothing_changes(footage):
     # Keypoints that cannot be used (no confidence) or are switched off give the tracker's
     # own result, bit for bit, down the same code path as no keypoints at all.
     for result in (_tracked(f, f["clean"], np.zeros_like(f["conf"])),
-                   _tracked(f, f["clean"], f["conf"], keypoint_weight=0.0)):
+                   _tracked(f, f["clean"], f["conf"], keypoint_weight=0.0),
+                   _tracked(f, f["clean"], np.zeros_like(f["conf"]),
+                            keypoint_fusion_weight=1000.0)):
         np.testing.assert_array_equal(result.local_rotations, base.local_rotations)
         np.testing.assert_array_equal(result.root_translations, base.root_translations)
         np.testing.assert_array_equal(result.errors, base.errors)

@@ -1,0 +1,424 @@
+"""2D keypoints fused with the tracked motion after tracking (issue 24 §2).
+
+The tracker's per-pair keypoint rows (:mod:`.keypoint_cue`) follow the keypoints' motion from
+frame to frame, so a detector's jitter (several pixels at 1920, every frame) enters every frame
+pair, and on the real footage they made the result worse (``docs/bench_real.md``). The
+detector's landmarks fitted per frame with a prior towards the slerp of the keys (the
+benchmark's *keys + detector corrected* recipe) have the opposite kind of errors: no drift, but
+jitter, swaps and a prior that knows nothing of the footage. Fusion takes the best of both:
+every in-between frame of the **tracked** trajectory is fitted to the keypoints with the
+tracked pose as its prior,
+
+    E(x) = sum_{v,k} c_vk rho(|pi_v(X_k(x)) - t_vk|)                     (pixels^2)
+           + weight * (sum_b |log(T_b^T R_b)|^2 + |R_T,root^T (r - r_T) / ROOT_SCALE|^2)
+
+over the tracker's own motion components (``problem.layout``: the same masked axes), ``T``,
+``r_T`` the tracked pose, ``X_k`` keypoint ``k``'s body point, ``pi_v`` camera ``v``'s
+projection (its lens included) and ``rho`` Huber's loss beyond ``huber_px``. The targets
+``t_vk`` (:func:`fusion_targets`) are the keypoints
+
+1. with a left/right pair dropped in a frame where it fits the tracked projection better
+   crossed (a detector's swap; the tracked trajectory, i.e. the image, decides);
+2. minus each keypoint's offset at the keys (keypoint minus the keyed pose's projection),
+   interpolated linearly between the keys (nearest key with one where a key has none), so a
+   detector's systematic bias does not fight the animator's keys;
+3. smoothed over time: per keypoint a confidence-weighted straight line through the
+   ``2 half_window + 1`` frames around each frame (its value at the frame), each detection
+   weighted by Tukey's biweight of its distance from a robust (median) line through the same
+   window (a single bad detection does not bend the line); a frame with fewer than 3
+   detections in its window has none; each keypoint's confidence is divided by the square of
+   its jitter (the robust scale of its distances from the smoothed path), so a keypoint counts
+   in its own noise units and a detector that jitters more on one camera counts less. The
+   detector's frame-to-frame jitter averages out; what stays is where the body is, which the
+   image-driven tracker drifts away from between the keys.
+
+Each frame is solved by Levenberg-Marquardt in the tracker's motion parameters
+(:mod:`.jacobians`: analytic Jacobians of the projections, eq. A.2 with the gradient rows of
+eq. A.8), the prior's Jacobian being the identity (exact at the prior, first order elsewhere;
+the step is only kept where the true cost falls). The keys are never touched (bit for bit), nor
+frames outside the keys or listed in ``keep``.
+
+Weight and window were chosen on one camera of the real footage (cam01) and checked on the
+three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
+"""
+
+import warnings
+
+import numpy as np
+
+from .body_model import joint_frames_in_camera
+from .jacobians import apply_motion, image_jacobian, motion_between, pack, unpack
+from .robust import robust_scale, robust_weights
+
+#: A root translation of this many metres off the tracked pose costs as much as one radian.
+ROOT_SCALE = 0.1
+#: Floor of a keypoint's jitter (pixels of the whole image).
+JITTER_FLOOR_PX = 0.5
+#: Fewest detections in a keypoint's window for a smoothed value.
+MIN_WINDOW_DETECTIONS = 3
+
+
+def project_points(skeleton, camera, roots, local, joints, points):
+    """Pixels (n, J, 2) and camera-frame points (n, J, 3) of body points at n poses."""
+    rot, org = joint_frames_in_camera(skeleton, camera.world2camera, roots, local)
+    p = np.einsum("fjab,jb->fja", rot[:, joints], points) + org[:, joints]
+    return camera.project(np.where(p[..., 2:] > 0, p, 1.0)), p
+
+
+def swapped_pairs(uv, projected, mirror):
+    """(n, J) bool: keypoints of a left/right pair (``mirror``, -1 for none) lying closer to
+    the projections of their twins than to their own, summed over the pair.
+
+    Parameters
+    ----------
+    uv, projected : ndarray, shape (n, J, 2)
+        Keypoints (NaN where missing) and the trajectory's projections of their body points.
+    mirror : ndarray, shape (J,), int
+    """
+    if mirror is None or not np.any(mirror >= 0):
+        return np.zeros(uv.shape[:2], dtype=bool)
+    twin = np.maximum(mirror, 0)
+    own = np.linalg.norm(uv - projected, axis=-1)
+    crossed = np.linalg.norm(uv - projected[:, twin], axis=-1)
+    with np.errstate(invalid="ignore"):
+        return (mirror >= 0) & (crossed + crossed[:, twin] < own + own[:, twin])
+
+
+def key_offsets(uv, confidence, projected, keys):
+    """Each keypoint's offset (keypoint minus projection) at the keys, interpolated linearly
+    to every frame; a key without the keypoint takes its nearest keys' (constant beyond the
+    first and last). NaN for a keypoint no key has.
+
+    Parameters
+    ----------
+    uv, projected : ndarray, shape (n, J, 2)
+    confidence : ndarray, shape (n, J)
+    keys : array_like of int
+        Row indices of the keyed frames, increasing.
+
+    Returns
+    -------
+    ndarray, shape (n, J, 2)
+    """
+    keys = np.asarray(keys, dtype=int)
+    at_keys = uv[keys] - projected[keys]
+    have = (confidence[keys] > 0) & np.all(np.isfinite(at_keys), axis=-1)
+    frames = np.arange(len(uv))
+    out = np.full(uv.shape, np.nan)
+    for j in range(uv.shape[1]):
+        ok = have[:, j]
+        if ok.any():
+            for c in range(2):
+                out[:, j, c] = np.interp(frames, keys[ok], at_keys[ok, j, c])
+    return out
+
+
+def _line_fit(values, weights, half_window):
+    """Per frame, the weighted straight line through the window's values at the frame's time.
+
+    values (n, J, 2) (anything where the weight is 0), weights (n, J). Returns the fitted
+    values (n, J, 2) and the count of weighted frames in each window (n, J)."""
+    n = len(values)
+    out = np.zeros(values.shape)
+    count = np.zeros(weights.shape)
+    v = np.where(weights[..., None] > 0, values, 0.0)
+    for f in range(n):
+        lo, hi = max(0, f - half_window), min(n, f + half_window + 1)
+        t = (np.arange(lo, hi) - f).astype(float)[:, None]              # (m, 1)
+        w = weights[lo:hi]                                               # (m, J)
+        s0, s1, s2 = w.sum(0), (w * t).sum(0), (w * t * t).sum(0)        # (J,)
+        m0 = np.einsum("mj,mjc->jc", w, v[lo:hi])
+        m1 = np.einsum("mj,mjc->jc", w * t, v[lo:hi])
+        det = s0 * s2 - s1 * s1
+        ok = det > 1e-12 * np.maximum(s0 * s2, 1e-300)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            line = (s2[:, None] * m0 - s1[:, None] * m1) / det[:, None]
+            flat = m0 / s0[:, None]
+        out[f] = np.where(ok[:, None], line, flat)
+        count[f] = (w > 0).sum(0)
+    return out, count
+
+
+def _median_line(values, half_window):
+    """Per frame, a robust straight line through the window's values at the frame's time: the
+    median of ``values - velocity * t`` with the velocity the median of the frame-to-frame
+    differences (exact on a straight path; one bad value moves neither median).
+
+    values (n, J, 2), NaN where missing. Returns (n, J, 2), NaN where the window has none."""
+    n = len(values)
+    out = np.full(values.shape, np.nan)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # all-NaN windows
+        for f in range(n):
+            lo, hi = max(0, f - half_window), min(n, f + half_window + 1)
+            v = values[lo:hi]
+            t = (np.arange(lo, hi) - f).astype(float)[:, None, None]
+            velocity = np.nanmedian(np.diff(v, axis=0), axis=0) if hi - lo > 1 else \
+                np.zeros(values.shape[1:])
+            out[f] = np.nanmedian(v - np.nan_to_num(velocity) * t, axis=0)
+    return out
+
+
+def smooth_keypoints(uv, confidence, half_window):
+    """Keypoints smoothed over time (module docstring, step 3), and each keypoint's jitter.
+
+    A robust line per window first (:func:`_median_line`), then the confidence-weighted
+    least-squares line through the window, each detection weighted by Tukey's biweight of its
+    distance from the robust line over ``4.685`` robust scales (per keypoint).
+
+    Parameters
+    ----------
+    uv : ndarray, shape (n, J, 2)
+        NaN where missing.
+    confidence : ndarray, shape (n, J)
+        0 where missing.
+    half_window : int
+        Frames on each side; 0 returns ``uv`` unchanged and no jitter.
+
+    Returns
+    -------
+    uv : ndarray, shape (n, J, 2)
+        NaN where a window has fewer than :data:`MIN_WINDOW_DETECTIONS` detections.
+    jitter : ndarray, shape (J,) or None
+        Robust scale (pixels, at least :data:`JITTER_FLOOR_PX`) of each keypoint's distances
+        from its smoothed path: how far one detection strays from it.
+    """
+    if half_window <= 0:
+        return uv, None
+    w = np.where(np.all(np.isfinite(uv), axis=-1), confidence, 0.0)
+    values = np.where(w[..., None] > 0, uv, np.nan)
+    first = _median_line(values, half_window)
+    residual = np.where(w > 0, np.linalg.norm(np.nan_to_num(values - first), axis=-1), 0.0)
+    scale = robust_scale(residual.T, (w > 0).T, floor=JITTER_FLOOR_PX)           # (J,)
+    w2 = w * robust_weights(residual / (4.685 * scale), "tukey")
+    second, count = _line_fit(uv, w2, half_window)
+    final = np.where(w2 > 0, np.linalg.norm(np.nan_to_num(values - second), axis=-1), 0.0)
+    jitter = robust_scale(final.T, (w2 > 0).T, floor=JITTER_FLOOR_PX)
+    return np.where((count >= MIN_WINDOW_DETECTIONS)[..., None], second, np.nan), jitter
+
+
+def fusion_targets(skeleton, camera, roots, local, keypoints, keys, half_window,
+                   threshold=None):
+    """The targets ``t`` of one camera (module docstring, steps 1-3).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    camera : PinholeCamera
+        The camera of the whole image (the keypoints' pixels).
+    roots, local : ndarray, shape (n, 3), (n, B, 3, 3)
+        The tracked trajectory (keys included).
+    keypoints : CameraKeypoints
+        Row ``f`` = trajectory frame ``f`` (``first`` ignored).
+    keys : array_like of int
+        Rows of the keys.
+    half_window : int
+    threshold : float, optional
+        Step 4: the confidences times Tukey's biweight of each target's distance from the
+        tracked projection over ``threshold`` times their robust scale (over the camera's
+        targets); None: no such weight.
+
+    Returns
+    -------
+    target : ndarray, shape (n, J, 2)
+        Pixels; 0 where not used.
+    confidence : ndarray, shape (n, J)
+        0 where not used.
+    """
+    q, p = project_points(skeleton, camera, roots, local, keypoints.joints, keypoints.points)
+    uv = keypoints.uv
+    conf = np.where((p[..., 2] > 0) & ~swapped_pairs(uv, q, keypoints.mirror),
+                    keypoints.confidence, 0.0)
+    uv = np.where(conf[..., None] > 0, uv, np.nan)
+    target, jitter = smooth_keypoints(uv - key_offsets(uv, conf, q, keys), conf, half_window)
+    if half_window > 0:                      # a smoothed value stands for its whole window
+        conf = np.where(np.isfinite(target[..., 0]), np.maximum(conf, _window_confidence(
+            conf, half_window)), 0.0)
+    ok = (conf > 0) & np.all(np.isfinite(target), axis=-1)
+    conf = np.where(ok, conf, 0.0)
+    target = np.where(ok[..., None], target, 0.0)
+    if jitter is not None:                   # each keypoint in its own noise units
+        conf = conf / jitter ** 2
+    if threshold is not None and ok.any():
+        dist = np.where(ok, np.linalg.norm(target - q, axis=-1), 0.0)
+        scale = float(robust_scale(dist.reshape(1, -1), ok.reshape(1, -1), floor=0.5)[0])
+        conf = conf * robust_weights(dist / (threshold * scale), "tukey")
+    return target, conf
+
+
+def _window_confidence(conf, half_window):
+    """Mean confidence of the detections in each frame's window (n, J)."""
+    n = len(conf)
+    out = np.zeros(conf.shape)
+    for f in range(n):
+        c = conf[max(0, f - half_window):f + half_window + 1]
+        used = (c > 0).sum(0)
+        out[f] = np.where(used > 0, c.sum(0) / np.maximum(used, 1), 0.0)
+    return out
+
+
+class _Frame:
+    """One frame's cost (module docstring) and its Gauss-Newton system, all cameras."""
+
+    def __init__(self, problem, cams, targets, root, local, weight, huber_px):
+        self.problem, self.cams, self.targets = problem, cams, targets
+        self.prior = (root, local)
+        self.weight, self.huber_px = weight, huber_px
+        layout = problem.layout
+        self.prior_scale = np.concatenate([np.full(len(layout.translation_axes),
+                                                   1.0 / ROOT_SCALE),
+                                           np.ones(len(layout.rotation_joints))])
+
+    def prior_residual(self, root, local):
+        """``sqrt(weight)``-free prior residual (P,) in the layout's components."""
+        t, r = motion_between(self.problem.skeleton, self.prior[0], self.prior[1], root, local)
+        return pack(self.problem.layout, t, r) * self.prior_scale
+
+    def residuals(self, root, local):
+        """Per camera: residuals (J, 2) ``pi(X) - t`` and camera-frame points (J, 3)."""
+        out = []
+        for cam, (target, conf, joints, points) in zip(self.cams, self.targets):
+            q, p = project_points(self.problem.skeleton, cam, root[None], local[None], joints,
+                                  points)
+            out.append((np.where(conf[:, None] > 0, q[0] - target, 0.0), p[0]))
+        return out
+
+    def irls(self, res):
+        """Huber's weights times the confidences, per camera (J,)."""
+        out = []
+        for (r, _), (_, conf, _, _) in zip(res, self.targets):
+            d = np.linalg.norm(r, axis=-1)
+            w = conf if self.huber_px is None else conf * np.minimum(
+                1.0, self.huber_px / np.maximum(d, 1e-12))
+            out.append(w)
+        return out
+
+    def cost(self, root, local):
+        total = 0.0
+        for (r, _), (_, conf, _, _) in zip(self.residuals(root, local), self.targets):
+            d = np.linalg.norm(r, axis=-1)
+            if self.huber_px is None:
+                loss = d * d
+            else:
+                loss = np.where(d <= self.huber_px, d * d, 2 * self.huber_px * d
+                                - self.huber_px ** 2)
+            total += float(np.sum(conf * loss))
+        p = self.prior_residual(root, local)
+        return total + self.weight * float(p @ p)
+
+    def jacobian(self, root, local):
+        """Per camera: d(pixels)/dx (J, 2, P) at the pose, x the motion from it
+        (:mod:`.jacobians`)."""
+        problem = self.problem
+        out = []
+        for cam, (_, _, joints, points) in zip(self.cams, self.targets):
+            rot, org = joint_frames_in_camera(problem.skeleton, cam.world2camera, root[None],
+                                              local[None])
+            p = np.einsum("jab,jb->ja", rot[0, joints], points) + org[0, joints]
+            p = np.where(p[:, 2:] > 0, p, np.array([0.0, 0.0, 1.0]))
+            ones, zeros = np.ones(len(p)), np.zeros(len(p))
+            rows = [image_jacobian(problem.layout, problem.ancestors, joints, p, rot[0], org[0],
+                                   cam.gradient_rows(p, e_u, e_v))
+                    for e_u, e_v in ((ones, zeros), (zeros, ones))]
+            out.append(np.stack(rows, axis=1))
+        return out
+
+    def step(self, root, local, damping):
+        """The damped Gauss-Newton step (P,) at the pose."""
+        res = self.residuals(root, local)
+        w = self.irls(res)
+        n = self.problem.layout.n_params
+        h = np.zeros((n, n))
+        g = np.zeros(n)
+        for jac, (r, _), wv in zip(self.jacobian(root, local), res, w):
+            h += np.einsum("jap,j,jaq->pq", jac, wv, jac)
+            g += np.einsum("jap,j,ja->p", jac, wv, r)
+        scale = self.prior_scale
+        h += self.weight * np.diag(scale * scale)
+        g += self.weight * scale * self.prior_residual(root, local)
+        h += damping * np.diag(np.maximum(np.diag(h), 1e-12))
+        return -np.linalg.solve(h, g)
+
+
+def moved(problem, root, local, x):
+    """The pose after the motion ``x`` (the layout's components, :func:`.jacobians.unpack`)."""
+    b = problem.skeleton.n_joints
+    t, r = unpack(problem.layout, x, np.zeros(3), np.zeros((b, 3)))
+    rt, lt = apply_motion(problem.skeleton, root[None], local[None], t[None], r[None])
+    return rt[0], lt[0]
+
+
+def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5,
+                   huber_px=20.0, threshold=None, keep=(), iterations=15):
+    """The tracked trajectory's in-between frames fitted to the keypoints (module docstring).
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+        Its skeleton, cameras (of the whole image) and motion layout.
+    roots, local : ndarray, shape (n, 3), (n, B, 3, 3)
+        The tracked trajectory, row 0 = the first key.
+    keys : array_like of int
+        Rows of the keys (kept bit for bit, as every row outside them).
+    keypoints : sequence of CameraKeypoints or None
+        One per camera; row ``f`` = trajectory row ``f``.
+    weight : float
+        The prior's weight, pixels^2 per rad^2 (per (ROOT_SCALE m)^2 for the root); 0 or
+        less: nothing is fused.
+    half_window : int
+        Frames on each side of the keypoints' smoothing (0: none).
+    huber_px : float or None
+        Huber's loss beyond this many pixels of the whole image (None: least squares).
+    threshold : float, optional
+        :func:`fusion_targets`'s.
+    keep : iterable of int
+        Rows left as they are.
+    iterations : int
+        Levenberg-Marquardt iterations per frame at most.
+
+    Returns
+    -------
+    roots, local : ndarray, shape (n, 3), (n, B, 3, 3)
+        New arrays (the inputs unchanged).
+    fused : ndarray, shape (n,), bool
+        Rows fitted to at least one keypoint.
+    """
+    roots = np.array(roots, dtype=float)
+    local = np.array(local, dtype=float)
+    fused = np.zeros(len(roots), dtype=bool)
+    if weight <= 0 or keypoints is None:
+        return roots, local, fused
+    keys = np.asarray(keys, dtype=int)
+    cams, targets = [], []
+    for cam, kp in zip(problem.cameras, keypoints):
+        if kp is None:
+            continue
+        t, c = fusion_targets(problem.skeleton, cam, roots, local, kp, keys, half_window,
+                              threshold)
+        cams.append(cam)
+        targets.append((t, c, kp.joints, kp.points))
+    inside = np.zeros(len(roots), dtype=bool)
+    inside[keys[0] + 1:keys[-1]] = True
+    inside[keys] = False
+    inside[list(keep)] = False
+    out_r, out_l = roots.copy(), local.copy()
+    for f in np.nonzero(inside)[0]:
+        frame_targets = [(t[f], c[f], j, p) for t, c, j, p in targets]
+        if not any(np.any(c > 0) for _, c, _, _ in frame_targets):
+            continue
+        frame = _Frame(problem, cams, frame_targets, roots[f], local[f], weight, huber_px)
+        root, lo = roots[f], local[f]
+        current, damping = frame.cost(root, lo), 1e-3
+        for _ in range(iterations):
+            x = frame.step(root, lo, damping)
+            r1, l1 = moved(problem, root, lo, x)
+            trial = frame.cost(r1, l1)
+            if trial <= current:
+                root, lo, current, damping = r1, l1, trial, damping / 3.0
+                if np.abs(x).max() < 1e-7:
+                    break
+            else:
+                damping *= 4.0
+        out_r[f], out_l[f] = root, lo
+        fused[f] = True
+    return out_r, out_l, fused
