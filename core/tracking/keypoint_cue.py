@@ -1,5 +1,10 @@
 """2D keypoints of another tool as an optional cue of the motion estimate (issue 24).
 
+Off by default since the fusion after tracking (:mod:`.keypoint_fusion`) replaced it
+(``TrackingOptions.keypoint_weight`` 0): on the real footage these per-pair rows made the
+result worse (``docs/tracking.md``, *2D keypoints as a cue*). :class:`CameraKeypoints` and
+:func:`per_camera` serve both.
+
 A camera's keypoints (:class:`CameraKeypoints`: pixels per frame and joint, the detector's
 confidence, and the skeleton joint each one marks) add rows to every frame pair's system of
 eq. 5 (:func:`~.motion._coarse_to_fine`). For frame pair ``a -> b`` and keypoint ``k`` on

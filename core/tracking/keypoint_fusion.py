@@ -47,7 +47,7 @@ import warnings
 import numpy as np
 
 from .body_model import joint_frames_in_camera
-from .jacobians import apply_motion, image_jacobian, motion_between, pack, unpack
+from .jacobians import apply_motion, motion_between
 from .robust import robust_scale, robust_weights
 
 #: A root translation of this many metres off the tracked pose costs as much as one radian.
@@ -257,95 +257,115 @@ def _window_confidence(conf, half_window):
     return out
 
 
-class _Frame:
-    """One frame's cost (module docstring) and its Gauss-Newton system, all cameras."""
+class _Frames:
+    """The cost of n frames (module docstring), each its own problem, and their Gauss-Newton
+    systems, all cameras; every array has the frames first.
 
-    def __init__(self, problem, cams, targets, root, local, weight, huber_px):
+    ``targets``: per camera ``(target (n, J, 2), confidence (n, J), joints (J,), points
+    (J, 3))``; ``roots`` (n, 3), ``local`` (n, B, 3, 3): the prior poses."""
+
+    def __init__(self, problem, cams, targets, roots, local, weight, huber_px):
         self.problem, self.cams, self.targets = problem, cams, targets
-        self.prior = (root, local)
+        self.prior = (roots, local)
         self.weight, self.huber_px = weight, huber_px
         layout = problem.layout
         self.prior_scale = np.concatenate([np.full(len(layout.translation_axes),
                                                    1.0 / ROOT_SCALE),
                                            np.ones(len(layout.rotation_joints))])
 
-    def prior_residual(self, root, local):
-        """``sqrt(weight)``-free prior residual (P,) in the layout's components."""
-        t, r = motion_between(self.problem.skeleton, self.prior[0], self.prior[1], root, local)
-        return pack(self.problem.layout, t, r) * self.prior_scale
+    def prior_residual(self, roots, local):
+        """Prior residuals (n, P) in the layout's components, without ``sqrt(weight)``."""
+        t, r = motion_between(self.problem.skeleton, self.prior[0], self.prior[1], roots, local)
+        layout = self.problem.layout
+        return np.concatenate([t[:, layout.translation_axes],
+                               r[:, layout.rotation_joints, layout.rotation_axes]],
+                              axis=1) * self.prior_scale
 
-    def residuals(self, root, local):
-        """Per camera: residuals (J, 2) ``pi(X) - t`` and camera-frame points (J, 3)."""
+    def residuals(self, roots, local):
+        """Per camera: residuals (n, J, 2) ``pi(X) - t`` (0 where not used)."""
         out = []
         for cam, (target, conf, joints, points) in zip(self.cams, self.targets):
-            q, p = project_points(self.problem.skeleton, cam, root[None], local[None], joints,
-                                  points)
-            out.append((np.where(conf[:, None] > 0, q[0] - target, 0.0), p[0]))
+            q, _ = project_points(self.problem.skeleton, cam, roots, local, joints, points)
+            out.append(np.where(conf[..., None] > 0, q - target, 0.0))
         return out
 
     def irls(self, res):
-        """Huber's weights times the confidences, per camera (J,)."""
+        """Huber's weights times the confidences, per camera (n, J)."""
         out = []
-        for (r, _), (_, conf, _, _) in zip(res, self.targets):
+        for r, (_, conf, _, _) in zip(res, self.targets):
             d = np.linalg.norm(r, axis=-1)
-            w = conf if self.huber_px is None else conf * np.minimum(
-                1.0, self.huber_px / np.maximum(d, 1e-12))
-            out.append(w)
+            out.append(conf if self.huber_px is None else conf * np.minimum(
+                1.0, self.huber_px / np.maximum(d, 1e-12)))
         return out
 
-    def cost(self, root, local):
+    def cost(self, roots, local):
+        """(n,): the module docstring's E."""
         total = 0.0
-        for (r, _), (_, conf, _, _) in zip(self.residuals(root, local), self.targets):
+        for r, (_, conf, _, _) in zip(self.residuals(roots, local), self.targets):
             d = np.linalg.norm(r, axis=-1)
             if self.huber_px is None:
                 loss = d * d
             else:
                 loss = np.where(d <= self.huber_px, d * d, 2 * self.huber_px * d
                                 - self.huber_px ** 2)
-            total += float(np.sum(conf * loss))
-        p = self.prior_residual(root, local)
-        return total + self.weight * float(p @ p)
+            total = total + np.sum(conf * loss, axis=1)
+        p = self.prior_residual(roots, local)
+        return total + self.weight * np.sum(p * p, axis=1)
 
-    def jacobian(self, root, local):
-        """Per camera: d(pixels)/dx (J, 2, P) at the pose, x the motion from it
-        (:mod:`.jacobians`)."""
+    def jacobian(self, roots, local):
+        """Per camera: d(pixels)/dx (n, J, 2, P) at the poses, x the motion from each
+        (:mod:`.jacobians`, eq. A.2: root columns ``R_root e_a``, rotation columns
+        ``(R_j e_a) x (p - o_j)`` for the joint's ancestors, through eq. A.8's rows)."""
         problem = self.problem
+        layout = problem.layout
+        rj, ra, ta = layout.rotation_joints, layout.rotation_axes, layout.translation_axes
         out = []
         for cam, (_, _, joints, points) in zip(self.cams, self.targets):
-            rot, org = joint_frames_in_camera(problem.skeleton, cam.world2camera, root[None],
-                                              local[None])
-            p = np.einsum("jab,jb->ja", rot[0, joints], points) + org[0, joints]
-            p = np.where(p[:, 2:] > 0, p, np.array([0.0, 0.0, 1.0]))
-            ones, zeros = np.ones(len(p)), np.zeros(len(p))
-            rows = [image_jacobian(problem.layout, problem.ancestors, joints, p, rot[0], org[0],
-                                   cam.gradient_rows(p, e_u, e_v))
-                    for e_u, e_v in ((ones, zeros), (zeros, ones))]
-            out.append(np.stack(rows, axis=1))
+            rot, org = joint_frames_in_camera(problem.skeleton, cam.world2camera, roots, local)
+            p = np.einsum("njab,jb->nja", rot[:, joints], points) + org[:, joints]
+            p = np.where(p[..., 2:] > 0, p, np.array([0.0, 0.0, 1.0]))
+            ones, zeros = np.ones(p.shape[:2]), np.zeros(p.shape[:2])
+            g = np.stack([cam.gradient_rows(p, ones, zeros), cam.gradient_rows(p, zeros, ones)],
+                         axis=2)                                             # (n, J, 2, 3)
+            axes = np.einsum("ncij,cj->nci", rot[:, rj], np.eye(3)[ra])       # (n, C, 3)
+            lever = p[:, :, None, :] - org[:, rj][:, None]                    # (n, J, C, 3)
+            cols_r = np.cross(axes[:, None], lever) \
+                * problem.ancestors[joints][:, rj][None, :, :, None]          # (n, J, C, 3)
+            cols_t = np.broadcast_to(rot[:, 0][:, None, :, ta],
+                                     (len(p), len(joints), 3, len(ta)))      # (n, J, 3, T)
+            d_point = np.concatenate([cols_t, np.swapaxes(cols_r, 2, 3)], axis=3)
+            out.append(g @ d_point)                                           # (n, J, 2, P)
         return out
 
-    def step(self, root, local, damping):
-        """The damped Gauss-Newton step (P,) at the pose."""
-        res = self.residuals(root, local)
+    def step(self, roots, local, damping):
+        """The damped Gauss-Newton steps (n, P) at the poses (``damping`` (n,))."""
+        res = self.residuals(roots, local)
         w = self.irls(res)
-        n = self.problem.layout.n_params
-        h = np.zeros((n, n))
-        g = np.zeros(n)
-        for jac, (r, _), wv in zip(self.jacobian(root, local), res, w):
-            h += np.einsum("jap,j,jaq->pq", jac, wv, jac)
-            g += np.einsum("jap,j,ja->p", jac, wv, r)
+        n_p = self.problem.layout.n_params
+        h = np.zeros((len(roots), n_p, n_p))
+        g = np.zeros((len(roots), n_p))
+        for jac, r, wv in zip(self.jacobian(roots, local), res, w):
+            h += np.einsum("njap,nj,njaq->npq", jac, wv, jac)
+            g += np.einsum("njap,nj,nja->np", jac, wv, r)
         scale = self.prior_scale
         h += self.weight * np.diag(scale * scale)
-        g += self.weight * scale * self.prior_residual(root, local)
-        h += damping * np.diag(np.maximum(np.diag(h), 1e-12))
-        return -np.linalg.solve(h, g)
+        g += self.weight * scale * self.prior_residual(roots, local)
+        diag = np.maximum(np.einsum("npp->np", h), 1e-12)
+        h += damping[:, None, None] * (diag[:, :, None] * np.eye(n_p))
+        return -np.linalg.solve(h, g[..., None])[..., 0]
 
 
-def moved(problem, root, local, x):
-    """The pose after the motion ``x`` (the layout's components, :func:`.jacobians.unpack`)."""
-    b = problem.skeleton.n_joints
-    t, r = unpack(problem.layout, x, np.zeros(3), np.zeros((b, 3)))
-    rt, lt = apply_motion(problem.skeleton, root[None], local[None], t[None], r[None])
-    return rt[0], lt[0]
+def moved(problem, roots, local, x):
+    """The poses (n, 3), (n, B, 3, 3) after the motions ``x`` (n, P) (the layout's
+    components, :func:`.jacobians.unpack`)."""
+    layout = problem.layout
+    n = len(x)
+    t = np.zeros((n, 3))
+    r = np.zeros((n, problem.skeleton.n_joints, 3))
+    n_t = len(layout.translation_axes)
+    t[:, layout.translation_axes] = x[:, :n_t]
+    r[:, layout.rotation_joints, layout.rotation_axes] = x[:, n_t:]
+    return apply_motion(problem.skeleton, roots, local, t, r)
 
 
 def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5,
@@ -402,23 +422,30 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
     inside[keys] = False
     inside[list(keep)] = False
     out_r, out_l = roots.copy(), local.copy()
-    for f in np.nonzero(inside)[0]:
-        frame_targets = [(t[f], c[f], j, p) for t, c, j, p in targets]
-        if not any(np.any(c > 0) for _, c, _, _ in frame_targets):
-            continue
-        frame = _Frame(problem, cams, frame_targets, roots[f], local[f], weight, huber_px)
-        root, lo = roots[f], local[f]
-        current, damping = frame.cost(root, lo), 1e-3
-        for _ in range(iterations):
-            x = frame.step(root, lo, damping)
-            r1, l1 = moved(problem, root, lo, x)
-            trial = frame.cost(r1, l1)
-            if trial <= current:
-                root, lo, current, damping = r1, l1, trial, damping / 3.0
-                if np.abs(x).max() < 1e-7:
-                    break
-            else:
-                damping *= 4.0
-        out_r[f], out_l[f] = root, lo
-        fused[f] = True
+    used = inside.copy()
+    used &= np.logical_or.reduce([np.any(c > 0, axis=1) for _, c, _, _ in targets]) \
+        if targets else False
+    rows = np.nonzero(used)[0]
+    if len(rows) == 0:
+        return out_r, out_l, fused
+    # Every frame its own Levenberg-Marquardt (damping, acceptance and stop per frame), all
+    # frames at once.
+    frames = _Frames(problem, cams, [(t[rows], c[rows], j, p) for t, c, j, p in targets],
+                     roots[rows], local[rows], weight, huber_px)
+    r0, l0 = roots[rows].copy(), local[rows].copy()
+    current = frames.cost(r0, l0)
+    damping = np.full(len(rows), 1e-3)
+    active = np.ones(len(rows), dtype=bool)
+    for _ in range(iterations):
+        x = frames.step(r0, l0, damping)
+        r1, l1 = moved(problem, r0, l0, x)
+        trial = frames.cost(r1, l1)
+        better = active & (trial <= current)
+        r0[better], l0[better], current[better] = r1[better], l1[better], trial[better]
+        damping = np.where(better, damping / 3.0, np.where(active, damping * 4.0, damping))
+        active &= ~(better & (np.abs(x).max(axis=1) < 1e-7))
+        if not active.any():
+            break
+    out_r[rows], out_l[rows] = r0, l0
+    fused[rows] = True
     return out_r, out_l, fused

@@ -8,7 +8,7 @@ import pytest
 
 from core.kinematics import exp_so3
 from core.tracking.keypoint_cue import CameraKeypoints
-from core.tracking.keypoint_fusion import (_Frame, fuse_keypoints, fusion_targets, key_offsets,
+from core.tracking.keypoint_fusion import (_Frames, fuse_keypoints, fusion_targets, key_offsets,
                                            moved, project_points, smooth_keypoints,
                                            swapped_pairs)
 from core.tracking.problem import TrackingProblem
@@ -28,21 +28,25 @@ def _chain_problem(distortion=None):
 @pytest.mark.parametrize("distortion", [None, (-0.3, 0.1, 0.002, -0.001, 0.0)])
 def test_projection_jacobian_matches_finite_differences(distortion):
     rng, sk, problem = _chain_problem(distortion)
-    root, local = random_pose(rng, sk)
+    poses = [random_pose(rng, sk) for _ in range(2)]
+    roots, local = np.stack([p[0] for p in poses]), np.stack([p[1] for p in poses])
     joints = np.arange(sk.n_joints)
     points = rng.normal(0, 0.05, (len(joints), 3))
-    targets = [(np.zeros((len(joints), 2)), np.ones(len(joints)), joints, points)]
-    frame = _Frame(problem, problem.cameras, targets, root, local, 1.0, None)
-    jac = frame.jacobian(root, local)[0].reshape(-1, problem.layout.n_params)
+    targets = [(np.zeros((2, len(joints), 2)), np.ones((2, len(joints))), joints, points)]
+    frames = _Frames(problem, problem.cameras, targets, roots, local, 1.0, None)
+    n_p = problem.layout.n_params
+    jac = frames.jacobian(roots, local)[0].reshape(2, -1, n_p)
 
     def q(x):
-        r, lo = moved(problem, root, local, x)
-        return project_points(sk, problem.camera, r[None], lo[None], joints, points)[0][0].ravel()
+        r, lo = moved(problem, roots, local, x)
+        return project_points(sk, problem.camera, r, lo, joints, points)[0].reshape(2, -1)
 
     eps = 1e-6
-    numeric = np.stack([(q(e * eps) - q(-e * eps)) / (2 * eps)
-                        for e in np.eye(problem.layout.n_params)], axis=1)
-    np.testing.assert_allclose(jac, numeric, atol=1e-6 * np.abs(numeric).max())
+    for f in range(2):                                # each frame's own motion
+        numeric = np.stack([(q(np.outer(np.eye(2)[f], e) * eps)[f]
+                             - q(-np.outer(np.eye(2)[f], e) * eps)[f]) / (2 * eps)
+                            for e in np.eye(n_p)], axis=1)
+        np.testing.assert_allclose(jac[f], numeric, atol=1e-6 * np.abs(numeric).max())
 
 
 def test_gradient_matches_finite_differences_of_the_cost():
@@ -50,28 +54,29 @@ def test_gradient_matches_finite_differences_of_the_cost():
     x from the pose -- exactly at the prior (where the prior's Jacobian is the identity)."""
     rng, sk, problem = _chain_problem()
     root, local = random_pose(rng, sk)
+    roots, local = root[None], local[None]
     joints = np.arange(sk.n_joints)
     points = rng.normal(0, 0.05, (len(joints), 3))
-    q, _ = project_points(sk, problem.camera, root[None], local[None], joints, points)
-    targets = [(q[0] + rng.normal(0, 5.0, q[0].shape), rng.uniform(0.3, 1.0, len(joints)),
+    q, _ = project_points(sk, problem.camera, roots, local, joints, points)
+    targets = [(q + rng.normal(0, 5.0, q.shape), rng.uniform(0.3, 1.0, (1, len(joints))),
                 joints, points)]
-    frame = _Frame(problem, problem.cameras, targets, root, local, 30.0, None)
+    frames = _Frames(problem, problem.cameras, targets, roots, local, 30.0, None)
     n = problem.layout.n_params
 
     def cost(x):
-        return frame.cost(*moved(problem, root, local, x))
+        return frames.cost(*moved(problem, roots, local, x[None]))[0]
 
     eps = 1e-6
     numeric = np.array([(cost(e * eps) - cost(-e * eps)) / (2 * eps) for e in np.eye(n)])
     # g from the Gauss-Newton system: the undamped step solves H dx = -g.
-    res = frame.residuals(root, local)
-    w = frame.irls(res)
-    jac = frame.jacobian(root, local)[0]
-    g = np.einsum("jap,j,ja->p", jac, w[0], res[0][0])
-    g += frame.weight * frame.prior_scale * frame.prior_residual(root, local)
+    res = frames.residuals(roots, local)
+    w = frames.irls(res)
+    jac = frames.jacobian(roots, local)[0]
+    g = np.einsum("njap,nj,nja->np", jac, w[0], res[0])[0]
+    g += frames.weight * frames.prior_scale * frames.prior_residual(roots, local)[0]
     np.testing.assert_allclose(2 * g, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
     # ... and the step lowers the cost.
-    assert cost(frame.step(root, local, 1e-3)) < cost(np.zeros(n))
+    assert cost(frames.step(roots, local, np.array([1e-3]))[0]) < cost(np.zeros(n))
 
 
 def test_smoothing_keeps_a_straight_path_and_drops_an_outlier():

@@ -174,15 +174,17 @@ def test_keyframes_with_keypoints_in_processes_are_identical(footage):
     conf = np.concatenate([np.full((3, len(JOINTS)), 0.9), f["conf"]])
     kp = CameraKeypoints(uv, conf, JOINTS, _points(f["sk"]), first=-3)
     args = (f["problem"], f["frames"], keys, f["roots"][keys], f["local"][keys])
-    options = f["options"].replace(max_iterations=1)
+    # The pair rows and the fusion after tracking (keypoint_fusion.py) both on.
+    options = f["options"].replace(max_iterations=1, keypoint_fusion_weight=1000.0)
     serial = track_keyframes(*args, options=options, processes=1, keypoints=kp)
     pooled = track_keyframes(*args, options=options, processes=2, keypoints=[kp])
     np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
-    # The same keypoints cut by hand to the second interval give that interval's result.
+    # The same keypoints, counted from the second interval's start key, give that interval's
+    # result (the fusion's smoothing reads 5 frames before the key too).
     second = track_interval(f["problem"], f["frames"][10:21], Pose(f["roots"][10], f["local"][10]),
                             Pose(f["roots"][20], f["local"][20]), options,
-                            keypoints=CameraKeypoints(f["clean"][10:], f["conf"][10:], JOINTS,
-                                                      _points(f["sk"])))
+                            keypoints=CameraKeypoints(f["clean"], f["conf"], JOINTS,
+                                                      _points(f["sk"]), first=-10))
     np.testing.assert_array_equal(serial.local_rotations[10:], second.local_rotations)
     with pytest.raises(TrackingError, match="one entry per camera"):
         track_keyframes(*args, options=options, processes=1, keypoints=[kp, kp])
