@@ -5,6 +5,9 @@ output (``build/bench/real/blender.npz``) and the detections cache; no Blender.
 
     .venv-bench/bin/python benchmarks/studies/fusion_after_tracking.py \
         --blender build/bench/real/blender.npz --detections-cache build/bench/detections.npz
+
+Conclusion (the weight and window of ``TrackingOptions``, chosen on cam01; the held-out
+cameras): ``docs/tracking.md`` *2D keypoints as a cue*, ``docs/bench_real.md``.
 """
 import argparse
 import json

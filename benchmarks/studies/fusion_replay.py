@@ -10,6 +10,9 @@ against the held-out reference (triangulated without that camera), in-between fr
 Prints per camera and weight the held-out MPJPE (cm) over the in-between frames and per
 interval, the foot skate (cm/s, ``benchmarks/real/feet.py``) and per interval eq. 4 of the fused
 trajectory over the tracked one's. Weight 0: the tracker without keypoints.
+
+Conclusion (the weight and window of ``TrackingOptions``, chosen on cam01; the held-out
+cameras): ``docs/tracking.md`` *2D keypoints as a cue*, ``docs/bench_real.md``.
 """
 import argparse
 import sys
