@@ -33,7 +33,7 @@ Refusals say why in plain words; nothing is changed by the caller then. Measured
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,7 +42,8 @@ from .segments import MIN_STRENGTH
 __all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
            "MIN_MOTION_DEG", "MIN_OVERLAP_S",
            "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
-           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm"]
+           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm",
+           "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -284,17 +285,40 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                          refusal=f"No steady rhythm in {what}: the legs repeat their steps "
                                  f"with a strength of {strength:.2f} (a walk or run reaches "
                                  f"{MIN_STRENGTH:g} or more)")
-    fit = None
     warnings = []
     if strength is None:
         warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
     elif strength < MIN_STRENGTH:
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
-    if result is not None:
-        fit = fit_score(model, obs, result)
-        if fit < WARN_FIT:
-            warnings.append(f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
-                            f"leg motion in {what} (fit score {fit:.2f}): check the result")
-    return GaitCheck(motion, period, strength, together, fit, None,
-                     "; ".join(warnings) or None, tilt, travel)
+    check = GaitCheck(motion, period, strength, together, None, None,
+                      "; ".join(warnings) or None, tilt, travel)
+    return check if result is None else with_fit(check, model, obs, result, what)
+
+
+def with_fit(check, model, observations, result, what="the observed frames"):
+    """``check`` (an accepting :class:`GaitCheck` of the same range) with check 6, the fit
+    score of ``result``, added: what ``check_gait(..., result)`` returns, without running
+    checks 1-5 again.
+
+    Parameters
+    ----------
+    check : GaitCheck
+        ``check_gait(model, observations, fps, what=what)`` (no refusal).
+    model : GaitModel
+    observations : array_like, shape (N, D)
+    result : AdaptResult
+    what : str
+
+    Returns
+    -------
+    GaitCheck
+    """
+    if check.refusal is not None:
+        raise ValueError("with_fit adds the fit score to an accepting check only")
+    fit = fit_score(model, np.asarray(observations, dtype=float), result)
+    warnings = [check.warning] if check.warning else []
+    if fit < WARN_FIT:
+        warnings.append(f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
+                        f"leg motion in {what} (fit score {fit:.2f}): check the result")
+    return replace(check, fit=fit, warning="; ".join(warnings) or None)

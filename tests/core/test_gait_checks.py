@@ -2,13 +2,14 @@
 non-gait clips of CMU (one test per kind) are refused, the fit score is the explained share of
 the gait channels' variance."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.gait import adapt, load_stock_library, observations_from_dofs
-from core.gait.checks import WARN_FIT, check_gait, fit_score, gait_channels
+from core.gait.checks import WARN_FIT, check_gait, fit_score, gait_channels, with_fit
 from tests.gait_data import trial
 
 
@@ -42,6 +43,27 @@ def test_a_walk_passes_with_its_rhythm_and_fit():
     # Half a cycle: only the other leg's step can be compared; a warning when it is weak.
     half = check_gait(model, obs[:30], 60.0)
     assert half.refusal is None and half.period_s is not None
+
+
+def test_the_fit_added_to_an_earlier_check_is_the_whole_check_with_the_fit():
+    """Predict checks the range, adapts, then adds the fit score (with_fit) instead of running
+    every check again: the same GaitCheck as check_gait with the adaptation, warnings and
+    their order included (a short range's rhythm warning, then a poor fit's)."""
+    model = load_stock_library()
+    obs = observe(model, *trial("35_07"))
+    for rows in (slice(0, 100), slice(10, 34)):
+        res = adapt(model, obs[rows])
+        first = check_gait(model, obs[rows], 60.0, what="these frames")
+        assert with_fit(first, model, obs[rows], res, "these frames") == \
+            check_gait(model, obs[rows], 60.0, res, what="these frames")
+    res = adapt(model, obs[10:34])
+    poor = replace(res, states=res.states + [0.0, np.pi])  # half a cycle off: a poor fit
+    first = check_gait(model, obs[10:34], 60.0)
+    both = with_fit(first, model, obs[10:34], poor)
+    assert both.warning.startswith(first.warning + "; the gait model explains only")
+    assert both == check_gait(model, obs[10:34], 60.0, poor)
+    with pytest.raises(ValueError, match="accepting"):
+        with_fit(check_gait(model, np.repeat(obs[:1], 60, axis=0), 60.0), model, obs[:60], res)
 
 
 def test_a_frozen_pose_a_jump_and_a_range_without_rhythm_are_refused():
