@@ -8,7 +8,10 @@ The pipeline, in the order the modal operator runs it:
 2. :func:`read_footage` (main thread, in chunks, through one :class:`FootageReader` that keeps
    a movie open between chunks): the footage frames as grayscale arrays.
 3. :func:`run_core` (any thread: no bpy): ``core.tracking.track_keyframes`` over all intervals,
-   in worker processes when there are several, with progress and cancel.
+   in worker processes when there are several, with progress and cancel. The synchronous run
+   (:func:`track_now`: background mode, scripts) does steps 2 and 3 together
+   (:func:`track_while_reading`): the core starts at once and tracks each interval as soon as
+   its frames are read.
 4. :func:`apply_result` (main thread): write keys and confidence curves in one go, only when
    the whole result is there and finite (cancelling before it leaves the file untouched).
 
