@@ -2,7 +2,9 @@
 learned from (CMU 35_01, 08_04, 35_05; every stock style × cadence 0.7 / 1.0 / 1.3 / 1.6: 132
 cases), beside ``make bench-gait ONLY=restyle`` (one held-out walker, a fold model): a change to
 the stock library or to ``predict_walk`` must not fail cases elsewhere (docs/gait.md, *The three
-misses*). Prints each walker's failed cases and the total. About 5 min on the 2-core machine::
+misses*). Prints each walker's failed cases and the total. The join is judged against the
+walker's own (walking) capture, so a run's join counts when it exceeds a walk's 99th
+percentile. About 15 s on an idle 2-core machine::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_sweep.py [--stock PATH]
 """
