@@ -187,14 +187,20 @@ def evaluate_fcurves(bag, channels, frames, defaults):
     return out, present
 
 
-def _keyframe_state(points):
-    """Arrays describing every keyframe exactly (for preservation checks and restores)."""
+_KEYFRAME_PROPS = (("co", 2, np.float32), ("handle_left", 2, np.float32),
+                   ("handle_right", 2, np.float32), ("interpolation", 1, np.int32),
+                   ("handle_left_type", 1, np.int32), ("handle_right_type", 1, np.int32),
+                   ("easing", 1, np.int32))
+
+
+def _keyframe_state(points, only=None):
+    """Arrays describing every keyframe exactly (for preservation checks and restores);
+    ``only``: the names of the properties to read (default: all)."""
     n = len(points)
     state = {}
-    for prop, width, dtype in (("co", 2, np.float32), ("handle_left", 2, np.float32),
-                               ("handle_right", 2, np.float32), ("interpolation", 1, np.int32),
-                               ("handle_left_type", 1, np.int32), ("handle_right_type", 1, np.int32),
-                               ("easing", 1, np.int32)):
+    for prop, width, dtype in _KEYFRAME_PROPS:
+        if only is not None and prop not in only:
+            continue
         array = np.empty(n * width, dtype=dtype)
         points.foreach_get(prop, array)
         state[prop] = array.reshape(n, width) if width > 1 else array
@@ -204,6 +210,11 @@ def _keyframe_state(points):
 def keyframe_state(fcurve):
     """Exact state (co, handles, interpolation, handle types, easing) of an F-curve's keys."""
     return _keyframe_state(fcurve.keyframe_points)
+
+
+def key_coordinates(fcurve):
+    """(frame, value) of an F-curve's keys, shape (K, 2), float32 (one bulk read)."""
+    return _keyframe_state(fcurve.keyframe_points, only=("co",))["co"]
 
 
 def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
@@ -240,7 +251,10 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
             group = next((g for g in bag.groups if g.name == group_name), None) or bag.groups.new(group_name)
             fcurve.group = group
     points = fcurve.keyframe_points
-    old = _keyframe_state(points)
+    # Only the keys' places and handles: Blender's sort and handle recalculation change
+    # nothing else of an existing key (interpolation, handle types and easing move with it).
+    geometry = ("co", "handle_left", "handle_right")
+    old = _keyframe_state(points, only=geometry)
     old_frames = old["co"][:, 0].astype(np.float64)
     keep = np.ones(len(frames), dtype=bool)
     if len(old_frames):
@@ -255,7 +269,7 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
     points.foreach_set("co", co.reshape(-1))
     fcurve.update()  # sorts keys, computes handles of the new ones
     if n_old:
-        new_state = _keyframe_state(points)
+        new_state = _keyframe_state(points, only=geometry)
         positions = np.searchsorted(new_state["co"][:, 0], old["co"][:, 0])
         for prop in ("handle_left", "handle_right"):
             array = new_state[prop]

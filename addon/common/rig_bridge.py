@@ -931,12 +931,17 @@ def step_errors(steps, joints, target):
             bend = bend_angle_error(joints[a, :3, 3], joints[e, :3, 3], joints[mid, :3, 3],
                                     target[mid, :3, 3])
             angle = max(angle, abs(float(bend)))
-            continue
-        rot, off = pose_error(target[st.joint], joints[st.joint])
-        if st.rule in (ROTATE, RIGID):
-            angle = max(angle, float(rot))
-        if st.rule in (TRANSLATE, RIGID):
-            dist = max(dist, float(off))
+    plain = [st for st in steps if not st.turns_limb]
+    if plain:
+        # Every step's joint in one call (this runs after every correction step at every
+        # frame written: one call per step was most of Track Keyframes' write-back).
+        index = np.array([st.joint for st in plain], dtype=np.intp)
+        rot, off = pose_error(target[index], joints[index])
+        for st, r, o in zip(plain, rot, off):
+            if st.rule in (ROTATE, RIGID):
+                angle = max(angle, float(r))
+            if st.rule in (TRANSLATE, RIGID):
+                dist = max(dist, float(o))
     return angle, dist
 
 

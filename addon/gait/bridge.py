@@ -22,7 +22,7 @@ import numpy as np
 from ...core import limits
 from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
                           observations_from_dofs, restyle)
-from ...core.gait.checks import check_gait
+from ...core.gait.checks import check_gait, with_fit
 from ...core.gait.walk import WalkRequest, predict_walk
 from ...core.rigs import plain_list
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
@@ -560,7 +560,7 @@ def predict_gait(context, obj, options):
         raise GaitError(check.refusal)
     walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
     if walker.result is not None:
-        check = check_gait(model, obs, fps, walker.result, what=what)
+        check = with_fit(check, model, obs, walker.result, what)
     n = int(round(options.horizon * fps))
     length = limits.name_of("length")
     if n < 1:

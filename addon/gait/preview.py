@@ -23,7 +23,7 @@ from bpy.app.handlers import persistent
 
 from ...core.armature import dofs_to_channels
 from ...core.gait import LookaheadPredictor, adapt, observations_from_dofs
-from ...core.gait.checks import check_gait
+from ...core.gait.checks import check_gait, with_fit
 from ..mocap.acclaim_bridge import scene_fps
 from .bridge import active_model, frame_range, gait_settings, model_hold
 from .rigs import GaitError, _bvh_channels, gait_rig, read_current, read_dofs
@@ -214,7 +214,7 @@ def start_preview(context, obj):
         if check.refusal:
             raise GaitError(check.refusal)
         if len(dofs) >= round(0.5 * fps):
-            warning = check_gait(model, obs, fps, adapt(model, obs, fps=fps), what=what).warning
+            warning = with_fit(check, model, obs, adapt(model, obs, fps=fps), what).warning
     stop_preview()
     _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)

@@ -36,7 +36,7 @@ from ...core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_d
                            asf_to_skeleton, cmu_template_asf, fill_unmapped,
                            world_deltas_from_asf_dofs)
 from ..mocap.acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
-from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, keyframe_state,
+from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, key_coordinates,
                               pose_bone_path)
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature, rigid_armature2world
 
@@ -156,12 +156,7 @@ def gait_rig(obj):
     if obj is None or obj.type != "ARMATURE":
         raise GaitError("Select an armature")
     if obj.data.get(PROP_ASF):
-        try:
-            asf = armature_asf(obj)
-        except (AcclaimError, MocapParseError) as exc:
-            raise GaitError(str(exc)) from None
-        skeleton = asf_to_skeleton(asf)
-        layout = armature_layout(skeleton)
+        skeleton, layout = _acclaim_skeleton(obj)
         missing = [n for n in layout.names if n not in obj.pose.bones]
         if missing:
             raise GaitError(f"{obj.name} lacks bones of its stored skeleton: {', '.join(missing[:6])}")
@@ -183,6 +178,30 @@ def gait_rig(obj):
                    bone_of_joint=bone_of_joint)
     grig.scale = _bvh_scale(grig)
     return grig
+
+
+# The skeleton and layout of an imported armature, by its stored ASF text: parsing and laying
+# it out took 15-20 ms of every Predict Gait (0.2 s). Both are frozen dataclasses; nothing
+# writes into their arrays.
+_ACCLAIM_SKELETONS = {}
+_ACCLAIM_CACHE_SIZE = 8
+
+
+def _acclaim_skeleton(obj):
+    """(Skeleton, ArmatureLayout) of an Acclaim import's stored skeleton (cached by its text)."""
+    text = obj.data.get(PROP_ASF)
+    cached = _ACCLAIM_SKELETONS.get(text)
+    if cached is None:
+        try:
+            asf = armature_asf(obj)
+        except (AcclaimError, MocapParseError) as exc:
+            raise GaitError(str(exc)) from None
+        skeleton = asf_to_skeleton(asf)
+        cached = (skeleton, armature_layout(skeleton))
+        if len(_ACCLAIM_SKELETONS) >= _ACCLAIM_CACHE_SIZE:
+            _ACCLAIM_SKELETONS.clear()
+        _ACCLAIM_SKELETONS[text] = cached
+    return cached
 
 
 def _mapped_gait_rig(obj):
@@ -306,7 +325,7 @@ def keyed_range(grig):
     for path, index, _ in grig.reads():
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is not None and len(fcurve.keyframe_points):
-            co = keyframe_state(fcurve)["co"][:, 0]
+            co = key_coordinates(fcurve)[:, 0]
             lo, hi = min(lo, float(co.min())), max(hi, float(co.max()))
     if not np.isfinite(lo):
         raise GaitError(f"{grig.obj.name}'s action has no keys on the bones the gait model reads")
@@ -320,7 +339,7 @@ def keyed_conflicts(bag, targets, first, last):
         fcurve = bag.fcurves.find(path, index=index)
         if fcurve is None or len(fcurve.keyframe_points) == 0:
             continue
-        co = keyframe_state(fcurve)["co"][:, 0]
+        co = key_coordinates(fcurve)[:, 0]
         if np.any((co >= first - 1e-4) & (co <= last + 1e-4)):
             count += 1
     return count

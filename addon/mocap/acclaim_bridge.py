@@ -12,7 +12,7 @@ import numpy as np
 from ...core.armature import armature_layout, channels_to_dofs
 from ...core.mocap import AmcMotion, asf_to_skeleton, format_amc, format_asf, parse_asf
 from ...core.mocap.amc import FPS_RANGE
-from ..common.fcurves import channelbag, evaluate_fcurves, keyframe_state, pose_bone_path
+from ..common.fcurves import channelbag, evaluate_fcurves, key_coordinates, pose_bone_path
 
 # Custom properties on the armature data that let export rebuild the exact skeleton.
 PROP_ASF = "track_and_stride_asf"
@@ -70,7 +70,7 @@ def _slot_key_range(action, bag):
     frames = []
     for fcurve in (bag.fcurves if bag is not None else ()):
         if len(fcurve.keyframe_points):
-            frames.append(keyframe_state(fcurve)["co"][:, 0])
+            frames.append(key_coordinates(fcurve)[:, 0])
     if not frames:
         return None
     frames = np.concatenate(frames)

@@ -8,7 +8,10 @@ The pipeline, in the order the modal operator runs it:
 2. :func:`read_footage` (main thread, in chunks, through one :class:`FootageReader` that keeps
    a movie open between chunks): the footage frames as grayscale arrays.
 3. :func:`run_core` (any thread: no bpy): ``core.tracking.track_keyframes`` over all intervals,
-   in worker processes when there are several, with progress and cancel.
+   in worker processes when there are several, with progress and cancel. The synchronous run
+   (:func:`track_now`: background mode, scripts) does steps 2 and 3 together
+   (:func:`track_while_reading`): the core starts at once and tracks each interval as soon as
+   its frames are read.
 4. :func:`apply_result` (main thread): write keys and confidence curves in one go, only when
    the whole result is there and finite (cancelling before it leaves the file untouched).
 
@@ -20,6 +23,7 @@ controls), or every bone a part (Acclaim imports, plain armatures).
 """
 
 import dataclasses
+import functools
 import threading
 import time
 from dataclasses import dataclass, field
@@ -29,7 +33,7 @@ import numpy as np
 
 from ...core.rigs import anatomical_dof_mask, hip_pivot
 from ...core.tracking.pivot import from_moved_roots, move_root_origin, to_moved_roots
-from ...core.tracking import (TrackingError, TrackingOptions, TrackingProblem,
+from ...core.tracking import (FramesFeed, TrackingError, TrackingOptions, TrackingProblem,
                               body_model_from_skeleton, suggest_keyframes, track_keyframes)
 from ..preferences import preferences
 from .acceptance import interval_notes, unmatched_notes, write_part_curves
@@ -468,10 +472,12 @@ def read_footage(request, start, stop, reader=None, out=None, view=0):
         raise TrackError(str(exc)) from None
 
 
-def run_core(request, frames, progress=None, cancel=None):
+def run_core(request, frames, progress=None, cancel=None, feed=None):
     """The core's ``track_keyframes`` on a request (no bpy: safe in a worker thread).
 
     ``frames``: (F, H, W), or with several cameras one such stack per camera (problem order).
+    ``feed``: a :class:`~...core.tracking.FramesFeed` when ``frames`` are still being read
+    (:func:`track_while_reading`).
 
     Raises ``TrackingCancelled`` when ``cancel`` is set, :class:`TrackError` on invalid input.
     """
@@ -488,7 +494,7 @@ def run_core(request, frames, progress=None, cancel=None):
         result = track_keyframes(problem, frames, request.key_frames - request.first,
                                  key_roots, request.key_locals, request.options,
                                  processes=request.processes, progress=progress, cancel=cancel,
-                                 keypoints=request.keypoints)
+                                 keypoints=request.keypoints, feed=feed)
     except TrackingError as exc:
         raise TrackError(str(exc)) from None
     if moved:
@@ -621,10 +627,56 @@ def read_all_footage(request):
     return frames[0] if request.n_views == 1 else frames
 
 
+#: Frames read per camera between two hand-overs to the tracking (:func:`track_while_reading`).
+_FEED_CHUNK = 5
+
+
+def track_while_reading(request):
+    """:func:`run_core` on the request's footage, tracking while the footage is read.
+
+    The core runs in a worker thread (:class:`TrackJob`) from the start; this (main) thread
+    decodes every camera's frames in order, a few frames of each camera in turn, and hands
+    them over as they land (``FramesFeed``): an interval is tracked as soon as its frames are
+    in, so decoding (Blender, this thread) and tracking (the worker processes and thread)
+    overlap instead of following each other. Same frames, same result as
+    ``run_core(request, read_all_footage(request))``.
+
+    Raises :class:`TrackError` (a frame that cannot be read, invalid input); nothing is left
+    running.
+    """
+    n = len(request.scene_frames)
+    footages = [request.view_footage(v) for v in range(request.n_views)]
+    frames = [np.empty((n, f.height, f.width), dtype=np.float32) for f in footages]
+    feed = FramesFeed(request.n_views)
+    job = TrackJob(request, frames[0] if request.n_views == 1 else frames,
+                   runner=functools.partial(run_core, feed=feed)).start()
+    readers = [FootageReader(f) for f in footages]
+    try:
+        for start in range(0, n, _FEED_CHUNK):
+            if not job.running:                 # the core stopped early (invalid input)
+                break
+            stop = min(n, start + _FEED_CHUNK)
+            for view, reader in enumerate(readers):
+                read_footage(request, start, stop, reader, out=frames[view][start:stop],
+                             view=view)
+                feed.arrived(view, stop)
+    except BaseException as exc:
+        feed.fail(exc)
+        job.cancel()
+        raise
+    finally:
+        for reader in readers:
+            reader.close()
+    job.join()
+    if job.error is not None:
+        raise job.error
+    return job.result
+
+
 def track_now(context, settings):
     """The whole run synchronously (background mode, scripts): returns (summary, warnings)."""
     request = prepare_tracking(context, settings)
-    result = run_core(request, read_all_footage(request))
+    result = track_while_reading(request)
     return apply_result(context, request, result)
 
 
@@ -743,3 +795,7 @@ class TrackJob:
         self._stop.set()
         if wait:
             self._thread.join()
+
+    def join(self):
+        """Wait until the core has finished (``result`` or ``error`` is set)."""
+        self._thread.join()

@@ -329,8 +329,12 @@ class Recorder:
                 self.log[f"{_name}_s"] = self.log.get(f"{_name}_s", 0.0) + time.perf_counter() - tic
                 self.log[_name] = out
                 if _name == "read_footage":
-                    self.log["footage_checksum"] = checksum(out)
-                    self.views_read[kwargs.get("view", 0)] = out
+                    # Read in chunks into the caller's stack (``out``: a slice of it; Track
+                    # Keyframes tracks while it reads): the whole stack is what was read.
+                    given = kwargs.get("out")
+                    whole = given.base if given is not None and given.base is not None else out
+                    self.log[_name] = whole
+                    self.views_read[kwargs.get("view", 0)] = whole
                 return out
             setattr(self.bridge, name, wrapped)
         return self
@@ -420,7 +424,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None, keypoints=None):
     arrays = {"bezier_rot": bezier[0], "bezier_pos": bezier[1], "slerp_rot": slerp_rot,
               "slerp_pos": slerp_pos, "tracked_rot": tracked[0], "tracked_pos": tracked[1],
               "slerp_first_frame": np.array(keys[0])}
-    record["footage_checksum"] = rec.log.get("footage_checksum")
+    read = rec.log.get("read_footage")
+    record["footage_checksum"] = None if read is None else checksum(read)
     if plan.get("dump_core_inputs"):
         dump_core_inputs(Path(plan["dump_core_inputs"]), name, every, rec.log)
     if len(cameras) > 1:                       # every camera's frames, in the problem's order

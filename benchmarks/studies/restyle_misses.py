@@ -10,8 +10,9 @@ join over the leave-one-walker-out windows.
 2. **Runs.** The captured runs' cadence, stride, hip swing and speed; a cadence direction
    learned from the runs alone by the walks' recipe (:mod:`core.gait.retiming`), applied to
    the restyled run at 1.3 and 1.6 against the walks' direction and the fast-forward.
-   (Sections 1-2 use that model with every piece under its own name, named styles as the mean
-   of their pieces, which is what ``learn_model`` ships.)
+   (Sections 1-2 use that model with every piece under its own name, named styles as the
+   plain mean of their pieces, which is what ``learn_model`` shipped until stop 34; since,
+   ``learn_model`` re-aligns the pieces first: docs/gait.md.)
 3. **The join.** The six fold models and the windows Predict Gait accepts (``check_gait``),
    ``predict_walk`` with defaults: per subject, the windows whose root acceleration across the
    join exceeds the trial's 99th percentile, against the captured continuation, and how many

@@ -14,7 +14,13 @@ after adapting, on the model's fit (issue 21):
    Jumps, hops, squats, the chicken dance and shifting weight in place stay below 3.1°; steady
    walks and runs reach 4-10° from 0.75 s of observation. (The zero-lag correlation of the
    legs, :func:`legs_together`, is reported: a crouched sneaking walk bends both hips together
-   while it steps, up to +0.9, so the correlation cannot tell it from a jump.)
+   while it steps, up to +0.9, so the correlation cannot tell it from a jump.) *Exception*:
+   a range at least as long as the cadence prior's fastest cycle whose root travels level
+   (height within ``MAX_LEVEL_RANGE``, 0.2 m) and never stops (every frame at least
+   ``MIN_STEADY_SPEED``, 0.05 m/s, and ``MIN_TRAVEL`` on average) is a walk, however little
+   its hips differ: the sneaking walks of CMU 120 move one leg at a time and bend both hips
+   together, 1.6-3.5° apart in 0.75 s, with their root within 0.14 m of height; jumps, hops
+   and squats move the root 0.23 m and more (and in place do not travel).
 4. **Travel**: the root's mean horizontal velocity (the ``root.v_forward`` / ``root.v_left``
    channels) must reach ``MIN_TRAVEL`` (0.2 m/s): boxing footwork, punching, gesturing or
    balancing in place are refused (steady walks: 0.38 m/s and more; the slowest shipped walker,
@@ -33,7 +39,7 @@ Refusals say why in plain words; nothing is changed by the caller then. Measured
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,13 +48,16 @@ from .segments import MIN_STRENGTH
 __all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
            "MIN_MOTION_DEG", "MIN_OVERLAP_S",
            "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
-           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm"]
+           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm",
+           "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
 MAX_LEGS_TOGETHER = 0.5      # (reported; the refusal uses the alternation below)
 MIN_ALTERNATION_DEG = 3.5
 MIN_TRAVEL = 0.2            # m/s
+MAX_LEVEL_RANGE = 0.2       # m: the root's height range of a level walk (check 3's exception)
+MIN_STEADY_SPEED = 0.05     # m/s: the slowest horizontal speed of a walk that never stops
 MIN_OVERLAP_S = 0.2         # s of overlap for a rhythm comparison
 CADENCE_SPREAD = 1.25       # periods searched: the training walkers' × 1/1.25 … × 1.25
 WARN_FIT = 0.5
@@ -226,6 +235,24 @@ def _root_figures(model, obs):
     return tilt_deg, travel
 
 
+def _level_travel(model, obs, fps):
+    """Whether the root travels level and without stopping (check 3's exception): mean
+    horizontal speed at least ``MIN_TRAVEL``, every frame's at least ``MIN_STEADY_SPEED``, and
+    the root's height within ``MAX_LEVEL_RANGE``, over a range at least as long as the
+    shortest cycle of the cadence prior (a shorter one can fall between a jump's landings).
+    False for a model without root travel."""
+    shortest = model.periods.min() / model.fps / CADENCE_SPREAD         # seconds
+    if not model.root_travel or len(obs) < shortest * fps:
+        return False
+    height = obs[:, model.channel_index(["root.height"])[0]]
+    speed = np.linalg.norm(obs[:, model.channel_index(["root.v_forward", "root.v_left"])],
+                           axis=1)
+    travel = float(np.linalg.norm(np.nanmean(
+        obs[:, model.channel_index(["root.v_forward", "root.v_left"])], axis=0)))
+    return bool(travel >= MIN_TRAVEL and np.nanmin(speed) >= MIN_STEADY_SPEED
+                and np.nanmax(height) - np.nanmin(height) <= MAX_LEVEL_RANGE)
+
+
 def check_gait(model, observations, fps, result=None, what="the observed frames"):
     """Checks 1-5 of the module docstring, and the fit score when ``result`` is given.
 
@@ -266,7 +293,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         stepping = alternation_deg(obs, pairs)
         alternate = legs_together(np.einsum("j,jcd->cd", model.style_mean,
                                             model.bases)[:-1], pairs) < 0
-        if alternate and stepping < MIN_ALTERNATION_DEG:
+        if alternate and stepping < MIN_ALTERNATION_DEG and not _level_travel(model, obs, fps):
             return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
                              refusal=f"Both legs move together in {what} (they differ by "
                                      f"{stepping:.1f}° only): that is a jump, hop, squat or "
@@ -284,17 +311,40 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                          refusal=f"No steady rhythm in {what}: the legs repeat their steps "
                                  f"with a strength of {strength:.2f} (a walk or run reaches "
                                  f"{MIN_STRENGTH:g} or more)")
-    fit = None
     warnings = []
     if strength is None:
         warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
     elif strength < MIN_STRENGTH:
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
-    if result is not None:
-        fit = fit_score(model, obs, result)
-        if fit < WARN_FIT:
-            warnings.append(f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
-                            f"leg motion in {what} (fit score {fit:.2f}): check the result")
-    return GaitCheck(motion, period, strength, together, fit, None,
-                     "; ".join(warnings) or None, tilt, travel)
+    check = GaitCheck(motion, period, strength, together, None, None,
+                      "; ".join(warnings) or None, tilt, travel)
+    return check if result is None else with_fit(check, model, obs, result, what)
+
+
+def with_fit(check, model, observations, result, what="the observed frames"):
+    """``check`` (an accepting :class:`GaitCheck` of the same range) with check 6, the fit
+    score of ``result``, added: what ``check_gait(..., result)`` returns, without running
+    checks 1-5 again.
+
+    Parameters
+    ----------
+    check : GaitCheck
+        ``check_gait(model, observations, fps, what=what)`` (no refusal).
+    model : GaitModel
+    observations : array_like, shape (N, D)
+    result : AdaptResult
+    what : str
+
+    Returns
+    -------
+    GaitCheck
+    """
+    if check.refusal is not None:
+        raise ValueError("with_fit adds the fit score to an accepting check only")
+    fit = fit_score(model, np.asarray(observations, dtype=float), result)
+    warnings = [check.warning] if check.warning else []
+    if fit < WARN_FIT:
+        warnings.append(f"the gait model explains only {100 * max(fit, 0.0):.0f} % of the "
+                        f"leg motion in {what} (fit score {fit:.2f}): check the result")
+    return replace(check, fit=fit, warning="; ".join(warnings) or None)

@@ -9,8 +9,8 @@ adapting to a new walker.
 import numpy as np
 
 from ..mocap import resample
-from .alignment import ALIGNMENT_MODES, align_sequences
-from .factorization import factorize
+from .alignment import ALIGNMENT_MODES, align_sequences, phase_shift, rotate_profile
+from .factorization import factorize, reconstruct
 from .features import angle_channel_names, dof_observations, wrap_near
 from .gp import fit_phase_gp
 from .map_refinement import refine_map
@@ -59,8 +59,9 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
         Frame rate(s) of the sequences.
     names : sequence of str, optional
         Style names (default ``'style0'``, …). Sequences that share a name become one learned
-        style: the mean of their styles and the geometric mean of their periods (the style
-        prior and the offset prior still see every sequence).
+        style: the mean of their cycles re-aligned to the model's mean cycle (``_merge_named``)
+        and the geometric mean of their periods (the style prior and the offset prior still see
+        every sequence).
     n_styles : int, optional
         J. Default: the smallest J holding ``energy`` of the singular-value spectrum.
     energy : float
@@ -192,7 +193,8 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                                                 cycles[:, :, fwd].mean(axis=1) * scale[fwd],
                                                 cycles[:, :, height].mean(axis=1)
                                                 * scale[height])
-    named, named_styles, named_periods = _merge_named(names, styles, aligned.periods)
+    named, named_styles, named_periods = _merge_named(names, styles, aligned.periods,
+                                                      bases)
     return GaitModel(channel_names=channel, units=units, angle_centre=centre,
                      channel_scale=scale, fps=model_fps, bases=bases, styles=named_styles,
                      style_names=named, beta=gp.beta, Q=q, r=float(obs_noise),
@@ -205,16 +207,34 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
                      cadence_style=cadence_style, notes=str(notes))
 
 
-def _merge_named(names, styles, periods):
-    """One style per distinct name (first-appearance order): mean style, geometric-mean
-    period."""
+def _merge_named(names, styles, periods, bases):
+    """One style per distinct name (first-appearance order): the mean of its pieces' cycles,
+    each re-aligned to the model's mean cycle; geometric-mean period.
+
+    ``align_sequences`` aligns every training cycle with one reference sequence, and a piece
+    unlike that reference can land at another phase: five of the stock library's nine careful
+    pieces sat a quarter cycle off the common phase and one 0.4 cycle (every other style's
+    pieces within 0.03 cycle of it), so their plain mean cancelled much of the legs' motion
+    (one foot never came down) and the cadence direction, learned at the common phase, swung
+    the legs a quarter cycle late (docs/gait.md, *The three misses*). So each piece's cycle ``Σ_j w_j Ȳ^j`` is shifted to the phase that best
+    matches the mean cycle of all the pieces ``Σ_j w̄_j Ȳ^j`` (eq. 4's cross-correlation,
+    :func:`~.alignment.phase_shift`), and the name's cycles are averaged and projected back
+    onto the bases (least squares). Without shared names the learned styles stay as they are.
+    """
     order = list(dict.fromkeys(names))
     if len(order) == len(names):
         return names, styles, periods
     index = np.array([order.index(n) for n in names])
-    merged = np.array([styles[index == k].mean(axis=0) for k in range(len(order))])
-    cycle = np.array([np.exp(np.log(periods[index == k]).mean()) for k in range(len(order))])
-    return order, merged, cycle
+    flat = bases.reshape(len(bases), -1).T  # (C·D, J)
+    reference = reconstruct(styles.mean(axis=0)[None], bases)[0]
+    merged, cycle = [], []
+    for k in range(len(order)):
+        members = np.flatnonzero(index == k)
+        cycle.append(np.exp(np.log(periods[members]).mean()))
+        aligned = [rotate_profile(profile, phase_shift(reference, profile))
+                   for profile in reconstruct(styles[members], bases)]
+        merged.append(np.linalg.lstsq(flat, np.mean(aligned, axis=0).ravel(), rcond=None)[0])
+    return order, np.array(merged), np.array(cycle)
 
 
 def _offset_variance(scaled, walkers):

@@ -38,6 +38,10 @@ __all__ = ["RETIME_MODES", "WalkRequest", "WalkResult", "predict_walk"]
 RETIME_MODES = ("natural", "fast_forward")
 VELOCITY_FRAMES = 3          # reference frames whose mean velocity the join continues
 SMOOTH_S = 0.08             # s: σ of the Gaussian that smooths the solved root (height, travel)
+# The travel's σ is SMOOTH_S at this many cycles per second and scales with the walk's cycle
+# (a slow walker changes feet more slowly; a run changes them across a short flight).
+SMOOTH_CYCLE_HZ = 0.85
+SMOOTH_MAX_SCALE = 1.5      # at most 0.12 s: a walk slowed to a near stop keeps its stance foot
 JOIN_S = 0.25                # s: the reference's root height and velocity fade out over this
 GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
@@ -211,7 +215,7 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
             and all(f in skeleton.names for f in feet):
         floor = reference_floor(skeleton, reference, fps, feet, model.root_frame)
         _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
-               model.root_frame)
+               model.root_frame, omega_to * fps / (2.0 * np.pi))
     return WalkResult(out, floor, w_to, float(omega_to), float(blend))
 
 
@@ -233,9 +237,12 @@ def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weigh
     return delta * np.diff(np.concatenate(([0.0], weights))) * fps
 
 
-def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame):
+def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame,
+           cycle_hz=SMOOTH_CYCLE_HZ):
     """Solve the root's height (always) and horizontal travel (``request.plant``) from the
-    legs, in place on ``out``; the reference's root height and velocity fade into them."""
+    legs, in place on ``out``; the reference's root height and velocity fade into them.
+    ``cycle_hz``: the predicted walk's cycles per second (the travel is smoothed over a fixed
+    share of its cycle)."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     m = min(len(reference), VELOCITY_FRAMES + 1)
     rows = np.vstack([reference[-m:], out])                     # frames -(m-1) … n
@@ -264,7 +271,8 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
-    vel = smooth(vel, SMOOTH_S * fps * (1.0 - 0.75 * float(np.mean(flight))))
+    vel = smooth(vel, SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
+                 * (1.0 - 0.75 * float(np.mean(flight))))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
         vel[m - 2]

@@ -31,7 +31,7 @@ from .jacobians import (MotionLayout, apply_motion, image_jacobian, motion_betwe
                         point_jacobians)
 from .motion import (FrameMotions, MotionView, estimate_motions, estimate_view_motions,
                      rank_decomposition, rank_decompositions, solve_with_prediction, view_weights)
-from .parallel import SequenceResult, track_keyframes, view_frames
+from .parallel import FramesFeed, SequenceResult, track_keyframes, view_frames
 from .presets import CMU_PARTS, RIG_PARTS, TABLE1, find_table1_parts, table1_dof_mask
 from .problem import TrackingCancelled, TrackingError, TrackingOptions, TrackingProblem
 from .suggest import KeySuggestion, robust_z_scores, suggest_keyframes
@@ -41,7 +41,7 @@ from .trajectory import (IntervalResult, Pose, ViewInterval, eq4_view_weights, i
 
 __all__ = [
     "AcceptanceRule", "PartVerdicts", "body_parts", "BodyModel", "CMU_PARTS", "CalibratedCamera", "CalibrationError", "FrameMotions",
-    "IntervalResult", "KeySuggestion", "LensDistortion", "MotionLayout", "MotionView",
+    "FramesFeed", "IntervalResult", "KeySuggestion", "LensDistortion", "MotionLayout", "MotionView",
     "PinholeCamera", "Pose", "RIG_PARTS", "RayHits", "SequenceResult", "SilhouetteSamples",
     "TABLE1", "TrackingCancelled", "TrackingError", "TrackingOptions", "TrackingProblem",
     "ViewInterval", "apply_motion", "bilinear", "blender_from_camera", "body_model_from_skeleton",

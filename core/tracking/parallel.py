@@ -193,6 +193,66 @@ def view_frames(stack, offset, a, b):
     return out
 
 
+class FramesFeed:
+    """Frames that arrive while the tracking runs (decoding overlapped with tracking).
+
+    The caller allocates every camera's stack, hands it to :func:`track_keyframes` with this
+    feed, and fills the stacks in order from another thread, calling :meth:`arrived` as frames
+    land: an interval starts as soon as its frames are in (a worker that needs frames not yet
+    there waits), so the tracking of the first intervals overlaps the decoding of the later
+    ones. Frames of a camera arrive in its stack's order (its first ``count`` frames).
+    """
+
+    def __init__(self, n_views):
+        self._ready = threading.Condition()
+        self._counts = [0] * int(n_views)
+        self._failed = None
+
+    def arrived(self, view, count):
+        """Camera ``view``'s first ``count`` frames are in its stack."""
+        with self._ready:
+            self._counts[view] = max(self._counts[view], int(count))
+            self._ready.notify_all()
+
+    def fail(self, why):
+        """No more frames will come (the reading failed or was cancelled): waiting workers
+        stop with :class:`~.problem.TrackingCancelled`."""
+        with self._ready:
+            self._failed = str(why)
+            self._ready.notify_all()
+
+    @property
+    def failed(self):
+        """Why no more frames will come (:meth:`fail`), or None."""
+        return self._failed
+
+    def wait(self, view, count, stop=None):
+        """Block until camera ``view``'s first ``count`` frames are in; ``stop()`` true (polled
+        every 0.05 s) or :meth:`fail` raise :class:`~.problem.TrackingCancelled`."""
+        with self._ready:
+            while self._counts[view] < count:
+                if self._failed is not None:
+                    raise TrackingCancelled(f"frames did not arrive: {self._failed}")
+                if stop is not None and stop():
+                    raise TrackingCancelled("tracking cancelled")
+                self._ready.wait(0.05)
+
+    def has_interval(self, frames, offsets, a, b):
+        """Whether every camera's frames of clip frames ``a .. b`` are in (no waiting)."""
+        with self._ready:
+            return all(self._counts[view] >= min(b + 1 - offset, len(stack))
+                       for view, (stack, offset) in enumerate(zip(frames, offsets))
+                       if b + 1 - offset > 0 and a - offset < len(stack))
+
+    def wait_interval(self, frames, offsets, a, b, stop=None):
+        """Block until every camera's frames of clip frames ``a .. b`` are in (a camera that
+        filmed none of them is not waited for)."""
+        for view, (stack, offset) in enumerate(zip(frames, offsets)):
+            lo, hi = a - offset, b + 1 - offset
+            if hi > 0 and lo < len(stack):
+                self.wait(view, min(hi, len(stack)), stop)
+
+
 def _interval(problem, options, frames, offsets, keys, roots, local, i, progress=None,
               occluders=(), keypoints=None):
     a, b = keys[i], keys[i + 1]
@@ -227,7 +287,7 @@ def _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progres
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
                     processes=None, progress=None, cancel=None, frame_offsets=None,
-                    occluders=(), keypoints=None):
+                    occluders=(), keypoints=None, feed=None):
     """Track every interval between consecutive keyframes.
 
     Parameters
@@ -266,6 +326,9 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         has none), optional
         2D keypoints of another tool, ``first`` in clip frames (:mod:`.keypoint_cue`): their
         reprojection residuals join the motion estimate. None: nothing changes.
+    feed : FramesFeed, optional
+        ``frames`` are still being filled (by another thread): an interval is tracked once its
+        frames are in, intervals in clip order (:class:`FramesFeed`). None: all are in.
 
     Returns
     -------
@@ -294,6 +357,8 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
         results = []
         for i in range(n_int):
             done = float(weights[:i].sum())
+            if feed is not None:
+                feed.wait_interval(frames, offsets, keys[i], keys[i + 1], stop_requested)
 
             def hook(fraction, done=done, weight=weights[i]):
                 if stop_requested():
@@ -305,7 +370,7 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     else:
         results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders),
                              keypoints),
-                            frames, workers, weights, report, stop_requested)
+                            frames, workers, weights, report, stop_requested, feed)
     result = _assemble(keys, results)
     if options.foot_lock:
         _lock_feet(problem, options, keys, result)
@@ -403,14 +468,27 @@ def _start_worker():
     return proc
 
 
-def _local_worker(work, frames, todo, lock, inbox, stop):
+def _local_worker(work, frames, todo, lock, inbox, stop, feed=None):
     """The calling process's share: a thread taking intervals from ``todo`` like a worker."""
     problem, options, offsets, keys, roots, local, occluders, keypoints = work
+    if feed is not None:
+        # Frames still arriving: they are decoded in this process (Blender's main thread, which
+        # holds the GIL while it decodes), so this thread joins only once they are all in and
+        # the children track meanwhile; a thread tracking here would slow the decoding down.
+        try:
+            feed.wait_interval(frames, offsets, keys[0], keys[-1], stop.is_set)
+        except TrackingCancelled:
+            return
     while not stop.is_set():
         with lock:
             if not todo:
                 return
             i = todo.pop(0)
+        if feed is not None:
+            try:
+                feed.wait_interval(frames, offsets, keys[i], keys[i + 1], stop.is_set)
+            except TrackingCancelled:
+                return
 
         def hook(fraction, i=i):
             if stop.is_set():
@@ -474,24 +552,37 @@ def sweep_stale_scratch(parent=None, now=None):
     return removed
 
 
-def _run_pool(work, frames, workers, weights, report, stop_requested):
+def _run_pool(work, frames, workers, weights, report, stop_requested, feed=None):
     """Intervals over ``workers`` processes: this one (a thread) and ``workers - 1`` children.
 
-    Idle workers take the next interval, longest first. The calling thread only collects
-    messages, reports progress and watches ``stop_requested``.
+    Idle workers take the next interval, longest first (with a ``feed``: in clip order, as
+    their frames arrive; a child is sent an interval once its frames are in). The calling
+    thread only collects messages, reports progress and watches ``stop_requested``.
     """
     n_int = len(weights)
     keys = work[3]
-    todo = sorted(range(n_int), key=lambda i: keys[i] - keys[i + 1])
+    todo = list(range(n_int)) if feed is not None else \
+        sorted(range(n_int), key=lambda i: keys[i] - keys[i + 1])
     lock, stop = threading.Lock(), threading.Event()
     results, fractions = [None] * n_int, np.zeros(n_int)
     inbox = queue_module.Queue()
-    local = threading.Thread(target=_local_worker, args=(work, frames, todo, lock, inbox, stop),
+    local = threading.Thread(target=_local_worker,
+                             args=(work, frames, todo, lock, inbox, stop, feed),
                              name="track_keyframes local worker", daemon=True)
 
-    def next_task():
+    waiting = set()                        # children whose next interval's frames are not in
+
+    def assign(k):
+        """Give child ``k`` the next interval once its frames are in (else it waits in
+        ``waiting``; the loop below asks again), or stop it when none is left."""
         with lock:
-            return todo.pop(0) if todo else None
+            if todo and feed is not None and not feed.has_interval(
+                    frames, offsets, keys[todo[0]], keys[todo[0] + 1]):
+                waiting.add(k)
+                return
+            task = todo.pop(0) if todo else None
+        waiting.discard(k)
+        give(k, task)
 
     offsets = work[2]
 
@@ -540,14 +631,18 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
                 threading.Thread(target=_reader, args=(k, proc.stdout, inbox), daemon=True).start()
             for k, proc in enumerate(procs):
                 _send(proc.stdin, work)
-                give(k, next_task())
+                assign(k)
             while any(r is None for r in results):
+                for k in sorted(waiting):
+                    assign(k)
                 try:
                     k, message = inbox.get(timeout=0.05)
                 except queue_module.Empty:
                     message = ()
                 if stop_requested():
                     raise TrackingCancelled("tracking cancelled")
+                if feed is not None and feed.failed is not None:
+                    raise TrackingCancelled(f"frames did not arrive: {feed.failed}")
                 if message is None and k in stopped:
                     continue
                 if message is None:
@@ -562,7 +657,7 @@ def _run_pool(work, frames, workers, weights, report, stop_requested):
                     results[message[1]], fractions[message[1]] = message[2], 1.0
                     if k >= 0:
                         forget(message[1])
-                        give(k, next_task())
+                        assign(k)
                 report(float(np.dot(weights, fractions)))
         finally:
             stop.set()

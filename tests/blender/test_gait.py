@@ -792,3 +792,37 @@ def test_restyles_and_retimes_an_animator_keeps_through_the_operator(scene, tmp_
     assert fast["stride_m"] > ff["stride_m"] + 0.1
     assert fast["hip_swing_deg"] > ff["hip_swing_deg"] + 5
     assert fast["steps_per_min"] == pytest.approx(ff["steps_per_min"], rel=0.03)
+
+
+def test_a_careful_walk_retimed_up_steps_out_through_the_operator(scene, tmp_path):
+    """Issue 25, careful retimed: the stock library's careful style was the plain mean of pieces
+    learned at different phases (five of nine a quarter cycle off), so the cadence direction
+    swung its legs out of step: retimed up, CMU 35_01's careful walk took *shorter* strides
+    with a smaller hip swing and knee range than the fast-forward (1.6: 0.57 m, 26°, knee 13°
+    against 0.69 m, 28°). With the pieces re-aligned before averaging it steps out like the
+    other styles (docs/gait.md, *The three misses*)."""
+    from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
+
+    obj = import_observed(tmp_path, "35_01")
+    name = obj.name
+    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
+    layout = armature_layout(skeleton)
+    model = load_stock_library()
+    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    floor = contact_height(foot_tracks(skeleton, reference, FPS, root_frame=model.root_frame))
+
+    def careful(**options):
+        assert bpy.ops.track_and_stride.predict_gait(
+            horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to="careful",
+            restyle_amount=1.0, **options) == {"FINISHED"}
+        _, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+        return walk_summary(skeleton, pred, FPS, period_frames(pred[:, 6:]), floor=floor)
+
+    steady = careful(cadence=1.0)
+    fast = careful(cadence=1.6)
+    ff = careful(cadence=1.6, retime="FAST_FORWARD")
+    assert fast["stride_m"] > ff["stride_m"] + 0.05
+    assert fast["hip_swing_deg"] > ff["hip_swing_deg"] + 1.0
+    assert fast["knee_range_deg"] > steady["knee_range_deg"]
+    for f in (steady, fast):            # and it still walks where its legs go
+        assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0

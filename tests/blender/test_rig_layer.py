@@ -404,3 +404,34 @@ def test_body_map_panel_fills_edits_exports_and_imports(tmp_path):
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.track_and_stride.body_map_clear() == {"FINISHED"}
     assert not settings.stored and not addon("common.rig_bridge").tracking_rig(obj).stored
+
+
+def test_step_errors_of_all_steps_at_once_equal_one_step_at_a_time():
+    """The write-back's convergence test (``step_errors``) measures every step's joint in one
+    call: the same largest angle and distance as each step's ``pose_error`` on its own, with
+    each rule counting only what it fixes and limb turns measured by their bend."""
+    rb = addon("common.rig_bridge")
+    from core.rigs import RIGID, ROTATE, TRANSLATE
+    from core.rigs.ik import bend_angle_error
+    from core.rigs.retarget import pose_error
+    rng = np.random.default_rng(34)
+    n = 8
+    joints, target = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
+    joints[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    target[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    joints[:, :3, 3], target[:, :3, 3] = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    steps = [rb.ControlStep("a", ROTATE, 1), rb.ControlStep("b", TRANSLATE, 2),
+             rb.ControlStep("c", RIGID, 3), rb.ControlStep("d", ROTATE, 5),
+             rb.ControlStep("e", "pole", 6, limb=(4, 6, 7))]
+    angle, dist = rb.step_errors(steps, joints, target)
+    rot = [float(pose_error(target[j], joints[j])[0]) for j in (1, 3, 5)]
+    off = [float(pose_error(target[j], joints[j])[1]) for j in (2, 3)]
+    bend = abs(float(bend_angle_error(joints[4, :3, 3], joints[7, :3, 3], joints[6, :3, 3],
+                                      target[6, :3, 3])))
+    assert angle == pytest.approx(max(rot + [bend]), rel=1e-12)
+    assert dist == pytest.approx(max(off), rel=1e-12)
+    # Each rule counts only its own error (a rotating step's distance, a translating step's
+    # angle are not measured).
+    assert rb.step_errors(steps[:1], joints, target) == pytest.approx((rot[0], 0.0), rel=1e-12)
+    assert rb.step_errors(steps[1:2], joints, target) == pytest.approx((0.0, off[0]), rel=1e-12)
+    assert rb.step_errors([], joints, target) == (0.0, 0.0)

@@ -2,13 +2,14 @@
 non-gait clips of CMU (one test per kind) are refused, the fit score is the explained share of
 the gait channels' variance."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core.gait import adapt, load_stock_library, observations_from_dofs
-from core.gait.checks import WARN_FIT, check_gait, fit_score, gait_channels
+from core.gait.checks import WARN_FIT, check_gait, fit_score, gait_channels, with_fit
 from tests.gait_data import trial
 
 
@@ -42,6 +43,27 @@ def test_a_walk_passes_with_its_rhythm_and_fit():
     # Half a cycle: only the other leg's step can be compared; a warning when it is weak.
     half = check_gait(model, obs[:30], 60.0)
     assert half.refusal is None and half.period_s is not None
+
+
+def test_the_fit_added_to_an_earlier_check_is_the_whole_check_with_the_fit():
+    """Predict checks the range, adapts, then adds the fit score (with_fit) instead of running
+    every check again: the same GaitCheck as check_gait with the adaptation, warnings and
+    their order included (a short range's rhythm warning, then a poor fit's)."""
+    model = load_stock_library()
+    obs = observe(model, *trial("35_07"))
+    for rows in (slice(0, 100), slice(10, 34)):
+        res = adapt(model, obs[rows])
+        first = check_gait(model, obs[rows], 60.0, what="these frames")
+        assert with_fit(first, model, obs[rows], res, "these frames") == \
+            check_gait(model, obs[rows], 60.0, res, what="these frames")
+    res = adapt(model, obs[10:34])
+    poor = replace(res, states=res.states + [0.0, np.pi])  # half a cycle off: a poor fit
+    first = check_gait(model, obs[10:34], 60.0)
+    both = with_fit(first, model, obs[10:34], poor)
+    assert both.warning.startswith(first.warning + "; the gait model explains only")
+    assert both == check_gait(model, obs[10:34], 60.0, poor)
+    with pytest.raises(ValueError, match="accepting"):
+        with_fit(check_gait(model, np.repeat(obs[:1], 60, axis=0), 60.0), model, obs[:60], res)
 
 
 def test_a_frozen_pose_a_jump_and_a_range_without_rhythm_are_refused():
@@ -111,6 +133,40 @@ def load_clip(path):
 
 
 CMU = Path(__file__).resolve().parents[2] / "sample_scenes" / "data" / "cmu"
+
+
+def test_a_crouched_sneak_that_bends_both_hips_together_is_taken_a_hop_is_not():
+    """Issue 21: the sneaking walk of 120 moves one leg at a time and bends both hips together
+    as it steps: in 0.75 s its hips differ by 1.6-3.5° (a jump's by less than 3.1°) and it was
+    refused as a jump. It travels level (its root within 0.14 m of height) and never stops, so
+    it is taken; the same frames with the root bobbing 0.3 m (a hop), stopping for a frame, or
+    observed for less than the fastest cycle (0.5 s, where a jump can fall between landings)
+    are refused."""
+    model = load_stock_library()
+    values, names = load_clip(CMU / "120_09.amc")
+    obs = observe(model, values, names)[120:165]                       # 2.0-2.75 s
+    hips = [tuple(model.channel_names.index(c) for c in checks.HIP_FLEXION)]
+    assert checks.alternation_deg(obs, hips) < checks.MIN_ALTERNATION_DEG
+    assert legs_together(obs, hips) > 0.9
+    assert check_gait(model, obs, 60.0).refusal is None
+    height = model.channel_names.index("root.height")
+    speed = model.channel_index(["root.v_forward", "root.v_left"])
+    hop = obs.copy()
+    hop[:, height] += 0.15 * np.sin(np.linspace(0.0, 4.0 * np.pi, len(obs)))
+    stop = obs.copy()
+    stop[20, speed] = 0.0
+    for changed in (hop, stop, obs[:30]):
+        assert check_gait(model, changed, 60.0).refusal.startswith("Both legs move together")
+
+
+def test_forward_jumps_are_refused_at_half_a_second_too():
+    """Two-footed forward jumps travel (0.3-0.4 m/s) and, within 0.5 s, can stay level: the
+    level-travel exception to the legs check needs the fastest cycle of the cadence prior."""
+    model = load_stock_library()
+    values, names = load_clip(CMU / "not_gaits" / "91_39.amc")
+    obs = observe(model, values, names)
+    for start in range(0, len(obs) - 30 + 1, 15):
+        assert check_gait(model, obs[start:start + 30], 60.0).refusal is not None, start / 60
 # One clip of each kind that is not a gait (sample_scenes/data/cmu/not_gaits/README.md), and
 # the words its refusals use.
 NOT_GAITS = [("91_39", "jump"), ("118_05", "jump in place"), ("18_15", "chicken dance"),
@@ -321,11 +377,26 @@ def test_a_measurement_equal_to_a_threshold_passes_it(monkeypatch):
              ("MIN_TRAVEL", base.travel, np.inf, "The walker stays in place"),
              ("MIN_STRENGTH", base.strength, np.inf, "No steady rhythm")]
     for name, value, beyond, refusal in cases:
+        if name == "MIN_ALTERNATION_DEG":                # the walk travels level: no exception
+            monkeypatch.setattr(checks, "MAX_LEVEL_RANGE", -1.0)
         monkeypatch.setattr(checks, name, value)
         at = check_gait(model, obs, 60.0, res)
         assert at.refusal is None and at.warning is None, name
         monkeypatch.setattr(checks, name, np.nextafter(value, beyond))
         assert check_gait(model, obs, 60.0, res).refusal.startswith(refusal), name
+        monkeypatch.undo()
+    # The legs check's exception (level travel without a stop): the root's height range is
+    # *within* its maximum, the slowest frame *reaches* its minimum speed.
+    height = obs[:, model.channel_names.index("root.height")]
+    speed = np.linalg.norm(obs[:, model.channel_index(["root.v_forward", "root.v_left"])], axis=1)
+    for name, value, beyond in (("MAX_LEVEL_RANGE", np.max(height) - np.min(height), -np.inf),
+                                ("MIN_STEADY_SPEED", np.min(speed), np.inf)):
+        monkeypatch.setattr(checks, "MIN_ALTERNATION_DEG", np.nextafter(stepping, np.inf))
+        monkeypatch.setattr(checks, name, value)
+        at = check_gait(model, obs, 60.0, res)
+        assert at.refusal is None and at.warning is None, name
+        monkeypatch.setattr(checks, name, np.nextafter(value, beyond))
+        assert check_gait(model, obs, 60.0, res).refusal.startswith("Both legs move"), name
         monkeypatch.undo()
     monkeypatch.setattr(checks, "WARN_FIT", base.fit)
     assert check_gait(model, obs, 60.0, res).warning is None

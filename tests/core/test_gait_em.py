@@ -71,6 +71,25 @@ def test_one_candidates_score_is_the_grids_and_with_the_offset_the_joint_least_s
     assert cost_b < cost
 
 
+def test_every_grid_cell_scores_as_the_single_candidate_does():
+    """The grid sums the table rows over frames as (visits per table phase) @ table, in one
+    product for all cells; every cell's cost and style equal the single-candidate scoring's,
+    which gathers the frames' rows one by one (a 12-frame window, summed from the
+    gathered rows as the online start's are, and a 100-frame one)."""
+    model = small_model()
+    ctx = make_context(model)
+    mu, mtm = phase_tables(ctx)
+    for n in (12, 100):                          # gathered rows (the online start); visits
+        ys = observations("35_03")[:n] / ctx.scale
+        grid = grid_search(ctx, ys)
+        yy = float(np.sum(ys * ys))
+        for i, omega in enumerate(grid.omegas):
+            for j, phi0 in enumerate(grid.phis):
+                w, cost, _, _, _ = _score_one(ctx, ys, mu, mtm, omega, phi0, yy)
+                np.testing.assert_allclose(cost, grid.costs[i, j], rtol=1e-9, atol=1e-9 * yy)
+                np.testing.assert_allclose(w, grid.styles[i, j], rtol=1e-8, atol=1e-10)
+
+
 @pytest.mark.parametrize("trial", ["35_03", "35_06"])
 def test_refined_start_hardly_moves_when_the_walker_holds_a_posture_offset(trial):
     """A walker whose mean pose is off by one prior standard deviation per channel (a rig read

@@ -82,9 +82,43 @@ def test_sequences_sharing_a_name_become_one_style():
                         n_styles=2)
     alone = learn_model([d[0] for d in data], data[0][1], 60.0, ["a", "b", "run"], n_styles=2)
     assert model.style_names == ("walk", "run") and isinstance(model, GaitModel)
-    np.testing.assert_allclose(model.styles[0], alone.styles[:2].mean(axis=0))
+    # Two walks of one walker learned at the same phase: their re-aligned mean is their mean.
+    np.testing.assert_allclose(model.styles[0], alone.styles[:2].mean(axis=0),
+                               atol=0.01 * np.linalg.norm(model.styles[0]))
     np.testing.assert_allclose(model.periods[0], np.sqrt(alone.periods[0] * alone.periods[1]))
     np.testing.assert_allclose(model.style_mean, alone.style_mean)
+    np.testing.assert_array_equal(model.bases, alone.bases)
+
+
+def test_pieces_of_a_name_learned_at_different_phases_are_aligned_before_averaging():
+    """The stock careful pieces: five of nine learned a quarter cycle off the common phase, and
+    their plain mean cancelled the legs' motion. A named style is the mean of its pieces'
+    cycles shifted to the model's mean cycle: two pieces of one sinusoidal swing a quarter cycle
+    apart keep the swing's full amplitude, at the phase of the mean cycle."""
+    from core.gait.learning import _merge_named
+    from core.gait.factorization import reconstruct
+
+    phase = np.linspace(0.0, 2.0 * np.pi, 33)
+    bases = np.zeros((3, 33, 2))
+    bases[0, :, 0], bases[0, :, 1] = np.sin(phase), np.cos(phase)
+    bases[1, :, 0], bases[1, :, 1] = np.cos(phase), -np.sin(phase)
+    bases[2] = 1.0
+    bases /= np.linalg.norm(bases.reshape(3, -1), axis=1)[:, None, None]
+    # swing(φ + δ) = cos δ · bases[0] + sin δ · bases[1] (up to the norm); δ = 0, π/2, 0.
+    styles = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]])
+    names, merged, periods = _merge_named(["careful", "careful", "normal"], styles,
+                                          np.array([60.0, 60.0, 70.0]), bases)
+    assert names == ["careful", "normal"]
+    np.testing.assert_allclose(periods, [60.0, 70.0])
+    swing = reconstruct(merged, bases)[:, :, 0]
+    pieces = reconstruct(styles, bases)[:, :, 0]
+    # Full amplitude (the plain mean of the two styles: 1/√2 of it), at the phase of the mean
+    # cycle, the common phase every named style is shifted to (one piece too).
+    mean_cycle = reconstruct(styles.mean(axis=0)[None], bases)[0, :, 0]
+    for k in range(2):
+        np.testing.assert_allclose(np.ptp(swing[k]), np.ptp(pieces[0]), rtol=0.02)
+        assert np.corrcoef(swing[k], mean_cycle)[0, 1] > 0.99
+    np.testing.assert_allclose(merged[:, 2], 1.0, rtol=1e-9)
 
 
 def test_a_model_file_is_the_same_bytes_every_time_it_is_written(tmp_path):

@@ -182,3 +182,61 @@ def test_pool_sweeps_a_killed_runs_folder_and_leaves_none_of_its_own(tmp_path, m
     track_keyframes(TrackingProblem(sk, body, cam), frames, keys, roots[keys], local[keys],
                     TrackingOptions(max_iterations=1), processes=2)
     assert list(tmp_path.iterdir()) == []
+
+
+def _feeder(frames, stack, feed, first, progressed, log):
+    """Fill ``stack`` from ``frames``: the first ``first`` frames at once, the rest only once
+    the tracking has progressed (or after 60 s, logged: the tracking did not start early)."""
+    stack[:first] = frames[:first]
+    feed.arrived(0, first)
+    if not progressed.wait(60.0):
+        log.append("no progress before all frames arrived")
+    for k in range(first, len(frames)):
+        stack[k] = frames[k]
+        feed.arrived(0, k + 1)
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_frames_arriving_while_tracking_give_the_same_result(processes):
+    """Decoding overlapped with tracking (FramesFeed): the first interval is tracked before the
+    later frames arrive, each interval waits for its own frames, and the result is the one of
+    all frames given at once, bit for bit."""
+    from core.tracking.parallel import FramesFeed
+    sk, body, cam, roots, local, frames = _sequence(10)
+    problem = TrackingProblem(sk, body, cam)
+    keys = [0, 4, 10]
+    options = TrackingOptions(max_iterations=2)
+    whole = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                            processes=processes)
+    stack = np.zeros_like(frames)          # what a worker would track on if it did not wait
+    feed, progressed, log = FramesFeed(1), threading.Event(), []
+    feeder = threading.Thread(target=_feeder, args=(frames, stack, feed, 5, progressed, log))
+    feeder.start()
+    try:
+        fed = track_keyframes(problem, stack, keys, roots[keys], local[keys], options,
+                              processes=processes, progress=lambda f: progressed.set(),
+                              feed=feed)
+    finally:
+        progressed.set()
+        feeder.join()
+    assert log == []
+    np.testing.assert_array_equal(fed.root_translations, whole.root_translations)
+    np.testing.assert_array_equal(fed.local_rotations, whole.local_rotations)
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_frames_that_never_arrive_cancel_the_tracking(processes):
+    from core.tracking.parallel import FramesFeed
+    sk, body, cam, roots, local, frames = _sequence(10)
+    problem = TrackingProblem(sk, body, cam)
+    keys = [0, 4, 10]
+    feed = FramesFeed(1)
+    feed.arrived(0, 5)
+    timer = threading.Timer(0.5, feed.fail, args=("the footage could not be read",))
+    timer.start()
+    try:
+        with pytest.raises(TrackingCancelled, match="the footage could not be read"):
+            track_keyframes(problem, frames, keys, roots[keys], local[keys],
+                            TrackingOptions(max_iterations=1), processes=processes, feed=feed)
+    finally:
+        timer.cancel()

@@ -1,0 +1,56 @@
+"""The restyle table's goals on the shipped stock library, restyled onto three walkers it was
+learned from (CMU 35_01, 08_04, 35_05; every stock style × cadence 0.7 / 1.0 / 1.3 / 1.6: 132
+cases), beside ``make bench-gait ONLY=restyle`` (one held-out walker, a fold model): a change to
+the stock library or to ``predict_walk`` must not fail cases elsewhere (docs/gait.md, *The three
+misses*). Prints each walker's failed cases and the total. The join is judged against the
+walker's own (walking) capture, so a run's join counts when it exceeds a walk's 99th
+percentile. About 15 s on an idle 2-core machine::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_sweep.py [--stock PATH]
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT))
+import gait_restyle as R  # noqa: E402
+from core.gait.model import GaitModel  # noqa: E402
+from core.gait.stock import STOCK_PATH  # noqa: E402
+
+WALKERS = ("35_01", "08_04", "35_05")
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--stock", default=str(STOCK_PATH))
+    parser.add_argument("--output", default=None, help="JSON of every case's figures")
+    args = parser.parse_args(argv)
+    model = GaitModel.load(args.stock)
+    total, failed, blocks = 0, 0, {}
+    for walker in WALKERS:
+        block = R.run_restyle(model=model, walker=walker)
+        blocks[walker] = block
+        s = block["summary"]
+        total += s["cases"]
+        failed += s["cases"] - s["met"]
+        print(f"{walker}: {s['cases'] - s['met']} of {s['cases']} failed: {s['failed']}")
+        for style, by in block["cases"].items():
+            for cad, r in by.items():
+                if not r["met"]:
+                    f = r["natural"]
+                    print(f"   {style}@{cad}: slip {f['slip_cm_s']:.1f} skate {f['skate_cm_s']:.1f}"
+                          f" root/legs {f['root_vs_legs']:.2f} low {f['lowest_foot_cm']:.1f}"
+                          f" join {f['join_accel_ratio']:.2f} drift {f['heading_drift_deg']:.1f}"
+                          f" stride {f['stride_m']:.2f} ({r['fast_forward']['stride_m']:.2f})"
+                          f" swing {f['hip_swing_deg']:.0f} ({r['fast_forward']['hip_swing_deg']:.0f})")
+    print(f"sweep: {failed} of {total} cases failed")
+    if args.output:
+        Path(args.output).write_text(json.dumps(blocks, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
