@@ -38,8 +38,8 @@ eq. A.8), the prior's Jacobian being the identity (exact at the prior, first ord
 the step is only kept where the true cost falls). The keys are never touched (bit for bit), nor
 frames outside the keys or listed in ``keep``.
 
-Weight and window were chosen on one camera of the real footage (cam01) and checked on the
-three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
+Weight and window (``TrackingOptions.keypoint_smoothing``, seconds) were chosen on one camera of
+the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
 """
 
 import warnings

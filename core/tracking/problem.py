@@ -265,8 +265,10 @@ class TrackingOptions:
         (:mod:`.keypoint_fusion`), and an interval keeps the fused frames where the image
         (eq. 4) does not fit them worse. The prior's weight, in keypoint noise units per rad^2;
         0: no fusion. Default chosen on one camera of the real footage.
-    keypoint_smoothing : int
-        Frames on each side of the keypoints' smoothing over time before the fusion (0: none).
+    keypoint_smoothing : float
+        Seconds on each side of the keypoints' smoothing over time before the fusion: the
+        most whole frames at ``frame_rate`` within it (default 1/12 s: 5 frames at 60 fps,
+        the window chosen on the real footage; 2 at 24 or 30 fps). 0: none.
     depth_from_views : bool
         Several cameras: estimate the root's motion along every axis in frames that two or
         more views measure (their lines of sight differ, so together they measure depth);
@@ -335,7 +337,7 @@ class TrackingOptions:
     occluder_margin: float = 0.03
     keypoint_weight: float = 0.0
     keypoint_fusion_weight: float = 1000.0
-    keypoint_smoothing: int = 5
+    keypoint_smoothing: float = 5.0 / 60.0
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
     frame_rate: float = 24.0
@@ -370,8 +372,8 @@ class TrackingOptions:
         if not (np.isfinite(self.keypoint_fusion_weight) and self.keypoint_fusion_weight >= 0.0):
             raise ValueError(f"keypoint_fusion_weight must be >= 0, got "
                              f"{self.keypoint_fusion_weight}")
-        if int(self.keypoint_smoothing) != self.keypoint_smoothing or self.keypoint_smoothing < 0:
-            raise ValueError(f"keypoint_smoothing must be a whole number >= 0, got "
+        if not (np.isfinite(self.keypoint_smoothing) and self.keypoint_smoothing >= 0.0):
+            raise ValueError(f"keypoint_smoothing must be >= 0 seconds, got "
                              f"{self.keypoint_smoothing}")
         if not 0.0 <= self.min_improvement < 1.0:
             raise ValueError(f"min_improvement must be in [0, 1), got {self.min_improvement}")

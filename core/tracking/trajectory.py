@@ -829,6 +829,12 @@ def _with_keypoints(problem, views, keypoints, start, end):
     return out
 
 
+def keypoint_half_window(options):
+    """Frames on each side of the keypoints' smoothing: the most whole frames within
+    ``keypoint_smoothing`` seconds at ``frame_rate`` (5 at 60 fps, 2 at 24 or 30)."""
+    return int(np.floor(options.keypoint_smoothing * options.frame_rate + 0.01))
+
+
 def _fuse(problem, options, views, keypoints, scores):
     """The kept trajectory (the tracked one, or the keys' in-between where nothing tracked beat
     it) fused with the keypoints (:mod:`.keypoint_fusion`) in its place. Returns eq. 4 of the
@@ -843,7 +849,7 @@ def _fuse(problem, options, views, keypoints, scores):
     n = len(traj.roots) - 1
     # The keypoints' smoothing reaches half a window past the keys: there the trajectory is
     # held at the key (only the keys' offsets and the swap test read it).
-    h = int(options.keypoint_smoothing)
+    h = keypoint_half_window(options)
     cut = [None if kp is None else kp.cut(-h, n + h)
            for kp in per_camera(keypoints, problem.n_views)]
     roots = np.concatenate([np.repeat(traj.roots[:1], h, 0), traj.roots,

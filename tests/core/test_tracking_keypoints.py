@@ -180,7 +180,7 @@ def test_keyframes_with_keypoints_in_processes_are_identical(footage):
     pooled = track_keyframes(*args, options=options, processes=2, keypoints=[kp])
     np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
     # The same keypoints, counted from the second interval's start key, give that interval's
-    # result (the fusion's smoothing reads 5 frames before the key too).
+    # result (the fusion's smoothing reads frames before the key too).
     second = track_interval(f["problem"], f["frames"][10:21], Pose(f["roots"][10], f["local"][10]),
                             Pose(f["roots"][20], f["local"][20]), options,
                             keypoints=CameraKeypoints(f["clean"], f["conf"], JOINTS,
