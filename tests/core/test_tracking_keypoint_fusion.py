@@ -75,6 +75,26 @@ def test_gradient_matches_finite_differences_of_the_cost():
     g = np.einsum("njap,nj,nja->np", jac, w[0], res[0])[0]
     g += frames.weight * frames.prior_scale * frames.prior_residual(roots, local)[0]
     np.testing.assert_allclose(2 * g, numeric, rtol=1e-5, atol=1e-6 * np.abs(numeric).max())
+    # Near the prior (a motion of 1e-3) the prior's identity Jacobian is first order: the
+    # gradient still agrees to about that share, its prior part included.
+    near = moved(problem, roots, local, rng.normal(0, 1e-3, (1, n)))
+    frames_near = _Frames(problem, problem.cameras, [(t * 0 + q, c, j, p)
+                                                     for t, c, j, p in targets], *near, 3e4,
+                          None)
+    frames_near.prior = (roots, local)
+
+    def cost_near(x):
+        return frames_near.cost(*moved(problem, *near, x[None]))[0]
+
+    numeric = np.array([(cost_near(e * eps) - cost_near(-e * eps)) / (2 * eps)
+                        for e in np.eye(n)])
+    # The undamped step solves H x = -g (H from the tested Jacobian and the prior's diagonal).
+    jac = frames_near.jacobian(*near)[0][0]                                  # (J, 2, P)
+    h = np.einsum("jap,j,jaq->pq", jac, frames_near.irls(frames_near.residuals(*near))[0][0],
+                  jac) + frames_near.weight * np.diag(frames_near.prior_scale ** 2)
+    x = frames_near.step(*near, np.array([0.0]))[0]
+    assert np.abs(frames_near.prior_residual(*near)).max() > 1e-4       # the prior term counts
+    np.testing.assert_allclose(-2 * h @ x, numeric, atol=2e-2 * np.abs(numeric).max())
     # ... and the step lowers the cost.
     assert cost(frames.step(roots, local, np.array([1e-3]))[0]) < cost(np.zeros(n))
 
