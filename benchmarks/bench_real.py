@@ -720,11 +720,14 @@ def main():
     sheet = Path(args.sheet) if args.sheet else out_path.parent / "real_contact_sheet.png"
     try:
         from benchmarks.real.sheet import contact_sheet
-        contact_sheet(sheet, rig, radii, calibration, args.cameras, all_joints,
-                      reference_joints, single, key_frames(n_frames, 20), DATA, blender,
-                      blender_json)
-        results["contact_sheet"] = str(sheet.relative_to(ROOT)) if sheet.is_relative_to(
-            ROOT) else str(sheet)
+        # The sheet shows keys every 20 when that spacing ran, else the first spacing that did
+        # (a reduced run without 20 crashed here on an empty sheet).
+        every = 20 if 20 in args.spacings else args.spacings[0]
+        if contact_sheet(sheet, rig, radii, calibration, args.cameras, all_joints,
+                         reference_joints, single, key_frames(n_frames, every), DATA, blender,
+                         blender_json, every=every) is not None:
+            results["contact_sheet"] = str(sheet.relative_to(ROOT)) if sheet.is_relative_to(
+                ROOT) else str(sheet)
     except ImportError as exc:           # pragma: no cover - the sheet is optional
         print(f"  no contact sheet: {exc}")
     stages["scores_and_sheet"] = time.perf_counter() - tic

@@ -1,6 +1,7 @@
 """The real-footage benchmark's contact sheet (``docs/bench_real.md`` describes it).
 
-One row per camera, one column per interval of the keys-every-20 run (its middle frame, where
+One row per camera, one column per interval of the keys-every-20 run (or of the first spacing run
+when 20 did not; its middle frame, where
 the interpolation is farthest from both keys). Each tile is the footage cropped around the
 person, with:
 
@@ -59,7 +60,8 @@ def _crop_box(uv, width, height, margin=0.12):
 
 def contact_sheet(path, rig, radii, calibration, cameras, all_joints, reference_joints, single,
                   keys, data, blender, blender_json, every=20):
-    """Write the contact sheet PNG (module docstring) to ``path``."""
+    """Write the contact sheet PNG (module docstring) to ``path``; None when no camera ran at
+    ``every`` (nothing written)."""
     frames = [(a + b) // 2 - 1 for a, b in zip(keys[:-1], keys[1:])]   # 0-based, mid-interval
     body = body_model_from_skeleton(rig.skeleton, radii)
     tiles = []
@@ -100,6 +102,8 @@ def contact_sheet(path, rig, radii, calibration, cameras, all_joints, reference_
                 cv2.putText(band, text, (6, 17 + 20 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
                             (235, 235, 235), 1, cv2.LINE_AA)
             tiles.append(np.vstack([band, tile]))
+    if not tiles:
+        return None                      # no camera ran at this spacing: no sheet
     width = max(t.shape[1] for t in tiles)
     tiles = [np.pad(t, ((0, 0), (0, width - t.shape[1]), (0, 0)), constant_values=24)
              for t in tiles]
