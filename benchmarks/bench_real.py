@@ -838,6 +838,10 @@ def print_tables(results, args):
     print("\nHeld-out reference (triangulated without the tracked camera): 3D MPJPE cm on "
           "in-between frames; detector prior weight chosen on "
           f"{ho['detector']['weight_chosen_on']} only: {ho['detector']['weight']}")
+    if len(args.cameras) < 3:
+        print(f"  (no held-out figures: the reference without the tracked camera is triangulated "
+              f"from the other cameras of --cameras: with {len(args.cameras)}, only "
+              f"{len(args.cameras) - 1} is left; run with three cameras or more)")
     cols = list(HELD_OUT_METHODS)
     print("  " + " " * 22 + "".join(f"{m:>20s}" for m in cols))
     for c in list(args.cameras) + ["mean"]:
