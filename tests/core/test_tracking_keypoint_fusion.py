@@ -13,7 +13,8 @@ from core.tracking.keypoint_fusion import (_Frames, fuse_keypoints, fusion_targe
                                            swapped_pairs)
 from core.tracking.problem import TrackingProblem
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
-                                          random_pose, two_arm_body, two_arm_skeleton)
+                                          random_pose, two_arm_body, two_arm_skeleton,
+                                          two_arm_swing)
 
 
 def _chain_problem(distortion=None):
@@ -153,14 +154,7 @@ def _walk(n=41):
     """The two-arm body swinging its arms and moving: the truth, and a 'tracked' copy that
     drifts smoothly away from it between the keys (0 at the keys)."""
     sk = two_arm_skeleton()
-    s = np.linspace(0.0, 1.0, n)
-    local = np.broadcast_to(np.eye(3), (n, 5, 3, 3)).copy()
-    local[:, 0] = exp_so3(np.stack([0 * s, 0 * s, 0.3 * np.sin(2.0 * s)], 1))
-    local[:, 1] = exp_so3(np.stack([0.6 * np.sin(4.0 * s), -0.5 - 0.3 * s, 0 * s], 1))
-    local[:, 2] = exp_so3(np.stack([0.3 + 0.8 * s ** 2, 0 * s, 0 * s], 1))
-    local[:, 3] = exp_so3(np.stack([0 * s, 0.9 + 0.1 * s, 0.5 * np.sin(3 * s)], 1))
-    local[:, 4] = exp_so3(np.stack([0.2 + 0.7 * np.sin(3.5 * s), 0 * s, 0 * s], 1))
-    roots = np.stack([0.15 * s, 0.05 * s, 0.03 * np.sin(3 * s)], 1)
+    roots, local = two_arm_swing(np.linspace(0.0, 1.0, n), turn=0.3)
     bump = np.sin(np.pi * np.linspace(0, 2, n)) ** 2                  # 0 at frames 0, 20, 40
     drift = np.zeros((n, 5, 3))
     drift[:, 1] = bump[:, None] * [0.25, 0.0, 0.1]

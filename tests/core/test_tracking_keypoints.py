@@ -5,7 +5,6 @@ the rendered footage's known joints (detector bias, noise, a left/right swap, dr
 import numpy as np
 import pytest
 
-from core.kinematics import exp_so3
 from core.tracking import track_keyframes
 from core.tracking.body_model import joint_frames_in_camera
 from core.tracking.jacobians import apply_motion, unpack
@@ -16,7 +15,8 @@ from core.tracking.motion import _jacobian, translation_columns
 from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
 from core.tracking.trajectory import Pose, interpolate_poses, track_interval
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
-                                          random_pose, render, two_arm_body, two_arm_skeleton)
+                                          random_pose, render, two_arm_body, two_arm_skeleton,
+                                          two_arm_swing)
 
 
 @pytest.mark.parametrize("distortion", [None, (-0.3, 0.1, 0.002, -0.001, 0.0)])
@@ -59,14 +59,7 @@ def _sequence(n=20):
     sk = two_arm_skeleton()
     body = two_arm_body(sk)
     cam = front_camera(200, 160, f=420.0)
-    s = np.linspace(0.0, 1.0, n + 1)
-    local = np.broadcast_to(np.eye(3), (n + 1, 5, 3, 3)).copy()
-    local[:, 0] = exp_so3(np.stack([0 * s, 0 * s, 0.35 * np.sin(2.0 * s)], 1))
-    local[:, 1] = exp_so3(np.stack([0.6 * np.sin(4.0 * s), -0.5 - 0.3 * s, 0 * s], 1))
-    local[:, 2] = exp_so3(np.stack([0.3 + 0.8 * s ** 2, 0 * s, 0 * s], 1))
-    local[:, 3] = exp_so3(np.stack([0 * s, 0.9 + 0.1 * s, 0.5 * np.sin(3 * s)], 1))
-    local[:, 4] = exp_so3(np.stack([0.2 + 0.7 * np.sin(3.5 * s), 0 * s, 0 * s], 1))
-    roots = np.stack([0.15 * s, 0.05 * s, 0.03 * np.sin(3 * s)], 1)
+    roots, local = two_arm_swing(np.linspace(0.0, 1.0, n + 1), turn=0.35)
     return sk, body, cam, roots, local, render(sk, body, cam, roots, local)
 
 

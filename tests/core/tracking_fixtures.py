@@ -59,6 +59,20 @@ def two_arm_skeleton(names=("torso", "front", "front2", "back", "back2")):
                     dof_axes=((0, 1, 2),) * 5, limits=None, root_translation=True)
 
 
+def two_arm_swing(s, turn=0.3):
+    """The two-arm body swinging both arms, turning (``turn`` rad) and moving, at times ``s``
+    in [0, 1] (F,): roots (F, 3) and local rotations (F, 5, 3, 3)."""
+    z = 0 * s
+    local = np.broadcast_to(np.eye(3), (len(s), 5, 3, 3)).copy()
+    local[:, 0] = exp_so3(np.stack([z, z, turn * np.sin(2.0 * s)], 1))
+    local[:, 1] = exp_so3(np.stack([0.6 * np.sin(4.0 * s), -0.5 - 0.3 * s, z], 1))
+    local[:, 2] = exp_so3(np.stack([0.3 + 0.8 * s ** 2, z, z], 1))
+    local[:, 3] = exp_so3(np.stack([z, 0.9 + 0.1 * s, 0.5 * np.sin(3 * s)], 1))
+    local[:, 4] = exp_so3(np.stack([0.2 + 0.7 * np.sin(3.5 * s), z, z], 1))
+    roots = np.stack([0.15 * s, 0.05 * s, 0.03 * np.sin(3 * s)], 1)
+    return roots, local
+
+
 def two_arm_body(skeleton):
     return BodyModel(n_joints=5, joints=[1, 2, 3, 4], starts=np.zeros((4, 3)),
                      ends=skeleton.tails[1:], radii=np.full((4, 2), 0.06),
