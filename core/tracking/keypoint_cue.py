@@ -54,7 +54,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .body_model import joint_frames_in_camera
+from .keypoint_fusion import project_points, swapped_pairs
 from .problem import TrackingError
 from .robust import robust_scale, robust_weights
 
@@ -195,14 +195,6 @@ class IntervalKeypoints:
     mirror: np.ndarray = None
 
 
-def project_keypoints(skeleton, camera, roots, local, joints, points):
-    """Pixels (n, J, 2) of the keypoints' body points at n poses; also their camera-frame
-    points (n, J, 3)."""
-    rot, org = joint_frames_in_camera(skeleton, camera.world2camera, roots, local)
-    p = np.einsum("fjab,jb->fja", rot[:, joints], points) + org[:, joints]
-    return camera.project(np.where(p[..., 2:] > 0, p, 1.0)), p
-
-
 def interval_keypoints(problem, keypoints, view_camera, full_camera, start, end):
     """The :class:`IntervalKeypoints` of one view (offsets at the two keys removed).
 
@@ -225,7 +217,7 @@ def interval_keypoints(problem, keypoints, view_camera, full_camera, start, end)
     uv = keypoints.uv - shift
     roots = np.stack([start.root_translation, end.root_translation])
     local = np.stack([start.local_rotations, end.local_rotations])
-    q, _ = project_keypoints(problem.skeleton, view_camera, roots, local, keypoints.joints,
+    q, _ = project_points(problem.skeleton, view_camera, roots, local, keypoints.joints,
                              keypoints.points)
     conf = keypoints.confidence.copy()
     offset = uv[[0, n]] - q                                      # (2, J, 2), NaN where missing
@@ -295,36 +287,23 @@ def pair_targets(problem, camera, keypoints, image_pairs, frames_cam, next_cam=N
     conf = np.where(p0[..., 2] > 0, conf, 0.0)
     target = q0 + keypoints.target[b] - keypoints.target[a]
     deviation = np.linalg.norm(keypoints.target[a] - q0, axis=-1)
-    conf = np.where(_swapped(keypoints, a, q0), 0.0, conf)
+    conf = np.where(swapped_pairs(keypoints.target[a], q0, keypoints.mirror), 0.0, conf)
     if next_cam is not None:
         rot1, org1 = next_cam
         p1 = np.einsum("fjab,jb->fja", rot1[:, joints], points) + org1[:, joints]
         q1 = camera.project(np.where(p1[..., 2:] > 0, p1, 1.0))
         deviation = np.maximum(deviation, np.linalg.norm(keypoints.target[b] - q1, axis=-1))
-        conf = np.where((p1[..., 2] > 0) & ~_swapped(keypoints, b, q1), conf, 0.0)
+        swapped = swapped_pairs(keypoints.target[b], q1, keypoints.mirror)
+        conf = np.where((p1[..., 2] > 0) & ~swapped, conf, 0.0)
     ok = conf > 0
     return PairTargets(target=np.where(ok[..., None], target, 0.0), confidence=conf,
                        deviation=np.where(ok, deviation, 0.0))
 
 
-def _swapped(keypoints, frames, q):
-    """(n, J) bool: keypoints of a left/right pair (``mirror``) that lie closer to the
-    trajectory's projections ``q`` (n, J, 2) of their twins than to their own (summed over the
-    pair): a detector that swapped the sides, or one the trajectory cannot tell apart."""
-    mirror = keypoints.mirror
-    if mirror is None or not np.any(mirror >= 0):
-        return np.zeros(q.shape[:2], dtype=bool)
-    twin = np.maximum(mirror, 0)
-    t = keypoints.target[frames]
-    own = np.linalg.norm(t - q, axis=-1)
-    crossed = np.linalg.norm(t - q[:, twin], axis=-1)
-    return (mirror >= 0) & (crossed + crossed[:, twin] < own + own[:, twin])
-
-
 def keypoint_residuals(problem, camera, keypoints, targets, moved_pose):
     """Residuals ``target - q(x)`` (n, J, 2) at the moved poses (0 where not used) and the
     confidence (n, J)."""
-    q, p = project_keypoints(problem.skeleton, camera, *moved_pose, keypoints.joints,
+    q, p = project_points(problem.skeleton, camera, *moved_pose, keypoints.joints,
                              keypoints.points)
     conf = np.where(p[..., 2] > 0, targets.confidence, 0.0)
     return np.where(conf[..., None] > 0, targets.target - q, 0.0), conf

@@ -9,8 +9,9 @@ from core.tracking import track_keyframes
 from core.tracking.body_model import joint_frames_in_camera
 from core.tracking.jacobians import apply_motion, unpack
 from core.tracking.keypoint_cue import (CameraKeypoints, IntervalKeypoints, keypoint_rows,
-                                        keypoints_for_parts, pair_targets, project_keypoints)
+                                        keypoints_for_parts, pair_targets)
 from core.tracking.keypoint_files import JOINT_SETS, Keypoints2D
+from core.tracking.keypoint_fusion import project_points
 from core.tracking.motion import _jacobian, translation_columns
 from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
 from core.tracking.trajectory import Pose, interpolate_poses, track_interval
@@ -45,7 +46,7 @@ def test_keypoint_rows_match_finite_differences(distortion):
             t, r = unpack(layout, x, np.zeros(3), np.zeros((sk.n_joints, 3)))
             t = cols[0] @ x[:len(layout.translation_axes)]        # the columns' directions
             rt, lt = apply_motion(sk, root[None], local[None], t[None], r[None])
-            return project_keypoints(sk, cam, rt, lt, joints, points)[0][0].ravel()
+            return project_points(sk, cam, rt, lt, joints, points)[0][0].ravel()
 
         eps = 1e-6
         numeric = np.stack([(q(e * eps) - q(-e * eps)) / (2 * eps)
@@ -86,7 +87,7 @@ def _joint_error_cm(sk, roots, local, tracked_roots, tracked_local):
 @pytest.fixture(scope="module")
 def footage():
     sk, body, cam, roots, local, frames = _sequence()
-    known, _ = project_keypoints(sk, cam, roots, local, JOINTS, _points(sk))
+    known, _ = project_points(sk, cam, roots, local, JOINTS, _points(sk))
     rng = np.random.default_rng(3)
     # A detector's view of the known joints: a fixed bias per joint (it marks joints where
     # it thinks they are) and 1.5 px of noise.
@@ -195,7 +196,7 @@ def test_targets_remove_the_offsets_at_the_keys_and_telescope(footage):
     cam = problem.camera
     kp = CameraKeypoints(f["clean"], f["conf"], JOINTS, _points(sk))
     ik = interval_keypoints(problem, kp, cam, cam, f["start"], f["end"])
-    known, _ = project_keypoints(sk, cam, f["roots"], f["local"], JOINTS, _points(sk))
+    known, _ = project_points(sk, cam, f["roots"], f["local"], JOINTS, _points(sk))
     np.testing.assert_allclose(ik.target[[0, -1]], known[[0, -1]], atol=1e-9)
     n = len(f["roots"]) - 1
     rot, org = joint_frames_in_camera(sk, cam.world2camera, f["roots"], f["local"])
