@@ -235,20 +235,18 @@ def _root_figures(model, obs):
     return tilt_deg, travel
 
 
-def _level_travel(model, obs, fps):
+def _level_travel(model, obs, fps, travel):
     """Whether the root travels level and without stopping (check 3's exception): mean
-    horizontal speed at least ``MIN_TRAVEL``, every frame's at least ``MIN_STEADY_SPEED``, and
-    the root's height within ``MAX_LEVEL_RANGE``, over a range at least as long as the
-    shortest cycle of the cadence prior (a shorter one can fall between a jump's landings).
-    False for a model without root travel."""
+    horizontal speed ``travel`` (:func:`_root_figures`) at least ``MIN_TRAVEL``, every frame's
+    at least ``MIN_STEADY_SPEED``, and the root's height within ``MAX_LEVEL_RANGE``, over a
+    range at least as long as the shortest cycle of the cadence prior (a shorter one can fall
+    between a jump's landings). False for a model without root travel."""
     shortest = model.periods.min() / model.fps / CADENCE_SPREAD         # seconds
     if not model.root_travel or len(obs) < shortest * fps:
         return False
     height = obs[:, model.channel_index(["root.height"])[0]]
     speed = np.linalg.norm(obs[:, model.channel_index(["root.v_forward", "root.v_left"])],
                            axis=1)
-    travel = float(np.linalg.norm(np.nanmean(
-        obs[:, model.channel_index(["root.v_forward", "root.v_left"])], axis=0)))
     return bool(travel >= MIN_TRAVEL and np.nanmin(speed) >= MIN_STEADY_SPEED
                 and np.nanmax(height) - np.nanmin(height) <= MAX_LEVEL_RANGE)
 
@@ -293,7 +291,8 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         stepping = alternation_deg(obs, pairs)
         alternate = legs_together(np.einsum("j,jcd->cd", model.style_mean,
                                             model.bases)[:-1], pairs) < 0
-        if alternate and stepping < MIN_ALTERNATION_DEG and not _level_travel(model, obs, fps):
+        if (alternate and stepping < MIN_ALTERNATION_DEG
+                and not _level_travel(model, obs, fps, travel)):
             return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
                              refusal=f"Both legs move together in {what} (they differ by "
                                      f"{stepping:.1f}° only): that is a jump, hop, squat or "
