@@ -97,7 +97,6 @@ class FilterContext:
     def __post_init__(self):
         set_ = object.__setattr__
         cos_p, sin_p = np.cos(self.phases), np.sin(self.phases)
-        set_(self, "inputs", np.stack([cos_p, sin_p], axis=1))             # X̃ (P, 2)
         b1, b2, b3 = (float(v) for v in self.beta[:3])
         # β1 exp(-β2/2 ||x̃ - x̃_i||²) = exp(β2 x̃ᵀx̃_i + log β1 - β2) on the unit circle, so every
         # kernel ingredient at a query phase is one small product [cos φ, sin φ, 1] @ weights
