@@ -240,14 +240,18 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0):
                 # Where the foot will be once fully pinned: it keeps moving as it did.
                 anchor = pts[min(b - 1, reference_frames - 1 + int(np.ceil(ramp))), f].copy()
                 lo = reference_frames
-            elif a - ramp < reference_frames:
-                # A foot landing at the join: its landing ramp would begin in the reference,
-                # so the first predicted frame would hold it only partly and the next pull it
-                # the rest of the way onto the stance's mean (the stance foot slid 1.2-1.5 cm
-                # in one frame on the test rigs, whose balls of the feet land a frame later
-                # than the CMU skeleton's). It is held where the continuation of the
-                # reference puts it at the first predicted frame and lowered onto the floor
-                # over the ramp it has left.
+            elif reference_frames < a < reference_frames + ramp:
+                # A foot landing just after the join: its landing ramp would begin in the
+                # reference, so the first predicted frame would hold it only partly and the
+                # next pull it the rest of the way onto the stance's mean (the stance foot
+                # slid 1.2-1.5 cm in one frame on the test rigs, whose balls of the feet land
+                # a frame later than the CMU skeleton's). It is held where the continuation of
+                # the reference puts it at the first predicted frame and lowered onto the
+                # floor over the ramp it has left. (A stance from the first predicted frame
+                # is the ordinary one, pinned there on its mean: holding it where the
+                # continuation puts it leaves it behind that mean by the root's drift over
+                # the join, and the foot jumps it at release instead: CMU 35_08 1.6 -> 2.2
+                # cm/s.)
                 anchor = pts[reference_frames, f].copy()
                 anchor[2] = max(float(floor), float(pts[a:b, f, 2].min()))
                 lo = reference_frames
