@@ -986,12 +986,12 @@ def step_errors(steps, joints, target):
     rig is not the rigid chain of the model skeleton (Rigify's chest turns about its own
     pivot), their small differences are the model's, not the keys'."""
     angle, dist = 0.0, 0.0
-    for st in steps:
-        if st.turns_limb:
-            a, mid, e = st.limb
-            bend = bend_angle_error(joints[a, :3, 3], joints[e, :3, 3], joints[mid, :3, 3],
-                                    target[mid, :3, 3])
-            angle = max(angle, abs(float(bend)))
+    limbs = [st.limb for st in steps if st.turns_limb]
+    if limbs:
+        a, mid, e = (np.array(i, dtype=np.intp) for i in zip(*limbs))
+        bend = bend_angle_error(joints[a, :3, 3], joints[e, :3, 3], joints[mid, :3, 3],
+                                target[mid, :3, 3])
+        angle = float(np.fmax.reduce(np.abs(bend), initial=0.0))    # a NaN bend is skipped
     plain = [st for st in steps if not st.turns_limb]
     if plain:
         # Every step's joint in one call (this runs after every correction step at every
