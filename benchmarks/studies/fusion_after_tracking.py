@@ -29,7 +29,7 @@ from core.tracking.calibration import read_calibration  # noqa: E402
 from core.tracking.camera import PinholeCamera  # noqa: E402
 from core.tracking.jacobians import ancestor_matrix, motion_layout  # noqa: E402
 from core.tracking.keypoint_cue import CameraKeypoints  # noqa: E402
-from core.tracking.keypoint_fusion import fuse_keypoints  # noqa: E402
+from core.tracking.keypoint_fusion import fuse_keypoints, key_noise  # noqa: E402
 from types import SimpleNamespace  # noqa: E402
 
 
@@ -78,6 +78,13 @@ def main():
     p.add_argument("--source", default="", help="+keypoints: the tracker with the pair rows")
     p.add_argument("--threshold", type=float, default=0.0)
     p.add_argument("--core", action="store_true", help="core.tracking.keypoint_fusion")
+    p.add_argument("--key-noise", action="store_true",
+                   help="--core: each keypoint weighted by its noise measured at the keys "
+                   "(keypoint_fusion.key_noise, stop 35) instead of its jitter")
+    p.add_argument("--drift-frames", type=float, default=0.0,
+                   help="--core: the prior grows towards the keys "
+                   "(keypoint_fusion.drift_prior_weights; the weight this many frames from "
+                   "a key); 0: constant")
     a = p.parse_args()
     cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
     views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
@@ -128,11 +135,19 @@ def main():
                         first = keys[0] - 1
                         sl = slice(first, keys[-1])
                         c0 = np.where(conf >= br.MIN_CONFIDENCE, conf, 0.0)
+                        noise = None
+                        if a.key_noise:
+                            whole = CameraKeypoints(pixels, c0, rig.joint_bones,
+                                                    rig.joint_offsets, mirror=mirror)
+                            ki = np.array(keys) - 1
+                            noise = key_noise(rig.skeleton, problem.cameras[0], t_r[ki],
+                                              t_l[ki], whole, ki, s)
                         kp = CameraKeypoints(pixels[sl], c0[sl], rig.joint_bones,
-                                             rig.joint_offsets, mirror=mirror)
+                                             rig.joint_offsets, mirror=mirror, noise_px=noise)
                         r, lo, _ = fuse_keypoints(problem, t_r[sl], t_l[sl],
                                                   np.array(keys) - keys[0], [kp], w, s,
-                                                  a.huber or None, a.threshold or None)
+                                                  a.huber or None, a.threshold or None,
+                                                  drift_frames=a.drift_frames or None)
                         j = tracked.copy()
                         j[sl] = rig.pose_joints(r, lo)
                         row[f"s{s}_w{w:g}"] = err(j)
