@@ -631,6 +631,21 @@ def read_all_footage(request):
 _FEED_CHUNK = 5
 
 
+def start_fed_job(request):
+    """Start the core on the request's footage before it is read (:func:`track_while_reading`,
+    the modal operator): returns the running :class:`TrackJob`, its ``FramesFeed`` and the
+    empty frame stacks (one (F, H, W) float32 per camera, problem order) the caller fills in
+    order, calling ``feed.arrived(view, count)`` as frames land (``feed.fail`` and
+    ``job.cancel`` when it stops reading early)."""
+    n = len(request.scene_frames)
+    frames = [np.empty((n, f.height, f.width), dtype=np.float32)
+              for f in (request.view_footage(v) for v in range(request.n_views))]
+    feed = FramesFeed(request.n_views)
+    job = TrackJob(request, frames[0] if request.n_views == 1 else frames,
+                   runner=functools.partial(run_core, feed=feed)).start()
+    return job, feed, frames
+
+
 def track_while_reading(request):
     """:func:`run_core` on the request's footage, tracking while the footage is read.
 
@@ -645,12 +660,8 @@ def track_while_reading(request):
     running.
     """
     n = len(request.scene_frames)
-    footages = [request.view_footage(v) for v in range(request.n_views)]
-    frames = [np.empty((n, f.height, f.width), dtype=np.float32) for f in footages]
-    feed = FramesFeed(request.n_views)
-    job = TrackJob(request, frames[0] if request.n_views == 1 else frames,
-                   runner=functools.partial(run_core, feed=feed)).start()
-    readers = [FootageReader(f) for f in footages]
+    job, feed, frames = start_fed_job(request)
+    readers = [FootageReader(request.view_footage(v)) for v in range(request.n_views)]
     try:
         for start in range(0, n, _FEED_CHUNK):
             if not job.running:                 # the core stopped early (invalid input)

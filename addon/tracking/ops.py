@@ -12,7 +12,8 @@ from bpy_extras.io_utils import ImportHelper
 from ..common.reporting import (clear_progress_text, one_line, report_outcome,
                                 show_progress)
 from .bridge import (TrackError, TrackJob, apply_result, frame_range, prepare_tracking,
-                     read_footage, resolve_editable_armature, suggest_markers, track_now)
+                     read_footage, resolve_editable_armature, start_fed_job, suggest_markers,
+                     track_now)
 from .cameras import register_operators as register_camera_list
 from .cameras import unregister_operators as unregister_camera_list
 from .cameras import uses_camera_list
@@ -139,19 +140,32 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def _begin(self, context, request):
-        """State of a modal run: footage read in chunks on timer events (camera after
-        camera), then the job. ``request``: one armature's, or a :class:`.group.TrackGroup`
-        (its footage is read once, over every armature's span)."""
-        n = len(request.scene_frames)
-        self._request, self._read, self._job, self._timer = request, 0, None, None
-        self._view = 0
-        self._frames = [np.empty((n, f.height, f.width), dtype=np.float32)
-                        for f in (request.view_footage(v) for v in range(request.n_views))]
-        self._reader = FootageReader(request.view_footage(0))  # a movie stays open between steps
+        """State of a modal run. One armature: the core starts at once and tracks while the
+        footage is read in chunks on timer events (``bridge.start_fed_job``: every camera's
+        frames in order, the cameras in turn, each interval tracked once its frames are in).
+        A :class:`.group.TrackGroup` (several armatures): its footage is read first, once over
+        every armature's span, then tracked."""
+        self._request, self._read, self._job, self._feed, self._timer = request, 0, None, None, None
+        if isinstance(request, TrackGroup):
+            n = len(request.scene_frames)
+            self._frames = [np.empty((n, f.height, f.width), dtype=np.float32)
+                            for f in (request.view_footage(v) for v in range(request.n_views))]
+        else:
+            self._job, self._feed, self._frames = start_fed_job(request)
+        # Every camera's movie stays open between steps (a fresh seek per chunk re-decodes
+        # from the movie's keyframe: footage.py).
+        self._readers = [FootageReader(request.view_footage(v)) for v in range(request.n_views)]
         self._area = context.area
         context.window_manager.progress_begin(0, 100)
         _RUNNING.append(self)
         self._status(context, "reading footage", 0.0)
+
+    def _stop_job(self, why):
+        """The job cancelled and joined; waiting for frames that will not come ends too."""
+        if self._feed is not None:
+            self._feed.fail(why)
+        if self._job is not None:
+            self._job.cancel()
 
     def _status(self, context, stage, fraction):
         text = (f"Track & Stride: tracking {self._request.obj_name}, {stage} "
@@ -163,7 +177,9 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         if self not in _RUNNING:
             return
         _RUNNING.remove(self)
-        self._reader.close()
+        for reader in self._readers:
+            reader.close()
+        self._frames = None
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
@@ -172,14 +188,12 @@ class TS_OT_track_keyframes(bpy.types.Operator):
 
     def cancel(self, context):
         """Blender ends the operator (file loaded, window closed): stop the worker too."""
-        if self._job is not None:
-            self._job.cancel()
+        self._stop_job("the operator ended")
         self._finish(context)
 
     def modal(self, context, event):
         if event.type == "ESC" and event.value == "PRESS":
-            if self._job is not None:
-                self._job.cancel()
+            self._stop_job("cancelled")
             self._finish(context)
             self.report({"INFO"}, "Tracking cancelled: nothing was changed")
             return {"CANCELLED"}
@@ -188,8 +202,7 @@ class TS_OT_track_keyframes(bpy.types.Operator):
         try:
             return self._step(context)
         except Exception as exc:  # noqa: BLE001  (any failure must end the run and its timer)
-            if self._job is not None:
-                self._job.cancel()
+            self._stop_job(exc)
             self._finish(context)
             self.report({"ERROR"}, str(exc) if isinstance(exc, TrackError)
                         else f"Tracking failed: {type(exc).__name__}: {exc}")
@@ -198,27 +211,30 @@ class TS_OT_track_keyframes(bpy.types.Operator):
     def _step(self, context):
         request, total = self._request, len(self._request.scene_frames)
         if self._read < total:
-            tic, view = time.perf_counter(), self._view
+            tic, views = time.perf_counter(), request.n_views
             while self._read < total and time.perf_counter() - tic < _READ_STEP_SECONDS:
                 start = self._read
-                read_footage(request, start, start + 1, self._reader,
-                             out=self._frames[view][start:start + 1], view=view)
+                for view, reader in enumerate(self._readers):   # one frame of each camera
+                    read_footage(request, start, start + 1, reader,
+                                 out=self._frames[view][start:start + 1], view=view)
+                    if self._feed is not None:
+                        self._feed.arrived(view, start + 1)
                 self._read = start + 1
-            stop, views = self._read, request.n_views
-            where = f" of {request.view_names[view]}" if views > 1 else ""
-            self._status(context, f"reading footage{where} {stop}/{total}",
-                         _READ_SHARE * (view * total + stop) / (views * total))
-            if stop == total:
-                self._reader.close()
-                if view + 1 < views:                  # the next camera's footage
-                    self._view, self._read = view + 1, 0
-                    self._reader = FootageReader(request.view_footage(view + 1))
-                    return {"RUNNING_MODAL"}
-                frames = self._frames[0] if views == 1 else self._frames
-                self._job = (TrackJob(request, frames, run_group_core)
-                             if isinstance(request, TrackGroup) else
-                             TrackJob(request, frames)).start()
+                if self._job is not None and not self._job.running:
+                    break                           # the core stopped early (invalid input)
+            stop = self._read
+            tracked = 0.0 if self._job is None else self._job.fraction
+            self._status(context, f"reading footage {stop}/{total}",
+                         _READ_SHARE * stop / total
+                         + (1 - _READ_SHARE - _WRITE_SHARE) * tracked)
+            if stop == total or (self._job is not None and not self._job.running):
+                for reader in self._readers:
+                    reader.close()
+                if self._job is None:               # a group: read first, then track
+                    frames = self._frames[0] if views == 1 else self._frames
+                    self._job = TrackJob(request, frames, run_group_core).start()
                 self._frames = None
+                self._read = total
             return {"RUNNING_MODAL"}
         job = self._job
         if job.running:
@@ -242,8 +258,7 @@ class TS_OT_track_keyframes(bpy.types.Operator):
 def cancel_running():
     """Stop a running tracking job and its timer (add-on disabled)."""
     for op in list(_RUNNING):
-        if op._job is not None:
-            op._job.cancel()
+        op._stop_job("the add-on was disabled")
         op._finish(bpy.context)
 
 

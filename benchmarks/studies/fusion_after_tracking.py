@@ -6,6 +6,15 @@ output (``build/bench/real/blender.npz``) and the detections cache; no Blender.
     .venv-bench/bin/python benchmarks/studies/fusion_after_tracking.py \
         --blender build/bench/real/blender.npz --detections-cache build/bench/detections.npz
 
+Stop 35: ``--core --key-noise --drift-frames 10`` weighs each keypoint by its noise measured
+at the keys and lets the prior grow towards the keys; ``--drift-growth`` prints the tracker's
+error against the distance to the nearest key (the growth the prior follows, fitted once on
+cam01: ``keypoint_fusion.DRIFT_EXPONENT``).
+
+    .venv-bench/bin/python benchmarks/studies/fusion_after_tracking.py \
+        --blender build/bench/real/blender.npz --detections-cache build/bench/detections.npz \
+        --cameras cam01 --spacings 10 20 30 --drift-growth
+
 Conclusion (the weight and window of ``TrackingOptions``, chosen on cam01; the held-out
 cameras): ``docs/tracking.md`` *2D keypoints as a cue*, ``docs/bench_real.md``.
 """
@@ -29,7 +38,7 @@ from core.tracking.calibration import read_calibration  # noqa: E402
 from core.tracking.camera import PinholeCamera  # noqa: E402
 from core.tracking.jacobians import ancestor_matrix, motion_layout  # noqa: E402
 from core.tracking.keypoint_cue import CameraKeypoints  # noqa: E402
-from core.tracking.keypoint_fusion import fuse_keypoints  # noqa: E402
+from core.tracking.keypoint_fusion import fuse_keypoints, key_noise  # noqa: E402
 from types import SimpleNamespace  # noqa: E402
 
 
@@ -65,6 +74,28 @@ def smooth(pixels, conf, half):
     return out
 
 
+def drift_growth(a, z, rig, roots, local, n_frames, most=15):
+    """The tracker's RMS 3D joint error (cm, against the reference's rig fit, which the keys
+    come from) by distance to the nearest key, and the exponent of a power law through it."""
+    errors = {}
+    for cam in a.cameras:
+        for every in a.spacings:
+            keys = np.array(br.key_frames(n_frames, every)) - 1
+            tracked = rig.joints(z[f"{cam}/{every}/tracked_rot"], z[f"{cam}/{every}/tracked_pos"])
+            truth = rig.pose_joints(roots, local)
+            frames = np.arange(keys[0], keys[-1] + 1)
+            e = np.linalg.norm(tracked[frames] - truth[frames], axis=-1).mean(1)
+            d = np.min(np.abs(frames[:, None] - keys[None]), axis=1)
+            for dd in range(1, most + 1):
+                errors.setdefault(dd, []).extend(e[d == dd].tolist())
+    d = np.array(sorted(errors))
+    rms = np.array([100 * np.sqrt(np.mean(np.square(errors[k]))) for k in d])
+    slope = np.polyfit(np.log(d), np.log(rms), 1)[0]
+    print("distance (frames):", d.tolist())
+    print("tracker error (cm):", np.round(rms, 2).tolist())
+    print(f"fitted exponent: {slope:.3f}")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--blender", required=True)
@@ -78,6 +109,17 @@ def main():
     p.add_argument("--source", default="", help="+keypoints: the tracker with the pair rows")
     p.add_argument("--threshold", type=float, default=0.0)
     p.add_argument("--core", action="store_true", help="core.tracking.keypoint_fusion")
+    p.add_argument("--key-noise", action="store_true",
+                   help="--core: each keypoint weighted by its noise measured at the keys "
+                   "(keypoint_fusion.key_noise, stop 35) instead of its jitter")
+    p.add_argument("--drift-growth", action="store_true",
+                   help="print the tracker's 3D error (full reference) against the distance "
+                   "to the nearest key, pooled over --cameras and --spacings, and the "
+                   "exponent of d^p fitted to it over 1-15 frames")
+    p.add_argument("--drift-frames", type=float, default=0.0,
+                   help="--core: the prior grows towards the keys "
+                   "(keypoint_fusion.drift_prior_weights; the weight this many frames from "
+                   "a key); 0: constant")
     a = p.parse_args()
     cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
     views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
@@ -100,6 +142,9 @@ def main():
     names = list(rigmod.JOINT_NAMES)
     mirror = np.array([names.index(MIRROR_NAMES[n]) if MIRROR_NAMES[n] in names else -1
                        for n in names])
+    if a.drift_growth:
+        drift_growth(a, z, rig, roots, local, n_frames)
+        return
     out = {}
     for cam in a.cameras:
         view = views[br.CAMERAS.index(cam)]
@@ -128,11 +173,19 @@ def main():
                         first = keys[0] - 1
                         sl = slice(first, keys[-1])
                         c0 = np.where(conf >= br.MIN_CONFIDENCE, conf, 0.0)
+                        noise = None
+                        if a.key_noise:
+                            whole = CameraKeypoints(pixels, c0, rig.joint_bones,
+                                                    rig.joint_offsets, mirror=mirror)
+                            ki = np.array(keys) - 1
+                            noise = key_noise(rig.skeleton, problem.cameras[0], t_r[ki],
+                                              t_l[ki], whole, ki, s)
                         kp = CameraKeypoints(pixels[sl], c0[sl], rig.joint_bones,
-                                             rig.joint_offsets, mirror=mirror)
+                                             rig.joint_offsets, mirror=mirror, noise_px=noise)
                         r, lo, _ = fuse_keypoints(problem, t_r[sl], t_l[sl],
                                                   np.array(keys) - keys[0], [kp], w, s,
-                                                  a.huber or None, a.threshold or None)
+                                                  a.huber or None, a.threshold or None,
+                                                  drift_frames=a.drift_frames or None)
                         j = tracked.copy()
                         j[sl] = rig.pose_joints(r, lo)
                         row[f"s{s}_w{w:g}"] = err(j)

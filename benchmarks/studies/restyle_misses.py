@@ -4,23 +4,25 @@ join over the leave-one-walker-out windows.
 
 1. **Careful.** The fold model of ``gait_restyle`` (the stock recipe without subject 07),
    learned once more with every piece under its own name: the careful pieces' learned styles
-   and periods; the named style (their mean) against the piece nearest all the others (the
-   medoid), each restyled onto CMU 07_04 at cadence 0.7 / 1.0 / 1.3 / 1.6 (stride, hip swing,
-   root / legs), with the captured careful walks beside them.
+   and periods; the named style as ``learn_model`` ships it since stop 34 (the pieces' cycles
+   re-aligned to the mean cycle, then averaged: ``learning._merge_named``) against their plain
+   mean (what it shipped before) and the piece nearest all the others (the medoid), each
+   restyled onto CMU 07_04 at cadence 0.7 / 1.0 / 1.3 / 1.6 (stride, hip swing, root / legs,
+   the model's forward speed after the cadence step), with the captured careful walks beside
+   them.
 2. **Runs.** The captured runs' cadence, stride, hip swing and speed; a cadence direction
    learned from the runs alone by the walks' recipe (:mod:`core.gait.retiming`), applied to
    the restyled run at 1.3 and 1.6 against the walks' direction and the fast-forward.
-   (Sections 1-2 use that model with every piece under its own name, named styles as the
-   plain mean of their pieces, which is what ``learn_model`` shipped until stop 34; since,
-   ``learn_model`` re-aligns the pieces first: docs/gait.md.)
+   (Sections 1-2 use that model with every piece under its own name; a named style is
+   merged from its pieces as ``learn_model`` merges them.)
 3. **The join.** The six fold models and the windows Predict Gait accepts (``check_gait``),
    ``predict_walk`` with defaults: per subject, the windows whose root acceleration across the
    join exceeds the trial's 99th percentile, against the captured continuation, and how many
    of them reach that ratio elsewhere in the prediction as well.
 
-About 3 min on the 2-core machine::
+About 3 min on the 2-core machine (``careful`` or ``join`` alone: those sections)::
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_misses.py
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_misses.py [careful] [join]
 """
 
 import sys
@@ -37,7 +39,7 @@ import gait_restyle as R  # noqa: E402
 from build_stock_gaits import FPS, training_pieces  # noqa: E402
 from core.gait import adapt, observations_from_dofs  # noqa: E402
 from core.gait.checks import check_gait  # noqa: E402
-from core.gait.learning import learn_model  # noqa: E402
+from core.gait.learning import _merge_named, learn_model  # noqa: E402
 from core.gait.prediction import cycle_mean  # noqa: E402
 from core.gait.stock import STOCK_LAG_RANGE, STOCK_RECIPE  # noqa: E402
 from core.gait.walk import WalkRequest, predict_walk  # noqa: E402
@@ -79,9 +81,13 @@ def careful_and_runs():
                       walkers=walkers, lag_range=STOCK_LAG_RANGE)
     who = walker(own)
 
+    order, merged, merged_periods = _merge_named(list(labels), own.styles, own.periods,
+                                                 own.bases)
+
     def named(label):
-        return own.styles[labels == label].mean(axis=0), \
-            float(np.exp(np.log(own.periods[labels == label]).mean()))
+        """(style, period) of a name as learn_model merges it (re-aligned mean)."""
+        k = order.index(label)
+        return merged[k], float(merged_periods[k])
 
     print("1. careful pieces (fold without 07): period (frames at 60 Hz), style")
     pieces = own.styles[labels == "careful"]
@@ -92,11 +98,16 @@ def careful_and_runs():
     mean, t_careful = named("careful")
     factor = t_normal / t_careful
     fwd = own.channel_index(["root.v_forward"])[0]
-    for tag, style in (("mean (shipped)", mean), ("medoid", medoid)):
+    for tag, style in (("re-aligned mean (shipped)", mean), ("plain mean (before stop 34)",
+                                                             pieces.mean(axis=0)),
+                       ("medoid", medoid)):
         w = who[2].w + style - normal
         speed = cycle_mean(own, w, who[2].residual, who[2].offset)[fwd]
         print(f"   careful {tag}: model speed {speed:.2f} m/s on 07_04")
         for c in R.CADENCES:
+            stepped = cycle_mean(own, w + np.log(c) * own.cadence_style, who[2].residual,
+                                 who[2].offset)[fwd]
+            print(f"     {c:g}  model speed after the cadence step {stepped:.2f} m/s")
             print(f"     {c:g}  natural  {figures(own, who, w, factor, c)}")
             print(f"          fast-fwd {figures(own, who, w, factor, c, 'fast_forward')}")
     zero = cycle_mean(own, 0 * own.cadence_style)[fwd]
@@ -172,5 +183,8 @@ def join():
 
 
 if __name__ == "__main__":
-    careful_and_runs()
-    join()
+    parts = sys.argv[1:] or ["careful", "join"]     # "careful" = sections 1-2, "join" = 3
+    if "careful" in parts:
+        careful_and_runs()
+    if "join" in parts:
+        join()

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .features import observations_from_dofs
-from .planting import pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
+from .planting import MIN_EXPECTED, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
 from .prediction import (DEFAULT_BLEND_S, DEFAULT_VELOCITY_FRAMES, cycle_mean,
                          dofs_from_observations, predict_transition, smootherstep)
 from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
@@ -265,8 +265,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     rx = [names.index(n) for n in ROOT_DOF_NAMES]
     heading = heading_angles(root_rotations(rows[:, rx], frame), frame)
     mid = 0.5 * (heading[1:] + heading[:-1])
-    along = np.concatenate([np.full(m - 1, speed[0]), speed])
-    expected = along[:, None] * heading_directions(mid, frame)[0]
+    # The legs carry the walker forward along the heading (backwards only where the reference
+    # frames went backwards), at any speed: not by the sign of the model's speed channel,
+    # which the cadence step moves by a fixed amount per log cadence (a careful walk slowed
+    # to 0.7 keeps 0.06 m/s of it, a stroll -0.08, while their legs still walk forward).
+    # Below MIN_EXPECTED that left the travel without a direction, and a foot already swinging
+    # forward while it was still the lower one kept carrying: the root jumped 1 m/s at the
+    # change of foot and the landing foot slid 3 cm (docs/gait.md, *The three misses*).
+    expected = _walking_sense(reference, rx, frame, fps) * heading_directions(mid, frame)[0]
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
@@ -293,3 +299,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     held[:, :, 2] += lifted[:, :, 2] - points[:, :, 2]
     targets = np.where((lifts > 0)[:, :, None], held, targets)
     pin_feet(skeleton, out, feet, targets[m:], np.maximum(pins, lifts)[m:])
+
+
+def _walking_sense(reference, root_cols, frame, fps):
+    """-1 when the reference frames' root went backwards along their heading (mean speed along
+    it below ``-planting.MIN_EXPECTED``), else +1: every walk the stock library learned goes
+    forward, and a reference that barely moves (a walk from a standstill) says nothing."""
+    rows = np.asarray(reference, dtype=float)[:, root_cols]
+    heading = heading_angles(root_rotations(rows, frame), frame)
+    ahead = heading_directions(0.5 * (heading[1:] + heading[:-1]), frame)[0]
+    along = float(np.mean(np.sum(np.diff(rows[:, :2], axis=0) * fps * ahead, axis=1)))
+    return -1.0 if along <= -MIN_EXPECTED else 1.0

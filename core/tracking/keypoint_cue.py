@@ -84,6 +84,10 @@ class CameraKeypoints:
     mirror : ndarray, shape (J,), int, optional
         The same joint on the other side (left knee <-> right knee), -1 for none: a pair
         the trajectory fits better swapped is not used (:func:`pair_targets`).
+    noise_px : ndarray, shape (J,), optional
+        Each keypoint's noise on this camera, pixels, measured at the keys
+        (:func:`.keypoint_fusion.key_noise`; :func:`.parallel.track_keyframes` sets it): the
+        fusion weighs each keypoint by its inverse square. None: its jitter instead.
     """
 
     uv: np.ndarray
@@ -92,6 +96,7 @@ class CameraKeypoints:
     points: np.ndarray = None
     first: int = 0
     mirror: np.ndarray = None
+    noise_px: np.ndarray = None
 
     def __post_init__(self):
         uv = np.asarray(self.uv, dtype=float)
@@ -116,6 +121,12 @@ class CameraKeypoints:
             raise TrackingError(f"keypoints: mirror must pair keypoints both ways ((J,) = {j}, "
                                 f"-1 for none), got {mirror.tolist()}")
         object.__setattr__(self, "mirror", mirror)
+        if self.noise_px is not None:
+            noise = np.asarray(self.noise_px, dtype=float)
+            if noise.shape != (j,) or not np.all(np.isfinite(noise) & (noise > 0)):
+                raise TrackingError(f"keypoints: noise_px must be ({j},) positive pixels, "
+                                    f"got {noise.tolist()}")
+            object.__setattr__(self, "noise_px", noise)
 
     def cut(self, a, b):
         """Frames ``a .. b`` (same frame numbers as ``first``), rows missing where it has none;

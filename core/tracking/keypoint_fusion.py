@@ -10,27 +10,33 @@ every in-between frame of the **tracked** trajectory is fitted to the keypoints 
 tracked pose as its prior,
 
     E(x) = sum_{v,k} c_vk rho(|pi_v(X_k(x)) - t_vk|)                     (pixels^2)
-           + weight * (sum_b |log(T_b^T R_b)|^2 + |R_T,root^T (r - r_T) / ROOT_SCALE|^2)
+           + w(d) * (sum_b |log(T_b^T R_b)|^2 + |R_T,root^T (r - r_T) / ROOT_SCALE|^2)
 
 over the tracker's own motion components (``problem.layout``: the same masked axes), ``T``,
 ``r_T`` the tracked pose, ``X_k`` keypoint ``k``'s body point, ``pi_v`` camera ``v``'s
-projection (its lens included) and ``rho`` Huber's loss beyond ``huber_px``. The targets
+projection (its lens included) and ``rho`` Huber's loss beyond ``huber_px``. Both terms are
+inverse variances. The prior's, ``w(d)`` (:func:`drift_prior_weights`), grows towards the
+keys: the tracker's drift is 0 at a key and grows with the distance ``d`` to the nearest one
+as ``d^0.65`` (fitted once on the real footage), so near a key the keypoints can only move
+the pose a little. The keypoints' ``c_vk`` are their confidences over the square of their
+noise on this camera, measured at the animator's keys, where the pose is known
+(:func:`key_noise`, set by the tracker on the whole clip; without it, their jitter, below):
+a detector that swaps, wanders or jitters on one camera counts less there. The targets
 ``t_vk`` (:func:`fusion_targets`) are the keypoints
 
 1. with a left/right pair dropped in a frame where it fits the tracked projection better
    crossed (a detector's swap; the tracked trajectory, i.e. the image, decides);
-2. minus each keypoint's offset at the keys (keypoint minus the keyed pose's projection),
-   interpolated linearly between the keys (nearest key with one where a key has none), so a
-   detector's systematic bias does not fight the animator's keys;
-3. smoothed over time: per keypoint a confidence-weighted straight line through the
+2. smoothed over time: per keypoint a confidence-weighted straight line through the
    ``2 half_window + 1`` frames around each frame (its value at the frame), each detection
    weighted by Tukey's biweight of its distance from a robust (median) line through the same
    window (a single bad detection does not bend the line); a frame with fewer than 3
-   detections in its window has none; each keypoint's confidence is divided by the square of
-   its jitter (the robust scale of its distances from the smoothed path), so a keypoint counts
-   in its own noise units and a detector that jitters more on one camera counts less. The
-   detector's frame-to-frame jitter averages out; what stays is where the body is, which the
-   image-driven tracker drifts away from between the keys.
+   detections in its window has none. The detector's frame-to-frame jitter averages out;
+   what stays is where the body is, which the image-driven tracker drifts away from between
+   the keys. The keypoint's jitter (the robust scale of its distances from the smoothed path)
+   is its noise where the keys did not measure one;
+3. minus each smoothed keypoint's offset at the keys (smoothed keypoint minus the keyed
+   pose's projection), interpolated linearly between the keys (nearest key with one where a
+   key has none), so a detector's systematic bias does not fight the animator's keys.
 
 Each frame is solved by Levenberg-Marquardt in the tracker's motion parameters
 (:mod:`.jacobians`: analytic Jacobians of the projections, eq. A.2 with the gradient rows of
@@ -38,8 +44,8 @@ eq. A.8), the prior's Jacobian being the identity (exact at the prior, first ord
 the step is only kept where the true cost falls). The keys are never touched (bit for bit), nor
 frames outside the keys or listed in ``keep``.
 
-Weight and window (``TrackingOptions.keypoint_smoothing``, seconds) were chosen on one camera of
-the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
+Weight, window (``TrackingOptions.keypoint_smoothing``, seconds) and the drift's growth were
+chosen on one camera of the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
 """
 
 import warnings
@@ -56,6 +62,16 @@ ROOT_SCALE = 0.1
 JITTER_FLOOR_PX = 0.5
 #: Fewest detections in a keypoint's window for a smoothed value.
 MIN_WINDOW_DETECTIONS = 3
+#: The tracker's expected error grows as (distance to the nearest key)^DRIFT_EXPONENT
+#: (:func:`drift_prior_weights`; fitted once on cam01's tracked trajectories of the real
+#: footage, ``docs/tracking.md`` *2D keypoints as a cue*).
+DRIFT_EXPONENT = 0.65
+#: Key-noise estimates count as this many held-out keys of the camera's pooled noise
+#: (:func:`key_noise`: a joint with few held-out keys leans on the camera's other joints).
+NOISE_PRIOR_KEYS = 2.0
+#: The prior's weight is ``TrackingOptions.keypoint_fusion_weight`` this long from the nearest
+#: key (seconds; 10 frames at 60 fps) and grows towards the keys (:func:`drift_prior_weights`).
+DRIFT_REFERENCE_S = 1.0 / 6.0
 
 
 def project_points(skeleton, camera, roots, local, joints, points):
@@ -160,7 +176,7 @@ def _median_line(values, half_window):
 
 
 def smooth_keypoints(uv, confidence, half_window):
-    """Keypoints smoothed over time (module docstring, step 3), and each keypoint's jitter.
+    """Keypoints smoothed over time (module docstring, step 2), and each keypoint's jitter.
 
     A robust line per window first (:func:`_median_line`), then the confidence-weighted
     least-squares line through the window, each detection weighted by Tukey's biweight of its
@@ -199,7 +215,8 @@ def smooth_keypoints(uv, confidence, half_window):
 
 def fusion_targets(skeleton, camera, roots, local, keypoints, keys, half_window,
                    threshold=None):
-    """The targets ``t`` of one camera (module docstring, steps 1-3).
+    """The targets ``t`` of one camera (module docstring, steps 1-3) and their weights (the
+    confidences over the square of ``keypoints.noise_px``, else of the keypoints' jitter).
 
     Parameters
     ----------
@@ -230,15 +247,19 @@ def fusion_targets(skeleton, camera, roots, local, keypoints, keys, half_window,
     conf = np.where((p[..., 2] > 0) & ~swapped_pairs(uv, q, keypoints.mirror),
                     keypoints.confidence, 0.0)
     uv = np.where(conf[..., None] > 0, uv, np.nan)
-    target, jitter = smooth_keypoints(uv - key_offsets(uv, conf, q, keys), conf, half_window)
+    # Smoothed first, so that the offsets are measured on the smoothed keypoints (a key's
+    # offset spreads over two intervals: one detection's jitter there would too).
+    target, jitter = smooth_keypoints(uv, conf, half_window)
+    target = target - key_offsets(target, np.isfinite(target[..., 0]).astype(float), q, keys)
     if half_window > 0:                      # a smoothed value stands for its whole window
         conf = np.where(np.isfinite(target[..., 0]), np.maximum(conf, _window_confidence(
             conf, half_window)), 0.0)
     ok = (conf > 0) & np.all(np.isfinite(target), axis=-1)
     conf = np.where(ok, conf, 0.0)
     target = np.where(ok[..., None], target, 0.0)
-    if jitter is not None:                   # each keypoint in its own noise units
-        conf = conf / jitter ** 2
+    noise = keypoints.noise_px if keypoints.noise_px is not None else jitter
+    if noise is not None:                    # each keypoint in its own noise units
+        conf = conf / noise ** 2
     if threshold is not None and ok.any():
         dist = np.where(ok, np.linalg.norm(target - q, axis=-1), 0.0)
         scale = float(robust_scale(dist.reshape(1, -1), ok.reshape(1, -1), floor=0.5)[0])
@@ -257,6 +278,105 @@ def _window_confidence(conf, half_window):
     return out
 
 
+def key_noise(skeleton, camera, key_roots, key_local, keypoints, key_frames, half_window):
+    """Each keypoint's noise on this camera (pixels), measured where the pose is known: at
+    the animator's keys.
+
+    At every key the keypoints are smoothed over the key's window (:func:`smooth_keypoints`,
+    a left/right pair lying closer to the keyed projections crossed dropped) and their offset
+    from the keyed pose's projection taken, ``o_k``. Each key with keys on both sides is held
+    out: the offset interpolated from its neighbours (weights ``a``, ``b`` by frame) misses
+    it by ``r_k = o_k - (a o_{k-1} + b o_{k+1})``, which is how far a fusion target lies from
+    the truth between two keys (the offset there is interpolated the same way). With
+    independent offsets of variance ``s^2`` per coordinate, ``E|r_k|^2 = 2 s^2 (1 + a^2 + b^2)``,
+    so per keypoint
+
+        s_j^2 = (sum_k |r_jk|^2 / (2 (1 + a_k^2 + b_k^2)) + NOISE_PRIOR_KEYS s_pool^2)
+                / (n_j + NOISE_PRIOR_KEYS)
+
+    with ``n_j`` its held-out keys and ``s_pool^2`` the same sum over all the camera's
+    keypoints (a keypoint seen at few keys leans on the others). A detector that swaps,
+    jitters or wanders on this camera measures a larger noise here than one that holds.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    camera : PinholeCamera
+        The camera of the whole image.
+    key_roots, key_local : ndarray, shape (K, 3), (K, B, 3, 3)
+        The keyed poses.
+    keypoints : CameraKeypoints
+        ``first`` in the keys' frame numbers.
+    key_frames : array_like of int, shape (K,)
+        Increasing.
+    half_window : int
+        :func:`smooth_keypoints`'s (0: the key's own detection).
+
+    Returns
+    -------
+    ndarray, shape (J,) or None
+        Pixels, at least :data:`JITTER_FLOOR_PX`; None with fewer than three keys or no
+        held-out key with a keypoint.
+    """
+    frames = np.asarray(key_frames, dtype=int)
+    n_keys, n_kp = len(frames), len(keypoints.joints)
+    if n_keys < 3:
+        return None
+    offsets = np.full((n_keys, n_kp, 2), np.nan)
+    for k, f in enumerate(frames):
+        window = keypoints.cut(f - half_window, f + half_window)
+        if window is None:
+            continue
+        m = len(window.uv)
+        q, p = project_points(skeleton, camera, np.repeat(key_roots[k:k + 1], m, 0),
+                              np.repeat(key_local[k:k + 1], m, 0), keypoints.joints,
+                              keypoints.points)
+        conf = np.where((p[..., 2] > 0) & ~swapped_pairs(window.uv, q, keypoints.mirror),
+                        window.confidence, 0.0)
+        smooth, _ = smooth_keypoints(np.where(conf[..., None] > 0, window.uv, np.nan), conf,
+                                     half_window)
+        offsets[k] = smooth[half_window] - q[half_window]
+    span = (frames[2:] - frames[:-2]).astype(float)
+    a = (frames[2:] - frames[1:-1]) / span                       # weight of the key before
+    b = 1.0 - a
+    r = offsets[1:-1] - (a[:, None, None] * offsets[:-2] + b[:, None, None] * offsets[2:])
+    var = np.sum(r * r, axis=-1) / (2.0 * (1.0 + a * a + b * b))[:, None]        # (K-2, J)
+    seen = np.isfinite(var)
+    if not seen.any():
+        return None
+    var = np.where(seen, var, 0.0)
+    pooled = var.sum() / seen.sum()
+    s2 = (var.sum(0) + NOISE_PRIOR_KEYS * pooled) / (seen.sum(0) + NOISE_PRIOR_KEYS)
+    return np.maximum(np.sqrt(s2), JITTER_FLOOR_PX)
+
+
+def drift_prior_weights(n, keys, weight, reference_frames):
+    """The fusion prior's weight per row: the tracker's expected drift grows with the
+    distance ``d`` (frames) to the nearest key as ``d^DRIFT_EXPONENT`` (0 at a key, largest
+    mid-interval), so the prior, an inverse variance, weighs
+
+        weight * (reference_frames / d)^(2 DRIFT_EXPONENT)
+
+    (``weight`` at ``reference_frames`` from a key; inf at the keys).
+
+    Parameters
+    ----------
+    n : int
+        Rows.
+    keys : array_like of int
+        Rows of the keys.
+    weight, reference_frames : float
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    keys = np.asarray(keys, dtype=int)
+    d = np.min(np.abs(np.arange(n)[:, None] - keys[None, :]), axis=1).astype(float)
+    with np.errstate(divide="ignore"):
+        return weight * (reference_frames / d) ** (2.0 * DRIFT_EXPONENT)
+
+
 class _Frames:
     """The cost of n frames (module docstring), each its own problem, and their Gauss-Newton
     systems, all cameras; every array has the frames first.
@@ -267,7 +387,8 @@ class _Frames:
     def __init__(self, problem, cams, targets, roots, local, weight, huber_px):
         self.problem, self.cams, self.targets = problem, cams, targets
         self.prior = (roots, local)
-        self.weight, self.huber_px = weight, huber_px
+        self.weight = np.broadcast_to(np.asarray(weight, dtype=float), (len(roots),))
+        self.huber_px = huber_px
         layout = problem.layout
         self.prior_scale = np.concatenate([np.full(len(layout.translation_axes),
                                                    1.0 / ROOT_SCALE),
@@ -348,8 +469,8 @@ class _Frames:
             h += np.einsum("njap,nj,njaq->npq", jac, wv, jac)
             g += np.einsum("njap,nj,nja->np", jac, wv, r)
         scale = self.prior_scale
-        h += self.weight * np.diag(scale * scale)
-        g += self.weight * scale * self.prior_residual(roots, local)
+        h += self.weight[:, None, None] * np.diag(scale * scale)
+        g += self.weight[:, None] * scale * self.prior_residual(roots, local)
         diag = np.maximum(np.einsum("npp->np", h), 1e-12)
         h += damping[:, None, None] * (diag[:, :, None] * np.eye(n_p))
         return -np.linalg.solve(h, g[..., None])[..., 0]
@@ -369,7 +490,8 @@ def moved(problem, roots, local, x):
 
 
 def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5,
-                   huber_px=20.0, threshold=None, keep=(), iterations=15):
+                   huber_px=20.0, threshold=None, keep=(), iterations=15,
+                   drift_frames=None):
     """The tracked trajectory's in-between frames fitted to the keypoints (module docstring).
 
     Parameters
@@ -395,6 +517,9 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         Rows left as they are.
     iterations : int
         Levenberg-Marquardt iterations per frame at most.
+    drift_frames : float, optional
+        The prior's weight grows towards the keys (:func:`drift_prior_weights`, ``weight``
+        this many frames from the nearest key); None: ``weight`` everywhere.
 
     Returns
     -------
@@ -430,8 +555,10 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         return out_r, out_l, fused
     # Every frame its own Levenberg-Marquardt (damping, acceptance and stop per frame), all
     # frames at once.
+    prior_weight = weight if drift_frames is None else \
+        drift_prior_weights(len(roots), keys, weight, drift_frames)[rows]
     frames = _Frames(problem, cams, [(t[rows], c[rows], j, p) for t, c, j, p in targets],
-                     roots[rows], local[rows], weight, huber_px)
+                     roots[rows], local[rows], prior_weight, huber_px)
     r0, l0 = roots[rows].copy(), local[rows].copy()
     current = frames.cost(r0, l0)
     damping = np.full(len(rows), 1e-3)

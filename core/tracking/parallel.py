@@ -59,8 +59,9 @@ import numpy as np
 
 from .foot_lock import FootLock, lock_feet
 from .keypoint_cue import per_camera
+from .keypoint_fusion import key_noise
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
-from .trajectory import Pose, interpolated_interval, track_interval
+from .trajectory import Pose, interpolated_interval, keypoint_half_window, track_interval
 
 #: Full module name of the core package this module belongs to ('core', or
 #: 'bl_ext.<repo>.track_and_stride.core' inside Blender) and its folder.
@@ -176,6 +177,21 @@ def _check_keypoints(problem, keypoints):
         if kp is not None:
             kp.check(problem.skeleton.n_joints)
     return keypoints if any(kp is not None for kp in keypoints) else None
+
+
+def _with_key_noise(problem, options, keypoints, keys, roots, local):
+    """Each camera's keypoints with their noise measured at the keys
+    (:func:`.keypoint_fusion.key_noise`: the fusion's weights), where the fusion is on and
+    there are three keys or more; otherwise as they are."""
+    if keypoints is None or options.keypoint_fusion_weight <= 0 or len(keys) < 3:
+        return keypoints
+    half_window = keypoint_half_window(options)
+    out = []
+    for cam, kp in zip(problem.cameras, keypoints):
+        noise = None if kp is None else key_noise(problem.skeleton, cam, roots, local, kp,
+                                                  keys, half_window)
+        out.append(kp if noise is None else replace(kp, noise_px=noise))
+    return out
 
 
 def view_frames(stack, offset, a, b):
@@ -344,7 +360,8 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     options = options or TrackingOptions()
     frames, offsets, keys, roots, local = _check_keys(problem, frames, key_frames, key_roots,
                                                       key_locals, frame_offsets)
-    keypoints = _check_keypoints(problem, keypoints)
+    keypoints = _with_key_noise(problem, options, _check_keypoints(problem, keypoints), keys,
+                                roots, local)
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
     weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])

@@ -39,7 +39,7 @@ from .hinge_twist import hinge_joints, retwist, untwist
 from .image import bilinear, gaussian_pyramid
 from .jacobians import apply_motion, motion_between, root_world_rotation
 from .keypoint_cue import interval_keypoints, per_camera
-from .keypoint_fusion import fuse_keypoints
+from .keypoint_fusion import DRIFT_REFERENCE_S, fuse_keypoints
 from .motion import MotionView, estimate_view_motions
 from .occluders import hide_behind, view_occluders
 from .problem import TrackingError, TrackingOptions
@@ -857,7 +857,8 @@ def _fuse(problem, options, views, keypoints, scores):
     local = np.concatenate([np.repeat(traj.local[:1], h, 0), traj.local,
                             np.repeat(traj.local[-1:], h, 0)])
     roots, local, fused = fuse_keypoints(problem, roots, local, [h, n + h], cut,
-                                         options.keypoint_fusion_weight, h)
+                                         options.keypoint_fusion_weight, h,
+                                         drift_frames=DRIFT_REFERENCE_S * options.frame_rate)
     if not fused.any():
         return None
     candidate = _Trajectory(problem, options, views, roots[h:n + h + 1], local[h:n + h + 1])

@@ -826,3 +826,29 @@ def test_a_careful_walk_retimed_up_steps_out_through_the_operator(scene, tmp_pat
     assert fast["knee_range_deg"] > steady["knee_range_deg"]
     for f in (steady, fast):            # and it still walks where its legs go
         assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0
+
+
+def test_a_careful_walk_slowed_down_walks_where_its_legs_go_through_the_operator(scene, tmp_path):
+    """Issue 25, careful at cadence 0.7: the cadence step changes the model's forward-speed
+    channel by a fixed amount per log cadence, so a slow style slowed further is left with a
+    speed near zero or below (CMU 74_01 restyled from "normal" to careful at 0.7: −0.15 m/s)
+    while its legs still walk forward. The planted travel took the walking direction from that
+    speed: backwards, so the stance foot that implied going forward was not trusted and the
+    root stayed on the spot (stride 0.01 m, root / legs 0.35). The walk goes forward along its
+    heading now (docs/gait.md, *The three misses*)."""
+    from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
+
+    obj = import_observed(tmp_path, "74_01")
+    name = obj.name
+    skeleton = asf_to_skeleton(read_asf(asf_path("74_01")))
+    layout = armature_layout(skeleton)
+    model = load_stock_library()
+    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    floor = contact_height(foot_tracks(skeleton, reference, FPS, root_frame=model.root_frame))
+    assert bpy.ops.track_and_stride.predict_gait(
+        horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to="careful",
+        restyle_amount=1.0, cadence=0.7) == {"FINISHED"}
+    _, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+    f = walk_summary(skeleton, pred, FPS, period_frames(pred[:, 6:]), floor=floor)
+    assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0
+    assert f["speed_m_s"] > 0.05                   # it walks (0.1 m/s), not on the spot

@@ -84,31 +84,42 @@ def test_two_cameras_track_like_the_core_and_better_than_one(folders, walk):
 
 
 def test_modal_run_reads_every_camera_and_esc_changes_nothing(folders, monkeypatch):
-    """Reading goes camera after camera over timer steps; the job gets one stack per camera,
-    as the bridge reads them; Esc then cancels and nothing changes."""
+    """Reading goes frame after frame, one frame of each camera in turn, over timer steps,
+    while the job (started at once: tracking while reading) waits for them; it gets one stack
+    per camera, as the bridge reads them; Esc then cancels and nothing changes."""
     obj = build_two_camera_scene(folders)
     tracking_bridge, ops = bridge("tracking.bridge"), bridge("tracking.ops")
     request = tracking_bridge.prepare_tracking(bpy.context, settings())
     monkeypatch.setattr(ops, "_READ_STEP_SECONDS", 0.01)                  # several steps
-    given = []
+    given, reads = [], []
 
-    class Job(ops.TrackJob):
-        def __init__(self, request, frames):
-            given.append([f.copy() for f in frames])
-            super().__init__(request, frames)
+    class Job(tracking_bridge.TrackJob):
+        def __init__(self, request, frames, runner=None):
+            given.append(frames)
+            super().__init__(request, frames, runner)
 
-    monkeypatch.setattr(ops, "TrackJob", Job)
-    counts, before, views = datablock_counts(), snapshot(obj), []
+    monkeypatch.setattr(tracking_bridge, "TrackJob", Job)
+    read = ops.read_footage
+
+    def recorded(request, start, stop, reader=None, out=None, view=0):
+        reads.append((view, start))
+        return read(request, start, stop, reader, out, view)
+
+    monkeypatch.setattr(ops, "read_footage", recorded)
+    counts, before = datablock_counts(), snapshot(obj)
+    kept = []
 
     def events(op, step):
-        views.append(op._view)
-        return "ESC" if op._job is not None else "TIMER"
+        if op._read == N_FRAMES:
+            kept.append([f.copy() for f in given[0]])      # every frame is in
+            return "ESC"
+        return "TIMER"
 
     op, result, reports = _modal_run(request, events)
     assert result == {"CANCELLED"} and "nothing was changed" in reports[-1][1]
-    assert views[0] == 0 and views[-1] == 1 and views.count(0) > 1
+    assert reads == [(v, f) for f in range(N_FRAMES) for v in range(2)]     # cameras in turn
     expected = [tracking_bridge.read_footage(request, 0, N_FRAMES, view=v) for v in range(2)]
-    assert [f.tobytes() for f in given[0]] == [f.tobytes() for f in expected]
+    assert [f.tobytes() for f in kept[0]] == [f.tobytes() for f in expected]
     assert datablock_counts() == counts
     same_keys(before, snapshot(obj))
 

@@ -406,6 +406,55 @@ def test_body_map_panel_fills_edits_exports_and_imports(tmp_path):
     assert not settings.stored and not addon("common.rig_bridge").tracking_rig(obj).stored
 
 
+def test_wanted_controls_of_all_steps_at_once_equal_one_step_at_a_time():
+    """The write-back's correction step (``wanted_controls``) computes every control's new
+    pose matrix on stacked matrices: equal, to float rounding, to each step's world change on
+    its own (the per-step code it replaced), for every rule, with and without compensation."""
+    rb = addon("common.rig_bridge")
+    from core.rigs import RIGID, ROTATE, TRANSLATE
+    from core.rigs.ik import axis_rotation, bend_angle_error
+    from core.rigs.retarget import orthonormal, rigid, world_change
+    rng = np.random.default_rng(35)
+    n = 9
+    joints, target = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
+    joints[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    target[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    joints[:, :3, :3] *= rng.uniform(0.9, 1.1, size=(n, 1, 3))      # scale: rigid() removes it
+    joints[:, :3, 3], target[:, :3, 3] = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    steps = [rb.ControlStep("a", ROTATE, 1), rb.ControlStep("b", TRANSLATE, 2),
+             rb.ControlStep("c", RIGID, 3, compensate=1), rb.ControlStep("d", ROTATE, 5,
+                                                                      compensate=3),
+             rb.ControlStep("e", "pole", 6, limb=(4, 6, 7)),
+             rb.ControlStep("f", "twist", 4, limb=(4, 6, 7)),
+             rb.ControlStep("g", ROTATE, 8, compensate=5)]
+    controls = np.tile(np.eye(4), (len(steps), 1, 1))
+    controls[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(len(steps), 3)))
+    controls[:, :3, 3] = rng.normal(size=(len(steps), 3))
+    expected = []
+    for st, control in zip(steps, controls):
+        if st.turns_limb:
+            a, mid, e = st.limb
+            angle = bend_angle_error(joints[a, :3, 3], joints[e, :3, 3], joints[mid, :3, 3],
+                                     target[mid, :3, 3])
+            change = axis_rotation(joints[a, :3, 3], joints[e, :3, 3] - joints[a, :3, 3], angle)
+        else:
+            comp = None
+            if st.compensate >= 0:
+                p = st.compensate
+                comp = orthonormal(joints[p, :3, :3] @ target[p, :3, :3].T)
+            change = world_change(target[st.joint], rigid(joints[st.joint]), st.rule,
+                                  pivot=control[:3, 3], compensation=comp)
+        expected.append(change @ control)
+    got = rb.wanted_controls(steps, controls, joints, target)
+    np.testing.assert_allclose(got, np.array(expected), rtol=0, atol=1e-12)
+    # Each step alone gives the same as in the batch (no step leaks into another).
+    for c, st in enumerate(steps):
+        np.testing.assert_allclose(rb.wanted_controls([st], controls[c:c + 1], joints, target)[0],
+                                   expected[c], rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="unknown correction rule"):
+        rb.wanted_controls([rb.ControlStep("h", "shear", 1)], controls[:1], joints, target)
+
+
 def test_step_errors_of_all_steps_at_once_equal_one_step_at_a_time():
     """The write-back's convergence test (``step_errors``) measures every step's joint in one
     call: the same largest angle and distance as each step's ``pose_error`` on its own, with

@@ -735,8 +735,9 @@ def _modal_run(request, events):
     reports = []
 
     class Modal:
-        _begin, _status, _finish, _step = (op_class._begin, op_class._status, op_class._finish,
-                                           op_class._step)
+        _begin, _status, _finish, _step, _stop_job = (
+            op_class._begin, op_class._status, op_class._finish, op_class._step,
+            op_class._stop_job)
         modal, _report_done = op_class.modal, op_class._report_done
 
         def report(self, kind, message):
@@ -803,6 +804,37 @@ def test_modal_escape_stops_the_job_and_changes_nothing(walk_folder):
     assert reports == [("INFO", "Tracking cancelled: nothing was changed")]
     assert not jobs[0].running and jobs[0].result is None
     assert datablock_counts() == counts
+    same_keys(before, snapshot(obj))
+    assert snapshot(obj).keys() == before.keys()
+    assert not bridge("tracking.ops")._RUNNING
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_modal_escape_while_the_footage_is_read_stops_the_fed_job(walk_folder, walk_mp4,
+                                                                  monkeypatch, processes):
+    """The modal run tracks while it reads (the job starts with the first frames still to
+    come); Esc half-way through the reading stops the job waiting for frames (and a pool's
+    children), closes the movie and changes nothing."""
+    obj = build_walk_scene(walk_folder, source="CLIP", movie=walk_mp4)
+    settings().processes = processes
+    counts, before = datablock_counts(), snapshot(obj)
+    request = bridge("tracking.bridge").prepare_tracking(bpy.context, settings())
+    monkeypatch.setattr(bridge("tracking.ops"), "_READ_STEP_SECONDS", 0.01)   # several steps
+    seen = []
+
+    def escape_half_way(op, step):
+        if op._job is not None and op._job.running and 0 < op._read < N_FRAMES // 2:
+            seen.append((op._read, op._job))
+        return "ESC" if seen else "TIMER"
+
+    op, result, reports = _modal_run(request, escape_half_way)
+    assert result == {"CANCELLED"}, reports
+    assert reports == [("INFO", "Tracking cancelled: nothing was changed")]
+    read, job = seen[0]
+    assert read < N_FRAMES // 2 and not job.running and job.result is None
+    assert isinstance(job.error, importlib.import_module(
+        f"{MODULE}.core.tracking").TrackingCancelled)
+    assert datablock_counts() == counts                  # the decoder's image and texture gone
     same_keys(before, snapshot(obj))
     assert snapshot(obj).keys() == before.keys()
     assert not bridge("tracking.ops")._RUNNING

@@ -118,6 +118,32 @@ def test_stance_targets_pin_each_foot_where_it_stands_with_ramps():
     assert 0 < weights[15, 0] < weights[16, 0] < 1 and weights[20, 0] == 1.0
 
 
+def test_a_foot_landing_just_after_the_join_is_held_from_the_first_predicted_frame():
+    """A stance whose landing ramp would begin in the reference (here: it starts 2 frames
+    after it, the ramp is 3): the foot is held where it is at the first predicted frame
+    (horizontally; no jump onto the stance's mean a frame later) and lowered onto the floor
+    over what is left of the ramp."""
+    n = 40
+    points = np.zeros((n, 2, 3))
+    points[:, 0, 0] = np.linspace(0, 0.4, n)           # still moving forward as it lands
+    points[:, 0, 2] = np.maximum(0.0, 0.05 - 0.01 * np.arange(n) + 0.15)   # coming down
+    carrying = np.zeros((n, 2), dtype=bool)
+    carrying[17:30, 0] = True
+    targets, weights = stance_targets(points, carrying, 0.0, FPS, reference_frames=15)
+    assert np.all(weights[15:30, 0] == 1.0)            # held from the first predicted frame
+    np.testing.assert_allclose(targets[15:30, 0, :2], np.broadcast_to(points[15, 0, :2],
+                                                                      (15, 2)))
+    z = targets[15:30, 0, 2]
+    assert 0.5 * points[15, 0, 2] < z[0] < points[15, 0, 2]     # from about where it is …
+    assert np.all(np.diff(z) <= 1e-12) and np.all(z[2:] == 0.0)  # … onto the floor, landed
+    # A stance that starts after the ramp is the ordinary one: mean position, ramp before.
+    carrying[:] = False
+    carrying[20:30, 0] = True
+    targets, weights = stance_targets(points, carrying, 0.0, FPS, reference_frames=15)
+    assert weights[15, 0] == 0.0 and weights[20, 0] == 1.0
+    np.testing.assert_allclose(targets[20, 0, 0], points[20:30, 0, 0].mean())
+
+
 def test_pin_feet_moves_the_ball_onto_its_target_within_the_joint_limits():
     skeleton, values = walker()
     rows = values[60:100].copy()

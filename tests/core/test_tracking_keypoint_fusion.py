@@ -1,16 +1,19 @@
 """2D keypoints fused with the tracked motion after tracking (core/tracking/keypoint_fusion.py,
 issue 24 §2): its Jacobians and gradient against finite differences, the smoothing, offsets and
-swap test against exact identities, the keys kept bit for bit, and a drifted trajectory pulled
-back towards the truth by keypoints made from the known joints (bias, noise, swaps)."""
+swap test against exact identities, the keys kept bit for bit, a drifted trajectory pulled
+back towards the truth by keypoints made from the known joints (bias, noise, swaps), and the
+weights: each keypoint's noise measured at the keys (a camera whose detector wanders counts
+less) and the prior growing towards the keys."""
 
 import numpy as np
 import pytest
 
 from core.kinematics import exp_so3
 from core.tracking.keypoint_cue import CameraKeypoints
-from core.tracking.keypoint_fusion import (_Frames, fuse_keypoints, fusion_targets, key_offsets,
-                                           moved, project_points, smooth_keypoints,
-                                           swapped_pairs)
+from core.tracking.keypoint_fusion import (DRIFT_EXPONENT, NOISE_PRIOR_KEYS, _Frames,
+                                           drift_prior_weights, fuse_keypoints,
+                                           fusion_targets, key_noise, key_offsets, moved,
+                                           project_points, smooth_keypoints, swapped_pairs)
 from core.tracking.problem import TrackingProblem
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
                                           random_pose, two_arm_body, two_arm_skeleton,
@@ -98,6 +101,144 @@ def test_gradient_matches_finite_differences_of_the_cost():
     np.testing.assert_allclose(-2 * h @ x, numeric, atol=2e-2 * np.abs(numeric).max())
     # ... and the step lowers the cost.
     assert cost(frames.step(roots, local, np.array([1e-3]))[0]) < cost(np.zeros(n))
+
+
+def test_per_frame_prior_weights_match_finite_differences_of_the_cost():
+    """Two frames with their own prior weights (:func:`drift_prior_weights`): each frame's
+    step right-hand side is half its own cost's gradient, with its own weight."""
+    rng, sk, problem = _chain_problem()
+    poses = [random_pose(rng, sk) for _ in range(2)]
+    prior_r, prior_l = np.stack([p[0] for p in poses]), np.stack([p[1] for p in poses])
+    n = problem.layout.n_params
+    roots, local = moved(problem, prior_r, prior_l, rng.normal(0, 0.05, (2, n)))
+    joints = np.arange(sk.n_joints)
+    points = rng.normal(0, 0.05, (len(joints), 3))
+    q, _ = project_points(sk, problem.camera, roots, local, joints, points)
+    targets = [(q + rng.normal(0, 5.0, q.shape), rng.uniform(0.3, 1.0, (2, len(joints))),
+                joints, points)]
+    weights = np.array([30.0, 3000.0])
+    frames = _Frames(problem, problem.cameras, targets, prior_r, prior_l, weights, None)
+    res = frames.residuals(roots, local)
+    jac = frames.jacobian(roots, local)[0]
+    g = np.einsum("njap,nj,nja->np", jac, frames.irls(res)[0], res[0])
+    eps = 1e-6
+    for f in range(2):
+        def cost(x, f=f):
+            step = np.zeros((2, n))
+            step[f] = x
+            return frames.cost(*moved(problem, roots, local, step))[f]
+        numeric = np.array([(cost(e * eps) - cost(-e * eps)) / (2 * eps) for e in np.eye(n)])
+        # The prior's part of the gradient from its own finite differences (its Jacobian is
+        # the identity only at the prior), the image part from the analytic Jacobian.
+        def prior(x, f=f):
+            step = np.zeros((2, n))
+            step[f] = x
+            p = frames.prior_residual(*moved(problem, roots, local, step))[f]
+            return weights[f] * p @ p
+        prior_grad = np.array([(prior(e * eps) - prior(-e * eps)) / (2 * eps)
+                               for e in np.eye(n)])
+        np.testing.assert_allclose(2 * g[f] + prior_grad, numeric, rtol=1e-5,
+                                   atol=1e-6 * np.abs(numeric).max())
+    # The weights enter the step per frame: frame 1's heavy prior keeps it nearer the prior.
+    h = np.einsum("njap,nj,njaq->npq", jac, frames.irls(res)[0], jac)
+    x = frames.step(roots, local, np.zeros(2))
+    for f in range(2):
+        rhs = g[f] + weights[f] * frames.prior_scale * frames.prior_residual(roots, local)[f]
+        lhs = h[f] + weights[f] * np.diag(frames.prior_scale ** 2)
+        np.testing.assert_allclose(lhs @ x[f], -rhs, atol=1e-8 * np.abs(rhs).max())
+
+
+def test_drift_prior_weights_grow_towards_the_keys():
+    w = drift_prior_weights(41, [0, 20, 40], 1000.0, 10.0)
+    assert np.all(np.isinf(w[[0, 20, 40]]))
+    np.testing.assert_allclose(w[[10, 30]], 1000.0, rtol=1e-12)        # reference distance
+    np.testing.assert_allclose(w[5], 1000.0 * 2.0 ** (2 * DRIFT_EXPONENT), rtol=1e-12)
+    np.testing.assert_allclose(w[15], w[5], rtol=1e-12)                # nearest key counts
+    np.testing.assert_allclose(w[39], 1000.0 * 10.0 ** (2 * DRIFT_EXPONENT), rtol=1e-12)
+    assert np.all(np.diff(w[1:11]) < 0) and np.all(np.diff(w[10:20]) > 0)
+
+
+def test_key_noise_is_the_held_out_keys_residual():
+    """Keypoints = the keyed projections plus a known offset per key (constant over each
+    key's window, so the smoothing reproduces it): the noise is the formula's to rounding."""
+    rng, sk, problem = _chain_problem()
+    cam = problem.camera
+    key_frames = np.array([10, 20, 40, 50])
+    poses = [random_pose(rng, sk, scale=0.2) for _ in key_frames]
+    kr, kl = np.stack([p[0] for p in poses]), np.stack([p[1] for p in poses])
+    joints = np.arange(4)
+    points = np.zeros((4, 3))
+    offsets = rng.normal(0, 4.0, (4, 4, 2))
+    offsets[:, 3] = [1.5, -2.0]                              # a keypoint without noise
+    h = 2
+    n = 61
+    uv = np.full((n, 4, 2), np.nan)
+    conf = np.zeros((n, 4))
+    for k, f in enumerate(key_frames):
+        q, _ = project_points(sk, cam, kr[k:k + 1], kl[k:k + 1], joints, points)
+        uv[f - h:f + h + 1] = q[0] + offsets[k]
+        conf[f - h:f + h + 1] = 0.8
+    conf[20, 1] = 0.0                                        # missing at a key: still smoothed
+    kp = CameraKeypoints(uv, conf, joints, points, first=0)
+    noise = key_noise(sk, cam, kr, kl, kp, key_frames, h)
+    var = []
+    for k in (1, 2):                                         # the held-out keys
+        a = (key_frames[k + 1] - key_frames[k]) / (key_frames[k + 1] - key_frames[k - 1])
+        r = offsets[k] - a * offsets[k - 1] - (1 - a) * offsets[k + 1]
+        var.append(np.sum(r * r, axis=-1) / (2 * (1 + a * a + (1 - a) ** 2)))
+    var = np.array(var)
+    pooled = var.mean()
+    expect = np.sqrt((var.sum(0) + NOISE_PRIOR_KEYS * pooled) / (2 + NOISE_PRIOR_KEYS))
+    np.testing.assert_allclose(noise, np.maximum(expect, 0.5), rtol=1e-6)
+    assert noise[3] < noise[:3].min()                         # steady offsets: less noise
+    # Two keys hold nothing out.
+    assert key_noise(sk, cam, kr[:2], kl[:2], kp, key_frames[:2], h) is None
+
+
+def _second_camera():
+    """A camera 3 m to the side of the two-arm body (world +X), looking along -X, Z up."""
+    from core.tracking.camera import PinholeCamera
+    w2c = np.eye(4)
+    w2c[:3, :3] = [[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]]
+    w2c[:3, 3] = -w2c[:3, :3] @ np.array([3.0, 0.0, 1.0])
+    return PinholeCamera(fx=440.0, fy=440.0, cx=159.5, cy=119.5, width=320, height=240,
+                         world2camera=w2c)
+
+
+def test_a_wandering_detector_gets_less_weight_and_must(walk):
+    """Two cameras: one detector with a fixed bias and 1.5 px of jitter, one whose offset
+    wanders smoothly (8 px, a period of 30 frames: almost no jitter, and wrong between the
+    keys). Weighted by their jitter the wandering camera counts most and pulls the drifted
+    trajectory off; weighted by their noise at the keys it counts less, and the fused result
+    beats both the jitter's and the tracker's."""
+    w = walk
+    sk = w["sk"]
+    side = _second_camera()
+    problem = TrackingProblem(sk, two_arm_body(sk), [w["problem"].camera, side])
+    known, _ = project_points(sk, side, w["roots"], w["local"], JOINTS, _points(sk))
+    n = len(known)
+    phase = np.random.default_rng(3).uniform(0, 2 * np.pi, len(JOINTS))
+    wander = 8.0 * np.stack([np.sin(2 * np.pi * np.arange(n)[:, None] / 30.0 + phase),
+                             np.cos(2 * np.pi * np.arange(n)[:, None] / 30.0 + phase)], -1)
+    keys = [0, 20, 40]                    # the tracked trajectory is the truth there
+    clean = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
+    wandering = CameraKeypoints(known + wander, w["conf"], JOINTS, _points(sk), mirror=MIRROR)
+    noises = [key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp, keys, 5)
+              for cam, kp in zip(problem.cameras, (clean, wandering))]
+    assert noises[1].min() > 4.0 * noises[0].max(), noises    # measured 6.5 against 1.2 px
+    before = _error_cm(sk, w["roots"], w["local"], w["t_roots"], w["t_local"])
+
+    def fused(kps):
+        r, lo, _ = fuse_keypoints(problem, w["t_roots"], w["t_local"], keys, kps, 1000.0, 5)
+        return _error_cm(sk, w["roots"], w["local"], r, lo)
+
+    by_jitter = fused([clean, wandering])
+    by_noise = fused([CameraKeypoints(kp.uv, kp.confidence, kp.joints, kp.points,
+                                      mirror=kp.mirror, noise_px=s)
+                      for kp, s in zip((clean, wandering), noises)])
+    # measured 1.55 against 2.48 (by jitter) and 3.09 cm (the tracker)
+    assert by_noise < 0.8 * by_jitter, (by_noise, by_jitter, before)
+    assert by_noise < before, (by_noise, before)
 
 
 def test_smoothing_keeps_a_straight_path_and_drops_an_outlier():
@@ -248,3 +389,20 @@ def test_targets_on_the_true_trajectory_are_the_truth_without_noise(walk):
     target, conf = fusion_targets(sk, cam, w["roots"], w["local"], kp, [0, 40], 0)
     np.testing.assert_allclose(target, known, atol=1e-9)
     assert np.all(conf == 0.9)
+
+
+def test_one_bad_detection_at_a_key_does_not_shift_the_interval(walk):
+    """The offsets are taken on the smoothed keypoints: one detection 8 px off at a key (a
+    detector's jitter there) is smoothed away instead of being carried over two intervals as
+    the key's offset."""
+    w = walk
+    sk, cam = w["sk"], w["problem"].camera
+    known, _ = project_points(sk, cam, w["roots"], w["local"], JOINTS, _points(sk))
+    uv = known + [3.0, -2.0]
+    steady, _ = fusion_targets(sk, cam, w["roots"], w["local"],
+                               CameraKeypoints(uv, w["conf"], JOINTS, _points(sk)), [0, 20, 40], 5)
+    uv[20] += [8.0, 0.0]                                         # at the middle key
+    kp = CameraKeypoints(uv, w["conf"], JOINTS, _points(sk))
+    target, conf = fusion_targets(sk, cam, w["roots"], w["local"], kp, [0, 20, 40], 5)
+    moved_px = np.linalg.norm(target - steady, axis=-1)
+    assert moved_px.max() < 0.5, moved_px.max()     # offsets of the raw detections: 6.9 px

@@ -11,10 +11,11 @@ from core.tracking.jacobians import apply_motion, unpack
 from core.tracking.keypoint_cue import (CameraKeypoints, IntervalKeypoints, keypoint_rows,
                                         keypoints_for_parts, pair_targets)
 from core.tracking.keypoint_files import JOINT_SETS, Keypoints2D
-from core.tracking.keypoint_fusion import project_points
+from core.tracking.keypoint_fusion import key_noise, project_points
 from core.tracking.motion import _jacobian, translation_columns
 from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
-from core.tracking.trajectory import Pose, interpolate_poses, track_interval
+from core.tracking.trajectory import (Pose, interpolate_poses, keypoint_half_window,
+                                     track_interval)
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
                                           random_pose, render, two_arm_body, two_arm_skeleton,
                                           two_arm_swing)
@@ -173,12 +174,17 @@ def test_keyframes_with_keypoints_in_processes_are_identical(footage):
     serial = track_keyframes(*args, options=options, processes=1, keypoints=kp)
     pooled = track_keyframes(*args, options=options, processes=2, keypoints=[kp])
     np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
-    # The same keypoints, counted from the second interval's start key, give that interval's
-    # result (the fusion's smoothing reads frames before the key too).
+    # The same keypoints, counted from the second interval's start key, with their noise
+    # measured at the three keys (track_keyframes measures it on the whole clip), give that
+    # interval's result (the fusion's smoothing reads frames before the key too).
+    noise = key_noise(f["sk"], f["problem"].camera, f["roots"][keys], f["local"][keys], kp,
+                      keys, keypoint_half_window(options))
+    assert noise is not None
     second = track_interval(f["problem"], f["frames"][10:21], Pose(f["roots"][10], f["local"][10]),
                             Pose(f["roots"][20], f["local"][20]), options,
                             keypoints=CameraKeypoints(f["clean"], f["conf"], JOINTS,
-                                                      _points(f["sk"]), first=-10))
+                                                      _points(f["sk"]), first=-10,
+                                                      noise_px=noise))
     np.testing.assert_array_equal(serial.local_rotations[10:], second.local_rotations)
     with pytest.raises(TrackingError, match="one entry per camera"):
         track_keyframes(*args, options=options, processes=1, keypoints=[kp, kp])
