@@ -794,6 +794,20 @@ def test_restyles_and_retimes_an_animator_keeps_through_the_operator(scene, tmp_
     assert fast["steps_per_min"] == pytest.approx(ff["steps_per_min"], rel=0.03)
 
 
+def observed_walk_on_floor(tmp_path, trial):
+    """Import ``trial``'s observed frames; (object name, skeleton, layout, the floor its
+    observed contacts stand on, m)."""
+    from core.gait.walk_figures import contact_height, foot_tracks
+
+    obj = import_observed(tmp_path, trial)
+    skeleton = asf_to_skeleton(read_asf(asf_path(trial)))
+    layout = armature_layout(skeleton)
+    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
+    floor = contact_height(foot_tracks(skeleton, reference, FPS,
+                                       root_frame=load_stock_library().root_frame))
+    return obj.name, skeleton, layout, floor
+
+
 def test_a_careful_walk_retimed_up_steps_out_through_the_operator(scene, tmp_path):
     """Issue 25, careful retimed: the stock library's careful style was the plain mean of pieces
     learned at different phases (five of nine a quarter cycle off), so the cadence direction
@@ -801,15 +815,9 @@ def test_a_careful_walk_retimed_up_steps_out_through_the_operator(scene, tmp_pat
     with a smaller hip swing and knee range than the fast-forward (1.6: 0.57 m, 26°, knee 13°
     against 0.69 m, 28°). With the pieces re-aligned before averaging it steps out like the
     other styles (docs/gait.md, *The three misses*)."""
-    from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
+    from core.gait.walk_figures import walk_summary
 
-    obj = import_observed(tmp_path, "35_01")
-    name = obj.name
-    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
-    layout = armature_layout(skeleton)
-    model = load_stock_library()
-    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
-    floor = contact_height(foot_tracks(skeleton, reference, FPS, root_frame=model.root_frame))
+    name, skeleton, layout, floor = observed_walk_on_floor(tmp_path, "35_01")
 
     def careful(**options):
         assert bpy.ops.track_and_stride.predict_gait(
@@ -836,15 +844,9 @@ def test_a_careful_walk_slowed_down_walks_where_its_legs_go_through_the_operator
     speed: backwards, so the stance foot that implied going forward was not trusted and the
     root stayed on the spot (stride 0.01 m, root / legs 0.35). The walk goes forward along its
     heading now (docs/gait.md, *The three misses*)."""
-    from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
+    from core.gait.walk_figures import walk_summary
 
-    obj = import_observed(tmp_path, "74_01")
-    name = obj.name
-    skeleton = asf_to_skeleton(read_asf(asf_path("74_01")))
-    layout = armature_layout(skeleton)
-    model = load_stock_library()
-    reference = channels_to_dofs(skeleton, layout, keys_at(obj, layout, range(1, N_OBS + 1)))
-    floor = contact_height(foot_tracks(skeleton, reference, FPS, root_frame=model.root_frame))
+    name, skeleton, layout, floor = observed_walk_on_floor(tmp_path, "74_01")
     assert bpy.ops.track_and_stride.predict_gait(
         horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to="careful",
         restyle_amount=1.0, cadence=0.7) == {"FINISHED"}

@@ -406,6 +406,18 @@ def test_body_map_panel_fills_edits_exports_and_imports(tmp_path):
     assert not settings.stored and not addon("common.rig_bridge").tracking_rig(obj).stored
 
 
+def random_joints_and_targets(rng, n, scaled=False):
+    """Random world matrices of ``n`` joints and their targets, (n, 4, 4) each; with ``scaled``
+    the joints' axes carry a scale of 0.9-1.1 (drawn in the same order as before the helper)."""
+    joints, target = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
+    joints[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    target[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+    if scaled:
+        joints[:, :3, :3] *= rng.uniform(0.9, 1.1, size=(n, 1, 3))
+    joints[:, :3, 3], target[:, :3, 3] = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    return joints, target
+
+
 def test_wanted_controls_of_all_steps_at_once_equal_one_step_at_a_time():
     """The write-back's correction step (``wanted_controls``) computes every control's new
     pose matrix on stacked matrices: equal, to float rounding, to each step's world change on
@@ -415,12 +427,7 @@ def test_wanted_controls_of_all_steps_at_once_equal_one_step_at_a_time():
     from core.rigs.ik import axis_rotation, bend_angle_error
     from core.rigs.retarget import orthonormal, rigid, world_change
     rng = np.random.default_rng(35)
-    n = 9
-    joints, target = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
-    joints[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
-    target[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
-    joints[:, :3, :3] *= rng.uniform(0.9, 1.1, size=(n, 1, 3))      # scale: rigid() removes it
-    joints[:, :3, 3], target[:, :3, 3] = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    joints, target = random_joints_and_targets(rng, 9, scaled=True)   # rigid() removes scale
     steps = [rb.ControlStep("a", ROTATE, 1), rb.ControlStep("b", TRANSLATE, 2),
              rb.ControlStep("c", RIGID, 3, compensate=1), rb.ControlStep("d", ROTATE, 5,
                                                                       compensate=3),
@@ -464,11 +471,7 @@ def test_step_errors_of_all_steps_at_once_equal_one_step_at_a_time():
     from core.rigs.ik import bend_angle_error
     from core.rigs.retarget import pose_error
     rng = np.random.default_rng(34)
-    n = 8
-    joints, target = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
-    joints[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
-    target[:, :3, :3] = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
-    joints[:, :3, 3], target[:, :3, 3] = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    joints, target = random_joints_and_targets(rng, 8)
     steps = [rb.ControlStep("a", ROTATE, 1), rb.ControlStep("b", TRANSLATE, 2),
              rb.ControlStep("c", RIGID, 3), rb.ControlStep("d", ROTATE, 5),
              rb.ControlStep("e", "pole", 6, limb=(4, 6, 7))]
