@@ -43,6 +43,7 @@ SMOOTH_S = 0.08             # s: σ of the Gaussian that smooths the solved root
 SMOOTH_CYCLE_HZ = 0.85
 SMOOTH_MAX_SCALE = 1.5      # at most 0.12 s: a walk slowed to a near stop keeps its stance foot
 JOIN_S = 0.25                # s: the reference's root height and velocity fade out over this
+PIN_EASE_FRAMES = 3          # a foot eased onto its spot from the join is fully held by then
 GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
@@ -291,6 +292,11 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     points = rel + roots[:, None, :]
     carrying = np.vstack([carrying[:1], carrying])              # frames -(m-1) … n
     targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
+    shift = _held_over_the_join(points, targets, pins, m, fps)
+    if shift is not None:
+        out[:, [tx, ty]] += shift[m:]
+        points[:, :, :2] += shift[:, None, :]
+        targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
     lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)
     # A lift that overlaps a stance's ramp raises the foot from where the ramp holds it, not
     # from its unplanted position: replacing the target outright made the foot jump a stride's
@@ -299,6 +305,50 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     held[:, :, 2] += lifted[:, :, 2] - points[:, :, 2]
     targets = np.where((lifts > 0)[:, :, None], held, targets)
     pin_feet(skeleton, out, feet, targets[m:], np.maximum(pins, lifts)[m:])
+
+
+def _held_over_the_join(points, targets, pins, first, fps):
+    """The root's horizontal shift (N, 2) that brings the foot held over the join back onto
+    its spot by the time it leaves it, or None.
+
+    A foot planted at the first predicted frame is held where the continuation of the reference
+    puts it (``planting.stance_targets``). The root's travel over that stance is not the legs'
+    alone: the reference's extra velocity fades out over the join (``JOIN_S``) and the legs'
+    velocity is smoothed across the change of foot, so by the end of the stance the legs reach
+    the held spot only by bending (up to 2.4 cm away on the FBX-imported Mixamo rig, sideways
+    and forwards), and the foot jumped that far in the frame it was released, while it was
+    still the lower foot. Here the root travels what the held foot says: the distance left at
+    the last fully held frame is given to the root over the stance (a smootherstep from the
+    first predicted frame, so the join keeps its velocity and acceleration) and kept after it.
+
+    Parameters
+    ----------
+    points, targets : ndarray, shape (N, F, 3)
+        The feet and their stance targets, frames ``-(first-1) … n``.
+    pins : ndarray, shape (N, F)
+    first : int
+        Index of the first predicted frame.
+    """
+    held, ends = [], []
+    for f in range(pins.shape[1]):
+        if pins[first, f] <= 0.0:
+            continue
+        full = np.flatnonzero(pins[first:, f] >= 1.0)
+        if not len(full) or full[0] > PIN_EASE_FRAMES:      # pinned fully within the ease-in
+            continue
+        free = np.flatnonzero(pins[first + full[0]:, f] < 1.0)
+        held.append(f)
+        ends.append(first + full[0] + (int(free[0]) if len(free) else len(pins)) - 1)
+    if not held:
+        return None
+    f = held[int(np.argmax(ends))]              # the foot that carries on (not a trailing one)
+    end = max(ends)
+    if end <= first or end >= len(pins) - 1:  # released after the prediction: nothing jumps
+        return None
+    gap = targets[end, f, :2] - points[end, f, :2]
+    span = max(end - first, JOIN_S * fps)
+    ramp = smootherstep((np.arange(len(pins)) - first) / span)
+    return ramp[:, None] * gap[None, :]
 
 
 def _walking_sense(reference, root_cols, frame, fps):
