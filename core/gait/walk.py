@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .features import observations_from_dofs
-from .planting import MIN_EXPECTED, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
+from .planting import MIN_EXPECTED, PIN_RAMP_S, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
 from .prediction import (DEFAULT_BLEND_S, DEFAULT_VELOCITY_FRAMES, cycle_mean,
                          dofs_from_observations, predict_transition, smootherstep)
 from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
@@ -43,7 +43,6 @@ SMOOTH_S = 0.08             # s: σ of the Gaussian that smooths the solved root
 SMOOTH_CYCLE_HZ = 0.85
 SMOOTH_MAX_SCALE = 1.5      # at most 0.12 s: a walk slowed to a near stop keeps its stance foot
 JOIN_S = 0.25                # s: the reference's root height and velocity fade out over this
-PIN_EASE_FRAMES = 3          # a foot eased onto its spot from the join is fully held by then
 GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
@@ -317,9 +316,12 @@ def _held_over_the_join(points, targets, pins, first, fps):
     velocity is smoothed across the change of foot, so by the end of the stance the legs reach
     the held spot only by bending (up to 2.4 cm away on the FBX-imported Mixamo rig, sideways
     and forwards), and the foot jumped that far in the frame it was released, while it was
-    still the lower foot. Here the root travels what the held foot says: the distance left at
-    the last fully held frame is given to the root over the stance (a smootherstep from the
-    first predicted frame, so the join keeps its velocity and acceleration) and kept after it.
+    still the lower foot (on CMU 35_08 from a few starts too: 1.3-1.6 cm). Here the root
+    travels what the held foot says: the distance left at the last fully held frame is given to
+    the root over the stance and kept after it, a smootherstep from the first predicted frame
+    (the join keeps its velocity and acceleration) over the stance, or over ``JOIN_S`` if the
+    stance is shorter (a walk restyled to careful leaves its held foot 3.7 cm behind after
+    0.15 s: given back that fast, the hips would decelerate beyond the capture's own).
 
     Parameters
     ----------
@@ -328,17 +330,19 @@ def _held_over_the_join(points, targets, pins, first, fps):
     pins : ndarray, shape (N, F)
     first : int
         Index of the first predicted frame.
+    fps : float
     """
     held, ends = [], []
     for f in range(pins.shape[1]):
         if pins[first, f] <= 0.0:
             continue
         full = np.flatnonzero(pins[first:, f] >= 1.0)
-        if not len(full) or full[0] > PIN_EASE_FRAMES:      # pinned fully within the ease-in
+        if not len(full) or full[0] > np.ceil(PIN_RAMP_S * fps):     # not eased in from the join
             continue
-        free = np.flatnonzero(pins[first + full[0]:, f] < 1.0)
+        start = first + int(full[0])
+        free = np.flatnonzero(pins[start:, f] < 1.0)
         held.append(f)
-        ends.append(first + full[0] + (int(free[0]) if len(free) else len(pins)) - 1)
+        ends.append(start + int(free[0]) - 1 if len(free) else len(pins) - 1)
     if not held:
         return None
     f = held[int(np.argmax(ends))]              # the foot that carries on (not a trailing one)
