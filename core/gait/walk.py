@@ -319,9 +319,11 @@ def _held_over_the_join(points, targets, pins, first, fps):
     still the lower foot (on CMU 35_08 from a few starts too: 1.3-1.6 cm). Here the root
     travels what the held foot says: the distance left at the last fully held frame is given to
     the root over the stance and kept after it, a smootherstep from the first predicted frame
-    (the join keeps its velocity and acceleration) over the stance, or over ``JOIN_S`` if the
-    stance is shorter (a walk restyled to careful leaves its held foot 3.7 cm behind after
-    0.15 s: given back that fast, the hips would decelerate beyond the capture's own).
+    (the join keeps its velocity and acceleration). Only for a stance that outlasts the join
+    (``JOIN_S``): a foot released while the join is still fading (a trailing foot, or a walk
+    restyled to careful) is left as before; its gap is the fade's still moving root, given to
+    the root that fast it moved the next stance (the metarig's landing foot bent 2-4° off the
+    CMU skeleton's, a careful walk's hips decelerated beyond the capture's own).
 
     Parameters
     ----------
@@ -347,11 +349,10 @@ def _held_over_the_join(points, targets, pins, first, fps):
         return None
     f = held[int(np.argmax(ends))]              # the foot that carries on (not a trailing one)
     end = max(ends)
-    if end <= first or end >= len(pins) - 1:  # released after the prediction: nothing jumps
+    if end - first < JOIN_S * fps or end >= len(pins) - 1:
         return None
     gap = targets[end, f, :2] - points[end, f, :2]
-    span = max(end - first, JOIN_S * fps)
-    ramp = smootherstep((np.arange(len(pins)) - first) / span)
+    ramp = smootherstep((np.arange(len(pins)) - first) / (end - first))
     return ramp[:, None] * gap[None, :]
 
 
