@@ -5,8 +5,7 @@
 
 Runs ``track_keyframes`` serially (``processes=1``) under cProfile and prints the cumulative
 seconds of the phases docs/tracking.md's profile tables name (pyramid, seed, loop, acceptance
-and the calls inside them), then the top functions by own time. ``--frames-level 1`` hands the
-core the frames reduced to half size first (what the half-resolution read would give it).
+and the calls inside them), then the top functions by own time.
 """
 
 import argparse
