@@ -47,6 +47,7 @@ GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
+MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
 
 
 @dataclass(frozen=True)
@@ -206,17 +207,64 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
                                          omega_to, weights, blend)
         obs[:, yaw] += request.turn
     last = reference[-1]
-    rows = dofs_from_observations(model, obs, last[cols], fps, request.stride, request.travel)
-    out = np.tile(last, (len(rows), 1))
-    out[:, cols] = rows
-    floor = None
     feet = tuple(feet) if feet is not None else ()
-    if model.root_travel and len(out) and len(feet) == 2 \
-            and all(f in skeleton.names for f in feet):
-        floor = reference_floor(skeleton, reference, fps, feet, model.root_frame)
-        _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
-               model.root_frame, omega_to * fps / (2.0 * np.pi))
+    planted = model.root_travel and len(obs) and len(feet) == 2 \
+        and all(f in skeleton.names for f in feet)
+    floor = reference_floor(skeleton, reference, fps, feet, model.root_frame) if planted \
+        else None
+
+    def keyed(obs):
+        rows = dofs_from_observations(model, obs, last[cols], fps, request.stride,
+                                      request.travel)
+        out = np.tile(last, (len(rows), 1))
+        out[:, cols] = rows
+        if planted:
+            _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
+                   model.root_frame, omega_to * fps / (2.0 * np.pi))
+        return out
+
+    out = keyed(obs)
+    if planted and request.travel and request.plant and request.turn == 0.0:
+        # The legs of another style need not carry the hips straight ahead of the pelvis (its
+        # source walkers' pelvis faces a few degrees off their path: long stride 6°, sneaking
+        # slowed down 14°), so keeping the facing let the walk travel off the reference's path.
+        # The path is what an animator keeps: turn the whole walk after the join by the
+        # difference (the legs' travel turns with the facing) and solve again.
+        drift = _travel_drift(reference, out, names, omega, omega_to, blend)
+        if drift:
+            obs[:, yaw] -= drift * np.diff(np.concatenate(([0.0], weights))) * fps
+            out = keyed(obs)
     return WalkResult(out, floor, w_to, float(omega_to), float(blend))
+
+
+def _travel_direction(rows, tx, ty, a, b):
+    """Direction (rad) of the root's horizontal displacement from row a to row b - 1 and its
+    length (m)."""
+    d = rows[b - 1, [tx, ty]] - rows[a, [tx, ty]]
+    return float(np.arctan2(d[1], d[0])), float(np.hypot(d[0], d[1]))
+
+
+def _travel_drift(reference, out, names, omega, omega_to, blend):
+    """Angle (rad) by which the prediction's path after the join (its whole cycles; a cycle's
+    displacement cancels the sway within it) turns from the reference's over its last cycle;
+    0 where either is shorter than a cycle or barely moves (``MIN_TRAVEL``: a standing start
+    has no path to keep)."""
+    tx, ty = (names.index(n) for n in ROOT_DOF_NAMES[:2])
+    ref_cycle = int(round(2.0 * np.pi / omega))
+    cycle = int(round(2.0 * np.pi / omega_to))
+    start = int(np.ceil(blend))
+    if ref_cycle < 2 or cycle < 2 or len(reference) < ref_cycle + 1:
+        return 0.0
+    start = min(start, len(out) - 1 - cycle)
+    if start < 0:
+        return 0.0
+    span = (len(out) - 1 - start) // cycle * cycle             # whole cycles of frame steps
+    ref_dir, ref_len = _travel_direction(reference, tx, ty, len(reference) - ref_cycle - 1,
+                                         len(reference))
+    dir_, length = _travel_direction(out, tx, ty, start, start + span + 1)
+    if min(ref_len, length) < MIN_TRAVEL:
+        return 0.0
+    return float(np.angle(np.exp(1j * (dir_ - ref_dir))))
 
 
 def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weights, blend):

@@ -854,3 +854,33 @@ def test_a_careful_walk_slowed_down_walks_where_its_legs_go_through_the_operator
     f = walk_summary(skeleton, pred, FPS, period_frames(pred[:, 6:]), floor=floor)
     assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0
     assert f["speed_m_s"] > 0.05                   # it walks (0.1 m/s), not on the spot
+
+
+def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp_path):
+    """Issue 25, straight unless asked: the heading to keep is the observed walk's path, not
+    only its facing. Another style's legs need not carry the hips straight ahead of the pelvis
+    (its source walkers' pelvis faces a few degrees off their path), so with the facing kept
+    CMU 35_01 restyled to sneaking walked 6.0° off its observed path and to brisk 4.6° (over
+    the last whole cycle, where the sway cancels). The walk now turns by that difference after
+    the join (docs/gait.md, *Straight unless asked*)."""
+    name, skeleton, layout, _ = observed_walk_on_floor(tmp_path, "35_01")
+
+    def cycle_frames(rows):             # a sneaking cycle is over half the prediction
+        x = rows[:, 6:] - rows[:, 6:].mean(axis=0)
+        n = len(x)
+        ac = [np.sum(x[:n - k] * x[k:]) / (n - k) for k in range(n - 60)]
+        return 40 + int(np.argmax(ac[40:]))
+
+    def path_deg(rows, cycle):
+        d = rows[-1, :2] - rows[-1 - cycle, :2]
+        return np.degrees(np.arctan2(d[1], d[0]))
+
+    capture, _ = trial_dofs("35_01")
+    ref_cycle = cycle_frames(capture[:N_OBS * 3])           # 100 frames hold 1.5 cycles
+    for style in ("sneaking", "brisk"):
+        assert bpy.ops.track_and_stride.predict_gait(
+            horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to=style,
+            restyle_amount=1.0) == {"FINISHED"}
+        ref, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+        turn = path_deg(pred, cycle_frames(pred)) - path_deg(ref, ref_cycle)
+        assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
