@@ -884,3 +884,27 @@ def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp
         ref, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
         turn = path_deg(pred, cycle_frames(pred)) - path_deg(ref, ref_cycle)
         assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
+
+
+def test_a_walk_from_standing_is_refused_or_warned_in_plain_words(scene, tmp_path):
+    """Issue 25, standing starts: a reference that starts from standing was refused as "boxing,
+    gesturing or stepping on the spot" (CMU 120_09, which stands for 0.8 s and then walks), or,
+    when it travelled enough, predicted as a shuffle with no word said (74_01 frames 1-100,
+    speeding up from 0.33 to 0.83 m/s: 73 steps/min at 0.08 m/s, where its frames 101-200
+    give 125 steps/min at 0.75 m/s). The refusal now says what to do when the range starts
+    from standing, and the start is warned of (docs/gait.md, *Saying no*)."""
+    (tmp_path / "stand").mkdir()
+    obj = import_observed(tmp_path / "stand", "120_09", n=150)
+    keys = snapshot(obj)
+    with pytest.raises(RuntimeError, match="stays in place in .*If it starts from standing "
+                                           r"\(its last third walks at 0.\d\d m/s\), start "
+                                           "the range where the walk has begun"):
+        bpy.ops.track_and_stride.predict_gait(horizon=2.0)
+    assert_keys_unchanged(obj, keys)
+    (tmp_path / "start").mkdir()
+    walker = import_observed(tmp_path / "start", "74_01")
+    out = bridge("gait.bridge").predict(walker.name, model=STOCK_NAME, frames=(1, N_OBS),
+                                        horizon=2.0)
+    assert out["status"] == "warning"
+    assert any("speeds up" in w and "a range where the walk is under way" in w
+               for w in out["warnings"]), out["warnings"]
