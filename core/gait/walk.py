@@ -13,7 +13,10 @@ last observed frame) and a :class:`WalkRequest` into DOF rows of the walker's sk
    cadence_style``; ``retime='fast_forward'`` plays the same walk faster instead.
 3. **Straight unless asked**: the styles' mean turn rate over a cycle is removed from the
    predicted yaw rate and ``turn`` (rad/s) added: the walker keeps the heading of the
-   reference frames (the heading still sways within a cycle).
+   reference frames (the heading still sways within a cycle); and without a turn the walk
+   after the join is turned so that its path over whole cycles goes where the reference's
+   last cycle went (another style's legs carry the hips a few degrees off the pelvis's
+   facing).
 4. **Grounded and planted** (:mod:`.planting`): the root height puts the lower foot on the
    floor of the reference frames (measured on the walker's own legs), and with ``plant`` the
    root travels exactly as the stance foot implies (no sliding, no moonwalk), times
