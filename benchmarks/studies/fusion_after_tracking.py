@@ -38,7 +38,8 @@ from core.tracking.calibration import read_calibration  # noqa: E402
 from core.tracking.camera import PinholeCamera  # noqa: E402
 from core.tracking.jacobians import ancestor_matrix, motion_layout  # noqa: E402
 from core.tracking.keypoint_cue import CameraKeypoints  # noqa: E402
-from core.tracking.keypoint_fusion import fuse_keypoints, key_noise  # noqa: E402
+from core.tracking.keypoint_fusion import (fuse_keypoints, fusion_targets, key_noise,  # noqa: E402
+                                           pooled_drift)
 from types import SimpleNamespace  # noqa: E402
 
 
@@ -120,6 +121,10 @@ def main():
                    help="--core: the prior grows towards the keys "
                    "(keypoint_fusion.drift_prior_weights; the weight this many frames from "
                    "a key); 0: constant")
+    p.add_argument("--measured", action="store_true",
+                   help="--core --key-noise: the prior's weight from the tracker's drift "
+                   "measured on the camera (keypoint_fusion.measured_prior_weights, stop "
+                   "36); --weights are then its scale")
     a = p.parse_args()
     cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
     views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
@@ -182,10 +187,18 @@ def main():
                                               t_l[ki], whole, ki, s)
                         kp = CameraKeypoints(pixels[sl], c0[sl], rig.joint_bones,
                                              rig.joint_offsets, mirror=mirror, noise_px=noise)
+                        kk = np.array(keys) - keys[0]
+                        if a.measured:
+                            tg_, c_ = fusion_targets(sk, problem.cameras[0], t_r[sl], t_l[sl],
+                                                     kp, kk, s)
+                            row["drift"] = pooled_drift(sk, problem.cameras,
+                                                        [(tg_, c_, kp.joints, kp.points)],
+                                                        [noise], t_r[sl], t_l[sl], kk)
                         r, lo, _ = fuse_keypoints(problem, t_r[sl], t_l[sl],
-                                                  np.array(keys) - keys[0], [kp], w, s,
+                                                  kk, [kp], w, s,
                                                   a.huber or None, a.threshold or None,
-                                                  drift_frames=a.drift_frames or None)
+                                                  drift_frames=a.drift_frames or None,
+                                                  measured_scale=w if a.measured else None)
                         j = tracked.copy()
                         j[sl] = rig.pose_joints(r, lo)
                         row[f"s{s}_w{w:g}"] = err(j)
