@@ -15,6 +15,12 @@ cam01: ``keypoint_fusion.DRIFT_EXPONENT``).
         --blender build/bench/real/blender.npz --detections-cache build/bench/detections.npz \
         --cameras cam01 --spacings 10 20 30 --drift-growth
 
+Stop 36: ``--core --key-noise --measured --weights 0.1`` takes the prior's weight from the
+tracker's drift measured on each camera (``keypoint_fusion.pooled_drift``: the targets'
+disagreement with the tracked projections beyond the keypoints' noise), ``--weights`` being
+its scale (``TrackingOptions.keypoint_drift_scale``, chosen on cam01); each run prints the
+measured drift (``drift_e4``, 10^-4 (px / body size)^2 at one frame from a key).
+
 Conclusion (the weight and window of ``TrackingOptions``, chosen on cam01; the held-out
 cameras): ``docs/tracking.md`` *2D keypoints as a cue*, ``docs/bench_real.md``.
 """
@@ -191,7 +197,7 @@ def main():
                         if a.measured:
                             tg_, c_ = fusion_targets(sk, problem.cameras[0], t_r[sl], t_l[sl],
                                                      kp, kk, s)
-                            row["drift"] = pooled_drift(sk, problem.cameras,
+                            row["drift_e4"] = 1e4 * pooled_drift(sk, problem.cameras,
                                                         [(tg_, c_, kp.joints, kp.points)],
                                                         [noise], t_r[sl], t_l[sl], kk)
                         r, lo, _ = fuse_keypoints(problem, t_r[sl], t_l[sl],

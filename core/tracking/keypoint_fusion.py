@@ -44,8 +44,21 @@ eq. A.8), the prior's Jacobian being the identity (exact at the prior, first ord
 the step is only kept where the true cost falls). The keys are never touched (bit for bit), nor
 frames outside the keys or listed in ``keep``.
 
-Weight, window (``TrackingOptions.keypoint_smoothing``, seconds) and the drift's growth were
-chosen on one camera of the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
+**The prior measured on the cameras** (stop 36, ``measured_scale``; what
+:func:`.parallel.track_keyframes` uses with three keys or more): ``w(d)`` above is one constant
+for every camera, yet a tracker drifts twice as far on one camera as on another. Between the
+keys the targets and the tracked projections disagree by the detector's error plus the
+tracker's; the detector's is known from the keys (:func:`key_noise`, spread between the keys
+as a random walk's bridge: :func:`target_noise_shape`), so what is left is the tracker's,
+fitted to the drift law per camera (:func:`tracker_drift`), in body units
+(:func:`body_size_px`) pooled over the cameras (:func:`pooled_drift`), and the prior weighs
+its inverse (:func:`measured_prior_weights`). A camera where the keypoints agree with the
+tracker up to their noise fuses nothing.
+
+Weight, window (``TrackingOptions.keypoint_smoothing``, seconds), the drift's growth and the
+measured prior's scale (``TrackingOptions.keypoint_drift_scale``) were chosen on one camera of
+the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints
+as a cue*). NumPy only.
 """
 
 import warnings
