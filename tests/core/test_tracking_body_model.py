@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from core.kinematics import exp_so3, forward_kinematics
+from core.tracking import body_model
 from core.tracking.body_model import (BodyModel, body_model_from_skeleton, joint_frames_in_camera,
                                       part_geometry, ray_cast, sample_silhouette)
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
@@ -129,6 +130,35 @@ def test_occlusion_front_part_wins():
     assert both.sum() > 50                        # the back arm really is behind the torso here
     assert not np.any(full.parts[both] == back)  # never seen through the torso
     assert np.isin(full.parts, [2, 3]).sum() > 20  # the back arm shows where it sticks out
+
+
+def test_front_most_picks_the_nearest_pair_and_the_lower_part_on_ties():
+    """The front-most step against a dense (rays, parts) table's argmin (the rule it
+    implements): pairs in any order, exact depth ties (lower part wins), rays whose pairs all
+    miss, rays without pairs."""
+    rng = np.random.default_rng(11)
+    body = chain_body(chain_skeleton(rng, depth=6))
+    m, n = 400, body.n_parts
+    cells = rng.random((m, n)) < 0.4
+    cells[:40] = False                                       # rays without pairs
+    ray_idx, part_idx = np.nonzero(cells)
+    t = rng.choice([1.0, 1.5, 2.0, 2.5, np.inf], size=len(ray_idx))   # many exact ties
+    face = rng.integers(0, 3, len(ray_idx)).astype(np.int8)
+    order = rng.permutation(len(ray_idx))
+    hit, depth, parts, faces = body_model._front_most(
+        body, np.zeros((m, 3)), ray_idx[order], part_idx[order], t[order], face[order])
+    table = np.full((m, n), np.inf)
+    table[ray_idx, part_idx] = t
+    faces_table = np.zeros((m, n), dtype=np.int8)
+    faces_table[ray_idx, part_idx] = face
+    best = table.argmin(axis=1)                              # first (lowest) part at the minimum
+    want_depth = table[np.arange(m), best]
+    want_hit = np.isfinite(want_depth)
+    assert 50 < want_hit.sum() < m - 40 and np.any(np.isinf(t))
+    np.testing.assert_array_equal(depth, want_depth)
+    np.testing.assert_array_equal(hit, want_hit)
+    np.testing.assert_array_equal(parts, np.where(want_hit, best, -1))
+    np.testing.assert_array_equal(faces[hit], faces_table[np.arange(m), best][want_hit])
 
 
 def test_grid_sampling_equals_plain_ray_cast(scene):

@@ -41,20 +41,6 @@ def test_ray_cast_in_blocks_equals_one_block(monkeypatch):
         np.testing.assert_array_equal(_fields(blocks)[name], value, err_msg=name)
 
 
-def test_silhouette_samples_in_blocks_equal_one_block(monkeypatch):
-    rng = np.random.default_rng(6)
-    skeleton = chain_skeleton(rng, depth=10)
-    body, cam = chain_body(skeleton), camera()
-    rot, org = _poses(rng, skeleton, 4)
-    whole = sample_silhouette(body, cam, rot, org, budget=400)
-    assert whole.count > 400
-    monkeypatch.setattr(body_model, "PAIR_BUDGET", 5 * body.n_parts)
-    blocks = sample_silhouette(body, cam, rot, org, budget=400)
-    for name in ("frames", "pixels", "points", "joints", "parts", "interior", "node_parts",
-                 "node_depth"):
-        np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name), err_msg=name)
-
-
 @pytest.fixture(scope="module")
 def rig():
     """A 706-bone synthetic rig (704 parts) seen at 1920x1080."""

@@ -18,7 +18,8 @@ from tests.core.tracking_fixtures import front_camera, render, two_arm_body, two
 RNG = np.random.default_rng(23)
 
 
-@pytest.mark.parametrize("shape", [(7, 9), (8, 10), (3, 2, 2), (2, 3, 3), (2, 13, 6), (5, 4)])
+@pytest.mark.parametrize("shape", [(7, 9), (8, 10), (3, 2, 2), (2, 3, 3), (2, 13, 6), (5, 4),
+                                   (2, 3, 7, 6)])
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_pyr_down_equals_the_binomial_reference(shape, dtype):
     """Odd and even sizes, stacks, the smallest images, both float types (SciPy reference)."""
