@@ -15,8 +15,10 @@ Protocol:
 * **Figures** (``walk_figures``): lowest foot against the reference floor, skate and slip of the
   lower foot, root speed over the legs' implied speed, the join's acceleration over the
   captured walk's 99th percentile (root m/s² and the joint angles' norm, second differences over
-  ``JOIN_SPACING_S`` = 0.05 s: frame-to-frame differences of mocap are marker noise), heading
-  drift over 4 s, stride, hip swing, knee range, steps per minute.
+  ``JOIN_SPACING_S`` = 0.05 s: frame-to-frame differences of mocap are marker noise; the join
+  is the whole blend, :func:`join_ratio`), heading drift (where the walk goes against where the
+  observed walk went, :func:`heading_drift_deg`), stride, hip swing, knee range, steps per
+  minute.
 * **References**: the captured trials of each style (``STOCK_RECIPE``, all subjects), whole
   moving stretches, each with its own skeleton; the brisk walks are the target of retiming up.
 """
@@ -100,30 +102,84 @@ def acceleration_norms(rows, angle_cols, spacing):
     return np.linalg.norm(acc[:, :3], axis=1), np.linalg.norm(acc[:, angle_cols], axis=1)
 
 
-def join_ratio(reference, predicted, capture, names):
-    """Largest acceleration around the join over the capture's 99th percentile: (root ratio,
-    angles ratio). The join's accelerations are the second differences (over ``spacing``)
-    whose stencil holds both reference and predicted frames."""
+def join_ratio(reference, predicted, capture, names, blend_frames):
+    """Largest acceleration over the join over the capture's 99th percentile.
+
+    The join is the whole transition: every second difference (over ``JOIN_SPACING_S``) whose
+    stencil reaches a predicted frame, from the one that still holds reference frames to the
+    one centred on the blend's end (``blend_frames`` after the last reference frame: the
+    observed walk turns into the requested one over a step). Measured only over the stencils
+    that reach the first 3 predicted frames (before stop 36) it read the observed walk: 0.75
+    for the angles in every case, whatever the style.
+
+    Returns
+    -------
+    dict
+        ``join_root_ratio``, ``join_angles_ratio`` (over the capture's 99th percentile),
+        ``steady_root_ratio``, ``steady_angles_ratio`` (the prediction's own largest after
+        the blend over the capture's 99th percentile: what the requested walk does once
+        joined; a faster walk accelerates more everywhere, not only at the join) and
+        ``join_vs_steady`` (the join's largest over the larger of the two, root or angles,
+        whichever is higher: > 1 is a jolt beyond both walks. The steady walk's largest, not
+        its 99th percentile: the join's largest over a window holding a cycle of the same
+        walk would exceed that by chance).
+    """
     h = max(1, int(round(JOIN_SPACING_S * FPS)))
     angles = [i for i, n in enumerate(names) if n not in ROOT_DOF_NAMES]
     cap_root, cap_ang = acceleration_norms(capture, angles, h)
     rows = np.vstack([reference, predicted])
     root, ang = acceleration_norms(rows, angles, h)
-    # Every second difference whose stencil reaches a predicted frame and the reference.
-    window = slice(len(reference) - 2 * h, len(reference))
-    return (float(root[window].max() / np.percentile(cap_root, 99)),
-            float(ang[window].max() / np.percentile(cap_ang, 99)))
+    n_ref, end = len(reference), len(reference) + int(np.ceil(blend_frames))
+    # Row i is centred on frame i + h: rows n_ref - 2h … end - h reach from the last stencil
+    # that holds only one predicted frame to the one centred on the blend's end.
+    window = slice(n_ref - 2 * h, end - h + 1)
+    steady = slice(end - h + 1, len(root))
+    p_root, p_ang = np.percentile(cap_root, 99), np.percentile(cap_ang, 99)
+    s_root = root[steady].max() if len(root[steady]) else 0.0
+    s_ang = ang[steady].max() if len(ang[steady]) else 0.0
+    return {"join_root_ratio": float(root[window].max() / p_root),
+            "join_angles_ratio": float(ang[window].max() / p_ang),
+            "steady_root_ratio": float(s_root / p_root),
+            "steady_angles_ratio": float(s_ang / p_ang),
+            "join_vs_steady": float(max(root[window].max() / max(p_root, s_root),
+                                        ang[window].max() / max(p_ang, s_ang)))}
+
+
+def path_direction(rows, cols, a, b):
+    """Direction (degrees) of the root's horizontal displacement from row a to row b."""
+    d = rows[b, cols[:2]] - rows[a, cols[:2]]
+    return float(np.degrees(np.arctan2(d[1], d[0])))
 
 
 def heading_drift_deg(skeleton, reference, predicted, period_ref, period_pred, frame):
-    """Mean heading over the prediction's last cycle minus over the reference's last cycle."""
+    """How far the walk leaves the observed walk's heading, degrees.
+
+    Returns
+    -------
+    dict
+        ``heading_drift_deg``: the direction of the prediction's path over its last whole
+        cycle (the sway within a cycle cancels; all of it when shorter than a cycle) minus the
+        reference's over its last cycle: where the walk goes. ``facing_drift_deg``: the mean
+        facing over the prediction's last cycle minus over the reference's last (what this
+        figure measured before stop 36: it passed a walk whose legs carried it off its path
+        while the pelvis kept facing ahead). ``path_4s_deg``: the direction of the whole
+        prediction's displacement minus the reference's path (sway and the join's first
+        step included; not a goal).
+    """
     cols = [skeleton.dof_names().index(n) for n in ROOT_DOF_NAMES]
     both = np.vstack([reference, predicted])
     heading = heading_angles(root_rotations(both[:, cols], frame), frame)
-    n_ref = len(reference)
+    n_ref, n = len(reference), len(predicted)
     a = max(0, n_ref - int(round(period_ref)))
     b = int(round(period_pred))
-    return float(np.degrees(heading[-b:].mean() - heading[a:n_ref].mean()))
+    facing = float(np.degrees(heading[-b:].mean() - heading[a:n_ref].mean()))
+    ref_dir = path_direction(reference, cols, a, n_ref - 1)
+    c = min(b, n - 1)
+    wrap = lambda d: float((d + 180.0) % 360.0 - 180.0)  # noqa: E731
+    return {"heading_drift_deg": wrap(path_direction(predicted, cols, n - 1 - c, n - 1)
+                                      - ref_dir),
+            "facing_drift_deg": facing,
+            "path_4s_deg": wrap(path_direction(predicted, cols, 0, n - 1) - ref_dir)}
 
 
 def run_restyle(model=None, walker=WALKER, reference=REFERENCE, cadences=CADENCES):
@@ -162,12 +218,12 @@ def run_restyle(model=None, walker=WALKER, reference=REFERENCE, cadences=CADENCE
                 timings.append(time.perf_counter() - t0)
                 period = 2 * np.pi / walk.omega
                 figs = walk_summary(skeleton, walk.dofs, FPS, period, floor=floor)
-                root_r, ang_r = join_ratio(ref, walk.dofs, values, names)
-                figs.update({"join_root_ratio": root_r, "join_angles_ratio": ang_r,
-                             "join_accel_ratio": max(root_r, ang_r),
-                             "heading_drift_deg": heading_drift_deg(
-                                 skeleton, ref, walk.dofs, period_ref, period,
-                                 model.root_frame)})
+                join = join_ratio(ref, walk.dofs, values, names, walk.blend_frames)
+                figs.update(join)
+                figs["join_accel_ratio"] = max(join["join_root_ratio"],
+                                               join["join_angles_ratio"])
+                figs.update(heading_drift_deg(skeleton, ref, walk.dofs, period_ref, period,
+                                              model.root_frame))
                 row[mode] = figs
             row.update(_verdict(style, cadence, row, refs))
             cases[style][f"{cadence:g}"] = row
@@ -210,14 +266,21 @@ def _summary(cases):
             for name, ok in r["checks"].items():
                 if not ok:
                     failed.setdefault(name, []).append(f"{style}@{cad}")
-    return {"cases": len(rows), "met": sum(r["met"] for r in rows), "failed": failed}
+    # The join judged against the larger of the capture's 99th percentile and the requested
+    # walk's own largest after the join: a faster walk accelerates more everywhere.
+    beyond = sum(all(ok for name, ok in r["checks"].items() if name != "join")
+                 and r["natural"]["join_vs_steady"] <= GOALS["join_accel_ratio"] for r in rows)
+    return {"cases": len(rows), "met": sum(r["met"] for r in rows), "failed": failed,
+            "met_with_join_vs_steady": beyond}
 
 
 def print_restyle(block):
     """Print the table."""
     keys = ("steps_per_min", "stride_m", "hip_swing_deg", "lowest_foot_cm", "skate_cm_s",
-            "slip_cm_s", "root_vs_legs", "join_accel_ratio", "heading_drift_deg")
-    head = ("spm", "stride", "swing", "low_cm", "skate", "slip", "rt/legs", "join", "drift")
+            "slip_cm_s", "root_vs_legs", "join_root_ratio", "join_angles_ratio",
+            "join_vs_steady", "heading_drift_deg", "facing_drift_deg", "path_4s_deg")
+    head = ("spm", "stride", "swing", "low_cm", "skate", "slip", "rt/legs", "j_root", "j_ang",
+            "j/stdy", "drift", "facing", "path4s")
     print(f"\nRestyle/retime of {block['walker']} (held out; reference frames "
           f"{block['reference_frames']}, {block['predict_s']:g} s predicted; natural retiming, "
           f"fast-forward stride/swing in brackets)")
@@ -234,5 +297,7 @@ def print_restyle(block):
         print(f"  {style:12s} {c['skate_cm_s']:6.2f} {c['slip_cm_s']:6.2f} {c['stride_m']:5.2f} "
               f"{c['hip_swing_deg']:6.1f} {c['steps_per_min']:6.1f}  ({', '.join(c['trials'])})")
     s = block["summary"]
-    print(f"goals met in {s['met']} of {s['cases']} cases; predict_walk median "
+    print(f"goals met in {s['met']} of {s['cases']} cases ({s['met_with_join_vs_steady']} with "
+          f"the join judged against the larger of the capture's 99th percentile "
+          f"and the walk's own largest after the join); predict_walk median "
           f"{block['predict_walk_ms_median']:.1f} ms; failed: {s['failed']}")

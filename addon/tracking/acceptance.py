@@ -70,7 +70,7 @@ def _partly_note(span, verdicts, partly):
             f"keys — {whats}; the footage only partly supported it ({whys})")
 
 
-def interval_notes(key_frames, intervals):
+def interval_notes(key_frames, intervals, keypoints_fused=None):
     """Plain-words lines per interval where a body part kept the in-between of the keys
     (binary reverts, when switched on) or less than half of its tracked motion (the blend).
 
@@ -80,6 +80,10 @@ def interval_notes(key_frames, intervals):
         Scene frames of the keys (K,).
     intervals : sequence of IntervalResult
         K - 1 results (``acceptance`` may be None: an interval nothing tracked).
+    keypoints_fused : ndarray, shape (key_frames[-1] - key_frames[0] + 1,), bool, optional
+        The frames the core fitted to 2D keypoints over the whole clip
+        (``SequenceResult.keypoints_fused``); None: each interval says
+        (``IntervalResult.keypoint_fusion``).
 
     Returns
     -------
@@ -97,7 +101,10 @@ def interval_notes(key_frames, intervals):
         verdicts = r.acceptance
         if verdicts is None or all(x == NOT_TRACKED for x in verdicts.reasons):
             if r.kept_iteration == 0 and int(key_frames[i + 1]) - int(key_frames[i]) > 1:
-                if getattr(r, "keypoint_fusion", None) is not None:
+                a, b = int(key_frames[i]) - int(key_frames[0]), \
+                    int(key_frames[i + 1]) - int(key_frames[0])
+                if getattr(r, "keypoint_fusion", None) is not None or (
+                        keypoints_fused is not None and np.any(keypoints_fused[a + 1:b])):
                     notes.append(f"{span}: no tracked motion matched the footage better than "
                                  "the in-between of your keys; the in-between was fitted to "
                                  "the 2D keypoints")

@@ -561,7 +561,8 @@ def apply_result(context, request, result):
                       result.intervals)
     request.timings["write"] = time.perf_counter() - tic
     request.written = int(written)
-    warnings = interval_notes(request.key_frames.tolist(), result.intervals) \
+    warnings = interval_notes(request.key_frames.tolist(), result.intervals,
+                              getattr(result, "keypoints_fused", None)) \
         + unmatched_notes(request.key_frames.tolist(), result.intervals)
     n_int = len(result.intervals)
     views = (f", {request.n_views} cameras: {', '.join(request.view_names)}"

@@ -15,6 +15,12 @@ cam01: ``keypoint_fusion.DRIFT_EXPONENT``).
         --blender build/bench/real/blender.npz --detections-cache build/bench/detections.npz \
         --cameras cam01 --spacings 10 20 30 --drift-growth
 
+Stop 36: ``--core --key-noise --measured --weights 0.1`` takes the prior's weight from the
+tracker's drift measured on each camera (``keypoint_fusion.pooled_drift``: the targets'
+disagreement with the tracked projections beyond the keypoints' noise), ``--weights`` being
+its scale (``TrackingOptions.keypoint_drift_scale``, chosen on cam01); each run prints the
+measured drift (``drift_e4``, 10^-4 (px / body size)^2 at one frame from a key).
+
 Conclusion (the weight and window of ``TrackingOptions``, chosen on cam01; the held-out
 cameras): ``docs/tracking.md`` *2D keypoints as a cue*, ``docs/bench_real.md``.
 """
@@ -38,7 +44,8 @@ from core.tracking.calibration import read_calibration  # noqa: E402
 from core.tracking.camera import PinholeCamera  # noqa: E402
 from core.tracking.jacobians import ancestor_matrix, motion_layout  # noqa: E402
 from core.tracking.keypoint_cue import CameraKeypoints  # noqa: E402
-from core.tracking.keypoint_fusion import fuse_keypoints, key_noise  # noqa: E402
+from core.tracking.keypoint_fusion import (fuse_keypoints, fusion_targets, key_noise,  # noqa: E402
+                                           pooled_drift)
 from types import SimpleNamespace  # noqa: E402
 
 
@@ -120,6 +127,10 @@ def main():
                    help="--core: the prior grows towards the keys "
                    "(keypoint_fusion.drift_prior_weights; the weight this many frames from "
                    "a key); 0: constant")
+    p.add_argument("--measured", action="store_true",
+                   help="--core --key-noise: the prior's weight from the tracker's drift "
+                   "measured on the camera (keypoint_fusion.measured_prior_weights, stop "
+                   "36); --weights are then its scale")
     a = p.parse_args()
     cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
     views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
@@ -182,10 +193,18 @@ def main():
                                               t_l[ki], whole, ki, s)
                         kp = CameraKeypoints(pixels[sl], c0[sl], rig.joint_bones,
                                              rig.joint_offsets, mirror=mirror, noise_px=noise)
+                        kk = np.array(keys) - keys[0]
+                        if a.measured:
+                            tg_, c_ = fusion_targets(sk, problem.cameras[0], t_r[sl], t_l[sl],
+                                                     kp, kk, s)
+                            row["drift_e4"] = 1e4 * pooled_drift(sk, problem.cameras,
+                                                        [(tg_, c_, kp.joints, kp.points)],
+                                                        [noise], t_r[sl], t_l[sl], kk)
                         r, lo, _ = fuse_keypoints(problem, t_r[sl], t_l[sl],
-                                                  np.array(keys) - keys[0], [kp], w, s,
+                                                  kk, [kp], w, s,
                                                   a.huber or None, a.threshold or None,
-                                                  drift_frames=a.drift_frames or None)
+                                                  drift_frames=a.drift_frames or None,
+                                                  measured_scale=w if a.measured else None)
                         j = tracked.copy()
                         j[sl] = rig.pose_joints(r, lo)
                         row[f"s{s}_w{w:g}"] = err(j)

@@ -18,7 +18,9 @@ join over the leave-one-walker-out windows.
 3. **The join.** The six fold models and the windows Predict Gait accepts (``check_gait``),
    ``predict_walk`` with defaults: per subject, the windows whose root acceleration across the
    join exceeds the trial's 99th percentile, against the captured continuation, and how many
-   of them reach that ratio elsewhere in the prediction as well.
+   of them reach that ratio elsewhere in the prediction as well. The join: the stencils that
+   reach the first 3 predicted frames (``keyed``, ``captured``: the figure of stops 31-35)
+   and the whole step the join blends over (``keyed_step``, ``captured_step``, since stop 36).
 
 About 3 min on the 2-core machine (``careful`` or ``join`` alone: those sections)::
 
@@ -145,11 +147,11 @@ def join():
     print("3. root acceleration across the join over the trial's 99th percentile (> 1)")
     h = max(1, int(round(R.JOIN_SPACING_S * FPS)))
     total = {"keyed": 0, "captured": 0, "elsewhere": 0, "windows": 0,
-             "prediction_p99_over": 0}
+             "prediction_p99_over": 0, "keyed_step": 0, "captured_step": 0}
     for subject in L.SUBJECTS:
         model = L.fold_model(L.Method("method"), [s for s in L.SUBJECTS if s != subject])
         counts = {"keyed": 0, "captured": 0, "elsewhere": 0, "windows": 0,
-                  "prediction_p99_over": 0}
+                  "prediction_p99_over": 0, "keyed_step": 0, "captured_step": 0}
         for trial, t0, stop in L.test_cases(subject):
             values, names = L.load(trial)
             values = np.asarray(values)
@@ -166,7 +168,13 @@ def join():
                 dofs = predict_walk(model, skeleton, values[a:t0], L.FPS, res.state, res.w,
                                     stop - t0, WalkRequest(), offset=res.offset,
                                     residual=res.residual, start=res.last_observation).dofs
-                ratio = R.join_ratio(values[a:t0], dofs, values, list(names))[0]
+                # The first 3 predicted frames (the figure before stop 36) and the whole
+                # step the join blends over (R.join_ratio's window since stop 36).
+                ratio = R.join_ratio(values[a:t0], dofs, values, list(names),
+                                     h - 1)["join_root_ratio"]
+                step = np.pi / res.state[0]
+                over_step = R.join_ratio(values[a:t0], dofs, values, list(names),
+                                         step)["join_root_ratio"]
                 rows = dofs[:, :3]
                 inside = np.linalg.norm(rows[2 * h:] - 2 * rows[h:-h] + rows[:-2 * h],
                                         axis=1) * (L.FPS / h) ** 2 / p99
@@ -175,7 +183,11 @@ def join():
                 counts["elsewhere"] += int(ratio > 1 and inside.max() >= ratio)
                 counts["prediction_p99_over"] += int(np.percentile(inside, 99) > 1)
                 counts["captured"] += int(R.join_ratio(values[a:t0], values[t0:stop], values,
-                                                       list(names))[0] > 1)
+                                                       list(names), h - 1)["join_root_ratio"] > 1)
+                counts["keyed_step"] += int(over_step > 1)
+                counts["captured_step"] += int(R.join_ratio(
+                    values[a:t0], values[t0:stop], values, list(names),
+                    step)["join_root_ratio"] > 1)
         print(f"   {subject}: {counts}")
         for k in total:
             total[k] += counts[k]

@@ -44,8 +44,21 @@ eq. A.8), the prior's Jacobian being the identity (exact at the prior, first ord
 the step is only kept where the true cost falls). The keys are never touched (bit for bit), nor
 frames outside the keys or listed in ``keep``.
 
-Weight, window (``TrackingOptions.keypoint_smoothing``, seconds) and the drift's growth were
-chosen on one camera of the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints as a cue*). NumPy only.
+**The prior measured on the cameras** (stop 36, ``measured_scale``; what
+:func:`.parallel.track_keyframes` uses with three keys or more): ``w(d)`` above is one constant
+for every camera, yet a tracker drifts twice as far on one camera as on another. Between the
+keys the targets and the tracked projections disagree by the detector's error plus the
+tracker's; the detector's is known from the keys (:func:`key_noise`, spread between the keys
+as a random walk's bridge: :func:`target_noise_shape`), so what is left is the tracker's,
+fitted to the drift law per camera (:func:`tracker_drift`), in body units
+(:func:`body_size_px`) pooled over the cameras (:func:`pooled_drift`), and the prior weighs
+its inverse (:func:`measured_prior_weights`). A camera where the keypoints agree with the
+tracker up to their noise fuses nothing.
+
+Weight, window (``TrackingOptions.keypoint_smoothing``, seconds), the drift's growth and the
+measured prior's scale (``TrackingOptions.keypoint_drift_scale``) were chosen on one camera of
+the real footage (cam01) and checked on the three others (``docs/tracking.md`` *2D keypoints
+as a cue*). NumPy only.
 """
 
 import warnings
@@ -377,6 +390,193 @@ def drift_prior_weights(n, keys, weight, reference_frames):
         return weight * (reference_frames / d) ** (2.0 * DRIFT_EXPONENT)
 
 
+def key_interpolation(n, keys):
+    """Per row, the distance (frames) to the nearest key and the weights ``a``, ``b`` of the
+    keys before and after in a linear interpolation between them (``a + b = 1``; a key's row
+    ``a = 1``, ``b = 0``; rows outside the keys ``a = 1`` and the distance to the first or last
+    key).
+
+    Parameters
+    ----------
+    n : int
+        Rows.
+    keys : array_like of int
+        Rows of the keys, increasing.
+
+    Returns
+    -------
+    distance, a, b : ndarray, shape (n,)
+    """
+    keys = np.asarray(keys, dtype=int)
+    rows = np.arange(n)
+    distance = np.min(np.abs(rows[:, None] - keys[None, :]), axis=1).astype(float)
+    after = np.clip(np.searchsorted(keys, rows, side="right"), 1, len(keys) - 1)
+    k0, k1 = keys[after - 1], keys[after]
+    a = np.clip((k1 - rows) / np.maximum(k1 - k0, 1).astype(float), 0.0, 1.0)
+    a = np.where((rows < keys[0]) | (rows >= keys[-1]), 1.0, a)
+    return distance, a, 1.0 - a
+
+
+def target_noise_shape(a):
+    """A target's error variance between two keys over its keypoint's :func:`key_noise` squared,
+    as a function of the interpolation weight ``a`` of the key before: ``3 a (1 - a)``.
+
+    The detector's offset wanders like a random walk (per coordinate ``q`` pixels^2 per frame),
+    so a target whose offset is interpolated between keys ``D`` frames apart misses by the
+    walk's bridge, variance ``q d_1 d_2 / D`` (``d_1 = (1 - a) D``, ``d_2 = a D``: 0 at the keys,
+    largest mid-way); :func:`key_noise` holds a key out between neighbours ``D`` frames on
+    either side and measures ``s^2 = q D / 2 / (1 + 1/4 + 1/4)``, i.e. ``q = 3 s^2 / D``
+    (evenly spaced keys). The ratio is ``3 a (1 - a)``: 0.75 mid-way.
+    """
+    a = np.asarray(a, dtype=float)
+    return 3.0 * a * (1.0 - a)
+
+
+def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONENT):
+    """How far the tracked trajectory drifts on this camera, measured where keypoints and
+    tracked pose disagree between the keys.
+
+    A target (:func:`fusion_targets`) misses the truth by the detector's error, a tracked
+    projection by the tracker's; independent, their disagreement ``t - q`` has the variance
+    per coordinate
+
+        E|t_fj - q_fj|^2 / 2 = s_j^2 (1 + a_f^2 + b_f^2) + A d_f^(2 exponent)
+
+    with ``s_j`` the keypoint's noise at the keys (:func:`key_noise`, whose model gives the
+    first term: a target's offset is interpolated between two keys with weights ``a_f``,
+    ``b_f``) and the tracker's drift growing with the distance ``d_f`` to the nearest key as
+    the drift law says (:data:`DRIFT_EXPONENT`). ``A`` is the least-squares fit of that law
+    through the excess disagreement ``e_fj = |t - q|^2 / 2 - s_j^2 (1 + a_f^2 + b_f^2)`` of
+    every used target between the keys,
+
+        A = sum e_fj d_f^(2 exponent) / sum d_f^(4 exponent),
+
+    so a camera whose tracker wanders from its keypoints more than their noise explains has
+    a larger ``A`` (the prior trusts the tracker less there).
+
+    Parameters
+    ----------
+    target, projected : ndarray, shape (n, J, 2)
+        Targets and the tracked projections of their body points (pixels).
+    used : ndarray, shape (n, J), bool
+        Targets to count.
+    noise_px : ndarray, shape (J,)
+        :func:`key_noise`.
+    keys : array_like of int
+        Rows of the keys.
+    exponent : float
+
+    Returns
+    -------
+    drift : float
+        ``A``, pixels^2 per coordinate at one frame from a key (may be <= 0: the
+        disagreement is all noise).
+    count : int
+        Targets counted.
+    """
+    distance, a, _ = key_interpolation(len(target), keys)
+    keys = np.asarray(keys, dtype=int)
+    between = (np.arange(len(target)) > keys[0]) & (np.arange(len(target)) < keys[-1]) \
+        & (distance > 0)
+    use = np.asarray(used, dtype=bool) & between[:, None]
+    if not use.any():
+        return 0.0, 0
+    half_sq = 0.5 * np.sum(np.square(np.where(use[..., None], target - projected, 0.0)), -1)
+    expected = np.square(np.asarray(noise_px, dtype=float))[None, :] \
+        * target_noise_shape(a)[:, None]
+    excess = np.where(use, half_sq - expected, 0.0)
+    g = np.where(use, (distance ** (2.0 * exponent))[:, None], 0.0)
+    return float(np.sum(excess * g) / np.sum(g * g)), int(use.sum())
+
+
+def body_size_px(projected, used):
+    """The body's size in this camera's image: per frame the RMS distance (pixels) of the used
+    keypoints' projections from their centroid, the median over frames with three or more.
+
+    Parameters
+    ----------
+    projected : ndarray, shape (n, J, 2)
+    used : ndarray, shape (n, J), bool
+
+    Returns
+    -------
+    float
+        NaN where no frame has three used keypoints.
+    """
+    used = np.asarray(used, dtype=bool)
+    count = used.sum(1)
+    ok = count >= 3
+    if not ok.any():
+        return float("nan")
+    w = used[ok][..., None]
+    p = projected[ok]
+    centre = np.sum(np.where(w, p, 0.0), 1) / count[ok][:, None]
+    spread = np.sum(np.where(w, np.square(p - centre[:, None]), 0.0), (1, 2)) / count[ok]
+    return float(np.median(np.sqrt(spread)))
+
+
+def measured_prior_weights(n, keys, scale, drift, exponent=DRIFT_EXPONENT):
+    """The fusion prior's weight per row from the tracker's measured drift: the inverse of
+    its variance in body units, ``drift d^(2 exponent)`` (``drift``: :func:`tracker_drift`'s
+    ``A`` over the square of :func:`body_size_px`, pooled over the cameras),
+
+        w = scale / (drift * d^(2 exponent))
+
+    (inf at the keys). A camera whose tracker drifts twice as far gets a quarter of the
+    weight.
+
+    Parameters
+    ----------
+    n : int
+    keys : array_like of int
+    scale, drift : float
+        ``drift`` > 0.
+    exponent : float
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    distance, _, _ = key_interpolation(n, keys)
+    with np.errstate(divide="ignore"):
+        return scale / (drift * distance ** (2.0 * exponent))
+
+
+def pooled_drift(skeleton, cameras, targets, noises, roots, local, keys):
+    """The tracker's drift in body units, pooled over the cameras: each camera's
+    :func:`tracker_drift` over the square of its :func:`body_size_px`, weighted by its count
+    of targets.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    cameras : sequence of PinholeCamera
+    targets : sequence of (target (n, J, 2), confidence (n, J), joints (J,), points (J, 3))
+        :func:`fusion_targets`' per camera (a target is used where its confidence is > 0).
+    noises : sequence of ndarray, shape (J,)
+        Each camera's :func:`key_noise`.
+    roots, local : ndarray, shape (n, 3), (n, B, 3, 3)
+        The tracked trajectory.
+    keys : array_like of int
+
+    Returns
+    -------
+    float
+        (pixels / body size)^2 per coordinate at one frame from a key; NaN where no camera
+        counted a target.
+    """
+    total, count = 0.0, 0
+    for cam, (target, conf, joints, points), noise in zip(cameras, targets, noises):
+        q, _ = project_points(skeleton, cam, roots, local, joints, points)
+        used = conf > 0
+        drift, n = tracker_drift(target, used, q, noise, keys)
+        size = body_size_px(q, used)
+        if n and np.isfinite(size) and size > 0:
+            total += n * drift / size ** 2
+            count += n
+    return total / count if count else float("nan")
+
+
 class _Frames:
     """The cost of n frames (module docstring), each its own problem, and their Gauss-Newton
     systems, all cameras; every array has the frames first.
@@ -491,7 +691,7 @@ def moved(problem, roots, local, x):
 
 def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5,
                    huber_px=20.0, threshold=None, keep=(), iterations=15,
-                   drift_frames=None):
+                   drift_frames=None, measured_scale=None):
     """The tracked trajectory's in-between frames fitted to the keypoints (module docstring).
 
     Parameters
@@ -520,6 +720,12 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
     drift_frames : float, optional
         The prior's weight grows towards the keys (:func:`drift_prior_weights`, ``weight``
         this many frames from the nearest key); None: ``weight`` everywhere.
+    measured_scale : float, optional
+        The prior's weight from the tracker's drift measured on these cameras
+        (:func:`measured_prior_weights` with this ``scale`` and the drift of
+        :func:`pooled_drift`), where every camera's keypoints have their ``noise_px``; a
+        drift of 0 or less (the disagreement is all the keypoints' noise) fuses nothing.
+        None, or a camera without ``noise_px``: ``weight`` and ``drift_frames`` as above.
 
     Returns
     -------
@@ -534,7 +740,7 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
     if weight <= 0 or keypoints is None:
         return roots, local, fused
     keys = np.asarray(keys, dtype=int)
-    cams, targets = [], []
+    cams, targets, noises = [], [], []
     for cam, kp in zip(problem.cameras, keypoints):
         if kp is None:
             continue
@@ -542,6 +748,12 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
                               threshold)
         cams.append(cam)
         targets.append((t, c, kp.joints, kp.points))
+        noises.append(kp.noise_px)
+    drift = None
+    if measured_scale is not None and all(s is not None for s in noises):
+        drift = pooled_drift(problem.skeleton, cams, targets, noises, roots, local, keys)
+        if not drift > 0.0:
+            return roots, local, fused
     inside = np.zeros(len(roots), dtype=bool)
     inside[keys[0] + 1:keys[-1]] = True
     inside[keys] = False
@@ -555,8 +767,12 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         return out_r, out_l, fused
     # Every frame its own Levenberg-Marquardt (damping, acceptance and stop per frame), all
     # frames at once.
-    prior_weight = weight if drift_frames is None else \
-        drift_prior_weights(len(roots), keys, weight, drift_frames)[rows]
+    if drift is not None:
+        prior_weight = measured_prior_weights(len(roots), keys, measured_scale, drift)[rows]
+    elif drift_frames is None:
+        prior_weight = weight
+    else:
+        prior_weight = drift_prior_weights(len(roots), keys, weight, drift_frames)[rows]
     frames = _Frames(problem, cams, [(t[rows], c[rows], j, p) for t, c, j, p in targets],
                      roots[rows], local[rows], prior_weight, huber_px)
     r0, l0 = roots[rows].copy(), local[rows].copy()

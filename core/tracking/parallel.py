@@ -59,7 +59,7 @@ import numpy as np
 
 from .foot_lock import FootLock, lock_feet
 from .keypoint_cue import per_camera
-from .keypoint_fusion import key_noise
+from .keypoint_fusion import fuse_keypoints, key_noise
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, interpolated_interval, keypoint_half_window, track_interval
 
@@ -107,6 +107,10 @@ class SequenceResult:
         in clip frames; the intervals' own trajectories are the tracker's, before the lock.
     foot_lock_notes : list of str
         Legs the lock left alone and why.
+    keypoints_fused : ndarray, shape (F,), bool, or None
+        With 2D keypoints fused over the whole clip (``TrackingOptions.keypoint_drift_scale``,
+        :func:`fuse_sequence`): the frames fitted to them (the intervals' own trajectories
+        are the tracker's, before the fusion); None where each interval fused its own.
     """
 
     frames: np.ndarray
@@ -115,6 +119,7 @@ class SequenceResult:
     intervals: list
     foot_locks: list = field(default_factory=list)
     foot_lock_notes: list = field(default_factory=list)
+    keypoints_fused: np.ndarray = None
 
     @property
     def diverged(self):
@@ -362,6 +367,10 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                                                       key_locals, frame_offsets)
     keypoints = _with_key_noise(problem, options, _check_keypoints(problem, keypoints), keys,
                                 roots, local)
+    whole_clip = _fuses_whole_clip(options, keypoints)
+    options_whole = options
+    if whole_clip:                          # the intervals track; the fusion waits for them all
+        options = replace(options, keypoint_fusion_weight=0.0)
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
     weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])
@@ -389,9 +398,62 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                              keypoints),
                             frames, workers, weights, report, stop_requested, feed)
     result = _assemble(keys, results)
+    if whole_clip:
+        options = options_whole
+        result.root_translations, result.local_rotations, result.keypoints_fused = \
+            fuse_sequence(problem, options, np.asarray(keys) - int(keys[0]),
+                          result.root_translations, result.local_rotations,
+                          [None if kp is None else replace(kp, first=kp.first - int(keys[0]))
+                           for kp in keypoints])
     if options.foot_lock:
         _lock_feet(problem, options, keys, result)
     return result
+
+
+def _fuses_whole_clip(options, keypoints):
+    """Whether the keypoints are fused once over the whole clip with the tracker's drift
+    measured there (:func:`fuse_sequence`): fusion on, a drift scale, and every camera's
+    keypoints with their noise measured at the keys."""
+    return (keypoints is not None and options.keypoint_fusion_weight > 0
+            and options.keypoint_drift_scale > 0
+            and all(kp is None or kp.noise_px is not None for kp in keypoints))
+
+
+def fuse_sequence(problem, options, index, roots, local, keypoints):
+    """The tracked clip fused with the keypoints at once (:func:`.keypoint_fusion.
+    fuse_keypoints` with ``measured_scale = options.keypoint_drift_scale``: the prior's weight
+    from the tracker's drift measured over every interval on these cameras).
+
+    The keypoints' smoothing reaches half a window past the first and last keys: there the
+    trajectory is held at the key (only the keys' offsets and the swap test read it), as an
+    interval's own fusion does (:func:`.trajectory.track_interval`).
+
+    Parameters
+    ----------
+    problem : TrackingProblem
+    options : TrackingOptions
+    index : ndarray, shape (K,), int
+        Rows of the keys, ``index[0] = 0``.
+    roots, local : ndarray, shape (F, 3), (F, B, 3, 3)
+        The assembled tracked clip.
+    keypoints : list of CameraKeypoints or None
+        One per camera, row 0 = the first key, ``noise_px`` set.
+
+    Returns
+    -------
+    roots, local : ndarray
+        New arrays.
+    fused : ndarray, shape (F,), bool
+    """
+    h = keypoint_half_window(options)
+    n = len(roots) - 1
+    cut = [None if kp is None else kp.cut(-h, n + h) for kp in keypoints]
+    padded_r = np.concatenate([np.repeat(roots[:1], h, 0), roots, np.repeat(roots[-1:], h, 0)])
+    padded_l = np.concatenate([np.repeat(local[:1], h, 0), local, np.repeat(local[-1:], h, 0)])
+    r, lo, fused = fuse_keypoints(problem, padded_r, padded_l, np.asarray(index) + h, cut,
+                                  options.keypoint_fusion_weight, h,
+                                  measured_scale=options.keypoint_drift_scale)
+    return r[h:n + h + 1], lo[h:n + h + 1], fused[h:n + h + 1]
 
 
 def _lock_feet(problem, options, keys, result):

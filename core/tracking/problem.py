@@ -265,6 +265,15 @@ class TrackingOptions:
         (:mod:`.keypoint_fusion`), and an interval keeps the fused frames where the image
         (eq. 4) does not fit them worse. The prior's weight, in keypoint noise units per rad^2;
         0: no fusion. Default chosen on one camera of the real footage.
+    keypoint_drift_scale : float
+        With three keys or more (the keypoints' noise measured at held-out keys): the
+        fusion runs once over the whole clip after every interval is tracked, its prior's
+        weight the inverse of the tracker's drift **measured on these cameras** -- the
+        disagreement between keypoints and tracked pose beyond the keypoints' noise
+        (:func:`.keypoint_fusion.pooled_drift`) -- times this scale
+        (:func:`.keypoint_fusion.measured_prior_weights`); ``keypoint_fusion_weight`` then
+        only switches it on. 0: each interval fused on its own with ``keypoint_fusion_weight``
+        and the drift law (as with two keys). Default chosen on one camera of the real footage.
     keypoint_smoothing : float
         Seconds on each side of the keypoints' smoothing over time before the fusion: the
         most whole frames at ``frame_rate`` within it (default 1/12 s: 5 frames at 60 fps,
@@ -337,6 +346,7 @@ class TrackingOptions:
     occluder_margin: float = 0.03
     keypoint_weight: float = 0.0
     keypoint_fusion_weight: float = 1000.0
+    keypoint_drift_scale: float = 0.1
     keypoint_smoothing: float = 5.0 / 60.0
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
@@ -372,6 +382,9 @@ class TrackingOptions:
         if not (np.isfinite(self.keypoint_fusion_weight) and self.keypoint_fusion_weight >= 0.0):
             raise ValueError(f"keypoint_fusion_weight must be >= 0, got "
                              f"{self.keypoint_fusion_weight}")
+        if not (np.isfinite(self.keypoint_drift_scale) and self.keypoint_drift_scale >= 0.0):
+            raise ValueError(f"keypoint_drift_scale must be >= 0, got "
+                             f"{self.keypoint_drift_scale}")
         if not (np.isfinite(self.keypoint_smoothing) and self.keypoint_smoothing >= 0.0):
             raise ValueError(f"keypoint_smoothing must be >= 0 seconds, got "
                              f"{self.keypoint_smoothing}")

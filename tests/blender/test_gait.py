@@ -854,3 +854,57 @@ def test_a_careful_walk_slowed_down_walks_where_its_legs_go_through_the_operator
     f = walk_summary(skeleton, pred, FPS, period_frames(pred[:, 6:]), floor=floor)
     assert abs(f["root_vs_legs"] - 1.0) <= 0.05 and abs(f["slip_cm_s"]) <= 5.0
     assert f["speed_m_s"] > 0.05                   # it walks (0.1 m/s), not on the spot
+
+
+def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp_path):
+    """Issue 25, straight unless asked: the heading to keep is the observed walk's path, not
+    only its facing. Another style's legs need not carry the hips straight ahead of the pelvis
+    (its source walkers' pelvis faces a few degrees off their path), so with the facing kept
+    CMU 35_01 restyled to sneaking walked 6.0° off its observed path and to brisk 4.6° (over
+    the last whole cycle, where the sway cancels). The walk now turns by that difference after
+    the join (docs/gait.md, *Straight unless asked*)."""
+    name, skeleton, layout, _ = observed_walk_on_floor(tmp_path, "35_01")
+
+    def cycle_frames(rows):             # a sneaking cycle is over half the prediction
+        x = rows[:, 6:] - rows[:, 6:].mean(axis=0)
+        n = len(x)
+        ac = [np.sum(x[:n - k] * x[k:]) / (n - k) for k in range(n - 60)]
+        return 40 + int(np.argmax(ac[40:]))
+
+    def path_deg(rows, cycle):
+        d = rows[-1, :2] - rows[-1 - cycle, :2]
+        return np.degrees(np.arctan2(d[1], d[0]))
+
+    capture, _ = trial_dofs("35_01")
+    ref_cycle = cycle_frames(capture[:N_OBS * 3])           # 100 frames hold 1.5 cycles
+    for style in ("sneaking", "brisk"):
+        assert bpy.ops.track_and_stride.predict_gait(
+            horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to=style,
+            restyle_amount=1.0) == {"FINISHED"}
+        ref, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+        turn = path_deg(pred, cycle_frames(pred)) - path_deg(ref, ref_cycle)
+        assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
+
+
+def test_a_walk_from_standing_is_refused_or_warned_in_plain_words(scene, tmp_path):
+    """Issue 25, standing starts: a reference that starts from standing was refused as "boxing,
+    gesturing or stepping on the spot" (CMU 120_09, which stands for 0.8 s and then walks), or,
+    when it travelled enough, predicted as a shuffle with no word said (74_01 frames 1-100,
+    speeding up from 0.33 to 0.83 m/s: 73 steps/min at 0.08 m/s, where its frames 101-200
+    give 125 steps/min at 0.75 m/s). The refusal now says what to do when the range starts
+    from standing, and the start is warned of (docs/gait.md, *Saying no*)."""
+    (tmp_path / "stand").mkdir()
+    obj = import_observed(tmp_path / "stand", "120_09", n=150)
+    keys = snapshot(obj)
+    with pytest.raises(RuntimeError, match="stays in place in .*If it starts from standing "
+                                           r"\(its last third walks at 0.\d\d m/s\), start "
+                                           "the range where the walk has begun"):
+        bpy.ops.track_and_stride.predict_gait(horizon=2.0)
+    assert_keys_unchanged(obj, keys)
+    (tmp_path / "start").mkdir()
+    walker = import_observed(tmp_path / "start", "74_01")
+    out = bridge("gait.bridge").predict(walker.name, model=STOCK_NAME, frames=(1, N_OBS),
+                                        horizon=2.0)
+    assert out["status"] == "warning"
+    assert any("speeds up" in w and "a range where the walk is under way" in w
+               for w in out["warnings"]), out["warnings"]

@@ -887,6 +887,23 @@ def test_report_names_each_reverted_part_with_its_own_drift_or_the_whole_body():
     assert notes_of([1, 21], [interval([True] * 5, [ok] * 5)]) == []
 
 
+def test_report_says_when_the_kept_in_between_was_fitted_to_keypoints_over_the_clip():
+    """interval_notes: an interval that kept the keys' in-between says it was fitted to the 2D
+    keypoints where the clip's fusion (SequenceResult.keypoints_fused) fitted its frames."""
+    from types import SimpleNamespace
+    notes_of = bridge("tracking.acceptance").interval_notes
+    kept = SimpleNamespace(acceptance=None, kept_iteration=0)
+    fused = np.zeros(41, dtype=bool)
+    fused[25:30] = True                                          # frames 26-30: the second
+    plain = "kept the in-between of your keys — no tracked motion matched the footage better"
+    assert notes_of([1, 21, 41], [kept, kept]) == [f"Frames 1–21: {plain}",
+                                                   f"Frames 21–41: {plain}"]
+    assert notes_of([1, 21, 41], [kept, kept], fused) == [
+        f"Frames 1–21: {plain}",
+        "Frames 21–41: no tracked motion matched the footage better than the in-between of "
+        "your keys; the in-between was fitted to the 2D keypoints"]
+
+
 def test_report_names_parts_that_kept_less_than_half_of_the_tracked_motion():
     """interval_notes: a part the blend left with under half of its tracked motion gets a line
     with its share and evidence; shares of a half or more are not reported."""

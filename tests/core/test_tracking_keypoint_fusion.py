@@ -11,10 +11,12 @@ import pytest
 from core.kinematics import exp_so3
 from core.tracking.keypoint_cue import CameraKeypoints
 from core.tracking.keypoint_fusion import (DRIFT_EXPONENT, NOISE_PRIOR_KEYS, _Frames,
-                                           drift_prior_weights, fuse_keypoints,
-                                           fusion_targets, key_noise, key_offsets, moved,
-                                           project_points, smooth_keypoints, swapped_pairs)
-from core.tracking.problem import TrackingProblem
+                                           body_size_px, drift_prior_weights, fuse_keypoints,
+                                           fusion_targets, key_interpolation, key_noise,
+                                           key_offsets, measured_prior_weights, moved,
+                                           pooled_drift, project_points, smooth_keypoints,
+                                           swapped_pairs, target_noise_shape, tracker_drift)
+from core.tracking.problem import TrackingOptions, TrackingProblem
 from tests.core.tracking_fixtures import (camera, chain_body, chain_skeleton, front_camera,
                                           random_pose, two_arm_body, two_arm_skeleton,
                                           two_arm_swing)
@@ -374,6 +376,18 @@ def test_no_keypoints_or_no_weight_changes_nothing(walk):
         np.testing.assert_array_equal(roots, w["t_roots"])
         np.testing.assert_array_equal(local, w["t_local"])
         assert not fused.any()
+    # Keypoints that agree with the tracked trajectory (not smoothed: a line through a
+    # curved path would not): no drift measured, nothing fused (with the drift law's prior
+    # they would be).
+    on_track, _ = project_points(w["sk"], w["problem"].camera, w["t_roots"], w["t_local"],
+                                 JOINTS, _points(w["sk"]))
+    kp = CameraKeypoints(on_track, w["conf"], JOINTS, _points(w["sk"]), noise_px=np.ones(6))
+    roots, local, fused = fuse_keypoints(w["problem"], w["t_roots"], w["t_local"], [0, 20, 40],
+                                         [kp], 1000.0, 0, measured_scale=0.1)
+    np.testing.assert_array_equal(local, w["t_local"])
+    assert not fused.any()
+    assert fuse_keypoints(w["problem"], w["t_roots"], w["t_local"], [0, 20, 40], [kp], 1000.0,
+                          0, drift_frames=10)[2].any()
 
 
 def test_targets_on_the_true_trajectory_are_the_truth_without_noise(walk):
@@ -406,3 +420,141 @@ def test_one_bad_detection_at_a_key_does_not_shift_the_interval(walk):
     target, conf = fusion_targets(sk, cam, w["roots"], w["local"], kp, [0, 20, 40], 5)
     moved_px = np.linalg.norm(target - steady, axis=-1)
     assert moved_px.max() < 0.5, moved_px.max()     # offsets of the raw detections: 6.9 px
+
+
+def test_key_interpolation_is_the_distance_and_the_linear_weights():
+    d, a, b = key_interpolation(12, [2, 6, 10])
+    np.testing.assert_array_equal(d, [2, 1, 0, 1, 2, 1, 0, 1, 2, 1, 0, 1])
+    np.testing.assert_allclose(a[2:11], [1, 0.75, 0.5, 0.25, 1, 0.75, 0.5, 0.25, 1], rtol=0,
+                               atol=1e-15)
+    np.testing.assert_array_equal(a[[0, 1, 11]], 1.0)                 # outside the keys
+    np.testing.assert_allclose(a + b, 1.0, rtol=0, atol=1e-15)
+
+
+def test_target_noise_shape_is_the_random_walk_bridge():
+    """A detector offset that wanders like a random walk (q px^2 per frame and coordinate),
+    keys every D frames: key_noise measures s^2 = q D / 3, and a target's offset interpolated
+    between two keys misses by s^2 * target_noise_shape(a) (Monte Carlo, 600 keypoints)."""
+    rng, sk, problem = _chain_problem()
+    cam = problem.camera
+    q_rate, D, n_kp = 0.5, 10, 600
+    key_frames = np.arange(0, 61, D)
+    pose = random_pose(rng, sk, scale=0.2)
+    joints = np.zeros(n_kp, dtype=int)
+    walk = np.cumsum(rng.normal(0, np.sqrt(q_rate), (61, n_kp, 2)), axis=0)
+    q, _ = project_points(sk, cam, np.repeat(pose[0][None], 61, 0),
+                          np.repeat(pose[1][None], 61, 0), joints, np.zeros((n_kp, 3)))
+    kp = CameraKeypoints(q + walk, np.ones((61, n_kp)), joints, np.zeros((n_kp, 3)))
+    noise = key_noise(sk, cam, np.repeat(pose[0][None], 7, 0), np.repeat(pose[1][None], 7, 0),
+                      kp, key_frames, 0)
+    np.testing.assert_allclose(np.mean(noise ** 2), q_rate * D / 3, rtol=0.1)
+    for f in (12, 15, 18):                         # between the keys 10 and 20
+        a = (20 - f) / D
+        miss = walk[f] - (a * walk[10] + (1 - a) * walk[20])
+        np.testing.assert_allclose(np.mean(miss ** 2), np.mean(noise ** 2)
+                                   * target_noise_shape(a), rtol=0.15)
+    assert target_noise_shape(0.5) == 0.75 and target_noise_shape(1.0) == 0.0
+
+
+def test_tracker_drift_fits_the_drift_law_to_the_excess_disagreement():
+    """Targets that disagree with the projections by exactly the keypoints' noise term plus
+    A d^(2p): the fit returns A to rounding; unused targets and the keys do not count."""
+    n, keys = 31, [0, 10, 30]
+    noise = np.array([2.0, 3.0, 0.5])
+    d, a, _ = key_interpolation(n, keys)
+    A = 0.7
+    half_sq = noise[None] ** 2 * target_noise_shape(a)[:, None] \
+        + A * (d ** (2 * DRIFT_EXPONENT))[:, None]
+    rng = np.random.default_rng(2)
+    direction = rng.normal(size=(n, 3, 2))
+    direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
+    projected = rng.uniform(0, 300, (n, 3, 2))
+    target = projected + np.sqrt(2 * half_sq)[..., None] * direction
+    used = np.ones((n, 3), dtype=bool)
+    used[5, 1] = False
+    target[5, 1] += 100.0                                  # not used: not counted
+    target[10] += 50.0                                     # a key: not counted
+    drift, count = tracker_drift(target, used, projected, noise, keys)
+    assert count == 3 * 28 - 1
+    np.testing.assert_allclose(drift, A, rtol=1e-12)
+    # No disagreement beyond the noise: 0 (and negative below it).
+    target = projected + np.sqrt(2 * noise[None] ** 2 * target_noise_shape(a)[:, None])[
+        ..., None] * direction
+    assert abs(tracker_drift(target, used, projected, noise, keys)[0]) < 1e-12
+    assert tracker_drift(target, np.zeros_like(used), projected, noise, keys) == (0.0, 0)
+
+
+def test_body_size_and_measured_prior_weights():
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]) * 10
+    projected = np.stack([square, square * 3])
+    used = np.ones((2, 4), dtype=bool)
+    used[1, :2] = False                         # two keypoints: the frame does not count
+    assert body_size_px(projected, used) == pytest.approx(np.sqrt(200.0), rel=1e-12)
+    assert np.isnan(body_size_px(projected, np.zeros((2, 4), dtype=bool)))
+    w = measured_prior_weights(21, [0, 20], 0.1, 2e-4)
+    assert np.isinf(w[[0, 20]]).all()
+    np.testing.assert_allclose(w[5], 0.1 / (2e-4 * 5 ** (2 * DRIFT_EXPONENT)), rtol=1e-12)
+    # A tracker that drifts twice as far (four times the variance): a quarter of the weight.
+    np.testing.assert_allclose(measured_prior_weights(21, [0, 20], 0.1, 8e-4)[1:20],
+                               w[1:20] / 4, rtol=1e-12)
+
+
+def test_pooled_drift_weighs_the_cameras_by_their_targets(walk):
+    w = walk
+    sk, keys = w["sk"], [0, 20, 40]
+    side = _second_camera()
+    per_camera = []
+    for cam in (w["problem"].camera, side):
+        known, _ = project_points(sk, cam, w["roots"], w["local"], JOINTS, _points(sk))
+        kp = CameraKeypoints(known, w["conf"], JOINTS, _points(sk), noise_px=np.ones(6))
+        t, c = fusion_targets(sk, cam, w["t_roots"], w["t_local"], kp, keys, 5)
+        q, _ = project_points(sk, cam, w["t_roots"], w["t_local"], JOINTS, _points(sk))
+        drift, count = tracker_drift(t, c > 0, q, kp.noise_px, keys)
+        per_camera.append(((t, c, kp.joints, kp.points), drift / body_size_px(q, c > 0) ** 2,
+                           count))
+    pooled = pooled_drift(sk, [w["problem"].camera, side], [p[0] for p in per_camera],
+                          [np.ones(6)] * 2, w["t_roots"], w["t_local"], keys)
+    (_, d0, n0), (_, d1, n1) = per_camera
+    assert d0 > 0 and d1 > 0 and n0 > 0 and n1 > 0
+    np.testing.assert_allclose(pooled, (n0 * d0 + n1 * d1) / (n0 + n1), rtol=1e-12)
+
+
+def _drifted(w, scale):
+    """The walk's tracked copy with its drift scaled."""
+    n = len(w["roots"])
+    bump = np.sin(np.pi * np.linspace(0, 2, n)) ** 2
+    drift = np.zeros((n, 5, 3))
+    drift[:, 1] = scale * bump[:, None] * [0.25, 0.0, 0.1]
+    drift[:, 4] = scale * bump[:, None] * [-0.3, 0.0, 0.0]
+    return w["roots"] + scale * bump[:, None] * [0.02, 0.0, -0.01], w["local"] @ exp_so3(drift)
+
+
+def test_a_worse_tracker_gets_less_prior_weight_and_must(walk):
+    """The same detector (bias and 1.5 px of jitter) on two cameras, one tracker drifting
+    four times as far as the other. The drift measured from the disagreement comes out about
+    20 times larger on the worse one, so its prior weighs 20 times less; with the drift law's
+    constant prior (one weight for every camera) the worse tracker keeps most of its drift."""
+    w = walk
+    sk, cam, keys = w["sk"], w["problem"].camera, [0, 20, 40]
+    scale = TrackingOptions().keypoint_drift_scale
+    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
+    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR,
+                         noise_px=key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp,
+                                            keys, 5))
+    drifts, errors = [], []
+    for factor in (0.5, 2.0):
+        tr, tl = _drifted(w, factor)
+        t, c = fusion_targets(sk, cam, tr, tl, kp, keys, 5)
+        drifts.append(pooled_drift(sk, [cam], [(t, c, kp.joints, kp.points)], [kp.noise_px],
+                                   tr, tl, keys))
+        tracker = _error_cm(sk, w["roots"], w["local"], tr, tl)
+        r, lo, _ = fuse_keypoints(w["problem"], tr, tl, keys, [kp], 1000.0, 5, drift_frames=10)
+        constant = _error_cm(sk, w["roots"], w["local"], r, lo)
+        r, lo, _ = fuse_keypoints(w["problem"], tr, tl, keys, [kp], 1000.0, 5,
+                                  measured_scale=scale)
+        errors.append((tracker, constant, _error_cm(sk, w["roots"], w["local"], r, lo)))
+    assert drifts[1] > 8 * drifts[0] > 0, drifts                  # measured: 22.7 times
+    (good, good_constant, good_measured), (bad, bad_constant, bad_measured) = errors
+    # measured: 1.55 -> 1.10 (constant 0.99); 6.12 -> 1.85 (constant 3.25) cm
+    assert good_measured < 0.8 * good, errors
+    assert bad_measured < 0.7 * bad_constant, errors

@@ -13,6 +13,7 @@ from core.tracking.keypoint_cue import (CameraKeypoints, IntervalKeypoints, keyp
 from core.tracking.keypoint_files import JOINT_SETS, Keypoints2D
 from core.tracking.keypoint_fusion import key_noise, project_points
 from core.tracking.motion import _jacobian, translation_columns
+from core.tracking.parallel import fuse_sequence
 from core.tracking.problem import TrackingError, TrackingOptions, TrackingProblem
 from core.tracking.trajectory import (Pose, interpolate_poses, keypoint_half_window,
                                      track_interval)
@@ -174,14 +175,34 @@ def test_keyframes_with_keypoints_in_processes_are_identical(footage):
     serial = track_keyframes(*args, options=options, processes=1, keypoints=kp)
     pooled = track_keyframes(*args, options=options, processes=2, keypoints=[kp])
     np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
-    # The same keypoints, counted from the second interval's start key, with their noise
-    # measured at the three keys (track_keyframes measures it on the whole clip), give that
-    # interval's result (the fusion's smoothing reads frames before the key too).
+    np.testing.assert_array_equal(serial.keypoints_fused, pooled.keypoints_fused)
+    # Three keys: the keypoints' noise is measured at the keys (on the whole clip), the
+    # intervals track without the fusion, and the fusion runs once over the clip with the
+    # tracker's drift measured there (fuse_sequence).
     noise = key_noise(f["sk"], f["problem"].camera, f["roots"][keys], f["local"][keys], kp,
                       keys, keypoint_half_window(options))
     assert noise is not None
+    plain = track_keyframes(*args, options=options.replace(keypoint_fusion_weight=0.0),
+                            processes=1, keypoints=kp)
+    assert plain.keypoints_fused is None
+    for mine, theirs in zip(serial.intervals, plain.intervals):
+        np.testing.assert_array_equal(mine.local_rotations, theirs.local_rotations)
+    r, lo, fused = fuse_sequence(f["problem"], options, np.array(keys),
+                                 plain.root_translations, plain.local_rotations,
+                                 [CameraKeypoints(uv, conf, JOINTS, _points(f["sk"]),
+                                                  first=-3, noise_px=noise)])
+    assert fused[1:10].all() and fused[11:20].all() and not fused[[0, 10, 20]].any()
+    np.testing.assert_array_equal(serial.local_rotations, lo)
+    np.testing.assert_array_equal(serial.root_translations, r)
+    np.testing.assert_array_equal(serial.keypoints_fused, fused)
+    # keypoint_drift_scale 0: each interval fuses its own. The same keypoints, counted from
+    # the second interval's start key, with their noise measured at the three keys, give
+    # that interval's result (the fusion's smoothing reads frames before the key too).
+    own = options.replace(keypoint_drift_scale=0.0)
+    serial = track_keyframes(*args, options=own, processes=1, keypoints=kp)
+    assert serial.keypoints_fused is None
     second = track_interval(f["problem"], f["frames"][10:21], Pose(f["roots"][10], f["local"][10]),
-                            Pose(f["roots"][20], f["local"][20]), options,
+                            Pose(f["roots"][20], f["local"][20]), own,
                             keypoints=CameraKeypoints(f["clean"], f["conf"], JOINTS,
                                                       _points(f["sk"]), first=-10,
                                                       noise_px=noise))
