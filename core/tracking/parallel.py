@@ -368,9 +368,8 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
     keypoints = _with_key_noise(problem, options, _check_keypoints(problem, keypoints), keys,
                                 roots, local)
     whole_clip = _fuses_whole_clip(options, keypoints)
-    options_whole = options
-    if whole_clip:                          # the intervals track; the fusion waits for them all
-        options = replace(options, keypoint_fusion_weight=0.0)
+    # Fused over the whole clip: the intervals only track; the fusion waits for them all.
+    interval_options = replace(options, keypoint_fusion_weight=0.0) if whole_clip else options
     n_int = len(keys) - 1
     workers = min(n_int, os.cpu_count() or 1) if processes is None else min(int(processes), n_int)
     weights = np.diff(keys).astype(float) / float(keys[-1] - keys[0])
@@ -391,15 +390,14 @@ def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=
                     raise TrackingCancelled("tracking cancelled")
                 report(min(1.0, done + weight * fraction))
 
-            results.append(_interval(problem, options, frames, offsets, keys, roots, local, i,
-                                     hook, occluders, keypoints))
+            results.append(_interval(problem, interval_options, frames, offsets, keys, roots,
+                                     local, i, hook, occluders, keypoints))
     else:
-        results = _run_pool((problem, options, offsets, keys, roots, local, tuple(occluders),
+        results = _run_pool((problem, interval_options, offsets, keys, roots, local, tuple(occluders),
                              keypoints),
                             frames, workers, weights, report, stop_requested, feed)
     result = _assemble(keys, results)
     if whole_clip:
-        options = options_whole
         result.root_translations, result.local_rotations, result.keypoints_fused = \
             fuse_sequence(problem, options, np.asarray(keys) - int(keys[0]),
                           result.root_translations, result.local_rotations,
