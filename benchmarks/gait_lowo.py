@@ -42,6 +42,7 @@ import numpy as np
 from core.gait import OnlineEM, adapt, learn_model, observations_from_dofs, predict
 from core.gait.alignment import estimate_period
 from core.gait.checks import check_gait, regularity
+from core.gait.leg_travel import fit_leg_travel
 from core.gait.walk import WalkRequest, predict_walk
 from core.gait.phase_average import forecast_scale
 from core.gait.segments import _moving_average, _runs, steady_segments
@@ -164,6 +165,7 @@ class Method:
     segment: object = None
     residual: bool = True
     phase_average: bool = True
+    leg_travel: bool = True
 
     def key(self):
         return (tuple(sorted(self.learn.items())), repr(self.segment))
@@ -230,7 +232,11 @@ def keyed_variants(model, method, window_obs, window_dofs, names, skeleton, n):
     for key, table in (("method", res.residual), ("method_plain", None),
                        ("method_regular", None if res.residual is None
                         else regularity(check) * res.residual)):
-        walk = predict_walk(model, skeleton, window_dofs, FPS, res.state, res.w, n,
+        # Predict Gait's style: the adapted one conditioned on the legs' travel
+        # (core.gait.leg_travel), for the residual table it predicts with.
+        w = fit_leg_travel(model, skeleton, window_dofs, FPS, window_obs, res, table).w \
+            if method.leg_travel else res.w
+        walk = predict_walk(model, skeleton, window_dofs, FPS, res.state, w, n,
                             WalkRequest(), offset=res.offset, residual=table,
                             start=res.last_observation)
         out[key] = walk.dofs[:, cols]

@@ -31,6 +31,7 @@ from core.gait import adapt, observations_from_dofs, restyle
 from core.gait.alignment import estimate_period
 from core.gait.root_travel import ROOT_DOF_NAMES, heading_angles, root_rotations
 from core.gait.stock import STOCK_RECIPE
+from core.gait.leg_travel import fit_leg_travel
 from core.gait.walk import WalkRequest, predict_walk
 from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
 from core.mocap import asf_to_skeleton, read_asf
@@ -196,6 +197,8 @@ def run_restyle(model=None, walker=WALKER, reference=REFERENCE, cadences=CADENCE
     cols = [names.index(n) for n in model.dof_names]
     obs = observations_from_dofs(model, ref[:, cols], model.dof_names, FPS)
     res = adapt(model, obs, fps=FPS)
+    # Predict Gait's style: the adapted one conditioned on the legs' travel (core.gait.leg_travel)
+    w_walker = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual).w
     floor = contact_height(foot_tracks(skeleton, ref, FPS, root_frame=model.root_frame))
     n = int(round(PREDICT_S * FPS))
     period_ref = 2 * np.pi / res.state[0]
@@ -206,13 +209,13 @@ def run_restyle(model=None, walker=WALKER, reference=REFERENCE, cadences=CADENCE
         if style == "normal":
             w, factor = None, 1.0
         else:
-            w, factor = restyle(model, res.w, "normal", style, 1.0)
+            w, factor = restyle(model, w_walker, "normal", style, 1.0)
         for cadence in cadences:
             row = {}
             for mode in ("natural", "fast_forward"):
                 request = WalkRequest(w=w, style_cadence=factor, cadence=cadence, retime=mode)
                 t0 = time.perf_counter()
-                walk = predict_walk(model, skeleton, ref, FPS, res.state, res.w, n, request,
+                walk = predict_walk(model, skeleton, ref, FPS, res.state, w_walker, n, request,
                                     offset=res.offset, residual=res.residual,
                                     start=res.last_observation)
                 timings.append(time.perf_counter() - t0)

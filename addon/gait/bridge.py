@@ -23,6 +23,7 @@ from ...core import limits
 from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
                           observations_from_dofs, restyle)
 from ...core.gait.checks import check_gait, with_fit
+from ...core.gait.leg_travel import fit_leg_travel
 from ...core.gait.walk import WalkRequest, predict_walk
 from ...core.rigs import plain_list
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
@@ -561,6 +562,10 @@ def predict_gait(context, obj, options):
     walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
     if walker.result is not None:
         check = with_fit(check, model, obs, walker.result, what)
+        # The legs carry the prediction (planted root): the style's legs travel as far as the
+        # reference's did (core.gait.leg_travel; issue 19, a walk tracked from footage).
+        walker.w = fit_leg_travel(model, grig.skeleton, dofs, fps, obs, walker.result,
+                                  walker.residual if options.mannerisms else None).w
     n = int(round(options.horizon * fps))
     length = limits.name_of("length")
     if n < 1:

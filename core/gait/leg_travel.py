@@ -1,0 +1,246 @@
+"""The legs' travel as an observation of the style (issue 19 §2, ``docs/gait_rigs.md``,
+*after tracking*).
+
+Predict Gait plants the root on the predicted legs (:mod:`.planting`): the walk travels as far
+per cycle as the style's legs carry it. The batch EM (:mod:`.em`) fits the style to every
+observed channel at once, and a reference the bases describe imperfectly (a walk tracked from
+footage: fit score 0.75 against 0.98 for the captured walk) is fitted with legs that swing
+short of the reference's own: on the metarig's bench clip the tracked reference's legs carry
+the walker at 1.12 m/s, the adapted style's at 1.00, and the prediction walked 17 % slow.
+
+Here the legs' travel of the reference is one more observation of the style. The legs' speed
+``s(w)`` of a style is the root's speed that keeps the stance foot still over one predicted
+cycle (:func:`legs_speed` of the style's cycle: its joint angles with the walker's residual
+table and posture offset, the root integrated from the model's features; the lower foot held,
+``planting.travel_from_legs``); the reference's is the same measure over its last whole cycle.
+The adapted style is the MAP estimate of a Gaussian posterior with precision ``P`` (the
+M-step's normal matrix, :func:`style_precision`); observing ``s(w) = s_ref + v``, ``v ~ N(0,
+σ²)`` (linearised: ``g = ∇s``) moves the style by the Kalman step
+
+    ``w' = w + P⁻¹ g (s_ref − s(w)) / (gᵀ P⁻¹ g + σ²)``:
+
+the change goes along ``P⁻¹ g``, the smallest change in the posterior's own metric
+``(w' − w)ᵀ P (w' − w)`` for a given change of the legs' speed (the directions the observed
+frames pin down stay where they are; the change goes where the frames say least), by the
+gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + σ²)`` of the difference. σ is the reference's own: the
+standard deviation of the one-cycle legs' speed over every cycle window the reference holds
+(:func:`reference_spread`). A steady walker's legs repeat their travel (CMU 35's walks:
+0.005-0.02 m/s over a steady piece) and its style is moved nearly all the way; an irregular
+one's do not (CMU 139's careful walks 0.03-0.18, 08's 0.09-0.18) and its style little. The
+step is solved along ``P⁻¹ g`` with a secant on the scalar (``s`` is not linear in ``w``).
+
+Measured (``docs/gait_rigs.md``, *after tracking*): with σ = 0 (a constraint) the walk tracked
+on the metarig is predicted at the walker's speed as well, but the leave-one-walker-out
+figure at 1.67 s observed rose 5.62 → 5.67° (CMU 132 and 139: irregular legs); with the
+reference's σ it is 5.62°.
+
+Left alone: a reference shorter than a cycle (its last cycle's travel is not measured), a
+reference that barely moves, a style whose legs do not change speed along the direction.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .em import offset_statistics, scaled_observations
+from .ekf import make_context
+from .planting import MIN_EXPECTED, relative_feet, travel_from_legs
+from .prediction import dofs_from_observations, predict
+from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
+from .root_travel import _directions as heading_directions
+from .walk_figures import CMU_FEET
+
+__all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "style_legs_speed",
+           "style_precision"]
+
+FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
+GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
+SECANT_STEPS = 6
+SPEED_TOLERANCE = 1e-4       # m/s
+
+
+@dataclass(frozen=True)
+class LegTravelFit:
+    """Outcome of :func:`fit_leg_travel`.
+
+    Attributes
+    ----------
+    w : ndarray, shape (J,)
+        The style (the adapted one where nothing was changed).
+    reference_speed : float or None
+        The reference's legs' speed over its last whole cycle (m/s); None when not measured.
+    speed_before, speed_after : float or None
+        The legs' speed of the adapted and of the returned style (m/s).
+    changed : bool
+    """
+
+    w: np.ndarray
+    reference_speed: float = None
+    speed_before: float = None
+    speed_after: float = None
+    changed: bool = False
+
+
+def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
+    """Speed (m/s) at which the legs of DOF rows carry the root over their last ``n_steps``
+    frame steps: the norm of the mean of ``planting.travel_from_legs``'s velocities on the floor
+    of those frames, the walk expected to go along the root's heading (forwards, or backwards
+    where the root went backwards) as Predict Gait's planting expects it (a swing foot that
+    skims the floor is not taken for the stance foot: on the slow CMU walk 08_04 the lower foot
+    alone gave 0.66-1.04 m/s for a root at 1.04-1.08).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    rows : array_like, shape (N, n_dofs)
+        DOF rows in the skeleton's layout (metres, radians); N > ``n_steps``.
+    fps : float
+    n_steps : int
+    feet : (str, str)
+        The contact joints.
+    root_frame : RootFrame, optional
+        The root's rest frame and forward axis (``GaitModel.root_frame``; default: the
+        skeleton's root rest rotation, forward axis as :class:`.root_travel.RootFrame`'s).
+    """
+    rows = np.asarray(rows, dtype=float)[-(int(n_steps) + 1):]
+    names = list(skeleton.dof_names())
+    root = rows[:, [names.index(n) for n in ROOT_DOF_NAMES]]
+    rel = relative_feet(skeleton, rows, feet)
+    heights = root[:, 2]
+    floor = float(np.percentile(np.min(rel[:, :, 2], axis=1) + heights, FLOOR_PERCENTILE))
+    frame = root_frame or RootFrame(rest=skeleton.rest_rotations[0])
+    heading = heading_angles(root_rotations(root, frame), frame)
+    ahead = heading_directions(0.5 * (heading[1:] + heading[:-1]), frame)[0]
+    along = float(np.mean(np.sum(np.diff(root[:, :2], axis=0) * fps * ahead, axis=1)))
+    sense = -1.0 if along <= -MIN_EXPECTED else 1.0
+    vel, _ = travel_from_legs(rel, heights, floor, fps, sense * ahead)
+    return float(np.linalg.norm(vel.mean(axis=0)))
+
+
+def reference_spread(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
+    """Standard deviation (m/s) of :func:`legs_speed` over every window of ``n_steps`` steps
+    the reference holds (0 for a single window)."""
+    reference = np.asarray(reference, dtype=float)
+    speeds = [legs_speed(skeleton, reference[:end], fps, n_steps, feet, root_frame)
+              for end in range(int(n_steps) + 1, len(reference) + 1)]
+    return float(np.std(speeds))
+
+
+def _cycle_steps(omega):
+    return int(round(2.0 * np.pi / float(omega)))
+
+
+def style_legs_speed(model, skeleton, last, fps, omega, w, residual=None, offset=None,
+                     feet=CMU_FEET):
+    """The legs' speed (m/s) of the style ``w`` over one cycle at ``omega`` (rad/frame): the
+    model's frames (residual table and offset added) as DOF rows after the DOF row ``last``
+    (skeleton layout), :func:`legs_speed` over the cycle."""
+    names = list(skeleton.dof_names())
+    cols = np.array([names.index(n) for n in model.dof_names], dtype=int)
+    n = _cycle_steps(omega)
+    obs = predict(model, np.array([float(omega), 0.0]), w, n + 1, residual=residual,
+                  offset=offset)
+    rows = np.tile(np.asarray(last, dtype=float), (n + 1, 1))
+    rows[:, cols] = dofs_from_observations(model, obs, rows[0, cols], fps)
+    return legs_speed(skeleton, rows, fps, n, feet, model.root_frame)
+
+
+def style_precision(model, observations, result):
+    """Posterior precision (J, J) of the style at the adaptation's filtered phases: the
+    normal matrix of the M-step with the posture offset eliminated, ``A/r + Λ − M D⁻¹ Mᵀ/r²``
+    (:mod:`.em`, Schur complement; without an offset prior ``A/r + Λ``), in the model's style
+    units. Every finite observed entry counts (the E-step's outliers included).
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        The adapted observations (all model channels, physical units, NaN = missing).
+    result : AdaptResult
+        ``adapt(model, observations, fps=…)`` (its ``states`` and ``fps``).
+    """
+    ctx = make_context(model, result.fps)
+    ys = scaled_observations(ctx, observations)
+    a_sum, _, m_sum, _, counts = offset_statistics(ctx, np.asarray(result.states)[:, 1], ys)
+    precision = a_sum / ctx.r + ctx.w_prec
+    if ctx.offset_prec is not None and result.offset is not None:
+        mr = m_sum / ctx.r
+        precision = precision - (mr / (counts / ctx.r + ctx.offset_prec)) @ mr.T
+    return 0.5 * (precision + precision.T)
+
+
+def fit_leg_travel(model, skeleton, reference, fps, observations, result, residual=None,
+                   feet=CMU_FEET, speed_sd=None):
+    """The adapted style conditioned on the reference's legs' travel (module docstring).
+
+    Parameters
+    ----------
+    model : GaitModel
+    skeleton : Skeleton
+        The walker's skeleton (its DOF names include ``model.dof_names``).
+    reference : array_like, shape (N, n_dofs)
+        The reference frames in the skeleton's layout.
+    fps : float
+    observations : array_like, shape (N, D)
+        The reference's model observations (``observations_from_dofs``), as adapted.
+    result : AdaptResult
+        The batch adaptation to ``observations``.
+    residual : array_like, shape (P, D), optional
+        The residual table the prediction adds (None: Keep Mannerisms off).
+    feet : (str, str)
+    speed_sd : float, optional
+        Standard deviation (m/s) of the reference's legs' speed as an observation: the step is
+        the Kalman gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + speed_sd²)`` of the difference (0: a
+        constraint). Default: :func:`reference_spread`, how much the legs' speed of one cycle
+        varies over the cycle windows the reference holds (module docstring).
+
+    Returns
+    -------
+    LegTravelFit
+    """
+    w = np.asarray(result.w, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    omega = float(result.state[0])
+    n = _cycle_steps(omega)
+    if not model.root_travel or n < 2 or len(reference) < n + 1 \
+            or any(f not in skeleton.names for f in feet):
+        return LegTravelFit(w)
+    target = legs_speed(skeleton, reference, fps, n, feet, model.root_frame)
+    last = reference[-1]
+
+    def speed(style):
+        return style_legs_speed(model, skeleton, last, fps, omega, style, residual,
+                                result.offset, feet)
+
+    before = speed(w)
+    if not (np.isfinite(target) and np.isfinite(before)) or target < MIN_EXPECTED:
+        return LegTravelFit(w, target if np.isfinite(target) else None, before)
+    grad = np.zeros_like(w)
+    for j in range(len(w)):
+        step = np.zeros_like(w)
+        step[j] = GRADIENT_STEP
+        grad[j] = (speed(w + step) - speed(w - step)) / (2.0 * GRADIENT_STEP)
+    direction = np.linalg.solve(style_precision(model, observations, result), grad)
+    along = float(grad @ direction)                    # gᵀP⁻¹g: speed per unit of t
+    if not (np.isfinite(along) and along > 0.0):
+        return LegTravelFit(w, target, before, before)
+    if speed_sd is None:
+        speed_sd = reference_spread(skeleton, reference, fps, n, feet, model.root_frame)
+    goal = before + (target - before) * along / (along + float(speed_sd) ** 2)
+    # Secant on t (w + t P⁻¹g), from the linear step; the iterate closest to the target wins.
+    t0, f0 = 0.0, before - goal
+    t1 = -f0 / along
+    f1 = speed(w + t1 * direction) - goal
+    best = min([(abs(f0), t0, f0), (abs(f1), t1, f1)])
+    for _ in range(SECANT_STEPS):
+        if best[0] < SPEED_TOLERANCE or f1 == f0:
+            break
+        t0, f0, t1 = t1, f1, t1 - f1 * (t1 - t0) / (f1 - f0)
+        f1 = speed(w + t1 * direction) - goal
+        if not np.isfinite(f1):
+            break
+        best = min(best, (abs(f1), t1, f1))
+    _, t, f = best
+    if t == 0.0:
+        return LegTravelFit(w, target, before, before)
+    return LegTravelFit(w + t * direction, target, before, f + goal, True)

@@ -1,0 +1,170 @@
+"""core.gait.leg_travel (issue 19 §2): the adapted style conditioned on the reference's legs'
+travel, so that the planted prediction walks as far per cycle as the reference's legs did."""
+
+import numpy as np
+import pytest
+
+from core.gait import adapt, load_stock_library, observations_from_dofs
+from core.gait.ekf import make_context
+from core.gait.em import scaled_observations
+from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_spread,
+                                  style_legs_speed, style_precision)
+from core.gait.walk import WalkRequest, predict_walk
+from core.mocap import asf_to_skeleton, read_asf
+from tests.data import asf_path
+from tests.gait_data import trial
+
+FPS = 60.0
+N_REF = 100                 # 1.67 s observed (the bench's longest window)
+
+
+@pytest.fixture(scope="module")
+def walker():
+    model = load_stock_library()
+    values, names = trial("35_01")
+    values = np.array(values)
+    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
+    ref = values[:N_REF]
+    obs = observations_from_dofs(model, ref, names, FPS)
+    res = adapt(model, obs, fps=FPS)
+    return model, skeleton, values, names, obs, res
+
+
+def test_the_legs_speed_of_a_captured_walk_is_its_root_speed(walker):
+    """The measure itself, against the capture's own root: over a whole cycle the root travels
+    as far as the legs carry it (the captured balls roll a few cm/s forward while they carry,
+    docs/gait.md: within 8 %)."""
+    model, skeleton, values, names, _, res = walker
+    n = int(round(2 * np.pi / res.state[0]))
+    tx, ty = names.index("root.tx"), names.index("root.ty")
+    for end in (N_REF, N_REF + 37, len(values)):
+        rows = values[end - n - 1:end]
+        root = np.hypot(*(rows[-1, [tx, ty]] - rows[0, [tx, ty]])) * FPS / n
+        assert legs_speed(skeleton, rows, FPS, n) == pytest.approx(root, rel=0.08)
+
+
+def test_style_precision_is_the_hessian_of_the_m_step_objective_with_the_offset_minimised(
+        walker):
+    """``P`` = ½ ∇² of ``min_b Σ ||y − μ w − b||² / r + (w − w̄)ᵀΛ(w − w̄) + bᵀΛ_b b`` (em.py's
+    M-step objective at the filtered phases), by central differences of the objective with
+    ``b`` minimised numerically per channel (it is quadratic: differences are exact up to
+    rounding)."""
+    model, _, _, _, obs, res = walker
+    ctx = make_context(model, FPS)
+    ys = scaled_observations(ctx, obs)
+    mu = ctx.means(res.states[:, 1])                       # (N, J, D)
+
+    def objective(w):
+        e = ys - np.einsum("njd,j->nd", mu, w)
+        lam = ctx.offset_prec
+        b = e.sum(axis=0) / ctx.r / (len(e) / ctx.r + lam)  # argmin over b, per channel
+        for _ in range(2):                                  # …checked by Newton steps on b
+            grad = -2 * (e - b).sum(axis=0) / ctx.r + 2 * lam * b
+            b = b - grad / (2 * len(e) / ctx.r + 2 * lam)
+        d = w - ctx.w_mean
+        return float(((e - b) ** 2).sum() / ctx.r + d @ ctx.w_prec @ d + b @ (lam * b))
+
+    w0, h = res.w, 0.5
+    hess = np.zeros((len(w0), len(w0)))
+    eye = np.eye(len(w0)) * h
+    for i in range(len(w0)):
+        for j in range(i, len(w0)):
+            hess[i, j] = hess[j, i] = (objective(w0 + eye[i] + eye[j])
+                                       - objective(w0 + eye[i] - eye[j])
+                                       - objective(w0 - eye[i] + eye[j])
+                                       + objective(w0 - eye[i] - eye[j])) / (4 * h * h)
+    p = style_precision(model, obs, res)
+    np.testing.assert_allclose(p, 0.5 * hess, rtol=1e-6, atol=1e-6 * np.abs(p).max())
+
+
+def test_the_fitted_style_s_legs_travel_as_far_as_the_reference_s_by_the_smallest_change(
+        walker):
+    model, skeleton, values, names, obs, res = walker
+    ref = values[:N_REF]
+    fit = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
+    n = int(round(2 * np.pi / res.state[0]))
+    assert fit.changed
+    assert fit.reference_speed == legs_speed(skeleton, ref, FPS, n)
+
+    def speed(w):
+        return style_legs_speed(model, skeleton, ref[-1], FPS, res.state[0], w, res.residual,
+                                res.offset)
+
+    assert fit.speed_before == speed(res.w) and fit.speed_after == speed(fit.w)
+    assert abs(fit.speed_after - fit.reference_speed) < 1e-3
+    # The step is along P⁻¹ ∇s (∇s by central differences of its own): the least change in the
+    # posterior's metric; the plain gradient step to the same speed costs more.
+    step = 1e-2
+    grad = np.array([(speed(res.w + e) - speed(res.w - e)) / (2 * step)
+                     for e in np.eye(len(res.w)) * step])
+    p = style_precision(model, obs, res)
+    direction = np.linalg.solve(p, grad)
+    dw = fit.w - res.w
+    assert abs(dw @ direction) / np.linalg.norm(dw) / np.linalg.norm(direction) > 1 - 1e-9
+    plain = res.w + grad * (fit.reference_speed - fit.speed_before) / (grad @ grad)
+    assert dw @ p @ dw < (plain - res.w) @ p @ (plain - res.w)
+    # The planted prediction then travels at that speed over its whole cycles after the join.
+    walk = predict_walk(model, skeleton, ref, FPS, res.state, fit.w, 4 * n, WalkRequest(),
+                        offset=res.offset, residual=res.residual, start=res.last_observation)
+    tx, ty = names.index("root.tx"), names.index("root.ty")
+    rows = walk.dofs[-3 * n - 1:]
+    travelled = np.hypot(*(rows[-1, [tx, ty]] - rows[0, [tx, ty]])) * FPS / (3 * n)
+    assert travelled == pytest.approx(fit.reference_speed, rel=0.03)
+
+
+def test_a_reference_shorter_than_a_cycle_keeps_the_adapted_style(walker):
+    model, skeleton, values, names, _, _ = walker
+    short = values[:40]                                    # 0.67 s: less than a cycle
+    obs = observations_from_dofs(model, short, names, FPS)
+    res = adapt(model, obs, fps=FPS)
+    assert 2 * np.pi / res.state[0] > 40
+    fit = fit_leg_travel(model, skeleton, short, FPS, obs, res, res.residual)
+    assert not fit.changed and fit.w is not None and fit.w.tobytes() == res.w.tobytes()
+    assert fit.reference_speed is None
+
+
+def test_a_walk_on_the_spot_keeps_the_adapted_style(walker):
+    """A reference whose legs do not carry it anywhere (the captured walk's legs walked on the
+    spot: its root is carried with the stance foot) gives no travel to match."""
+    model, skeleton, values, names, _, _ = walker
+    ref = values[:N_REF].copy()
+    obs = observations_from_dofs(model, ref, names, FPS)
+    res = adapt(model, obs, fps=FPS)
+    # The legs held still (every frame the first frame's angles): nothing carries the root.
+    still = ref.copy()
+    still[:, 6:] = ref[0, 6:]
+    fit = fit_leg_travel(model, skeleton, still, FPS, obs, res, res.residual)
+    assert not fit.changed and fit.w.tobytes() == res.w.tobytes()
+    assert fit.reference_speed is not None and fit.reference_speed < 0.1
+
+
+def test_by_default_the_style_moves_by_the_kalman_gain_of_the_reference_s_own_spread(walker):
+    """σ = the spread of the reference's one-cycle legs' speeds: the step is the gain's share
+    gᵀP⁻¹g / (gᵀP⁻¹g + σ²) of the constrained one, along the same direction."""
+    model, skeleton, values, names, obs, res = walker
+    ref = values[:N_REF]
+    n = int(round(2 * np.pi / res.state[0]))
+    spread = reference_spread(skeleton, ref, FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+              for end in range(n + 1, N_REF + 1)]
+    assert len(speeds) == N_REF - n and spread == np.std(speeds) and 0 < spread < 0.05
+    hard = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
+    soft = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual)
+    assert soft.w.tobytes() == fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual,
+                                              speed_sd=spread).w.tobytes()
+    # the gain, from the linearisation: Δs = gᵀΔw for both steps
+    step = 1e-2
+
+    def speed(w):
+        return style_legs_speed(model, skeleton, ref[-1], FPS, res.state[0], w, res.residual,
+                                res.offset)
+
+    grad = np.array([(speed(res.w + e) - speed(res.w - e)) / (2 * step)
+                     for e in np.eye(len(res.w)) * step])
+    along = grad @ np.linalg.solve(style_precision(model, obs, res), grad)
+    gain = along / (along + spread**2)
+    assert 0 < gain < 1
+    assert soft.speed_after - soft.speed_before == pytest.approx(
+        gain * (soft.reference_speed - soft.speed_before), abs=1e-4)
+    d_soft, d_hard = soft.w - res.w, hard.w - res.w
+    assert d_soft @ d_hard / np.linalg.norm(d_soft) / np.linalg.norm(d_hard) > 1 - 1e-9
