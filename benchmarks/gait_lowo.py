@@ -156,7 +156,8 @@ class Method:
     ``steady_segments`` (``False``: trials whole); ``residual``: add the walker's residual
     table to the prediction; ``phase_average``: the phase-averaged forecast calibrated on the
     window (``predict(..., covariance=, phase_var_scale=forecast_scale(...))``; False: the
-    confident cycle that Predict Gait keys)."""
+    confident cycle that Predict Gait keys); ``leg_travel``: the keyed walk's style conditioned
+    on the window's legs' travel as Predict Gait does (``core.gait.leg_travel``)."""
 
     name: str = "method"
     learn: dict = field(default_factory=dict)
@@ -213,9 +214,10 @@ def method_prediction(model, method, window, n, keyed=False):
 
 def keyed_prediction(model, method, window_obs, window_dofs, names, skeleton, n):
     """What Predict Gait keys from a window, through its path: the checks (a refused window
-    gives None), batch EM, ``core.gait.walk.predict_walk`` on the walker's skeleton (grounded,
-    planted, continuing from the last frame; the residual table with ``method.residual``);
-    the model's joint angles of the keyed rows, (n, 56)."""
+    gives None), batch EM, the style conditioned on the legs' travel
+    (``core.gait.leg_travel``), ``core.gait.walk.predict_walk`` on the walker's skeleton
+    (grounded, planted, continuing from the last frame; the residual table with
+    ``method.residual``); the model's joint angles of the keyed rows, (n, 56)."""
     return keyed_variants(model, method, window_obs, window_dofs, names, skeleton, n)["method"]
 
 

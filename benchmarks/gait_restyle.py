@@ -7,7 +7,8 @@ Protocol:
 * **Model**: the stock library's recipe without the held-out subject (``gait_lowo.fold_model``,
   the leave-one-walker-out fold: the walker is not in the library it is restyled with).
 * **Walker**: CMU 07_04 (a normal walk; template skeleton), reference frames 0-100 (1.67 s at
-  60 Hz) from its steady start; batch EM (``adapt``: style, posture offset, residual table).
+  60 Hz) from its steady start; batch EM (``adapt``: style, posture offset, residual table),
+  the style conditioned on the legs' travel as Predict Gait does (``core.gait.leg_travel``).
 * **Cases**: for every named style and cadence 0.7 / 1.0 / 1.3 / 1.6, the walker restyled from
   ``normal`` to the style (amount 1; ``normal`` itself: as observed) and retimed, 4 s predicted
   with :func:`core.gait.walk.predict_walk` (what Predict Gait keys: Walk Forward and Keep Feet

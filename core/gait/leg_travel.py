@@ -12,7 +12,8 @@ Here the legs' travel of the reference is one more observation of the style. The
 ``s(w)`` of a style is the root's speed that keeps the stance foot still over one predicted
 cycle (:func:`legs_speed` of the style's cycle: its joint angles with the walker's residual
 table and posture offset, the root integrated from the model's features; the lower foot held,
-``planting.travel_from_legs``); the reference's is the same measure over its last whole cycle.
+``planting.travel_from_legs``); the reference's is the mean of the same measure over every
+cycle window the reference holds (:func:`reference_legs_speed`).
 The adapted style is the MAP estimate of a Gaussian posterior with precision ``P`` (the
 M-step's normal matrix, :func:`style_precision`); observing ``s(w) = s_ref + v``, ``v ~ N(0,
 σ²)`` (linearised: ``g = ∇s``) moves the style by the Kalman step
@@ -23,18 +24,15 @@ the change goes along ``P⁻¹ g``, the smallest change in the posterior's own m
 ``(w' − w)ᵀ P (w' − w)`` for a given change of the legs' speed (the directions the observed
 frames pin down stay where they are; the change goes where the frames say least), by the
 gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + σ²)`` of the difference. σ is the reference's own: the
-standard deviation of the one-cycle legs' speed over every cycle window the reference holds
-(:func:`reference_spread`). A steady walker's legs repeat their travel (CMU 35's walks:
-0.005-0.02 m/s over a steady piece) and its style is moved nearly all the way; an irregular
-one's do not (CMU 139's careful walks 0.03-0.18, 08's 0.09-0.18) and its style little. The
-step is solved along ``P⁻¹ g`` with a secant on the scalar (``s`` is not linear in ``w``).
+standard deviation of the one-cycle legs' speed over those cycle windows. A steady walker's
+legs repeat their travel (CMU 35's walks: 0.005-0.02 m/s over a steady piece) and its style
+is moved nearly all the way; an irregular one's do not (CMU 139's careful walks 0.03-0.18,
+08's 0.09-0.18) and its style little. The step is solved along ``P⁻¹ g`` with a secant on the
+scalar (``s`` is not linear in ``w``).
 
-Measured (``docs/gait_rigs.md``, *after tracking*): with σ = 0 (a constraint) the walk tracked
-on the metarig is predicted at the walker's speed as well, but the leave-one-walker-out
-figure at 1.67 s observed rose 5.62 → 5.67° (CMU 132 and 139: irregular legs); with the
-reference's σ it is 5.62°.
+Measured (``docs/gait.md``, *The legs' travel*; ``docs/gait_rigs.md``, *after tracking*).
 
-Left alone: a reference shorter than a cycle (its last cycle's travel is not measured), a
+Left alone: a reference shorter than a cycle + 1 frame (no cycle's travel is measured), a
 reference that barely moves, a style whose legs do not change speed along the direction.
 """
 
@@ -50,8 +48,8 @@ from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotatio
 from .root_travel import _directions as heading_directions
 from .walk_figures import CMU_FEET
 
-__all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "style_legs_speed",
-           "style_precision"]
+__all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed",
+           "style_legs_speed", "style_precision"]
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
@@ -68,7 +66,8 @@ class LegTravelFit:
     w : ndarray, shape (J,)
         The style (the adapted one where nothing was changed).
     reference_speed : float or None
-        The reference's legs' speed over its last whole cycle (m/s); None when not measured.
+        The reference's legs' speed (m/s, :func:`reference_legs_speed`); None when not
+        measured.
     speed_before, speed_after : float or None
         The legs' speed of the adapted and of the returned style (m/s).
     changed : bool
@@ -117,13 +116,14 @@ def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
     return float(np.linalg.norm(vel.mean(axis=0)))
 
 
-def reference_spread(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
-    """Standard deviation (m/s) of :func:`legs_speed` over every window of ``n_steps`` steps
-    the reference holds (0 for a single window)."""
+def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
+    """The reference's legs' speed and its spread (m/s): the mean and the standard deviation
+    of :func:`legs_speed` over every window of ``n_steps`` steps (a cycle) the reference holds
+    (a spread of 0 for a single window)."""
     reference = np.asarray(reference, dtype=float)
     speeds = [legs_speed(skeleton, reference[:end], fps, n_steps, feet, root_frame)
               for end in range(int(n_steps) + 1, len(reference) + 1)]
-    return float(np.std(speeds))
+    return float(np.mean(speeds)), float(np.std(speeds))
 
 
 def _cycle_steps(omega):
@@ -191,8 +191,8 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
     speed_sd : float, optional
         Standard deviation (m/s) of the reference's legs' speed as an observation: the step is
         the Kalman gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + speed_sd²)`` of the difference (0: a
-        constraint). Default: :func:`reference_spread`, how much the legs' speed of one cycle
-        varies over the cycle windows the reference holds (module docstring).
+        constraint). Default: :func:`reference_legs_speed`'s spread, how much the legs' speed
+        of one cycle varies over the cycle windows the reference holds (module docstring).
 
     Returns
     -------
@@ -205,7 +205,7 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
     if not model.root_travel or n < 2 or len(reference) < n + 1 \
             or any(f not in skeleton.names for f in feet):
         return LegTravelFit(w)
-    target = legs_speed(skeleton, reference, fps, n, feet, model.root_frame)
+    target, spread = reference_legs_speed(skeleton, reference, fps, n, feet, model.root_frame)
     last = reference[-1]
 
     def speed(style):
@@ -225,7 +225,7 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
     if not (np.isfinite(along) and along > 0.0):
         return LegTravelFit(w, target, before, before)
     if speed_sd is None:
-        speed_sd = reference_spread(skeleton, reference, fps, n, feet, model.root_frame)
+        speed_sd = spread
     goal = before + (target - before) * along / (along + float(speed_sd) ** 2)
     # Secant on t (w + t P⁻¹g), from the linear step; the iterate closest to the target wins.
     t0, f0 = 0.0, before - goal

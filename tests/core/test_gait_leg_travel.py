@@ -7,7 +7,7 @@ import pytest
 from core.gait import adapt, load_stock_library, observations_from_dofs
 from core.gait.ekf import make_context
 from core.gait.em import scaled_observations
-from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_spread,
+from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_legs_speed,
                                   style_legs_speed, style_precision)
 from core.gait.walk import WalkRequest, predict_walk
 from core.mocap import asf_to_skeleton, read_asf
@@ -84,7 +84,9 @@ def test_the_fitted_style_s_legs_travel_as_far_as_the_reference_s_by_the_smalles
     fit = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
     n = int(round(2 * np.pi / res.state[0]))
     assert fit.changed
-    assert fit.reference_speed == legs_speed(skeleton, ref, FPS, n)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+              for end in range(n + 1, N_REF + 1)]
+    assert fit.reference_speed == np.mean(speeds)
 
     def speed(w):
         return style_legs_speed(model, skeleton, ref[-1], FPS, res.state[0], w, res.residual,
@@ -144,10 +146,11 @@ def test_by_default_the_style_moves_by_the_kalman_gain_of_the_reference_s_own_sp
     model, skeleton, values, names, obs, res = walker
     ref = values[:N_REF]
     n = int(round(2 * np.pi / res.state[0]))
-    spread = reference_spread(skeleton, ref, FPS, n, root_frame=model.root_frame)
+    mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
     speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) == N_REF - n and spread == np.std(speeds) and 0 < spread < 0.05
+    assert mean == np.mean(speeds)
     hard = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
     soft = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual)
     assert soft.w.tobytes() == fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual,
