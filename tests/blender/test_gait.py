@@ -15,6 +15,7 @@ from core.armature import armature_layout, channels_to_dofs, dofs_to_channels, \
 from core.gait import (GaitModel, LookaheadPredictor, adapt, load_stock_library,
                        observations_from_dofs, restyle)
 from core.gait.stock import STOCK_NAME
+from core.gait.leg_travel import fit_leg_travel
 from core.gait.walk import WalkRequest, predict_walk
 from core.kinematics import local_rotations_from_dofs
 from core.mocap import AmcMotion, asf_to_skeleton, format_bvh, read_amc, read_asf, resample, \
@@ -98,15 +99,20 @@ def keys_at(obj, layout, frames):
 def core_prediction(model, skeleton, observed, n, restyled=None, stride=1.0, detail=True,
                     **request):
     """The core's prediction from observed DOF rows: batch EM (style, posture offset, the
-    walker's residual table unless ``detail`` is off), ``restyled = (from, to, amount)``,
+    walker's residual table unless ``detail`` is off), the style conditioned on the legs'
+    travel (``core.gait.leg_travel``), ``restyled = (from, to, amount)``,
     ``core.gait.walk.predict_walk`` (grounded, feet planted, continuing from the last observed
     frame)."""
-    res = adapt(model, observations_from_dofs(model, observed, skeleton.dof_names(), FPS), fps=FPS)
+    obs = observations_from_dofs(model, observed, skeleton.dof_names(), FPS)
+    res = adapt(model, obs, fps=FPS)
+    # the style conditioned on the legs' travel (core.gait.leg_travel), as Predict Gait does
+    own = fit_leg_travel(model, skeleton, observed, FPS, obs, res,
+                         res.residual if detail else None).w
     w, factor = None, 1.0
     if restyled is not None:
-        w, factor = restyle(model, res.w, *restyled)
+        w, factor = restyle(model, own, *restyled)
     walk = WalkRequest(w=w, style_cadence=factor, stride=stride, **request)
-    return predict_walk(model, skeleton, observed, FPS, res.state, res.w, n, walk,
+    return predict_walk(model, skeleton, observed, FPS, res.state, own, n, walk,
                         offset=res.offset, residual=res.residual if detail else None,
                         start=res.last_observation).dofs
 
