@@ -28,8 +28,8 @@ from mathutils import Matrix
 from ...core.kinematics import matrix_to_quaternion
 from ...core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
 from ...core.rigs import (LIMBS, RIGID, ROTATE, TRANSLATE, BodyMapError, BoneConstraint,
-                          RigBones, axis_rotation, bend_angle_error,
-                          joint_stretch, joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
+                          RigBones, axis_rotation, bend_angle_error, joint_stretch,
+                          joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
                           recognise_body_map, skeleton_pose, world_change, world_poses)
 from ...core.rigs.parts import PARENT
 from ..mocap.acclaim_bridge import PROP_ASF
