@@ -29,7 +29,7 @@ lengths) and plain arrays.
 import numpy as np
 
 from ..kinematics.contacts import runs as _runs, smootherstep as smootherstep_weights
-from ..kinematics.fk import chain_kinematics, dof_columns
+from ..kinematics.fk import chain_frames, chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
 __all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "grounded_heights",
@@ -321,7 +321,8 @@ def running_max_2d(values, half_width):
     return np.stack([running_max(c, half_width) for c in np.asarray(values).T], axis=1)
 
 
-def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05):
+def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05,
+             report=True):
     """Leg inverse kinematics: move each contact point towards ``p + weight × (target − p)``
     by changing the rotation DOFs between the root and the foot (hip, knee, ankle), damped
     least squares with analytic Jacobians, in place on ``dofs`` (joint limits respected: a DOF
@@ -339,11 +340,13 @@ def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05)
     iterations : int
     damping : float
         Metres: damped least squares' λ (small moves where the leg is stretched).
+    report : bool
+        Whether to measure what remains (one more forward kinematics of each leg).
 
     Returns
     -------
-    ndarray, shape (N, F)
-        The remaining distance to the weighted targets, metres.
+    ndarray, shape (N, F), or None
+        The remaining distance to the weighted targets, metres (None unless ``report``).
     """
     index = [skeleton.index(f) for f in feet]
     columns = dof_columns(skeleton)
@@ -362,20 +365,31 @@ def pin_feet(skeleton, dofs, feet, targets, weights, iterations=3, damping=0.05)
         cols = [c for j in chain for c, _ in columns[j]]
         owner = [j for j in chain for _ in columns[j]]
         sub = dofs[rows]
+        # The joints above the first one moved (the root, a hip joint without DOFs) keep their
+        # frames through the iterations: computed once (the same values, bit for bit).
+        top = int(skeleton.parents[chain[0]]) if chain else joint
+        rotations, positions, _ = chain_frames(skeleton, sub, [top])
+        known = {j: (rotations[j], positions[j]) for j in rotations}
         # The limits never snap a DOF the prediction already put beyond them (a brisk walk's
         # hip extension past the skeleton's 20°): only pinned frames pass through here, so
         # clipping those alone made the leg jump as a foot was released (8 cm at toe-off).
         lower = np.minimum(limits[cols, 0], sub[:, cols])
         upper = np.maximum(limits[cols, 1], sub[:, cols])
         for _ in range(iterations):
-            positions, axes = chain_kinematics(skeleton, sub, [joint])
-            error = goal[rows, f] - positions[joint]                       # (M, 3)
-            jac = np.stack([np.cross(axes[c], positions[joint] - positions[j])
-                            for c, j in zip(cols, owner)], axis=2)          # (M, 3, K)
+            positions, axes = chain_kinematics(skeleton, sub, [joint], known)
+            p = positions[joint]
+            error = goal[rows, f] - p                                      # (M, 3)
+            jac = np.empty((len(rows), 3, len(cols)))                      # (M, 3, K)
+            for k, (c, j) in enumerate(zip(cols, owner)):
+                a, r = axes[c], p - positions[j]                           # axis × (p − origin)
+                jac[:, 0, k] = a[:, 1] * r[:, 2] - a[:, 2] * r[:, 1]
+                jac[:, 1, k] = a[:, 2] * r[:, 0] - a[:, 0] * r[:, 2]
+                jac[:, 2, k] = a[:, 0] * r[:, 1] - a[:, 1] * r[:, 0]
             normal = jac @ np.swapaxes(jac, 1, 2) + damping**2 * np.eye(3)
             step = np.swapaxes(jac, 1, 2) @ np.linalg.solve(normal, error[:, :, None])
             sub[:, cols] = np.clip(sub[:, cols] + step[:, :, 0], lower, upper)
-        positions, _ = chain_kinematics(skeleton, sub, [joint])
-        remaining[rows, f] = np.linalg.norm(goal[rows, f] - positions[joint], axis=1)
+        if report:
+            positions, _ = chain_kinematics(skeleton, sub, [joint], known)
+            remaining[rows, f] = np.linalg.norm(goal[rows, f] - positions[joint], axis=1)
         dofs[rows] = sub
-    return remaining
+    return remaining if report else None

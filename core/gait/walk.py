@@ -224,28 +224,31 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
     floor = reference_floor(skeleton, reference, fps, feet, model.root_frame) if planted \
         else None
 
-    def keyed(obs):
+    def keyed(obs, legs=True):
         rows = dofs_from_observations(model, obs, last[cols], fps, request.stride,
                                       request.travel)
         out = np.tile(last, (len(rows), 1))
         out[:, cols] = rows
         if planted:
             _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
-                   model.root_frame, omega_to * fps / (2.0 * np.pi))
+                   model.root_frame, omega_to * fps / (2.0 * np.pi), legs)
         return out
 
-    out = keyed(obs)
     if planted and keep_path:
         # Straight unless asked means the path, not only the facing: another style's legs
         # need not carry the hips straight ahead of the pelvis (its source walkers' pelvis
         # faces a few degrees off their path), and with the facing kept CMU 35_01 restyled
         # to sneaking walked 6° off its observed path, to brisk 4.6°, careful at 0.7 10°.
         # Turn the walk after the join by the difference (the legs' travel turns with the
-        # facing; spread over the join like the heading) and solve again.
-        drift = _travel_drift(reference, out, names, omega, omega_to, blend)
+        # facing; spread over the join like the heading) and solve again. The path is the
+        # root's, and the legs' inverse kinematics (`pin_feet`, two thirds of a solve) never
+        # moves the root: the first solve stops before it (`_plant(..., legs=False)`), and
+        # the root it gives is the full solve's, bit for bit (tests/core/test_gait_walk.py).
+        drift = _travel_drift(reference, keyed(obs, legs=False), names, omega, omega_to,
+                              blend)
         if drift:
             obs[:, yaw] -= drift * np.diff(np.concatenate(([0.0], weights))) * fps
-            out = keyed(obs)
+    out = keyed(obs)
     return WalkResult(out[:n_keyed], floor, w_to, float(omega_to), float(blend))
 
 
@@ -297,11 +300,13 @@ def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weigh
 
 
 def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame,
-           cycle_hz=SMOOTH_CYCLE_HZ):
+           cycle_hz=SMOOTH_CYCLE_HZ, legs=True):
     """Solve the root's height (always) and horizontal travel (``request.plant``) from the
     legs, in place on ``out``; the reference's root height and velocity fade into them.
     ``cycle_hz``: the predicted walk's cycles per second (the travel is smoothed over a fixed
-    share of its cycle)."""
+    share of its cycle). ``legs``: then keep the feet on their spots (lift and inverse
+    kinematics of the legs); False solves the root alone (every root DOF as with True: the
+    legs' part never changes them)."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     m = min(len(reference), VELOCITY_FRAMES + 1)
     rows = np.vstack([reference[-m:], out])                     # frames -(m-1) … n
@@ -355,6 +360,8 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
         out[:, [tx, ty]] += shift[m:]
         points[:, :, :2] += shift[:, None, :]
         targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
+    if not legs:
+        return
     lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)
     # A lift that overlaps a stance's ramp raises the foot from where the ramp holds it, not
     # from its unplanted position: replacing the target outright made the foot jump a stride's
@@ -362,7 +369,7 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     held = points + pins[:, :, None] * (targets - points)
     held[:, :, 2] += lifted[:, :, 2] - points[:, :, 2]
     targets = np.where((lifts > 0)[:, :, None], held, targets)
-    pin_feet(skeleton, out, feet, targets[m:], np.maximum(pins, lifts)[m:])
+    pin_feet(skeleton, out, feet, targets[m:], np.maximum(pins, lifts)[m:], report=False)
 
 
 def _held_over_the_join(points, targets, pins, first, fps):

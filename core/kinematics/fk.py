@@ -168,7 +168,7 @@ def _closure(skeleton, joints):
     return sorted(need)
 
 
-def chain_kinematics(skeleton, dofs, joints):
+def chain_kinematics(skeleton, dofs, joints, known=None):
     """Forward kinematics of some joints and their ancestors only (e.g. the legs: 11 of CMU's
     31 joints), with the world axis of every rotation DOF on the way (for Jacobians).
 
@@ -177,6 +177,11 @@ def chain_kinematics(skeleton, dofs, joints):
     skeleton : Skeleton
     dofs : array_like, shape (N, n_dofs)
     joints : sequence of int
+    known : dict {joint: (rotation (N, 3, 3), origin (N, 3))}, optional
+        World frames of some joints already computed from the same rows (:func:`chain_frames`),
+        e.g. the ancestors of a leg whose DOFs an inverse kinematics loop leaves alone: used
+        as they are (their DOFs' axes are then not returned). The result is the same, bit for
+        bit, as without them.
 
     Returns
     -------
@@ -186,11 +191,22 @@ def chain_kinematics(skeleton, dofs, joints):
         World axis of each rotation DOF of those joints (a rotation by dθ about it moves the
         points below the joint by ``axis × (p − origin) dθ``).
     """
+    _, positions, axes = chain_frames(skeleton, dofs, joints, known)
+    return positions, axes
+
+
+def chain_frames(skeleton, dofs, joints, known=None):
+    """:func:`chain_kinematics` with the joints' world rotations: ``(rotations, positions,
+    axes)``, rotations a dict {joint: (N, 3, 3)}."""
     dofs = np.asarray(dofs, dtype=float)
     columns = dof_columns(skeleton)
     rotations, positions, axes = {}, {}, {}
+    known = known or {}
     n = len(dofs)
     for j in _closure(skeleton, joints):
+        if j in known:
+            rotations[j], positions[j] = known[j]
+            continue
         parent = int(skeleton.parents[j])
         if parent < 0:
             frame = np.broadcast_to(skeleton.rest_rotations[0], (n, 3, 3))
@@ -204,4 +220,4 @@ def chain_kinematics(skeleton, dofs, joints):
             axes[col] = frame[:, :, axis]
             frame = frame @ axis_rotation(axis, dofs[:, col])
         rotations[j], positions[j] = frame, origin
-    return positions, axes
+    return rotations, positions, axes

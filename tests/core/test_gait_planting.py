@@ -8,6 +8,7 @@ import pytest
 from core.gait.planting import (grounded_heights, pin_feet, reference_floor, relative_feet,
                                 running_max, smooth, stance_targets, travel_from_legs)
 from core.kinematics import chain_kinematics, forward_kinematics, local_rotations_from_dofs
+from core.kinematics.fk import chain_frames
 from core.mocap import asf_to_skeleton, read_asf
 from tests.data import asf_path
 from tests.gait_data import trial
@@ -173,6 +174,35 @@ def test_pin_feet_moves_the_ball_onto_its_target_within_the_joint_limits():
     beyond = np.maximum(limits[:, 0] - pinned, 0) + np.maximum(pinned - limits[:, 1], 0)
     beyond_before = np.maximum(limits[:, 0] - rows, 0) + np.maximum(rows - limits[:, 1], 0)
     assert np.all(beyond <= beyond_before + 1e-12)
+
+
+def test_known_frames_and_an_unreported_pin_change_nothing():
+    """Speed-ups of the legs' inverse kinematics (issue 21): frames of joints computed once
+    (``chain_kinematics(..., known)``) and no final measure (``pin_feet(report=False)``) give
+    the same numbers, bit for bit."""
+    skeleton, values = walker()
+    rows = values[60:100].copy()
+    ball = skeleton.index("ltoes")
+    hip = skeleton.index("lfemur")
+    top = skeleton.parents[hip]
+    rotations, positions, _ = chain_frames(skeleton, rows, [top])
+    known = {j: (rotations[j], positions[j]) for j in rotations}
+    assert 0 in known and hip not in known
+    plain, plain_axes = chain_kinematics(skeleton, rows, [ball])
+    fast, fast_axes = chain_kinematics(skeleton, rows, [ball], known)
+    assert plain.keys() == fast.keys()
+    assert all(np.array_equal(plain[j], fast[j]) for j in plain)
+    assert all(np.array_equal(plain_axes[c], fast_axes[c]) for c in fast_axes)
+    feet = ("ltoes", "rtoes")
+    current = np.stack([plain[ball], chain_kinematics(
+        skeleton, rows, [skeleton.index("rtoes")])[0][skeleton.index("rtoes")]], axis=1)
+    weights = np.zeros((len(rows), 2))
+    weights[5:30, 0] = 1.0
+    weights[10:20, 1] = 0.5
+    a, b = rows.copy(), rows.copy()
+    assert pin_feet(skeleton, a, feet, current + 0.03, weights) is not None
+    assert pin_feet(skeleton, b, feet, current + 0.03, weights, report=False) is None
+    assert np.array_equal(a, b) and not np.array_equal(a, rows)
 
 
 def test_pin_feet_leaves_a_pose_beyond_the_limits_where_its_foot_already_is():

@@ -13,7 +13,7 @@ from core.gait.retiming import cadence_style_direction
 from core.gait.walk import WalkRequest, predict_walk
 from core.gait.foot_slide import foot_points, stance_speeds
 from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
-from core.gait.root_travel import heading_angles, root_rotations
+from core.gait.root_travel import ROOT_DOF_NAMES, heading_angles, root_rotations
 from core.mocap import asf_to_skeleton, read_asf
 from tests.data import asf_path
 from tests.gait_data import trial
@@ -127,6 +127,38 @@ def test_straight_unless_asked(walker, style):
     turning = walk(walker, style, turn=np.radians(10.0))
     turned = mean_heading(model, turning.dofs, end_cycle) - start
     assert turned == pytest.approx(10.0 * (N - end_cycle / 2) / FPS, abs=6.0)
+
+
+@pytest.mark.parametrize("style", ["sneaking", "long stride"])
+def test_the_path_is_measured_on_the_root_the_full_solve_gives(walker, style, monkeypatch):
+    """Straight unless asked turns the walk by its path's drift, measured on a first solve
+    (stop 36). That solve stops before the legs' inverse kinematics (``_plant(...,
+    legs=False)``: two thirds of a solve, issue 21's time): the root it gives, and so the
+    drift, must be the full solve's, bit for bit (the same code computes both)."""
+    import core.gait.walk as walk_module
+    real = walk_module._plant
+    seen = []
+
+    def spy(*args):
+        if len(args) == 12 and args[11] is False:
+            full = args[2].copy()
+            real(*args[:2], full, *args[3:11], True)
+            real(*args)
+            seen.append((args[2].copy(), full, args[8]))
+        else:
+            real(*args)
+
+    monkeypatch.setattr(walk_module, "_plant", spy)
+    out = walk(walker, style)
+    assert len(seen) == 1
+    root_only, full, names = seen[0]
+    root = [names.index(n) for n in ROOT_DOF_NAMES]
+    assert np.array_equal(root_only[:, root], full[:, root])
+    assert not np.array_equal(root_only, full)               # the legs were pinned in one
+    omega = walker[3].state[0]
+    drift = [walk_module._travel_drift(walker[2], rows, names, omega, out.omega,
+                                       out.blend_frames) for rows in (root_only, full)]
+    assert drift[0] == drift[1] and abs(drift[0]) > np.radians(0.5)   # a turn was needed
 
 
 def test_retiming_up_strides_further_and_swings_wider_than_fast_forward(walker):

@@ -1,6 +1,8 @@
-"""Memory bounded (issue 26): ray casting, silhouette sampling and the body fit work in blocks,
-so that their peak memory is a fixed budget whatever the count of bones and of rays -- and the
-blocks give exactly the one-block result (the same code on the same numbers)."""
+"""Memory bounded (issue 26): ray casting works in blocks of (ray, part) pairs, so that its peak
+memory is a fixed budget whatever the count of bones and of rays -- and the blocks give exactly
+the one-block result (the same code on the same numbers); silhouette sampling pairs each ray only
+with the parts whose image box covers it, and its peak stays within the same budget on a
+many-bone rig."""
 
 import tracemalloc
 

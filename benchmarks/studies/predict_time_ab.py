@@ -1,0 +1,204 @@
+"""A/B of Predict Gait's time through the installed operator (issue 21: ≤ 0.2 s for 1.67 s
+observed + 4 s predicted; docs/gait.md, *Predict Gait's time*).
+
+Two extension zips (built here from two commits, or given) are timed in alternating fresh
+``bpy`` processes: each process installs its zip as a user would, imports the first frames of
+a CMU trial at the scene's rate (not timed) and calls ``track_and_stride.predict_gait`` with
+the operator's defaults but Length, re-importing the clip before each call; the call's CPU
+time (``time.process_time``: what a loaded machine steals from the wall clock does not count)
+and wall time are recorded, and the CPU time of ``predict_walk`` inside it (a timing wrapper
+around the add-on's reference to it). Round r runs A then B when r is even, B then A when odd. Reported:
+each side's median over all calls, and the median of the per-round ratios B / A (each
+round's median B over its median A: two processes close in time share the machine's load).
+
+A commit is built without touching any worktree: ``git archive <commit>`` into a temporary
+folder, then ``tools/build_extension.py --output X.zip`` run there with this Python (a bpy
+venv). ``--a WORKTREE`` / ``--b WORKTREE`` build the working tree as it is (uncommitted
+changes included).
+
+Usage (from the repository root, one BLAS thread as the operator runs in Blender)::
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/studies/predict_time_ab.py \\
+        --a main --b HEAD [--rounds 9 --calls 7 --trial 08_01 --frames 100 --length 4]
+
+``--profile ZIP`` instead runs one process with that zip under cProfile (the calls after a
+warm-up) and prints where the time goes.
+"""
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+CMU = ROOT / "sample_scenes" / "data" / "cmu"
+OUT = ROOT / "build" / "predict_time_ab"
+
+
+def build_zip(ref, name):
+    """Extension zip of a commit (``git archive``) or of the working tree (``WORKTREE``)."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    target = OUT / f"{name}.zip"
+    if ref.endswith(".zip"):
+        return Path(ref).resolve(), ref
+    if ref == "WORKTREE":
+        subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"), "--output",
+                        str(target)], check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+        return target, "WORKTREE"
+    commit = subprocess.run(["git", "rev-parse", "--verify", ref + "^{commit}"], cwd=ROOT,
+                            check=True, capture_output=True, text=True).stdout.strip()
+    folder = Path(tempfile.mkdtemp(prefix="ts-ab-src-"))
+    try:
+        archive = subprocess.run(["git", "archive", commit], cwd=ROOT, check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
+        subprocess.run([sys.executable, str(folder / "tools" / "build_extension.py"),
+                        "--output", str(target)], check=True, cwd=folder,
+                       stdout=subprocess.DEVNULL)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return target, commit[:10]
+
+
+def child(args):
+    """One fresh bpy process: install the zip, time ``args.calls`` Predict Gait calls."""
+    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp(prefix="ts-ab-user-")
+    sys.path.insert(0, str(ROOT))
+    import bpy
+    import numpy as np
+    from core.mocap import AmcMotion, read_amc, read_asf, resample, write_amc
+
+    bpy.ops.extensions.package_install_files(filepath=str(Path(args.child).resolve()),
+                                             repo="user_default", enable_on_install=True)
+    # predict_walk's own CPU time inside each call (a timing wrapper, nothing else changed).
+    import importlib
+    bridge = importlib.import_module("bl_ext.user_default.track_and_stride.addon.gait.bridge")
+    inner = []
+    real_walk = bridge.predict_walk
+
+    def timed_walk(*a, **k):
+        c0 = time.process_time()
+        try:
+            return real_walk(*a, **k)
+        finally:
+            inner.append(time.process_time() - c0)
+
+    bridge.predict_walk = timed_walk
+    folder = Path(tempfile.mkdtemp(prefix="ts-ab-clip-"))
+    subject = args.trial.split("_")[0]
+    asf = read_asf(CMU / f"{subject}.asf")
+    values = read_amc(CMU / f"{args.trial}.amc", asf).values
+    values = resample(values, 120, args.fps, np.arange(3, values.shape[1]))[:args.frames]
+    amc = folder / f"{args.trial}.amc"
+    write_amc(amc, asf, AmcMotion(values=values, frame_numbers=np.arange(1, len(values) + 1),
+                                  bone_order=(), fps=args.fps, path=str(amc)))
+    shutil.copy(CMU / f"{subject}.asf", folder / f"{subject}.asf")
+
+    def call():
+        bpy.ops.wm.read_homefile(use_empty=True)
+        bpy.context.scene.render.fps = int(args.fps)
+        bpy.ops.import_anim.acclaim(filepath=str(amc), source_fps=args.fps,
+                                    set_frame_range=False)
+        c0, w0 = time.process_time(), time.perf_counter()
+        result = bpy.ops.track_and_stride.predict_gait(horizon=args.length)
+        c1, w1 = time.process_time(), time.perf_counter()
+        if result != {"FINISHED"}:
+            raise SystemExit(f"predict_gait returned {result}")
+        return c1 - c0, w1 - w0
+
+    call()                                               # warm-up: imports, caches
+    if args.profile:
+        import cProfile
+        import pstats
+        profiler = cProfile.Profile()
+        profiler.enable()
+        for _ in range(args.calls):
+            call()
+        profiler.disable()
+        stats = pstats.Stats(profiler, stream=sys.stderr)
+        stats.sort_stats("cumulative").print_stats(45)
+        stats.sort_stats("tottime").print_stats(25)
+        return
+    del inner[:]
+    times = [call() for _ in range(args.calls)]
+    print(json.dumps({"cpu_s": [t[0] for t in times], "wall_s": [t[1] for t in times],
+                      "predict_walk_cpu_s": inner}))
+
+
+def run_child(zip_path, args, profile=False):
+    cmd = [sys.executable, __file__, "--child", str(zip_path), "--calls", str(args.calls),
+           "--trial", args.trial, "--frames", str(args.frames), "--length", str(args.length),
+           "--fps", str(args.fps)] + (["--profile"] if profile else [])
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    done = subprocess.run(cmd, env=env, check=True, capture_output=not profile, text=True)
+    if profile:
+        return None
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--a", default="main", help="commit, WORKTREE or a zip (baseline)")
+    parser.add_argument("--b", default="HEAD", help="commit, WORKTREE or a zip")
+    parser.add_argument("--rounds", type=int, default=9)
+    parser.add_argument("--calls", type=int, default=7, help="timed calls per process")
+    parser.add_argument("--trial", default="08_01")
+    parser.add_argument("--frames", type=int, default=100, help="observed frames (1.67 s)")
+    parser.add_argument("--length", type=float, default=4.0, help="Length (s) predicted")
+    parser.add_argument("--fps", type=float, default=60.0)
+    parser.add_argument("--output", default=str(OUT / "ab.json"))
+    parser.add_argument("--profile", nargs="?", const=True, default=False,
+                        help="(with a zip or ref) profile it instead of the A/B")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        return child(args)
+    if args.profile:
+        zip_path, _ = build_zip(args.profile if isinstance(args.profile, str) else args.b,
+                                "profiled")
+        return run_child(zip_path, args, profile=True)
+    zips = {"a": build_zip(args.a, "a"), "b": build_zip(args.b, "b")}
+    cpu = {"a": [], "b": []}
+    inner = {"a": [], "b": []}
+    wall = {"a": [], "b": []}
+    ratios = []
+    for r in range(args.rounds):
+        order = ("a", "b") if r % 2 == 0 else ("b", "a")
+        med = {}
+        for side in order:
+            t = run_child(zips[side][0], args)
+            cpu[side] += t["cpu_s"]
+            wall[side] += t["wall_s"]
+            inner[side] += t["predict_walk_cpu_s"]
+            med[side] = statistics.median(t["cpu_s"])
+        ratios.append(med["b"] / med["a"])
+        print(f"round {r + 1}: A {med['a']:.3f} s, B {med['b']:.3f} s CPU (B/A "
+              f"{ratios[-1]:.3f})", flush=True)
+    result = {"a": zips["a"][1], "b": zips["b"][1], "trial": args.trial, "frames": args.frames,
+              "length_s": args.length, "fps": args.fps, "rounds": args.rounds,
+              "calls": args.calls, "load_before": os.getloadavg(),
+              "cpu_median_s": {s: statistics.median(cpu[s]) for s in cpu},
+              "wall_median_s": {s: statistics.median(wall[s]) for s in wall},
+              "cpu_min_s": {s: min(cpu[s]) for s in cpu},
+              "predict_walk_cpu_median_s": {s: statistics.median(inner[s]) for s in inner},
+              "ratio_b_over_a_median": statistics.median(ratios), "round_ratios": ratios}
+    Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.output).write_text(json.dumps(result, indent=1))
+    print(f"A {result['a']}: CPU median {result['cpu_median_s']['a']:.3f} s (wall "
+          f"{result['wall_median_s']['a']:.3f}); B {result['b']}: CPU median "
+          f"{result['cpu_median_s']['b']:.3f} s (least {result['cpu_min_s']['b']:.3f}, wall "
+          f"{result['wall_median_s']['b']:.3f}); "
+          f"per-round B/A median {result['ratio_b_over_a_median']:.3f} "
+          f"(range {min(ratios):.3f}-{max(ratios):.3f}); of it predict_walk: A "
+          f"{result['predict_walk_cpu_median_s']['a'] * 1e3:.0f} ms, B "
+          f"{result['predict_walk_cpu_median_s']['b'] * 1e3:.0f} ms (CPU medians)")
+
+
+if __name__ == "__main__":
+    main()
