@@ -53,7 +53,8 @@ as a random walk's bridge: :func:`target_noise_shape`), so what is left is the t
 fitted to the drift law per camera (:func:`tracker_drift`), in body units
 (:func:`body_size_px`) pooled over the cameras (:func:`pooled_drift`), and the prior weighs
 its inverse (:func:`measured_prior_weights`). A camera where the keypoints agree with the
-tracker up to their noise fuses nothing.
+tracker up to their noise fuses nothing, nor does one whose drift is less than
+:data:`DRIFT_SIGNIFICANCE` standard errors above 0 (stop 37: a drift not told from the noise).
 
 Weight, window (``TrackingOptions.keypoint_smoothing``, seconds), the drift's growth and the
 measured prior's scale (``TrackingOptions.keypoint_drift_scale``) were chosen on one camera of
