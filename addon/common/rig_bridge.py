@@ -28,7 +28,7 @@ from mathutils import Matrix
 from ...core.kinematics import matrix_to_quaternion
 from ...core.pose_channels import channel_property, channels_from_rotations, rotations_from_channels
 from ...core.rigs import (LIMBS, RIGID, ROTATE, TRANSLATE, BodyMapError, BoneConstraint,
-                          RigBones, axis_rotation, bend_angle_error,
+                          RigBones, axis_rotation, bend_angle_error, joint_stretch,
                           joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
                           recognise_body_map, skeleton_pose, world_change, world_poses)
 from ...core.rigs.parts import PARENT
@@ -437,13 +437,19 @@ class MappedRig:
 
     # Reading --------------------------------------------------------------------------------
 
-    def read_pose(self, frames):
+    def read_pose(self, frames, stretch=False):
         """The model skeleton's pose at ``frames`` as the rig evaluates it: root translation
-        (N, 3) and local rotations (N, J, 3, 3), metres, armature space."""
+        (N, 3) and local rotations (N, J, 3, 3), metres, armature space; with ``stretch``
+        also how far its joints are from the rigid skeleton's (N, J, 3):
+        ``core.rigs.joint_stretch`` (a stretchy IK limb), which :meth:`control_values` takes
+        back."""
         scene = bpy.context.scene
         matrices = evaluated_matrices(scene, self.obj, self.model.pose_bones, frames)
         rot, pos = joint_world_poses(self.model, matrices)
-        return skeleton_pose(self.skeleton, rot, pos)
+        pose = skeleton_pose(self.skeleton, rot, pos)
+        if stretch:
+            return pose + (joint_stretch(self.skeleton, rot, pos),)
+        return pose
 
     def current_pose(self):
         """The model skeleton's pose as the rig is evaluated now (the frame shown, no frame
@@ -456,9 +462,12 @@ class MappedRig:
 
     # Writing --------------------------------------------------------------------------------
 
-    def control_values(self, frames, root_translation, local_rotations, steps=None):
+    def control_values(self, frames, root_translation, local_rotations, steps=None,
+                       stretch=None):
         """Channel values that put the model skeleton's controlled joints at a pose, found by
-        correction steps on the evaluated rig (module docstring).
+        correction steps on the evaluated rig (module docstring). ``stretch`` (N, J, 3) or
+        (J, 3), optional: the joints' offsets beyond the rigid skeleton's (:meth:`read_pose`),
+        so that an IK target goes where a stretched limb had its end.
 
         Returns
         -------
@@ -470,7 +479,7 @@ class MappedRig:
         """
         scene = bpy.context.scene
         steps = self.steps if steps is None else steps
-        targets = world_poses(self.skeleton, root_translation, local_rotations)
+        targets = world_poses(self.skeleton, root_translation, local_rotations, stretch)
         s = self.metres_per_unit
         pb = self.obj.pose.bones
         names = [st.control for st in steps]
@@ -541,6 +550,7 @@ class MappedRig:
         view_layer = bpy.context.view_layer
         tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
         last, errors = np.full(2, np.inf), np.zeros(2)
+        secant = {}
         for _ in range(MAX_STEPS + 1):
             m = current_matrices(self.obj)
             joints = m[pose_idx] @ offsets
@@ -553,7 +563,7 @@ class MappedRig:
                 break                         # no more progress: what the rig can do
             last = errors.copy()
             self.correction_steps += 1
-            self._correct(steps, names, modes, m, cidx, joints, target)
+            self._correct(steps, names, modes, m, cidx, joints, target, secant)
             self.obj.update_tag()
             view_layer.update()
         return errors
@@ -641,7 +651,7 @@ class MappedRig:
             return None
         return channelbag(anim.action, anim.action_slot, ensure=False)
 
-    def _correct(self, steps, names, modes, m, cidx, joints, target):
+    def _correct(self, steps, names, modes, m, cidx, joints, target, secant=None):
         """One correction step of every control (pose bones changed in place): each control
         moves by the world change that puts its part on target (:func:`wanted_controls`), and
         Blender's own ``convert_space`` turns the control's new pose matrix into its channels
@@ -650,9 +660,19 @@ class MappedRig:
         Every control is converted before any is set: ``convert_space`` reads the parent's
         evaluated pose, not the channels set here, so the order does not matter, and the
         NumPy work runs once per correction step on stacked matrices (it was ~5 700 single
-        3×3 SVDs and world changes per run of 14 controls, docs/tracking.md)."""
+        3×3 SVDs and world changes per run of 14 controls, docs/tracking.md).
+
+        ``secant`` (a dict kept over one frame's steps): an IK chain's base turned about its
+        one free axis (``'twist'``) is set by a secant on that channel against the limb's
+        signed bend error once the error is small (:func:`_twist_secant`): how the IK's bend
+        plane follows the base is the rig's, not the turn about the limb's axis the step
+        assumes (Rigify's arms stalled 1.6° off)."""
         pb = self.obj.pose.bones
         wanted = wanted_controls(steps, m[cidx], joints, target)
+        solved = {} if secant is None else _twist_secant(steps, names, modes, joints, target,
+                                                         pb, secant)
+        for c in solved:
+            wanted[c] = np.nan                       # keyed by the secant below
         new = {}
         for c, name in enumerate(names):
             if not np.all(np.isfinite(wanted[c])):
@@ -691,6 +711,8 @@ class MappedRig:
                                                np.array(getattr(bone, prop)),
                                                tuple(bone.lock_rotation))
                 setattr(bone, prop, value.tolist())
+        for c, value in solved.items():
+            pb[names[c]].rotation_euler = value.tolist()
 
     def write_pose_keys(self, frames, root_translation, local_rotations, bones=None,
                         action_name=None):
@@ -725,6 +747,58 @@ class MappedRig:
             group = path.split('"')[1]
             written += insert_keys_preserving(bag, path, index, group, frames, series)
         return written
+
+
+#: Bend error (radians) below which an IK base's free channel is solved for directly.
+SECANT_RANGE = np.radians(5.0)
+#: Smallest change of that channel (radians) a secant slope is measured over (its F-curve
+#: and channel values are single floats).
+SECANT_MIN_STEP = 1e-5
+
+
+def _twist_secant(steps, names, modes, joints, target, pose_bones, memory):
+    """New values {step index: Euler channels (3,)} of the ``'twist'`` controls with one free
+    Euler axis whose limb's signed bend error ``e`` is below :data:`SECANT_RANGE`: Newton's
+    step on the free channel ``v' = v − e / s``. The slope ``s`` (bend radians per channel
+    radian) is the secant's from the channel's previous value and error at this frame
+    (``memory``, updated), ``s = (e − e₀) / (v − v₀)``, when the channel moved enough and it
+    is within a factor 2 of the geometric slope, else the geometric slope ``−a·u`` (turning
+    the base by δ about its free axis ``a`` turns the limb's bend plane by about δ (a·u) about
+    the limb's axis ``u``, root → end). A limb within a quarter of the angle tolerance is left
+    as it is (float noise)."""
+    out = {}
+    for c, st in enumerate(steps):
+        if st.rule != TWIST or modes[c] not in ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"):
+            continue
+        bone = pose_bones[names[c]]
+        free = [i for i in range(3) if not bone.lock_rotation[i]]
+        if len(free) != 1:
+            continue
+        a, mid, e = st.limb
+        err = float(bend_angle_error(joints[a, :3, 3], joints[e, :3, 3], joints[mid, :3, 3],
+                                     target[mid, :3, 3]))
+        value = np.array(bone.rotation_euler, dtype=float)
+        before = memory.get(c)
+        memory[c] = (value[free[0]], err)
+        if not np.isfinite(err) or abs(err) > SECANT_RANGE:
+            continue
+        if abs(err) < 0.25 * ANGLE_TOLERANCE:
+            out[c] = value
+            continue
+        limb = joints[e, :3, 3] - joints[a, :3, 3]
+        axis = bone.matrix.to_3x3().col[free[0]]
+        nominal = -float(np.dot(np.array(axis).ravel(), limb)) / max(
+            np.linalg.norm(limb) * np.linalg.norm(axis), 1e-12)
+        if abs(nominal) < 0.2:
+            continue
+        slope = nominal
+        if before is not None and abs(value[free[0]] - before[0]) >= SECANT_MIN_STEP:
+            measured = (err - before[1]) / (value[free[0]] - before[0])
+            if 0.5 <= measured / nominal <= 2.0:
+                slope = measured
+        value[free[0]] -= err / slope
+        out[c] = value
+    return out
 
 
 def _rotation_channels(rotation, mode, current, locked):

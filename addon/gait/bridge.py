@@ -551,7 +551,8 @@ def predict_gait(context, obj, options):
     action = obj.animation_data.action
     record = intact_prediction(bag, grig, action)
     first, last = _observed_range(grig, scene, options, bag, record)
-    dofs = read_dofs(grig, np.arange(first, last + 1), model_hold(model, grig))
+    dofs, residual = read_dofs(grig, np.arange(first, last + 1), model_hold(model, grig),
+                               residual=True)
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
     what = f"frames {first}–{last} of {obj.name}"
@@ -584,7 +585,12 @@ def predict_gait(context, obj, options):
     full = walk.dofs
     if not np.all(np.isfinite(full)):
         raise GaitError(f"The prediction for {obj.name} is not finite: nothing was keyed")
-    values = channel_values(grig, bag, full, last, dofs[-1], frames=frames)
+    # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU
+    # template's), carried from the reference's last cycle: the character keeps its posture.
+    omega = float(np.asarray(walker.state, dtype=float)[0])       # observed, rad per frame
+    cycle = 2.0 * np.pi / omega if np.isfinite(omega) and omega > 0 else len(dofs)
+    carried = None if residual is None else residual.carried(cycle)
+    values = channel_values(grig, bag, full, last, dofs[-1], frames=frames, residual=carried)
     # Every check has passed: change the scene.
     replaced = None
     if options.target == "AFTER":

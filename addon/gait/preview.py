@@ -50,6 +50,9 @@ class PreviewSession:
     rows: dict = None
     poser: object = None
     model: object = None
+    #: Mapped rigs: what the rig's pose holds beyond the DOFs, carried onto the ghost
+    #: (``rigs.RigResidual.carried`` of the frames checked at start).
+    residual: object = None
 
 
 _SESSION = None
@@ -198,11 +201,13 @@ def start_preview(context, obj):
     columns = np.array([lookup[n] for n in model.dof_names], dtype=int)
     # The last (at most) 4 s of the keyed range: enough for the checks and the fit score.
     first_checked = max(first, last - int(round(PREVIEW_CHECK_S * fps)) + 1)
-    rows = None
+    rows = residual = None
     if grig.kind == "MAPPED":
         # Blender evaluates the rig (constraints, IK): read the keyed range once now.
         frames = np.arange(first, last + 1)
-        rows = dict(zip(frames.tolist(), read_dofs(grig, frames, model_hold(model, grig))))
+        read, residual = read_dofs(grig, frames, model_hold(model, grig), residual=True)
+        rows = dict(zip(frames.tolist(), read))
+        residual = residual.carried(last - first_checked + 1)
         dofs = np.array([rows[f] for f in range(first_checked, last + 1)])[:, columns]
     else:
         dofs = read_dofs(grig, np.arange(first_checked, last + 1))[:, columns]
@@ -232,7 +237,8 @@ def start_preview(context, obj):
             ghost = _make_ghost(context, obj)
         ghost_name = ghost.name
         _SESSION = PreviewSession(scene.name, obj.name, ghost_name, grig, predictor, columns,
-                                  warning=warning, rows=rows, poser=poser, model=model)
+                                  warning=warning, rows=rows, poser=poser, model=model,
+                                  residual=residual)
         if not bpy.app.background and not handler_registered():
             bpy.app.handlers.frame_change_post.append(_on_frame_change)
         update_preview(scene)
@@ -283,7 +289,8 @@ def last_stop():
 def _pose_ghost(s, ghost, row):
     grig = s.grig
     if grig.kind == "MAPPED":
-        translation, local = grig.space.rig_pose(row[None])
+        translation, local = grig.space.rig_pose(
+            row[None], None if s.residual is None else s.residual.rotations)
         s.poser.pose(ghost, translation[0], local[0])
         return
     targets = grig.targets()

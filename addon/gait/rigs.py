@@ -240,9 +240,38 @@ def _bvh_scale(grig):
     return best if abs(np.log(best / ratio)) < np.log(1.5) else ratio
 
 
-def read_dofs(grig, frames, hold=None):
+@dataclass(frozen=True, eq=False)
+class RigResidual:
+    """What a mapped rig's pose holds beyond the DOF rows read from it (``read_dofs(...,
+    residual=True)``); :func:`channel_values` puts it back.
+
+    Attributes
+    ----------
+    rotations : ndarray, shape (N, J, 3, 3) or (J, 3, 3)
+        Per model joint, the rotation in its own frame that the DOFs cannot express
+        (``GaitSpace.residuals``: the rig's rest convention against the CMU template's).
+    stretch : ndarray, shape (N, J, 3) or (J, 3), or None
+        The joints' offsets beyond the rigid skeleton (``core.rigs.joint_stretch``: a
+        stretchy IK limb), metres of the armature's space.
+    """
+
+    rotations: np.ndarray
+    stretch: np.ndarray = None
+
+    def carried(self, frames):
+        """The residual the predicted frames carry: the rotations' mean over the last
+        ``frames`` rows (``core.rigs.gait_space.carried_residual``), no stretch (the
+        predicted feet go where the model plants them; the rig's IK stretches as it does)."""
+        from ...core.rigs.gait_space import carried_residual
+        k = int(np.clip(frames, 1, len(self.rotations)))
+        return RigResidual(carried_residual(self.rotations[-k:]))
+
+
+def read_dofs(grig, frames, hold=None, residual=False):
     """AMC-layout DOF rows (N, n_dofs) of the armature's action at ``frames`` (MAPPED: the
-    columns the rig does not show at ``hold``, ``GaitSpace.dofs``).
+    columns the rig does not show at ``hold``, ``GaitSpace.dofs``). With ``residual``:
+    ``(dofs, RigResidual)`` (None for an Acclaim import or a BVH conversion, which the DOFs
+    hold whole); keyed back with it (:func:`channel_values`) the rig's poses are given back.
 
     Raises
     ------
@@ -252,7 +281,14 @@ def read_dofs(grig, frames, hold=None):
     frames = np.asarray(frames, dtype=float)
     bag = _action_bag(grig.obj)
     if grig.kind == "MAPPED":
-        return grig.space.dofs(*grig.mapped.read_pose(frames), hold=hold)
+        if not residual:
+            return grig.space.dofs(*grig.mapped.read_pose(frames), hold=hold)
+        translation, local, stretch = grig.mapped.read_pose(frames, stretch=True)
+        dofs = grig.space.dofs(translation, local, hold=hold)
+        rest = RigResidual(grig.space.residuals(translation, local, dofs), stretch)
+        return dofs, rest
+    if residual:
+        return read_dofs(grig, frames, hold), None
     if grig.kind == "ACCLAIM":
         pb = grig.obj.pose.bones
         targets = [(pose_bone_path(b, p), i) for b, p, i in grig.layout.channels]
@@ -345,11 +381,13 @@ def keyed_conflicts(bag, targets, first, last):
     return count
 
 
-def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None):
+def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None, residual=None):
     """Values (N, len(targets)) that key DOF rows at ``frames`` (default: the frames after
     ``last_frame``), continuing the curves of ``bag`` at ``last_frame`` (whose DOF row is
     ``last_dofs``). A mapped rig's controls are solved on the evaluated rig
     (``MappedRig.control_values``); what they could not reach is in ``grig.last_errors``.
+    ``residual`` (:class:`RigResidual`, MAPPED only): what the rig's pose holds beyond the
+    DOFs, put back (the reader's for the frames it read, ``RigResidual.carried`` for others).
 
     Raises
     ------
@@ -360,11 +398,14 @@ def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None):
     if grig.kind == "MAPPED":
         if frames is None:
             frames = last_frame + np.arange(1, len(dofs) + 1)
-        translation, local = grig.space.rig_pose(dofs)
-        if not (np.all(np.isfinite(translation)) and np.all(np.isfinite(local))):
+        rotations = None if residual is None else residual.rotations
+        stretch = None if residual is None else residual.stretch
+        translation, local = grig.space.rig_pose(dofs, rotations)
+        if not (np.all(np.isfinite(translation)) and np.all(np.isfinite(local))
+                and (stretch is None or np.all(np.isfinite(stretch)))):
             raise GaitError("the prediction produced non-finite values; nothing was written")
         found, errors = grig.mapped.control_values(np.asarray(frames, dtype=float), translation,
-                                                   local, grig.steps)
+                                                   local, grig.steps, stretch=stretch)
         grig.last_errors = (float(errors[:, 0].max()), float(errors[:, 1].max()))
         values = np.column_stack([found[(path, index)] for path, index, _ in targets])
     else:

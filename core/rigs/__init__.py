@@ -20,7 +20,8 @@ from .parts import (LIMBS, OPTIONAL, PARENT, PARTS, REQUIRED, body_region, limb_
 from .recognise import (BoneConstraint, RigBones, best_body_map, pattern_body_map, recognise_body_map,
                         with_ik_constraints)
 from .retarget import (RIGID, ROTATE, TRANSLATE, basis_from_pose, basis_matrix,
-                       control_targets, corrected_basis, joint_world_poses, minimal_rotation,
+                       control_targets, corrected_basis, joint_stretch, joint_world_poses,
+                       minimal_rotation,
                        orthonormal, pose_error, pose_from_basis, rest_alignment, rigid,
                        skeleton_pose, split_basis, to_model_frames, to_rig_frames, world_change,
                        world_poses)
@@ -31,7 +32,7 @@ __all__ = [
     "Toggle", "anatomical_dof_mask", "hip_pivot", "axis_rotation", "basis_from_pose", "basis_matrix", "bend_angle_error",
     "bend_direction", "best_body_map", "body_map_from_dict", "body_map_from_json", "body_map_to_dict",
     "body_map_to_json", "body_region", "control_targets", "corrected_basis", "gait_space",
-    "ik_targets_from_pose", "joint_world_poses", "limb_of_part", "minimal_rotation",
+    "ik_targets_from_pose", "joint_stretch", "joint_world_poses", "limb_of_part", "minimal_rotation",
     "model_skeleton", "orthonormal", "pattern_body_map", "plain_list", 
     "pole_position", "pose_error", "pose_from_basis", "present_parent", "read_body_map",
     "recognise_body_map", "rest_alignment", "rigid", "side_of_part", "skeleton_pose",

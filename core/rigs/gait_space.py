@@ -163,34 +163,112 @@ class GaitSpace:
 
     # Writing ---------------------------------------------------------------------------------
 
-    def rig_pose(self, dofs):
+    def rig_pose(self, dofs, residual=None):
         """The rig model skeleton's pose (root translation (N, 3), local rotations (N, J, 3,
-        3), armature metres) of CMU DOF rows (module docstring, *Writing*)."""
-        sk = self.skeleton
-        translation, local = local_rotations_from_dofs(sk, np.asarray(dofs, dtype=float))
-        frames, positions = forward_kinematics(sk, local, translation)
-        cmu_rest, _ = rest_pose(sk)
+        3), armature metres) of CMU DOF rows (module docstring, *Writing*).
+
+        ``residual`` (J, 3, 3) or (N, J, 3, 3), optional: per rig joint, the rotation in the
+        joint's own frame that the DOFs cannot express (:meth:`residuals`), applied after the
+        frame the DOFs give it: ``W_j = W'_j @ D_j``. The residuals read with the DOFs give
+        back the rig's poses exactly."""
+        translation, frames, positions, arm = self._chain_frames(dofs)
+        cmu_rest, _ = rest_pose(self.skeleton)
         a = self.armature2world
         rig = self.rig_skeleton
         n, j_count = len(frames), rig.n_joints
+        chain = self.cmu_of_joint >= 0
+        res = None if residual is None else np.broadcast_to(
+            np.asarray(residual, dtype=float), (n, j_count, 3, 3))
+        out = np.empty_like(arm)
+        for j in range(j_count):
+            p = rig.parents[j]
+            parent = arm[:, p] if p >= 0 else np.eye(3)
+            if not chain[j]:
+                arm[:, j] = parent @ rig.rest_rotations[j]
+            if res is not None:
+                arm[:, j] = arm[:, j] @ res[:, j]
+            if chain[j] or res is not None:
+                out[:, j] = rig.rest_rotations[j].T @ np.swapaxes(parent, -1, -2) @ arm[:, j]
+            else:
+                out[:, j] = np.eye(3)
+        g_root = frames[:, 0] @ cmu_rest[0].T
+        hips_w = positions[:, 0] / self.scale + g_root @ self.hips_offset
+        hips_arm = (hips_w - a[:3, 3]) @ a[:3, :3]
+        return hips_arm - rig.offsets[0], orthonormal(out)
+
+    def residuals(self, root_translation, local_rotations, dofs):
+        """What DOF rows cannot hold of the rig poses they were read from (:meth:`dofs`):
+        per rig joint the rotation ``D_j = W'_jᵀ W_j`` (N, J, 3, 3) in the joint's own frame
+        between the frame :meth:`rig_pose` gives it (``W'_j``: a chain joint's from its CMU
+        joint, a side bone's at rest on its parent as the rig holds it) and the rig's
+        (``W_j``, armature space). The CMU template's rest directions against the rig's
+        convention (a clavicle's twist, a foot's roll) and what a one-axis knee or elbow
+        cannot bend are here; ``rig_pose(dofs, residuals(...))`` is the rig's pose.
+
+        Parameters
+        ----------
+        root_translation : array_like, shape (N, 3)
+        local_rotations : array_like, shape (N, J, 3, 3)
+            The rig poses, as given to :meth:`dofs`.
+        dofs : array_like, shape (N, n_dofs)
+            Their DOF rows (:meth:`dofs`, with the same ``hold``).
+
+        Returns
+        -------
+        ndarray, shape (N, J, 3, 3)
+        """
+        rig = self.rig_skeleton
+        rot, _ = forward_kinematics(rig, np.asarray(local_rotations, float),
+                                    np.asarray(root_translation, float))
+        _, _, _, arm = self._chain_frames(dofs)
+        chain = self.cmu_of_joint >= 0
+        out = np.empty_like(rot)
+        for j in range(rig.n_joints):
+            p = rig.parents[j]
+            if chain[j]:
+                base = arm[:, j]
+            else:
+                base = (rot[:, p] if p >= 0 else np.eye(3)) @ rig.rest_rotations[j]
+            out[:, j] = np.swapaxes(base, -1, -2) @ rot[:, j]
+        return orthonormal(out)
+
+    def _chain_frames(self, dofs):
+        """CMU root translation, CMU joint frames and origins (world) of DOF rows, and the
+        armature-space frames (N, J, 3, 3) they give the rig's chain joints (side bones'
+        rows unset)."""
+        sk = self.skeleton
+        translation, local = local_rotations_from_dofs(sk, np.asarray(dofs, dtype=float))
+        frames, positions = forward_kinematics(sk, local, translation)
+        a = self.armature2world
+        n, j_count = len(frames), self.rig_skeleton.n_joints
         world = np.empty((n, j_count, 3, 3))
         src = self.cmu_of_joint
         chain = src >= 0
         world[:, chain] = frames[:, src[chain]] @ np.swapaxes(self.alignment[chain], -1, -2)
         arm = np.swapaxes(a[:3, :3], -1, -2) @ world
-        out = np.empty_like(arm)
-        for j in range(j_count):
-            p = rig.parents[j]
-            parent = arm[:, p] if p >= 0 else np.eye(3)
-            if chain[j]:
-                out[:, j] = rig.rest_rotations[j].T @ np.swapaxes(parent, -1, -2) @ arm[:, j]
-            else:
-                out[:, j] = np.eye(3)
-                arm[:, j] = parent @ rig.rest_rotations[j]
-        g_root = frames[:, 0] @ cmu_rest[0].T
-        hips_w = positions[:, 0] / self.scale + g_root @ self.hips_offset
-        hips_arm = (hips_w - a[:3, 3]) @ a[:3, :3]
-        return hips_arm - rig.offsets[0], orthonormal(out)
+        return translation, frames, positions, arm
+
+
+def carried_residual(residuals, weights=None):
+    """The residual a predicted frame carries from the reference's: per joint the rotation
+    nearest the (weighted) mean of the reference's residual matrices, the chordal L2 mean of
+    rotations (the arithmetic mean projected onto SO(3): Moakher 2002, *Means and averaging in
+    the group of rotations*, the projected arithmetic mean; Hartley et al. 2013, *Rotation
+    averaging*, the chordal L2 mean).
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N, J, 3, 3)
+        :meth:`GaitSpace.residuals` of the reference frames.
+    weights : array_like, shape (N,), optional
+
+    Returns
+    -------
+    ndarray, shape (J, 3, 3)
+    """
+    r = np.asarray(residuals, dtype=float)
+    w = np.ones(len(r)) if weights is None else np.asarray(weights, dtype=float)
+    return orthonormal(np.einsum("n,njab->jab", w / w.sum(), r))
 
 
 def _decompose(sk, targets, through, root_world, hinges=None, held=None):

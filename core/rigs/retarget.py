@@ -125,9 +125,41 @@ def skeleton_pose(skeleton, rotations, positions):
     return root - skeleton.offsets[0], orthonormal(local)
 
 
-def world_poses(skeleton, root_translation, local_rotations):
-    """Joint frames as 4×4 matrices (N, J, 4, 4), metres: forward kinematics."""
+def joint_stretch(skeleton, rotations, positions):
+    """How far the joints of a pose are from where the skeleton's rigid offsets put them:
+    ``s_i = R_parentᵀ (p_i − p_parent) − offsets_i`` (N, J, 3), in the parent joint's frame,
+    metres (root: 0). A stretchy rig (Rigify's IK limbs) moves its joints along its bones;
+    :func:`world_poses` with this ``stretch`` gives the joints back exactly.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    rotations : array_like, shape (N, J, 3, 3)
+        Joint frames (the pose's, as given to :func:`skeleton_pose`).
+    positions : array_like, shape (N, J, 3)
+        Joint origins, metres.
+    """
+    rotations = orthonormal(rotations)
+    positions = np.asarray(positions, dtype=float)
+    parents = np.asarray(skeleton.parents)
+    out = np.zeros(positions.shape)
+    kids = np.flatnonzero(parents >= 0)
+    p = parents[kids]
+    step = (positions[:, kids] - positions[:, p])[..., None]
+    out[:, kids] = (np.swapaxes(rotations[:, p], -1, -2) @ step)[..., 0] - skeleton.offsets[kids]
+    return out
+
+
+def world_poses(skeleton, root_translation, local_rotations, stretch=None):
+    """Joint frames as 4×4 matrices (N, J, 4, 4), metres: forward kinematics; with
+    ``stretch`` (N, J, 3) or (J, 3) (:func:`joint_stretch`) each joint's offset from its
+    parent lengthened by it: ``p_i = p_parent + R_parent (offsets_i + s_i)``."""
     rot, pos = forward_kinematics(skeleton, local_rotations, root_translation)
+    if stretch is not None:
+        s = np.broadcast_to(np.asarray(stretch, dtype=float), pos.shape)
+        for i in range(1, skeleton.n_joints):
+            p = skeleton.parents[i]
+            pos[:, i] = pos[:, p] + (rot[:, p] @ (skeleton.offsets[i] + s[:, i])[..., None])[..., 0]
     out = np.zeros(rot.shape[:2] + (4, 4))
     out[..., :3, :3], out[..., :3, 3], out[..., 3, 3] = rot, pos, 1.0
     return out

@@ -11,8 +11,9 @@ import pytest
 
 from core.kinematics import exp_so3, forward_kinematics, local_rotations_from_dofs, rest_pose
 from core.mocap import asf_to_skeleton, read_amc, read_asf
-from core.rigs import BodyMap, PartMap, minimal_rotation, model_skeleton, skeleton_pose
-from core.rigs.gait_space import LEG_RANGE, gait_space
+from core.rigs import (BodyMap, PartMap, joint_stretch, minimal_rotation, model_skeleton,
+                       skeleton_pose, world_poses)
+from core.rigs.gait_space import LEG_RANGE, carried_residual, gait_space
 
 ROOT = Path(__file__).resolve().parents[2]
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
@@ -346,3 +347,80 @@ def test_a_knee_bending_in_its_own_plane_keeps_the_ankle_where_the_rig_has_it():
         world[:, rig.names.index("thigh.L"), :, 1] * world[:, rig.names.index("shin.L"), :, 1],
         axis=-1), -1, 1)))
     assert np.linalg.norm(got[:, ankle] - want[:, ankle], axis=-1)[bend_l > 15].max() < 1e-6
+
+
+def test_what_the_dofs_cannot_hold_of_a_rigs_convention_is_given_back_by_its_residual():
+    """A rig carrying a walk retargeted with another subject's rest directions (subject 35's
+    walk with 35's skeleton, as the test rigs are keyed) read through the CMU template
+    (subject 08): the DOFs cannot hold all of it (a clavicle has no twist, a knee one axis),
+    so writing the DOFs alone loses a few degrees; with the residuals read beside them the
+    rig's poses come back exactly, and with one residual per bone (their mean, what a
+    predicted frame carries) nearly so."""
+    rig = SyntheticRig(asf="35", trial="35_01", frames=60)
+    space = rig.space()
+    dofs = space.dofs(rig.root_translation, rig.local)
+    residual = space.residuals(rig.root_translation, rig.local, dofs)
+    assert residual.shape == rig.local.shape
+    want_rot, want_pos = forward_kinematics(rig.model.skeleton, rig.local, rig.root_translation)
+
+    def written(res):
+        translation, local = space.rig_pose(dofs, res)
+        return forward_kinematics(rig.model.skeleton, local, translation)
+
+    got, _ = written(None)
+    assert angle_deg(got, want_rot).max() > 2.0            # what the DOFs alone lose
+    got, pos = written(residual)
+    assert angle_deg(got, want_rot).max() < 1e-9
+    np.testing.assert_allclose(pos, want_pos, atol=1e-12)
+    got, _ = written(carried_residual(residual))
+    lost = angle_deg(got, want_rot)
+    assert lost.mean() < 0.02 and lost.max() < 0.5, (lost.mean(), lost.max())
+    # The DOFs are what they were: the model reads and predicts the same rows.
+    np.testing.assert_array_equal(dofs, space.dofs(rig.root_translation, rig.local))
+    # Held joints (a model's mean pose) change the DOFs, not what is given back.
+    hold = RNG.normal(scale=0.3, size=len(space.dof_names))
+    held = space.dofs(rig.root_translation, rig.local, hold=hold)
+    translation, local = space.rig_pose(held, space.residuals(rig.root_translation,
+                                                               rig.local, held))
+    got, _ = forward_kinematics(rig.model.skeleton, local, translation)
+    assert angle_deg(got, want_rot).max() < 1e-9
+
+
+def test_the_carried_residual_is_the_mean_rotation():
+    """Of one rotation repeated: that rotation; of rotations spread about one: the rotation
+    whose log is their mean log to second order (small spread)."""
+    base = exp_so3(RNG.normal(size=(4, 3)))
+    np.testing.assert_allclose(carried_residual(np.broadcast_to(base, (7, 4, 3, 3))), base,
+                               atol=1e-14)
+    spread = RNG.normal(scale=0.01, size=(200, 4, 3))
+    spread -= spread.mean(axis=0)                                  # mean log 0
+    got = carried_residual(base @ exp_so3(spread.reshape(-1, 3)).reshape(200, 4, 3, 3))
+    assert angle_deg(got, base).max() < 1e-3
+    assert angle_deg(got, base @ exp_so3(np.full((4, 3), 0.01))).min() > 0.5
+
+
+def test_a_stretched_joint_is_given_back_by_its_stretch():
+    """``joint_stretch`` of a pose whose joints moved along their bones (a stretchy IK limb)
+    and ``world_poses`` with it give the joints back; without it, the rigid skeleton's."""
+    rig = SyntheticRig(frames=10)
+    sk = rig.model.skeleton
+    rot, pos = forward_kinematics(sk, rig.local, rig.root_translation)
+    shin = rig.model.joint_of_part("left shin")
+    moved = pos.copy()
+    below = [j for j in range(sk.n_joints) if _descends(sk, j, shin)]
+    moved[:, below] += 0.004 * rot[:, shin, None, :, 1]     # the knee 4 mm along the shin
+    s = joint_stretch(sk, rot, moved)
+    np.testing.assert_allclose(world_poses(sk, rig.root_translation, rig.local, s)[..., :3, 3],
+                               moved, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(s, axis=-1)[:, shin], 0.004, atol=1e-12)
+    assert np.abs(np.delete(s, shin, axis=1)).max() < 1e-12
+    np.testing.assert_allclose(world_poses(sk, rig.root_translation, rig.local)[..., :3, 3],
+                               pos, atol=1e-12)
+
+
+def _descends(sk, j, ancestor):
+    while j >= 0:
+        if j == ancestor:
+            return True
+        j = sk.parents[j]
+    return False
