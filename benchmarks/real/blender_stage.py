@@ -427,7 +427,8 @@ def run_one(bpy, plan, poses, cameras, every, frames=None, keypoints=None):
     read = rec.log.get("read_footage")
     record["footage_checksum"] = None if read is None else checksum(read)
     if plan.get("dump_core_inputs"):
-        dump_core_inputs(Path(plan["dump_core_inputs"]), name, every, rec.log)
+        dump_core_inputs(Path(plan["dump_core_inputs"]), name, every, rec.log,
+                         "_keypoints" if keypoints else "")
     if len(cameras) > 1:                       # every camera's frames, in the problem's order
         record["view_names"] = list(request.view_names)
         record["footage_checksum"] = [checksum(rec.views_read[v])
@@ -458,7 +459,7 @@ def _cm(metres):
     return round(value, 3) if np.isfinite(value) else None
 
 
-def dump_core_inputs(folder, name, every, log):
+def dump_core_inputs(folder, name, every, log, suffix=""):
     """Development: what the operator handed the core (``--dump-core-inputs``), so that the
     core can be re-run outside Blender on exactly these inputs (``benchmarks/real/
     core_replay.py``): the request's problem, options and keys (a pickle whose classes are
@@ -472,7 +473,12 @@ def dump_core_inputs(folder, name, every, log):
                      "key_frames": np.asarray(request.key_frames),
                      "key_roots": request.key_roots, "key_locals": request.key_locals,
                      "bone_names": list(request.rig.bone_names),
-                     "armature2world": np.asarray(request.rig.armature2world)}, f)
+                     "armature2world": np.asarray(request.rig.armature2world),
+                     "keypoints": getattr(request, "keypoints", None),
+                     "root_pivot": getattr(request, "root_pivot", None),
+                     "first": getattr(request, "first", None)}, f)
+    with open(folder / f"{name}_{every}_result{suffix}.pkl", "wb") as f:
+        pickle.dump(log.get("run_core"), f)        # the core's SequenceResult (replays)
     frames_path = folder / f"{name}_frames.npy"
     if not frames_path.exists() and log.get("read_footage") is not None:
         np.save(frames_path, np.asarray(log["read_footage"], dtype=np.float32))

@@ -7,9 +7,10 @@ a CMU trial at the scene's rate (not timed) and calls ``track_and_stride.predict
 the operator's defaults but Length, re-importing the clip before each call; the call's CPU
 time (``time.process_time``: what a loaded machine steals from the wall clock does not count)
 and wall time are recorded, and the CPU time of ``predict_walk`` inside it (a timing wrapper
-around the add-on's reference to it). Round r runs A then B when r is even, B then A when odd. Reported:
-each side's median over all calls, and the median of the per-round ratios B / A (each
-round's median B over its median A: two processes close in time share the machine's load).
+around the add-on's reference to it). Round r runs A then B when r is even, B then A when
+odd. Reported: each side's median and least over all calls, the median of the per-round
+ratios B / A (each round's median B over its median A: two processes close in time share the
+machine's load), and ``predict_walk``'s median.
 
 A commit is built without touching any worktree: ``git archive <commit>`` into a temporary
 folder, then ``tools/build_extension.py --output X.zip`` run there with this Python (a bpy
@@ -21,7 +22,7 @@ Usage (from the repository root, one BLAS thread as the operator runs in Blender
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/studies/predict_time_ab.py \\
         --a main --b HEAD [--rounds 9 --calls 7 --trial 08_01 --frames 100 --length 4]
 
-``--profile ZIP`` instead runs one process with that zip under cProfile (the calls after a
+``--profile REF`` (a commit, WORKTREE or a zip) instead runs one process with it under cProfile (the calls after a
 warm-up) and prints where the time goes.
 """
 
@@ -190,8 +191,9 @@ def main():
               "ratio_b_over_a_median": statistics.median(ratios), "round_ratios": ratios}
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     Path(args.output).write_text(json.dumps(result, indent=1))
-    print(f"A {result['a']}: CPU median {result['cpu_median_s']['a']:.3f} s (wall "
-          f"{result['wall_median_s']['a']:.3f}); B {result['b']}: CPU median "
+    print(f"A {result['a']}: CPU median {result['cpu_median_s']['a']:.3f} s (least "
+          f"{result['cpu_min_s']['a']:.3f}, wall {result['wall_median_s']['a']:.3f}); "
+          f"B {result['b']}: CPU median "
           f"{result['cpu_median_s']['b']:.3f} s (least {result['cpu_min_s']['b']:.3f}, wall "
           f"{result['wall_median_s']['b']:.3f}); "
           f"per-round B/A median {result['ratio_b_over_a_median']:.3f} "

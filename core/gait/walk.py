@@ -6,7 +6,12 @@ last observed frame) and a :class:`WalkRequest` into DOF rows of the walker's sk
 
 1. **A smooth join** (:func:`.prediction.predict_transition`): the observed walk turns into the
    requested style and cadence over one step (``blend_steps``; a smootherstep, so velocity and
-   acceleration stay continuous at the first predicted frame).
+   acceleration stay continuous at the first predicted frame). Where the style or cadence
+   changes and a trial solve's root accelerates over the join beyond the reference frames'
+   own largest (× ``JOIN_TOLERANCE``), a longer join is tried (``JOIN_SCALES``, up to two
+   steps; not toward or from a run) and the shortest that is no harsher, else the mildest,
+   kept: the stance foot's place relative to the hips changes with the style under the
+   planted root (``Δp s̈``, ``docs/gait.md``, *Stop 37: the join's jolt*).
 2. **Retime as a person would**: a cadence factor moves the style along the model's
    ``cadence_style`` direction (how the training walkers' styles change with their cadence:
    longer strides and wider swings when they walk faster), ``style += log(cadence) ×
@@ -51,6 +56,13 @@ GRAVITY = 9.81
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
 MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
+JOIN_SPACING_S = 0.05        # s: second differences over this (mocap's frame-to-frame are noise)
+JOIN_SCALES = (1.0, 1.5, 2.0)  # lengths of the join tried against a jolt (× blend_steps)
+# A trial join is kept when its root's largest acceleration is at most this share of the
+# reference frames' own largest (their largest over 1.67 s stands for the capture's 99th
+# percentile and reads above it: 1.0 left 43 of the sweep's 132 cases failed, 0.8 41, 0.6
+# 39 but a stroll at 0.7 drifted 4.4°; docs/gait.md, *Stop 37: the join's jolt*).
+JOIN_TOLERANCE = 0.8
 
 
 @dataclass(frozen=True)
@@ -123,6 +135,8 @@ class WalkResult:
     omega : float
         Phase velocity after the join (radians per frame).
     blend_frames : float
+        Length of the join (frames): ``blend_steps`` steps of the observed walk, longer where
+        the join would jolt (module docstring).
     """
 
     dofs: np.ndarray
@@ -194,29 +208,37 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         step = tail[-1] - tail[-2]
     keep_path = request.travel and request.plant and request.turn == 0.0
     n_keyed = n_frames
-    if keep_path and model.root_travel:
-        # The path is measured over a whole cycle after the join: a prediction shorter than
-        # that (a slow style slowed down: sneaking at 0.7 steps a 4.3 s cycle) is predicted
-        # that far and cut (the frames it keys do not depend on the ones after them, but for
-        # the smoothing of the root near the end).
-        n_frames = max(n_frames, int(np.ceil(blend)) + int(round(2.0 * np.pi / omega_to)) + 2)
-    obs, _, weights = predict_transition(model, state, w, w_to, n_frames, omega_to, blend,
-                                         rate_to, residual, offset, start, fps, blend_s,
-                                         request.keep_walker, step, velocity_frames)
-    speed = None
     if model.root_travel:
         yaw, fwd = model.channel_index(["root.yaw_rate", "root.v_forward"])
         mean_from = cycle_mean(model, w, residual, offset)
         mean_to = cycle_mean(model, w_to, *((residual, offset) if request.keep_walker
                                             else (None, None)))
         mean_to = mean_to * np.where(model.rate_mask, rate_to, 1.0)
-        mean = (1.0 - weights)[:, None] * mean_from + weights[:, None] * mean_to
-        obs[:, yaw] -= mean[:, yaw]
-        speed = mean[:, fwd]
-        if request.travel:
-            obs[:, yaw] += _keep_heading(model, reference, names, obs[:, yaw], fps, omega,
-                                         omega_to, weights, blend)
-        obs[:, yaw] += request.turn
+
+    def channels(blend):
+        """The model's channels over the join of ``blend`` frames: (obs, weights, speed)."""
+        n = n_frames
+        if keep_path and model.root_travel:
+            # The path is measured over a whole cycle after the join: a prediction shorter
+            # than that (a slow style slowed down: sneaking at 0.7 steps a 4.3 s cycle) is
+            # predicted that far and cut (the frames it keys do not depend on the ones after
+            # them, but for the smoothing of the root near the end).
+            n = max(n, int(np.ceil(blend)) + int(round(2.0 * np.pi / omega_to)) + 2)
+        obs, _, weights = predict_transition(model, state, w, w_to, n, omega_to, blend,
+                                             rate_to, residual, offset, start, fps, blend_s,
+                                             request.keep_walker, step, velocity_frames)
+        speed = None
+        if model.root_travel:
+            mean = (1.0 - weights)[:, None] * mean_from + weights[:, None] * mean_to
+            obs[:, yaw] -= mean[:, yaw]
+            speed = mean[:, fwd]
+            if request.travel:
+                obs[:, yaw] += _keep_heading(model, reference, names, obs[:, yaw], fps, omega,
+                                             omega_to, weights, blend)
+            obs[:, yaw] += request.turn
+        return obs, weights, speed
+
+    obs, weights, speed = channels(blend)
     last = reference[-1]
     feet = tuple(feet) if feet is not None else ()
     planted = model.root_travel and len(obs) and len(feet) == 2 \
@@ -224,7 +246,7 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
     floor = reference_floor(skeleton, reference, fps, feet, model.root_frame) if planted \
         else None
 
-    def keyed(obs, legs=True):
+    def keyed(obs, speed, legs=True):
         rows = dofs_from_observations(model, obs, last[cols], fps, request.stride,
                                       request.travel)
         out = np.tile(last, (len(rows), 1))
@@ -234,6 +256,21 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
                    model.root_frame, omega_to * fps / (2.0 * np.pi), legs)
         return out
 
+    if planted and keep_path and len(JOIN_SCALES) > 1 \
+            and (request.w is not None or omega_to != omega):
+        # A jolt at the join (docs/gait.md, *Stop 37: the join's jolt*): of a few longer
+        # blends, the shortest whose join is no harsher than the reference, else the mildest.
+        best = None
+        for k, scale in enumerate(JOIN_SCALES):
+            trial = (obs, weights, speed) if k == 0 else channels(blend * scale)
+            ratio = _join_ratio(reference, keyed(trial[0], trial[2], legs=False), names, fps,
+                                floor, trial[2], blend * scale)
+            if best is None or ratio < best[0]:
+                best = (ratio, scale, trial)
+            if ratio <= JOIN_TOLERANCE:
+                break
+        blend *= best[1]
+        obs, weights, speed = best[2]
     if planted and keep_path:
         # Straight unless asked means the path, not only the facing: another style's legs
         # need not carry the hips straight ahead of the pelvis (its source walkers' pelvis
@@ -244,12 +281,32 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         # root's, and the legs' inverse kinematics (`pin_feet`, two thirds of a solve) never
         # moves the root: the first solve stops before it (`_plant(..., legs=False)`), and
         # the root it gives is the full solve's, bit for bit (tests/core/test_gait_walk.py).
-        drift = _travel_drift(reference, keyed(obs, legs=False), names, omega, omega_to,
-                              blend)
+        drift = _travel_drift(reference, keyed(obs, speed, legs=False), names, omega,
+                              omega_to, blend)
         if drift:
             obs[:, yaw] -= drift * np.diff(np.concatenate(([0.0], weights))) * fps
-    out = keyed(obs)
+    out = keyed(obs, speed)
     return WalkResult(out[:n_keyed], floor, w_to, float(omega_to), float(blend))
+
+
+def _join_ratio(reference, trial, names, fps, floor, speed, blend):
+    """The root's largest acceleration over the join of a trial solve (second differences
+    over ``JOIN_SPACING_S``, every stencil that reaches a predicted frame up to the one
+    centred on the blend's end) over the reference frames' own largest; 0 where either walk
+    runs (Froude number above ``FLIGHT_FROUDE[0]``: people change into a run within a step)
+    or the reference is too short to say."""
+    tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
+    h = max(1, int(round(JOIN_SPACING_S * fps)))
+    leg = max(float(np.mean(reference[:, tz])) - floor, 0.1)
+    if max(speed[0] ** 2, speed[-1] ** 2) / (GRAVITY * leg) > FLIGHT_FROUDE[0] \
+            or len(reference) < 2 * h + 1:
+        return 0.0
+    rows = np.vstack([reference[:, [tx, ty, tz]], trial[:, [tx, ty, tz]]])
+    acc = np.linalg.norm(rows[2 * h:] - 2 * rows[h:-h] + rows[:-2 * h], axis=1) * (fps / h) ** 2
+    n_ref = len(reference)
+    bound = acc[:n_ref - 2 * h].max()
+    join = acc[n_ref - 2 * h:n_ref + int(np.ceil(blend)) - h + 1].max()
+    return float(join / bound) if bound > 0.0 else 0.0
 
 
 def _travel_direction(rows, tx, ty, a, b):

@@ -53,7 +53,8 @@ as a random walk's bridge: :func:`target_noise_shape`), so what is left is the t
 fitted to the drift law per camera (:func:`tracker_drift`), in body units
 (:func:`body_size_px`) pooled over the cameras (:func:`pooled_drift`), and the prior weighs
 its inverse (:func:`measured_prior_weights`). A camera where the keypoints agree with the
-tracker up to their noise fuses nothing.
+tracker up to their noise fuses nothing, nor does one whose drift is less than
+:data:`DRIFT_SIGNIFICANCE` standard errors above 0 (stop 37: a drift not told from the noise).
 
 Weight, window (``TrackingOptions.keypoint_smoothing``, seconds), the drift's growth and the
 measured prior's scale (``TrackingOptions.keypoint_drift_scale``) were chosen on one camera of
@@ -82,6 +83,10 @@ DRIFT_EXPONENT = 0.65
 #: Key-noise estimates count as this many held-out keys of the camera's pooled noise
 #: (:func:`key_noise`: a joint with few held-out keys leans on the camera's other joints).
 NOISE_PRIOR_KEYS = 2.0
+#: The measured drift (:func:`pooled_drift`) fuses only where it is at least this many of its
+#: standard errors above 0 (:func:`tracker_drift`): a drift the disagreement cannot tell from
+#: the keypoints' noise is not corrected (the conventional two standard errors, not tuned).
+DRIFT_SIGNIFICANCE = 2.0
 #: The prior's weight is ``TrackingOptions.keypoint_fusion_weight`` this long from the nearest
 #: key (seconds; 10 frames at 60 fps) and grows towards the keys (:func:`drift_prior_weights`).
 DRIFT_REFERENCE_S = 1.0 / 6.0
@@ -432,7 +437,8 @@ def target_noise_shape(a):
     return 3.0 * a * (1.0 - a)
 
 
-def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONENT):
+def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONENT,
+                  error=False):
     """How far the tracked trajectory drifts on this camera, measured where keypoints and
     tracked pose disagree between the keys.
 
@@ -454,6 +460,14 @@ def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONE
     so a camera whose tracker wanders from its keypoints more than their noise explains has
     a larger ``A`` (the prior trusts the tracker less there).
 
+    Its standard error (``error=True``) is the sandwich estimate with each frame's targets as
+    one cluster (the keypoints of one frame share its pose's error):
+
+        se(A) = sqrt(sum_f (sum_j r_fj g_fj)^2) / sum g_fj^2,   r = e - A g,  g = d^(2 exponent)
+
+    Neighbouring frames are correlated too (the drift is smooth), so it is, if anything, too
+    small: a drift below two of them is noise even by a lenient measure.
+
     Parameters
     ----------
     target, projected : ndarray, shape (n, J, 2)
@@ -465,6 +479,8 @@ def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONE
     keys : array_like of int
         Rows of the keys.
     exponent : float
+    error : bool
+        Also return the standard error.
 
     Returns
     -------
@@ -473,6 +489,8 @@ def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONE
         disagreement is all noise).
     count : int
         Targets counted.
+    standard_error : float
+        With ``error``: ``se(A)`` above, pixels^2 (0 where nothing is counted).
     """
     distance, a, _ = key_interpolation(len(target), keys)
     keys = np.asarray(keys, dtype=int)
@@ -480,13 +498,18 @@ def tracker_drift(target, used, projected, noise_px, keys, exponent=DRIFT_EXPONE
         & (distance > 0)
     use = np.asarray(used, dtype=bool) & between[:, None]
     if not use.any():
-        return 0.0, 0
+        return (0.0, 0, 0.0) if error else (0.0, 0)
     half_sq = 0.5 * np.sum(np.square(np.where(use[..., None], target - projected, 0.0)), -1)
     expected = np.square(np.asarray(noise_px, dtype=float))[None, :] \
         * target_noise_shape(a)[:, None]
     excess = np.where(use, half_sq - expected, 0.0)
     g = np.where(use, (distance ** (2.0 * exponent))[:, None], 0.0)
-    return float(np.sum(excess * g) / np.sum(g * g)), int(use.sum())
+    gg = np.sum(g * g)
+    drift = float(np.sum(excess * g) / gg)
+    if not error:
+        return drift, int(use.sum())
+    per_frame = np.sum(np.where(use, excess - drift * g, 0.0) * g, axis=1)
+    return drift, int(use.sum()), float(np.sqrt(np.sum(per_frame * per_frame)) / gg)
 
 
 def body_size_px(projected, used):
@@ -542,7 +565,7 @@ def measured_prior_weights(n, keys, scale, drift, exponent=DRIFT_EXPONENT):
         return scale / (drift * distance ** (2.0 * exponent))
 
 
-def pooled_drift(skeleton, cameras, targets, noises, roots, local, keys):
+def pooled_drift(skeleton, cameras, targets, noises, roots, local, keys, error=False):
     """The tracker's drift in body units, pooled over the cameras: each camera's
     :func:`tracker_drift` over the square of its :func:`body_size_px`, weighted by its count
     of targets.
@@ -558,23 +581,32 @@ def pooled_drift(skeleton, cameras, targets, noises, roots, local, keys):
     roots, local : ndarray, shape (n, 3), (n, B, 3, 3)
         The tracked trajectory.
     keys : array_like of int
+    error : bool
+        Also return the pooled drift's standard error (the cameras' :func:`tracker_drift`
+        errors, in body units, combined with the same weights as independent).
 
     Returns
     -------
     float
         (pixels / body size)^2 per coordinate at one frame from a key; NaN where no camera
         counted a target.
+    float
+        With ``error``: its standard error, same units (NaN likewise).
     """
-    total, count = 0.0, 0
+    total, count, variance = 0.0, 0, 0.0
     for cam, (target, conf, joints, points), noise in zip(cameras, targets, noises):
         q, _ = project_points(skeleton, cam, roots, local, joints, points)
         used = conf > 0
-        drift, n = tracker_drift(target, used, q, noise, keys)
+        drift, n, se = tracker_drift(target, used, q, noise, keys, error=True)
         size = body_size_px(q, used)
         if n and np.isfinite(size) and size > 0:
             total += n * drift / size ** 2
+            variance += (n * se / size ** 2) ** 2
             count += n
-    return total / count if count else float("nan")
+    pooled = total / count if count else float("nan")
+    if not error:
+        return pooled
+    return pooled, (np.sqrt(variance) / count if count else float("nan"))
 
 
 class _Frames:
@@ -724,7 +756,9 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         The prior's weight from the tracker's drift measured on these cameras
         (:func:`measured_prior_weights` with this ``scale`` and the drift of
         :func:`pooled_drift`), where every camera's keypoints have their ``noise_px``; a
-        drift of 0 or less (the disagreement is all the keypoints' noise) fuses nothing.
+        drift of 0 or less (the disagreement is all the keypoints' noise), or one less than
+        :data:`DRIFT_SIGNIFICANCE` of its standard errors above 0 (not told from noise),
+        fuses nothing.
         None, or a camera without ``noise_px``: ``weight`` and ``drift_frames`` as above.
 
     Returns
@@ -751,8 +785,9 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         noises.append(kp.noise_px)
     drift = None
     if measured_scale is not None and all(s is not None for s in noises):
-        drift = pooled_drift(problem.skeleton, cams, targets, noises, roots, local, keys)
-        if not drift > 0.0:
+        drift, drift_error = pooled_drift(problem.skeleton, cams, targets, noises, roots,
+                                          local, keys, error=True)
+        if not drift > DRIFT_SIGNIFICANCE * drift_error or not drift > 0.0:
             return roots, local, fused
     inside = np.zeros(len(roots), dtype=bool)
     inside[keys[0] + 1:keys[-1]] = True

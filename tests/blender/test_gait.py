@@ -903,6 +903,29 @@ def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp
         assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
 
 
+def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, tmp_path):
+    """Issue 25 §3 (stop 37): CMU 35_01 restyled to brisk at cadence 1.3 jolted its hips over
+    the one-step join beyond the capture's 99th percentile (the restyle sweep: the stance
+    foot's place relative to the hips changes with the style under the planted root). The
+    join is now longer where a trial join jolts; the keyed root's largest acceleration (second
+    differences over 0.05 s) over the longest join there is (two steps) stays within it."""
+    name, skeleton, layout, _ = observed_walk_on_floor(tmp_path, "35_01")
+    capture, _ = trial_dofs("35_01")
+    assert bpy.ops.track_and_stride.predict_gait(
+        horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to="brisk",
+        restyle_amount=1.0, cadence=1.3) == {"FINISHED"}
+    ref, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+    h = 3
+
+    def root_acc(rows):
+        return np.linalg.norm(rows[2 * h:, :3] - 2 * rows[h:-h, :3] + rows[:-2 * h, :3],
+                              axis=1) * (FPS / h) ** 2
+
+    steps = int(round(2 * 60.0 / 106.0 * FPS))                  # 35_01: 106 steps/min
+    join = root_acc(np.vstack([ref, pred]))[N_OBS - 2 * h:N_OBS + steps - h + 1]
+    assert join.max() <= np.percentile(root_acc(capture), 99)
+
+
 def test_a_walk_from_standing_is_refused_or_warned_in_plain_words(scene, tmp_path):
     """Issue 25, standing starts: a reference that starts from standing was refused as "boxing,
     gesturing or stepping on the spot" (CMU 120_09, which stands for 0.8 s and then walks), or,

@@ -150,15 +150,47 @@ def test_the_path_is_measured_on_the_root_the_full_solve_gives(walker, style, mo
 
     monkeypatch.setattr(walk_module, "_plant", spy)
     out = walk(walker, style)
-    assert len(seen) == 1
-    root_only, full, names = seen[0]
-    root = [names.index(n) for n in ROOT_DOF_NAMES]
-    assert np.array_equal(root_only[:, root], full[:, root])
-    assert not np.array_equal(root_only, full)               # the legs were pinned in one
+    assert len(seen) >= 1            # (and before it, the trial joins against a jolt)
+    for root_only, full, names in seen:
+        root = [names.index(n) for n in ROOT_DOF_NAMES]
+        assert np.array_equal(root_only[:, root], full[:, root])
+        assert not np.array_equal(root_only, full)           # the legs were pinned in one
+    root_only, full, names = seen[-1]                          # the path's
     omega = walker[3].state[0]
     drift = [walk_module._travel_drift(walker[2], rows, names, omega, out.omega,
                                        out.blend_frames) for rows in (root_only, full)]
     assert drift[0] == drift[1] and abs(drift[0]) > np.radians(0.5)   # a turn was needed
+
+
+def test_a_join_that_would_jolt_blends_over_a_longer_join(walker, monkeypatch):
+    """Issue 25 §3 (stop 37): while the style blends, the stance foot's place relative to the
+    hips changes with it and the planted root follows (``Δp s̈``): over one step the hips of
+    35_01 restyled to brisk at 1.3 jolted beyond the capture's 99th percentile (the restyle
+    sweep). A longer join is chosen where the trial join
+    accelerates the root beyond the reference's own (``walk.JOIN_SCALES``): measured over the
+    whole join (every stencil that reaches a predicted frame up to the blend's end), against
+    the capture's 99th percentile, as ``benchmarks/gait_restyle.py`` measures it."""
+    import core.gait.walk as walk_module
+    _, _, ref, res, _ = walker
+    values, _ = trial("35_01")
+    p99 = np.percentile(acceleration(values)[0], 99)
+
+    def join(out):
+        root, _ = acceleration(np.vstack([ref, out.dofs]))
+        return root[N_REF - 6:N_REF + int(np.ceil(out.blend_frames)) - 3 + 1].max() / p99
+
+    style, cadence = "brisk", 1.3
+    step = np.pi / res.state[0]
+    # A run keeps its one-step join (people change into a run within a step; a longer one
+    # kept half-run styles longer: slips of 5 cm/s and more at 1.6, stop 36).
+    assert walk(walker, "run", cadence=1.6).blend_frames == pytest.approx(step)
+    out = walk(walker, style, cadence=cadence)
+    assert out.blend_frames > 1.2 * step                     # a longer join was chosen
+    assert join(out) <= 1.0
+    monkeypatch.setattr(walk_module, "JOIN_SCALES", (1.0,))  # one step, as before
+    before = walk(walker, style, cadence=cadence)
+    assert before.blend_frames == pytest.approx(step)
+    assert join(before) > 1.0
 
 
 def test_retiming_up_strides_further_and_swings_wider_than_fast_forward(walker):

@@ -10,7 +10,8 @@ import pytest
 
 from core.kinematics import exp_so3
 from core.tracking.keypoint_cue import CameraKeypoints
-from core.tracking.keypoint_fusion import (DRIFT_EXPONENT, NOISE_PRIOR_KEYS, _Frames,
+from core.tracking.keypoint_fusion import (DRIFT_EXPONENT, DRIFT_SIGNIFICANCE,
+                                           NOISE_PRIOR_KEYS, _Frames,
                                            body_size_px, drift_prior_weights, fuse_keypoints,
                                            fusion_targets, key_interpolation, key_noise,
                                            key_offsets, measured_prior_weights, moved,
@@ -482,6 +483,61 @@ def test_tracker_drift_fits_the_drift_law_to_the_excess_disagreement():
         ..., None] * direction
     assert abs(tracker_drift(target, used, projected, noise, keys)[0]) < 1e-12
     assert tracker_drift(target, np.zeros_like(used), projected, noise, keys) == (0.0, 0)
+
+
+def test_tracker_drift_standard_error_is_the_scatter_of_the_estimate():
+    """Targets that disagree with the projections by the keypoints' noise alone (independent
+    per frame, no drift): over many draws the estimate A scatters about 0 by its standard
+    error, so A / se is about unit-normal and rarely beyond the gate's two."""
+    n, keys = 41, [0, 15, 40]
+    noise = np.array([2.0, 3.0, 0.5, 1.0])
+    _, a, _ = key_interpolation(n, keys)
+    sigma = np.sqrt(noise[None] ** 2 * target_noise_shape(a)[:, None])        # per coordinate
+    rng = np.random.default_rng(5)
+    projected = rng.uniform(0, 300, (n, 4, 2))
+    used = np.ones((n, 4), dtype=bool)
+    estimates, ratios = [], []
+    for _ in range(400):
+        target = projected + sigma[..., None] * rng.normal(size=(n, 4, 2))
+        drift, count, se = tracker_drift(target, used, projected, noise, keys, error=True)
+        assert (drift, count) == tracker_drift(target, used, projected, noise, keys)
+        estimates.append(drift)
+        ratios.append(drift / se)
+    ratios = np.array(ratios)
+    # measured: the estimates' std over the mean se 1.09; std of A / se 1.21 (chi-square
+    # tails, ~40 frames as clusters); 0.5 % above 2
+    assert 0.8 < np.std(ratios) < 1.25, np.std(ratios)
+    assert abs(np.mean(estimates)) < 3 * np.std(estimates) / np.sqrt(len(estimates))
+    assert np.mean(ratios > DRIFT_SIGNIFICANCE) < 0.1        # a false drift is rarely fused
+    target = projected + sigma[..., None] * rng.normal(size=(n, 4, 2))
+    assert tracker_drift(target, np.zeros_like(used), projected, noise, keys,
+                         error=True) == (0.0, 0, 0.0)
+
+
+def test_a_drift_not_told_from_the_noise_is_not_fused(walk):
+    """The tracker exactly on the truth, the keypoints with a bias and 1.5 px of jitter: the
+    measured drift is within two standard errors of 0, so nothing is fused (the trajectory
+    comes back bit for bit); the drifted tracker of the walk is fused."""
+    w = walk
+    sk, cam, keys = w["sk"], w["problem"].camera, [0, 20, 40]
+    scale = TrackingOptions().keypoint_drift_scale
+    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
+    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR,
+                         noise_px=key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp,
+                                            keys, 5))
+    for tr, tl, expect in ((w["roots"], w["local"], False), (w["t_roots"], w["t_local"], True)):
+        t, c = fusion_targets(sk, cam, tr, tl, kp, keys, 5)
+        drift, se = pooled_drift(sk, [cam], [(t, c, kp.joints, kp.points)], [kp.noise_px],
+                                 tr, tl, keys, error=True)
+        assert drift == pooled_drift(sk, [cam], [(t, c, kp.joints, kp.points)],
+                                     [kp.noise_px], tr, tl, keys)
+        assert (drift > DRIFT_SIGNIFICANCE * se) == expect, (drift, se)
+        r, lo, fused = fuse_keypoints(w["problem"], tr, tl, keys, [kp], 1000.0, 5,
+                                      measured_scale=scale)
+        assert fused.any() == expect
+        if not expect:
+            np.testing.assert_array_equal(r, tr)
+            np.testing.assert_array_equal(lo, tl)
 
 
 def test_body_size_and_measured_prior_weights():
