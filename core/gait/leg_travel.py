@@ -104,10 +104,16 @@ def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
     rows = np.asarray(rows, dtype=float)[-(int(n_steps) + 1):]
     names = list(skeleton.dof_names())
     root = rows[:, [names.index(n) for n in ROOT_DOF_NAMES]]
-    rel = relative_feet(skeleton, rows, feet)
+    return _legs_speed(relative_feet(skeleton, rows, feet), root, fps,
+                       root_frame or RootFrame(rest=skeleton.rest_rotations[0]))
+
+
+def _legs_speed(rel, root, fps, frame):
+    """:func:`legs_speed` of frames whose feet relative to the root (``relative_feet``,
+    (M, F, 3)) and root DOFs (M, 6) are known: the forward kinematics done once for every
+    window of a reference (each row's feet are the row's alone)."""
     heights = root[:, 2]
     floor = float(np.percentile(np.min(rel[:, :, 2], axis=1) + heights, FLOOR_PERCENTILE))
-    frame = root_frame or RootFrame(rest=skeleton.rest_rotations[0])
     heading = heading_angles(root_rotations(root, frame), frame)
     ahead = heading_directions(0.5 * (heading[1:] + heading[:-1]), frame)[0]
     along = float(np.mean(np.sum(np.diff(root[:, :2], axis=0) * fps * ahead, axis=1)))
@@ -121,8 +127,13 @@ def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_
     of :func:`legs_speed` over every window of ``n_steps`` steps (a cycle) the reference holds
     (a spread of 0 for a single window)."""
     reference = np.asarray(reference, dtype=float)
-    speeds = [legs_speed(skeleton, reference[:end], fps, n_steps, feet, root_frame)
-              for end in range(int(n_steps) + 1, len(reference) + 1)]
+    names = list(skeleton.dof_names())
+    root = reference[:, [names.index(n) for n in ROOT_DOF_NAMES]]
+    rel = relative_feet(skeleton, reference, feet)     # once: each row's feet are its own
+    frame = root_frame or RootFrame(rest=skeleton.rest_rotations[0])
+    k = int(n_steps) + 1
+    speeds = [_legs_speed(rel[end - k:end], root[end - k:end], fps, frame)
+              for end in range(k, len(reference) + 1)]
     return float(np.mean(speeds)), float(np.std(speeds))
 
 

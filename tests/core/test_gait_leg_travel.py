@@ -171,3 +171,18 @@ def test_by_default_the_style_moves_by_the_kalman_gain_of_the_reference_s_own_sp
         gain * (soft.reference_speed - soft.speed_before), abs=1e-4)
     d_soft, d_hard = soft.w - res.w, hard.w - res.w
     assert d_soft @ d_hard / np.linalg.norm(d_soft) / np.linalg.norm(d_hard) > 1 - 1e-9
+
+
+def test_the_reference_s_windows_are_each_window_s_legs_speed(walker):
+    """:func:`reference_legs_speed` does the legs' forward kinematics once for the whole
+    reference: each window's speed is :func:`legs_speed` of that window alone (a row's feet
+    depend on the row only), so the mean and spread are the per-window ones."""
+    model, skeleton, values, _, _, res = walker
+    n = int(round(2 * np.pi / res.state[0]))
+    ref = values[:N_REF]
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+              for end in range(n + 1, N_REF + 1)]
+    assert len(speeds) > 10
+    mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
+    assert mean == pytest.approx(np.mean(speeds), rel=1e-12, abs=1e-12)
+    assert spread == pytest.approx(np.std(speeds), rel=1e-9, abs=1e-12)
