@@ -262,8 +262,11 @@ class TrackingOptions:
     keypoint_fusion_weight : float
         Cameras with 2D keypoints: after tracking, every in-between frame is fitted to the
         keypoints smoothed over time, with the tracked pose as the prior
-        (:mod:`.keypoint_fusion`), and an interval keeps the fused frames where the image
-        (eq. 4) does not fit them worse. The prior's weight, in keypoint noise units per rad^2;
+        (:mod:`.keypoint_fusion`). With two keys: the prior's weight, in keypoint noise units
+        per rad^2, each interval fused on its own; with three keys or more
+        (``keypoint_drift_scale`` > 0) the weight comes from the tracker's drift measured on the
+        keypoints, the clip is fused only where that drift is significant
+        (:data:`.keypoint_fusion.DRIFT_SIGNIFICANCE`), and this only switches the fusion on.
         0: no fusion. Default chosen on one camera of the real footage.
     keypoint_drift_scale : float
         With three keys or more (the keypoints' noise measured at held-out keys): the
