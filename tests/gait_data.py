@@ -40,3 +40,15 @@ def observations(name, n_styles=3):
     obs = observations_from_dofs(small_model(n_styles), values, names, 60.0)
     obs.setflags(write=False)
     return obs
+
+
+def adapted_walk(name, n_ref, fps=60.0):
+    """The stock library batch-adapted to the first ``n_ref`` frames of CMU ``name`` at ``fps``:
+    (model, skeleton, values (N, 62), dof names, observations (n_ref, D), AdaptResult)."""
+    from core.gait import adapt, load_stock_library, observations_from_dofs
+    model = load_stock_library()
+    values, names = trial(name, int(fps))
+    values = np.array(values)
+    skeleton = asf_to_skeleton(read_asf(asf_path(name)))
+    obs = observations_from_dofs(model, values[:n_ref], names, fps)
+    return model, skeleton, values, names, obs, adapt(model, obs, fps=fps)

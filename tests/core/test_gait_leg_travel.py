@@ -4,15 +4,13 @@ travel, so that the planted prediction walks as far per cycle as the reference's
 import numpy as np
 import pytest
 
-from core.gait import adapt, load_stock_library, observations_from_dofs
+from core.gait import adapt, observations_from_dofs
 from core.gait.ekf import make_context
 from core.gait.em import scaled_observations
 from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_legs_speed,
                                   style_legs_speed, style_precision)
 from core.gait.walk import WalkRequest, predict_walk
-from core.mocap import asf_to_skeleton, read_asf
-from tests.data import asf_path
-from tests.gait_data import trial
+from tests.gait_data import adapted_walk
 
 FPS = 60.0
 N_REF = 100                 # 1.67 s observed (the bench's longest window)
@@ -20,14 +18,7 @@ N_REF = 100                 # 1.67 s observed (the bench's longest window)
 
 @pytest.fixture(scope="module")
 def walker():
-    model = load_stock_library()
-    values, names = trial("35_01")
-    values = np.array(values)
-    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
-    ref = values[:N_REF]
-    obs = observations_from_dofs(model, ref, names, FPS)
-    res = adapt(model, obs, fps=FPS)
-    return model, skeleton, values, names, obs, res
+    return adapted_walk("35_01", N_REF, FPS)
 
 
 def test_the_legs_speed_of_a_captured_walk_is_its_root_speed(walker):

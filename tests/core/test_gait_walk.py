@@ -16,7 +16,7 @@ from core.gait.walk_figures import contact_height, foot_tracks, walk_summary
 from core.gait.root_travel import ROOT_DOF_NAMES, heading_angles, root_rotations
 from core.mocap import asf_to_skeleton, read_asf
 from tests.data import asf_path
-from tests.gait_data import trial
+from tests.gait_data import adapted_walk, trial
 
 FPS = 60.0
 N_REF, N = 100, 240
@@ -25,13 +25,8 @@ N_REF, N = 100, 240
 @pytest.fixture(scope="module")
 def walker():
     """The issue's case: CMU 35_01, 1.67 s observed, the stock library, batch EM."""
-    model = load_stock_library()
-    values, names = trial("35_01")
-    values = np.array(values)
-    skeleton = asf_to_skeleton(read_asf(asf_path("35_01")))
+    model, skeleton, values, _, _, res = adapted_walk("35_01", N_REF, FPS)
     ref = values[:N_REF]
-    obs = observations_from_dofs(model, ref, names, FPS)
-    res = adapt(model, obs, fps=FPS)
     floor = contact_height(foot_tracks(skeleton, ref, FPS, root_frame=model.root_frame))
     return model, skeleton, ref, res, floor
 

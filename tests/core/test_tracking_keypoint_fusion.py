@@ -514,6 +514,15 @@ def test_tracker_drift_standard_error_is_the_scatter_of_the_estimate():
                          error=True) == (0.0, 0, 0.0)
 
 
+def _keypoints_with_key_noise(w, keys):
+    """The walk's noisy keypoints with their noise measured at the keys (:func:`key_noise`)."""
+    sk, cam = w["sk"], w["problem"].camera
+    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
+    return CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR,
+                           noise_px=key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp,
+                                              keys, 5))
+
+
 def test_a_drift_not_told_from_the_noise_is_not_fused(walk):
     """The tracker exactly on the truth, the keypoints with a bias and 1.5 px of jitter: the
     measured drift is within two standard errors of 0, so nothing is fused (the trajectory
@@ -521,10 +530,7 @@ def test_a_drift_not_told_from_the_noise_is_not_fused(walk):
     w = walk
     sk, cam, keys = w["sk"], w["problem"].camera, [0, 20, 40]
     scale = TrackingOptions().keypoint_drift_scale
-    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
-    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR,
-                         noise_px=key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp,
-                                            keys, 5))
+    kp = _keypoints_with_key_noise(w, keys)
     for tr, tl, expect in ((w["roots"], w["local"], False), (w["t_roots"], w["t_local"], True)):
         t, c = fusion_targets(sk, cam, tr, tl, kp, keys, 5)
         drift, se = pooled_drift(sk, [cam], [(t, c, kp.joints, kp.points)], [kp.noise_px],
@@ -593,10 +599,7 @@ def test_a_worse_tracker_gets_less_prior_weight_and_must(walk):
     w = walk
     sk, cam, keys = w["sk"], w["problem"].camera, [0, 20, 40]
     scale = TrackingOptions().keypoint_drift_scale
-    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR)
-    kp = CameraKeypoints(w["noisy"], w["conf"], JOINTS, _points(sk), mirror=MIRROR,
-                         noise_px=key_noise(sk, cam, w["roots"][keys], w["local"][keys], kp,
-                                            keys, 5))
+    kp = _keypoints_with_key_noise(w, keys)
     drifts, errors = [], []
     for factor in (0.5, 2.0):
         tr, tl = _drifted(w, factor)
