@@ -271,14 +271,15 @@ def sample_with_gradient(image, u, v, frames=None):
     r = np.clip(np.stack([iv, iv + 1], axis=1), 0, h - 1) * w          # (M, 2), row offsets
     cm, cp = np.maximum(c - 1, 0), np.minimum(c + 1, w - 1)
     rm, rp = np.maximum(r - w, 0), np.minimum(r + w, (h - 1) * w)
-    # Five (row pair, column pair) groups, each the 2 x 2 corners in (r0c0, r0c1, r1c0, r1c1)
-    # order: the values at the corners, then their right, left, lower and upper neighbours.
-    # One broadcast sum (M, 5, 2, 1) + (M, 5, 1, 2) instead of five sums and a concatenation.
-    rows = np.stack([r, r, r, rp, rm], axis=1)                          # (M, 5, 2)
+    idx = np.concatenate([
+        (r[:, :, None] + c[:, None, :]).reshape(-1, 4),     # values at the 4 corners
+        (r[:, :, None] + cp[:, None, :]).reshape(-1, 4),    # right neighbours
+        (r[:, :, None] + cm[:, None, :]).reshape(-1, 4),    # left neighbours
+        (rp[:, :, None] + c[:, None, :]).reshape(-1, 4),    # lower neighbours
+        (rm[:, :, None] + c[:, None, :]).reshape(-1, 4),    # upper neighbours
+    ], axis=1)
     if np.ndim(base):
-        rows += base[:, None, None]
-    cols = np.stack([c, cp, cm, c, c], axis=1)                          # (M, 5, 2)
-    idx = (rows[:, :, :, None] + cols[:, :, None, :]).reshape(-1, 20)
+        idx += base[:, None]
     g = e.ravel()[idx].astype(float)                         # (M, 20)
     # Corner weights in (r0c0, r0c1, r1c0, r1c1) order.
     wts = np.concatenate([(1.0 - fv) * (1.0 - fu), (1.0 - fv) * fu, fv * (1.0 - fu), fv * fu], axis=1)
