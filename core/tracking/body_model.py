@@ -28,9 +28,6 @@ _NEAR = 1e-3
 # 40 MB), whatever the count of parts (a 706-bone rig has 455) and of rays (a profile search
 # casts millions). The front-most search works on the (ray, part) pairs only.
 PAIR_BUDGET = 1 << 20
-# (ray, part) pairs intersected at a time (:func:`_pair_hits`): small enough for a block's
-# temporaries to stay in the CPU's cache, large enough that NumPy's per-call cost is small.
-PAIR_BLOCK = 1 << 14
 
 
 @dataclass(frozen=True, eq=False)
@@ -398,24 +395,10 @@ def _box_hits(d, centre, axes, half):
 
 
 def _pair_hits(model, geo, d, ray_idx, part_idx, frames):
-    """Hit depth and surface id of (ray, part) pairs; rays have z = 1 so ``t`` is the depth.
-
-    The pairs go :data:`PAIR_BLOCK` at a time: every pair's arithmetic is its own, so the
-    results do not depend on the blocks, and a block's ~30 temporaries stay in the CPU's cache
-    (all 100 000 pairs of a silhouette call at once: 0.55x slower, docs/tracking.md, session 38).
-    """
+    """Hit depth and surface id of (ray, part) pairs; rays have z = 1 so ``t`` is the depth."""
+    n_cyl = model.n_cylinders
     t = np.full(len(ray_idx), np.inf)
     face = np.zeros(len(ray_idx), dtype=np.int8)
-    for a in range(0, len(ray_idx), PAIR_BLOCK):
-        block = slice(a, a + PAIR_BLOCK)
-        _pair_block_hits(model, geo, d, ray_idx[block], part_idx[block], frames, t[block],
-                         face[block])
-    return t, face
-
-
-def _pair_block_hits(model, geo, d, ray_idx, part_idx, frames, t, face):
-    """:func:`_pair_hits` of one block of pairs, written into ``t`` and ``face`` (views)."""
-    n_cyl = model.n_cylinders
     cyl = part_idx < n_cyl
     if np.any(cyl):
         mi, pi = ray_idx[cyl], part_idx[cyl]
@@ -428,6 +411,7 @@ def _pair_block_hits(model, geo, d, ray_idx, part_idx, frames, t, face):
         fi = frames[mi]
         t[box], face[box] = _box_hits(d[mi], geo.box_centres[fi, q], geo.box_rotations[fi, q],
                                       geo.box_half_sizes[q])
+    return t, face
 
 
 def _front_most(model, d, ray_idx, part_idx, t, face):
@@ -815,7 +799,7 @@ def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0,
     k = np.arange(total) - start[node_pose]
     node_row, node_col = np.divmod(k, np.maximum(cols[node_pose], 1))
     # Column by column: the same products and sums as origin + stride * (col, row), without the
-    # (total, 2) integer stack and its broadcast (a tenth of this function's own time).
+    # (total, 2) integer stack and its broadcast (docs/tracking.md, issue 22, session 38).
     node_stride = strides[node_pose]
     pixels = np.empty((total, 2))
     np.add(origin[node_pose, 0], node_stride * node_col, out=pixels[:, 0])

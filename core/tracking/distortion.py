@@ -38,8 +38,6 @@ _NEWTON_STOP = 1e-6
 # bilinear interpolation (normalised units; 2e-6 is 0.004 px at f = 2000 px).
 _TABLE_NODES = (65, 129, 257)
 _TABLE_TOL = 2e-6
-# Points looked up in the table at a time (:meth:`_Table.interpolate`).
-_TABLE_BLOCK = 1 << 13
 # Radius limit = this factor times the farthest image corner's ideal radius.
 _LIMIT_FACTOR = 1.25
 
@@ -298,20 +296,7 @@ class _Table:
     accurate: bool              # interpolation error below _TABLE_TOL (checked at cell centres)
 
     def interpolate(self, t):
-        """Bilinear ideal points (M, 2) of distorted points t (M, 2), and which lie inside.
-
-        :data:`_TABLE_BLOCK` points at a time: each point's arithmetic is its own, and a block's
-        temporaries stay in the CPU's cache (a silhouette's 100 000 rays at once were slower,
-        docs/tracking.md, session 38)."""
-        if len(t) <= _TABLE_BLOCK:
-            return self._interpolate(t)
-        out, inside = np.empty((len(t), 2)), np.empty(len(t), dtype=bool)
-        for a in range(0, len(t), _TABLE_BLOCK):
-            b = slice(a, a + _TABLE_BLOCK)
-            out[b], inside[b] = self._interpolate(t[b])
-        return out, inside
-
-    def _interpolate(self, t):
+        """Bilinear ideal points (M, 2) of distorted points t (M, 2), and which lie inside."""
         rows, cols = self.shape
         gx = (t[:, 0] - self.origin[0]) / self.step[0]
         gy = (t[:, 1] - self.origin[1]) / self.step[1]

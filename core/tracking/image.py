@@ -11,11 +11,6 @@ import numpy as np
 
 # Luminance weights (ITU-R BT.709, the sRGB primaries Blender renders with).
 REC709 = (0.2126, 0.7152, 0.0722)
-# Points sampled at a time by :func:`sample_with_gradient`: each point's arithmetic is its
-# own, so blocks change no value; a block's temporaries (20 gathered pixels and indices a
-# point) stay in the CPU's cache (docs/tracking.md, session 38: 0.65-0.84x at 24 000-60 000
-# points; :func:`bilinear`, with 4 pixels a point, gained nothing from blocks).
-POINT_BLOCK = 1 << 12
 
 
 def to_grayscale(rgb, weights=REC709):
@@ -267,19 +262,6 @@ def sample_with_gradient(image, u, v, frames=None):
     h, w = e.shape[-2:]
     u, v = _sanitize(u, v, w, h)
     base = _stack_offsets(e, frames, len(u))
-    if len(u) > POINT_BLOCK:
-        out = np.empty((3, len(u)))
-        for a in range(0, len(u), POINT_BLOCK):
-            b = slice(a, a + POINT_BLOCK)
-            out[:, b] = _sample_with_gradient(e, u[b], v[b], base[b] if np.ndim(base) else base)
-        return out[0], out[1], out[2]
-    return _sample_with_gradient(e, u, v, base)
-
-
-def _sample_with_gradient(e, u, v, base):
-    """:func:`sample_with_gradient` of sanitised coordinates, ``base`` the points' image
-    offsets."""
-    h, w = e.shape[-2:]
     iu, iv = np.floor(u), np.floor(v)
     fu, fv = (u - iu)[:, None], (v - iv)[:, None]
     iu, iv = iu.astype(np.intp), iv.astype(np.intp)

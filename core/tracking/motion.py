@@ -57,9 +57,6 @@ from .jacobians import apply_motion, image_gradient_rows
 from .keypoint_cue import keypoint_residuals, keypoint_rows, keypoint_weights, pair_targets
 from .robust import irls_weights, masked_median
 
-# Samples tested at a time by :func:`still_visible`.
-SAMPLE_BLOCK = 1 << 13
-
 @dataclass(frozen=True, eq=False)
 class RankedSystems:
     """Rank-revealing decompositions of ``n`` systems ``A_f`` (eqs. 6-7).
@@ -219,19 +216,13 @@ def still_visible(samples, frames_cam, next_cam, next_samples, camera, tolerance
     """
     rot, org = frames_cam
     rot1, org1 = next_cam
-    out = np.empty(len(samples.frames), dtype=bool)
-    # SAMPLE_BLOCK samples at a time: each sample's test is its own, and a block's
-    # temporaries stay in the CPU's cache (docs/tracking.md, session 38).
-    for a in range(0, len(out), SAMPLE_BLOCK):
-        b = slice(a, a + SAMPLE_BLOCK)
-        f, k = samples.frames[b], samples.joints[b]
-        local = np.einsum("mji,mj->mi", rot[f, k], samples.points[b] - org[f, k])
-        moved = np.einsum("mij,mj->mi", rot1[f, k], local) + org1[f, k]
-        ok = moved[:, 2] > 0
-        uv = camera.project(np.where(ok[:, None], moved, 1.0))
-        parts, depth = next_samples.lookup(f, uv)
-        out[b] = ok & (parts == samples.parts[b]) & (np.abs(depth - moved[:, 2]) < tolerance)
-    return out
+    f, k = samples.frames, samples.joints
+    local = np.einsum("mji,mj->mi", rot[f, k], samples.points - org[f, k])
+    moved = np.einsum("mij,mj->mi", rot1[f, k], local) + org1[f, k]
+    ok = moved[:, 2] > 0
+    uv = camera.project(np.where(ok[:, None], moved, 1.0))
+    parts, depth = next_samples.lookup(f, uv)
+    return ok & (parts == samples.parts) & (np.abs(depth - moved[:, 2]) < tolerance)
 
 
 def select_samples(samples, stack, image_index, budget, usable=None):

@@ -46,8 +46,6 @@ from .problem import TrackingError, TrackingOptions
 from .robust import SCALE_FLOOR, robust_loss, robust_scale
 
 _AXES = "XYZ"
-# Silhouette samples scored at a time by eq. 4 (:func:`_photometric_differences`).
-SAMPLE_BLOCK = 1 << 13
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,33 +271,20 @@ def _photometric_differences(problem, frames_level, level, frames_cam, samples, 
     camera = (problem.camera if camera is None else camera).at_level(level)
     sel = samples.frames < n
     total = np.bincount(samples.frames[sel], minlength=n).astype(float)
-    kept = np.flatnonzero(sel & samples.interior)
-    # SAMPLE_BLOCK samples at a time, in order: each sample's arithmetic is its own, and a
-    # block's temporaries stay in the CPU's cache (docs/tracking.md, session 38).
-    blocks = [_photometric_block(camera, frames_level, rot, org, samples, kept[a:a + SAMPLE_BLOCK])
-              for a in range(0, max(len(kept), 1), SAMPLE_BLOCK)]
-    if len(blocks) == 1:
-        return blocks[0] + (total,)
-    return (np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks]),
-            total)
-
-
-def _photometric_block(camera, frames_level, rot, org, samples, index):
-    """:func:`_photometric_differences` of the samples ``index``: their frame pairs and
-    differences (where kept)."""
-    f, k = samples.frames[index], samples.joints[index]
-    local = np.einsum("mji,mj->mi", rot[f, k], samples.points[index] - org[f, k])
+    sel &= samples.interior
+    f, k = samples.frames[sel], samples.joints[sel]
+    local = np.einsum("mji,mj->mi", rot[f, k], samples.points[sel] - org[f, k])
     moved = np.einsum("mij,mj->mi", rot[f + 1, k], local) + org[f + 1, k]
     uv = camera.project(np.where(moved[:, 2:3] > 0, moved, 1.0))
     parts, depth = samples.lookup(f + 1, uv)
     ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
           & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1)
-          & (parts == samples.parts[index]) & (np.abs(depth - moved[:, 2]) < 0.02))
+          & (parts == samples.parts[sel]) & (np.abs(depth - moved[:, 2]) < 0.02))
     e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f[ok] + 1)
-    start = samples.pixels[index][ok]
-    e0 = bilinear(frames_level, start[:, 0], start[:, 1], frames=f[ok])
+    e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
+                  frames=f[ok])
     finite = np.isfinite(e1) & np.isfinite(e0)           # masked (non-finite) pixels: left out
-    return f[ok][finite], (e1 - e0)[finite]
+    return f[ok][finite], (e1 - e0)[finite], total
 
 
 def _allowed_ranges(problem, local_rotations, start, end, margin):

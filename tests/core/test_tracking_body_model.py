@@ -200,39 +200,6 @@ def test_sampling_several_poses_equals_one_by_one(scene):
         np.testing.assert_array_equal(part.interior, alone.interior)
 
 
-def test_pairs_in_blocks_hit_as_one_by_one(scene, monkeypatch):
-    """The ray caster's (ray, part) pairs intersected PAIR_BLOCK at a time (cylinders and the
-    box mixed in a block, a last short block) give every pair the hit it gets alone."""
-    sk, body, cam, _, _ = scene
-    poses = [random_pose(RNG, sk, 0.3) for _ in range(3)]
-    rot, org = joint_frames_in_camera(sk, cam.world2camera, np.stack([p[0] for p in poses]),
-                                      np.stack([p[1] for p in poses]))
-    geo = body_model.part_geometry(body, rot, org)
-    seen = sample_silhouette(body, cam, rot, org, 300)
-    pick = RNG.choice(seen.count, 100, replace=False)          # rays that hit, and others
-    rays = cam.rays(np.vstack([seen.pixels[pick],
-                               RNG.uniform([0, 0], [cam.width, cam.height], (50, 2))]))
-    frames = np.concatenate([seen.frames[pick], RNG.integers(0, 3, 50)])
-    ray_idx, part_idx = np.nonzero(RNG.random((len(rays), body.n_parts)) < 0.5)
-    assert np.any(part_idx >= body.n_cylinders) and np.any(part_idx < body.n_cylinders)
-    monkeypatch.setattr(body_model, "PAIR_BLOCK", 37)
-    assert len(ray_idx) % 37
-    t, face = body_model._pair_hits(body, geo, rays, ray_idx, part_idx, frames)
-    assert 20 < np.isfinite(t).sum() < len(t) - 20
-    for i in range(len(ray_idx)):
-        one_t, one_face = np.full(1, np.inf), np.zeros(1, dtype=np.int8)
-        body_model._pair_block_hits(body, geo, rays, ray_idx[i:i + 1], part_idx[i:i + 1], frames,
-                                    one_t, one_face)
-        assert (t[i], face[i]) == (one_t[0], one_face[0])
-    # and a silhouette cast in blocks is the one cast in one pass
-    monkeypatch.setattr(body_model, "PAIR_BLOCK", 1 << 30)
-    whole = sample_silhouette(body, cam, rot, org, 500)
-    monkeypatch.setattr(body_model, "PAIR_BLOCK", 101)
-    blocks = sample_silhouette(body, cam, rot, org, 500)
-    for name in ("pixels", "points", "parts", "interior", "node_parts", "node_depth"):
-        np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name))
-
-
 def test_sampling_cost_does_not_grow_with_resolution():
     sk = two_arm_skeleton()
     body = two_arm_body(sk)

@@ -275,21 +275,6 @@ def test_undistortion_table_is_accurate_and_used():
     np.testing.assert_array_equal(lens.undistort_fast(between), ideal)
 
 
-def test_table_lookups_in_blocks_equal_one_pass(monkeypatch):
-    """The table read _TABLE_BLOCK points at a time (a last short block, points outside it)
-    gives what one pass gives."""
-    from core.tracking import distortion
-    table = _camera(DEMO).distortion.table
-    rows, cols = table.shape
-    points = table.origin + RNG.uniform(-0.1, 1.1, (500, 2)) * table.step * [cols - 1, rows - 1]
-    whole, inside = table.interpolate(points)
-    assert 0 < inside.sum() < len(points)
-    monkeypatch.setattr(distortion, "_TABLE_BLOCK", 64)
-    blocks, inside_blocks = table.interpolate(points)
-    np.testing.assert_array_equal(blocks, whole)
-    np.testing.assert_array_equal(inside_blocks, inside)
-
-
 # ------------------------------------------------------------- issue 26, mutation testing: the
 # coefficient vectors accepted, the radius limit, the shift bound beyond the image, the table.
 @pytest.mark.parametrize("size", [8, 12, 14])

@@ -138,19 +138,3 @@ def test_stack_sampling_equals_per_image_sampling():
         np.testing.assert_array_equal(value[sel], im.bilinear(stack[f], u[sel], v[sel]))
         for a, b in zip(full, im.sample_with_gradient(stack[f], u[sel], v[sel])):
             np.testing.assert_array_equal(a[sel], b)
-
-
-def test_sampling_in_blocks_equals_one_pass(monkeypatch):
-    """sample_with_gradient POINT_BLOCK points at a time (a last short block, points outside
-    the image and non-finite ones among them) gives each point what one pass gives it."""
-    stack = RNG.random((3, 11, 9)).astype(np.float32)
-    u = RNG.uniform(-2.0, 11.0, 250)
-    v = RNG.uniform(-2.0, 13.0, 250)
-    u[::17] = np.nan
-    frames = RNG.integers(0, 3, 250)
-    whole = im.sample_with_gradient(stack, u, v, frames)
-    monkeypatch.setattr(im, "POINT_BLOCK", 16)
-    blocks = im.sample_with_gradient(stack, u, v, frames)
-    for a, b in zip(whole, blocks):
-        np.testing.assert_array_equal(a, b)
-        assert a.shape == (250,) and b.dtype == np.float64

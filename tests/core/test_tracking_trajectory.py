@@ -81,35 +81,6 @@ def test_eq4_is_small_on_the_true_trajectory(seq):
     assert true < 0.05 * interp
 
 
-def test_eq4_and_still_visible_in_blocks_equal_one_pass(seq, monkeypatch):
-    """Eq. 4's differences and the next-pose visibility test taken SAMPLE_BLOCK samples at a
-    time (a last short block) equal one pass over all samples."""
-    from core.tracking import motion, trajectory
-    sk, body, cam, roots, local, frames = seq
-    problem = TrackingProblem(sk, body, cam)
-    cam_frames = joint_frames_in_camera(sk, cam.world2camera, roots, local)
-    samples = sample_silhouette(body, cam, *cam_frames, 2000)
-    n = len(roots) - 1
-    now = samples.subset(np.flatnonzero(samples.frames < n))
-    after = sample_silhouette(body, cam, cam_frames[0][1:], cam_frames[1][1:], 2000)
-    nxt = tuple(a[1:] for a in cam_frames)
-
-    def both():
-        return (trajectory._photometric_differences(problem, frames, 0, cam_frames, samples),
-                motion.still_visible(now, tuple(a[:-1] for a in cam_frames), nxt, after, cam))
-
-    (f, diff, total), visible = both()
-    assert len(diff) > 500 and 0 < visible.sum() < len(visible)
-    for name in ("SAMPLE_BLOCK",):
-        monkeypatch.setattr(trajectory, name, 97)
-        monkeypatch.setattr(motion, name, 97)
-    (f_b, diff_b, total_b), visible_b = both()
-    np.testing.assert_array_equal(f_b, f)
-    np.testing.assert_array_equal(diff_b, diff)
-    np.testing.assert_array_equal(total_b, total)
-    np.testing.assert_array_equal(visible_b, visible)
-
-
 def _point_error(sk, cam, roots, local, r, l):
     """Mean distance (m) of joint origins and bone tails from the truth."""
     rot, org = joint_frames_in_camera(sk, cam.world2camera, r, l)
