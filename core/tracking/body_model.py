@@ -341,7 +341,10 @@ def take_pairs(table, first, second):
     Parameters
     ----------
     table : ndarray, shape (A, B, ...)
-    first, second : ndarray of int, one shape (...K), in [0, A) and [0, B)
+    first, second : ndarray of int, broadcast to one shape (...K)
+        In [0, A) and [0, B): not checked, and unlike fancy indexing a negative index does
+        not count from the end (the tracker's frame, pose, joint and part indices are never
+        negative).
 
     Returns
     -------
