@@ -188,6 +188,28 @@ def test_a_join_that_would_jolt_blends_over_a_longer_join(walker, monkeypatch):
     assert join(before) > 1.0
 
 
+def test_the_join_rules_stand_in_for_the_capture_p99_shrugs_off_a_glitch(walker):
+    """Stop 38: the trial join is judged against a stand-in for the capture's 99th percentile
+    computed from the reference frames alone. Their largest acceleration (stop 37's stand-in,
+    × 0.8) is one stencil: it read 1.35× the capture's p99 on 35_01 (a two-step join was
+    needed and not tried). A high quantile (``JOIN_QUANTILE``) over all of them is not moved
+    by one bad frame: a 3 cm marker glitch in one reference frame's root (three stencils of
+    94) moves the ratio by about a tenth where it more than doubles the reference's
+    largest."""
+    import core.gait.walk as walk_module
+    _, skeleton, ref, _, floor = walker
+    names = list(skeleton.dof_names())
+    out = walk(walker, "brisk", cadence=1.3)
+    speed = np.full(2, 1.2)                                # a walk's speed (no run rule)
+    ratio = walk_module._join_ratio(ref, out.dofs, names, FPS, floor, speed, out.blend_frames)
+    glitch = ref.copy()
+    glitch[N_REF // 2, names.index("root.tx")] += 0.03
+    assert acceleration(glitch)[0].max() > 2.0 * acceleration(ref)[0].max()
+    moved = walk_module._join_ratio(glitch, out.dofs, names, FPS, floor, speed,
+                                    out.blend_frames)
+    assert ratio > 0.0 and moved == pytest.approx(ratio, rel=0.15)
+
+
 def test_retiming_up_strides_further_and_swings_wider_than_fast_forward(walker):
     """Issue 25: at 1.6× the fast-forward kept a normal walk's 1.33 m and 46° hip swing (real
     brisk walks: 1.82 m, 67°); slower, a real stroll shortens its stride."""
