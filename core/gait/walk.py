@@ -55,6 +55,11 @@ GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
+# A join toward or from a run keeps its one step (people change into a run within a step): a
+# run is a walk above the transition's own Froude number, 0.5. Stop 37 took FLIGHT_FROUDE[0],
+# which also counted the fastest walks (long stride at 1.6: 0.41-0.44 on the sweep's walkers;
+# the runs 0.91 and above) and left them their one-step jolt (docs/gait.md, *Stop 38*).
+RUN_FROUDE = 0.5
 MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
 JOIN_SPACING_S = 0.05        # s: second differences over this (mocap's frame-to-frame are noise)
 JOIN_SCALES = (1.0, 1.5, 2.0)  # lengths of the join tried against a jolt (× blend_steps)
@@ -300,12 +305,12 @@ def _join_ratio(reference, trial, names, fps, floor, speed, blend):
     over ``JOIN_SPACING_S``, every stencil that reaches a predicted frame up to the one
     centred on the blend's end) over the reference frames' ``JOIN_QUANTILE``-th percentile
     of their own (× ``JOIN_TOLERANCE`` that stands for the capture's 99th percentile); 0
-    where either walk runs (Froude number above ``FLIGHT_FROUDE[0]``: people change into a
+    where either walk runs (Froude number above ``RUN_FROUDE``: people change into a
     run within a step) or the reference is too short to say."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     h = max(1, int(round(JOIN_SPACING_S * fps)))
     leg = max(float(np.mean(reference[:, tz])) - floor, 0.1)
-    if max(speed[0] ** 2, speed[-1] ** 2) / (GRAVITY * leg) > FLIGHT_FROUDE[0] \
+    if max(speed[0] ** 2, speed[-1] ** 2) / (GRAVITY * leg) > RUN_FROUDE \
             or len(reference) < 2 * h + 1:
         return 0.0
     rows = np.vstack([reference[:, [tx, ty, tz]], trial[:, [tx, ty, tz]]])
