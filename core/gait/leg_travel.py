@@ -42,14 +42,14 @@ import numpy as np
 
 from .em import offset_statistics, scaled_observations
 from .ekf import make_context
-from .planting import MIN_EXPECTED, relative_feet, travel_from_legs
-from .prediction import dofs_from_observations, predict
+from .planting import MIN_EXPECTED, legs_velocities, relative_feet
+from .prediction import dofs_from_observations, predict_styles
 from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
 from .root_travel import _directions as heading_directions
 from .walk_figures import CMU_FEET
 
 __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed",
-           "style_legs_speed", "style_precision"]
+           "style_legs_speed", "style_precision", "styles_legs_speeds"]
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
@@ -104,22 +104,26 @@ def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
     rows = np.asarray(rows, dtype=float)[-(int(n_steps) + 1):]
     names = list(skeleton.dof_names())
     root = rows[:, [names.index(n) for n in ROOT_DOF_NAMES]]
-    return _legs_speed(relative_feet(skeleton, rows, feet), root, fps,
-                       root_frame or RootFrame(rest=skeleton.rest_rotations[0]))
+    return float(_legs_speeds(relative_feet(skeleton, rows, feet)[None], root[None], fps,
+                              root_frame or RootFrame(rest=skeleton.rest_rotations[0]))[0])
 
 
-def _legs_speed(rel, root, fps, frame):
-    """:func:`legs_speed` of frames whose feet relative to the root (``relative_feet``,
-    (M, F, 3)) and root DOFs (M, 6) are known: the forward kinematics done once for every
-    window of a reference (each row's feet are the row's alone)."""
-    heights = root[:, 2]
-    floor = float(np.percentile(np.min(rel[:, :, 2], axis=1) + heights, FLOOR_PERCENTILE))
-    heading = heading_angles(root_rotations(root, frame), frame)
-    ahead = heading_directions(0.5 * (heading[1:] + heading[:-1]), frame)[0]
-    along = float(np.mean(np.sum(np.diff(root[:, :2], axis=0) * fps * ahead, axis=1)))
-    sense = -1.0 if along <= -MIN_EXPECTED else 1.0
-    vel, _ = travel_from_legs(rel, heights, floor, fps, sense * ahead)
-    return float(np.linalg.norm(vel.mean(axis=0)))
+def _legs_speeds(rel, root, fps, frame):
+    """:func:`legs_speed` of B windows whose feet relative to the root (``relative_feet``,
+    (B, M, F, 3)) and root DOFs (B, M, 6) are known, (B,) m/s: the forward kinematics done
+    once for every window (each row's feet are the row's alone); every window's speed is the
+    one it gives alone, bit for bit (the same element-wise operations, each reduction over one
+    window's own frames)."""
+    n_windows, m = root.shape[:2]
+    heights = root[..., 2]
+    floor = np.percentile(np.min(rel[..., 2], axis=-1) + heights, FLOOR_PERCENTILE, axis=-1)
+    heading = heading_angles(root_rotations(root.reshape(-1, 6), frame).reshape(
+        n_windows, m, 3, 3), frame)                                # unwrapped along each window
+    ahead = heading_directions(0.5 * (heading[:, 1:] + heading[:, :-1]), frame)[0]
+    along = np.mean(np.sum(np.diff(root[..., :2], axis=-2) * fps * ahead, axis=-1), axis=-1)
+    sense = np.where(along <= -MIN_EXPECTED, -1.0, 1.0)
+    vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead)
+    return np.array([np.linalg.norm(v.mean(axis=0)) for v in vel])
 
 
 def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
@@ -132,8 +136,8 @@ def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_
     rel = relative_feet(skeleton, reference, feet)     # once: each row's feet are its own
     frame = root_frame or RootFrame(rest=skeleton.rest_rotations[0])
     k = int(n_steps) + 1
-    speeds = [_legs_speed(rel[end - k:end], root[end - k:end], fps, frame)
-              for end in range(k, len(reference) + 1)]
+    windows = np.arange(len(reference) - k + 1)[:, None] + np.arange(k)   # (W, k) rows
+    speeds = _legs_speeds(rel[windows], root[windows], fps, frame)
     return float(np.mean(speeds)), float(np.std(speeds))
 
 
@@ -146,14 +150,27 @@ def style_legs_speed(model, skeleton, last, fps, omega, w, residual=None, offset
     """The legs' speed (m/s) of the style ``w`` over one cycle at ``omega`` (rad/frame): the
     model's frames (residual table and offset added) as DOF rows after the DOF row ``last``
     (skeleton layout), :func:`legs_speed` over the cycle."""
+    return float(styles_legs_speeds(model, skeleton, last, fps, omega, np.asarray(w)[None],
+                                    residual, offset, feet)[0])
+
+
+def styles_legs_speeds(model, skeleton, last, fps, omega, styles, residual=None, offset=None,
+                       feet=CMU_FEET):
+    """:func:`style_legs_speed` of K styles (K, J) at once, (K,) m/s, each the one it gives
+    alone (bit for bit): one GP mean (:func:`.prediction.predict_styles`), one forward
+    kinematics of all the styles' cycles, the root integrations and speeds batched."""
     names = list(skeleton.dof_names())
     cols = np.array([names.index(n) for n in model.dof_names], dtype=int)
     n = _cycle_steps(omega)
-    obs = predict(model, np.array([float(omega), 0.0]), w, n + 1, residual=residual,
-                  offset=offset)
-    rows = np.tile(np.asarray(last, dtype=float), (n + 1, 1))
-    rows[:, cols] = dofs_from_observations(model, obs, rows[0, cols], fps)
-    return legs_speed(skeleton, rows, fps, n, feet, model.root_frame)
+    obs = predict_styles(model, np.array([float(omega), 0.0]), styles, n + 1,
+                         residual=residual, offset=offset)        # (K, n + 1, D)
+    last = np.asarray(last, dtype=float)
+    rows = np.array(np.broadcast_to(last, obs.shape[:2] + last.shape))
+    rows[..., cols] = dofs_from_observations(model, obs, last[cols], fps)
+    root = rows[..., [names.index(c) for c in ROOT_DOF_NAMES]]
+    rel = relative_feet(skeleton, rows.reshape(-1, rows.shape[-1]), feet)
+    return _legs_speeds(rel.reshape(rows.shape[:2] + rel.shape[1:]), root, fps,
+                        model.root_frame)
 
 
 def style_precision(model, observations, result):
@@ -219,18 +236,23 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
     target, spread = reference_legs_speed(skeleton, reference, fps, n, feet, model.root_frame)
     last = reference[-1]
 
-    def speed(style):
-        return style_legs_speed(model, skeleton, last, fps, omega, style, residual,
-                                result.offset, feet)
+    def speeds(styles):
+        return styles_legs_speeds(model, skeleton, last, fps, omega, styles, residual,
+                                  result.offset, feet)
 
-    before = speed(w)
-    if not (np.isfinite(target) and np.isfinite(before)) or target < MIN_EXPECTED:
+    def speed(style):
+        return float(speeds(style[None])[0])
+
+    if not (np.isfinite(target) and target >= MIN_EXPECTED):
+        before = speed(w)
         return LegTravelFit(w, target if np.isfinite(target) else None, before)
-    grad = np.zeros_like(w)
-    for j in range(len(w)):
-        step = np.zeros_like(w)
-        step[j] = GRADIENT_STEP
-        grad[j] = (speed(w + step) - speed(w - step)) / (2.0 * GRADIENT_STEP)
+    # s(w) and the central differences of its gradient, the 2J + 1 styles' cycles at once.
+    eye = np.eye(len(w)) * GRADIENT_STEP
+    batch = speeds(np.vstack([w[None], w + eye, w - eye]))
+    before = float(batch[0])
+    if not np.isfinite(before):
+        return LegTravelFit(w, target, before)
+    grad = (batch[1:len(w) + 1] - batch[len(w) + 1:]) / (2.0 * GRADIENT_STEP)
     direction = np.linalg.solve(style_precision(model, observations, result), grad)
     along = float(grad @ direction)                    # gᵀP⁻¹g: speed per unit of t
     if not (np.isfinite(along) and along > 0.0):

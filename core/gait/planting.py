@@ -33,7 +33,7 @@ from ..kinematics.fk import chain_frames, chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
 __all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "grounded_heights",
-           "reference_floor", "relative_feet", "travel_from_legs"]
+           "legs_velocities", "reference_floor", "relative_feet", "travel_from_legs"]
 
 CONTACT_BAND = 0.025        # m: a foot this close to the floor can carry the walker
 CLEARANCE_SOFTNESS = 0.02   # m: ε of the soft clearance threshold
@@ -152,42 +152,64 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None):
     carrying : ndarray, shape (N, F), bool
         Where each foot carries the walker (on the floor, and most of the weight).
     """
-    rel = np.asarray(relative, dtype=float)
-    lift = np.zeros(len(rel)) if lift is None else np.asarray(lift, dtype=float)
-    grounded = np.asarray(heights, dtype=float) - lift
-    above = rel[:, :, 2] + grounded[:, None] - float(floor)
-    above = np.maximum(0.5 * (above[1:] + above[:-1]), 0.0)             # (N, F)
-    airborne = 0.5 * (lift[1:] + lift[:-1]) > CONTACT_BAND
-    step = np.diff(rel[:, :, :2], axis=0) * fps                         # (N, F, 2) m/s
-    frames = np.arange(len(step))
-    if expected is None:
-        lower = np.argmin(above, axis=1)
-    else:
-        exp = np.asarray(expected, dtype=float)
-        norm = np.linalg.norm(exp, axis=1, keepdims=True)
-        ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
-        backwards = np.maximum(np.einsum("nfc,nc->nf", step, ahead), 0.0)   # root going back
-        miss = (backwards / BACKWARD_TOLERANCE) ** 2
-        lower = np.argmin((above - above.min(axis=1, keepdims=True)) / WEIGHT_SCALE + miss,
-                          axis=1)
-    first = -step[frames, lower]                                        # that foot still
-    # A foot carries the walker when it is near the floor and (nearly) still with the root at
-    # the first guess: the swing foot skims the floor at walking speed and does not count.
-    still = np.sum((step + first[:, None, :]) ** 2, axis=2)
-    weight = np.exp(-(above - above.min(axis=1, keepdims=True)) / WEIGHT_SCALE
-                    - still / SPEED_SCALE**2)
-    share = weight / weight.sum(axis=1)[:, None]
-    vel = -np.einsum("nf,nfc->nc", share, step)
-    contact = (above.min(axis=1) < CONTACT_BAND) & ~airborne
-    if contact.any() and not contact.all():
-        for c in range(2):
-            vel[:, c] = np.interp(frames, frames[contact], vel[contact, c])
+    vel, share, above = legs_velocities(relative, heights, floor, fps, expected, lift)
     # A foot carries the walker through its whole stance, a run's push-off included (the lift
     # only decides how the root travels): the legs reach down to it (pin_feet).
     carrying = (share > 0.5) & (above < CONTACT_BAND)
     for f in range(carrying.shape[1]):                  # a stance is not broken by a frame
         carrying[:, f] = _close_gaps(carrying[:, f], MIN_STANCE_FRAMES)
     return vel, carrying
+
+
+def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
+    """:func:`travel_from_legs`'s velocities of one or many sequences at once: every array may
+    carry leading batch axes ``B…`` (``relative`` (B…, N + 1, F, 3), ``heights`` and ``lift``
+    (B…, N + 1), ``floor`` a float or (B…), ``expected`` (B…, N, 2)); each sequence's
+    velocities are those :func:`travel_from_legs` gives it alone, bit for bit (the same
+    element-wise operations, reductions over the feet and coordinates only).
+
+    Returns
+    -------
+    velocities : ndarray, shape (B…, N, 2)
+    share : ndarray, shape (B…, N, F)
+        Each foot's share of the weight.
+    above : ndarray, shape (B…, N, F)
+        Each foot's height above the floor (m, ≥ 0, the step's mean, lift removed).
+    """
+    rel = np.asarray(relative, dtype=float)
+    heights = np.asarray(heights, dtype=float)
+    lift = np.zeros(heights.shape) if lift is None else np.asarray(lift, dtype=float)
+    grounded = heights - lift
+    floor = np.asarray(floor, dtype=float)[..., None, None]
+    above = rel[..., 2] + grounded[..., None] - floor
+    above = np.maximum(0.5 * (above[..., 1:, :] + above[..., :-1, :]), 0.0)   # (B…, N, F)
+    airborne = 0.5 * (lift[..., 1:] + lift[..., :-1]) > CONTACT_BAND
+    step = np.diff(rel[..., :2], axis=-3) * fps                              # (B…, N, F, 2)
+    low = above.min(axis=-1, keepdims=True)
+    if expected is None:
+        lower = np.argmin(above, axis=-1)
+    else:
+        exp = np.asarray(expected, dtype=float)
+        norm = np.linalg.norm(exp, axis=-1, keepdims=True)
+        ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
+        backwards = np.maximum(np.einsum("...fc,...c->...f", step, ahead), 0.0)  # root back
+        miss = (backwards / BACKWARD_TOLERANCE) ** 2
+        lower = np.argmin((above - low) / WEIGHT_SCALE + miss, axis=-1)
+    first = -np.take_along_axis(step, lower[..., None, None], axis=-2)[..., 0, :]  # still
+    # A foot carries the walker when it is near the floor and (nearly) still with the root at
+    # the first guess: the swing foot skims the floor at walking speed and does not count.
+    still = np.sum((step + first[..., None, :]) ** 2, axis=-1)
+    weight = np.exp(-(above - low) / WEIGHT_SCALE - still / SPEED_SCALE**2)
+    share = weight / weight.sum(axis=-1)[..., None]
+    vel = -np.einsum("...f,...fc->...c", share, step)
+    contact = (above.min(axis=-1) < CONTACT_BAND) & ~airborne
+    frames = np.arange(step.shape[-3])
+    flat_vel = vel.reshape((-1,) + vel.shape[-2:])
+    for v, c in zip(flat_vel, contact.reshape(-1, contact.shape[-1])):
+        if c.any() and not c.all():
+            for k in range(2):
+                v[:, k] = np.interp(frames, frames[c], v[c, k])
+    return flat_vel.reshape(vel.shape), share, above
 
 
 def _close_gaps(mask, longest):

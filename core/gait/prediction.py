@@ -36,7 +36,7 @@ from .residual import residual_weights
 from .root_travel import ROOT_DOF_NAMES, ROOT_FEATURE_NAMES, integrate_root
 
 __all__ = ["DEFAULT_BLEND_S", "DEFAULT_VELOCITY_FRAMES", "cycle_mean", "interpolate_styles",
-           "mix_styles", "predict",
+           "mix_styles", "predict", "predict_styles",
            "predict_dofs", "predict_transition", "dofs_from_observations", "predicted_phases", "restyle", "smootherstep"]
 
 DEFAULT_BLEND_S = 0.15     # seconds: decay of the continuation from the last observed frame
@@ -141,6 +141,47 @@ def predict(model, state, w, n_frames, omega_scale=1.0, channels=None, residual=
     if start is not None and len(out):
         out = _continue_from(model, out, start, model.fps if fps is None else fps, blend_s)
     return out[:, index]
+
+
+def predict_styles(model, state, styles, n_frames, residual=None, offset=None):
+    """:func:`predict` of several styles at once (no retiming, channel choice, continuation
+    or phase averaging): the GP's means at the predicted phases are computed once.
+
+    Parameters
+    ----------
+    model : GaitModel
+    state : array_like, shape (2,)
+    styles : array_like, shape (K, J)
+    n_frames : int
+    residual, offset
+        As in :func:`predict`.
+
+    Returns
+    -------
+    ndarray, shape (K, n_frames, D)
+        Row k equal, bit for bit, to ``predict(model, state, styles[k], n_frames,
+        residual=residual, offset=offset)``.
+    """
+    styles = np.asarray(styles, dtype=float)
+    if styles.ndim != 2:
+        raise ValueError(f"styles must be (K, {model.n_bases}), got shape {styles.shape}")
+    styles = [_check_style(model, w) for w in styles]
+    phis = predicted_phases(state, n_frames)
+    out = np.zeros((len(styles), len(phis), model.n_channels))
+    if not len(phis):
+        return out
+    means = model.gp.mean(phis)                                   # (n, J, D)
+    extra = None if residual is None \
+        else model.gp.kernel(phis) @ residual_weights(model, residual)
+    offset = None if offset is None else _check_vector(model, offset, "offset")
+    for k, w in enumerate(styles):
+        scaled = np.einsum("njd,j->nd", means, w)                 # eq. 12, as observation_mean
+        if extra is not None:
+            scaled = scaled + extra
+        if offset is not None:
+            scaled = scaled + offset
+        out[k] = model.to_physical(scaled)
+    return out
 
 
 def smootherstep(x):
@@ -372,24 +413,27 @@ def predict_dofs(model, state, w, n_frames, last_dofs, fps, omega_scale=1.0, str
 def dofs_from_observations(model, pred, last_dofs, fps, stride=1.0, travel=True):
     """DOF rows (``model.dof_names`` layout) of predicted observations (n, D) that follow the
     DOF frame ``last_dofs``: angles on its branch, root integrated from its pose (see
-    :func:`predict_dofs` for ``stride`` and ``travel``)."""
+    :func:`predict_dofs` for ``stride`` and ``travel``). ``pred`` may carry leading axes
+    (B…, n, D): several predictions after the same frame, each as if alone (bit for bit),
+    DOF rows (B…, n, n_dofs)."""
     last = np.asarray(last_dofs, dtype=float)
+    pred = np.asarray(pred, dtype=float)
     names = model.dof_names
-    out = np.tile(last, (len(pred), 1))
+    out = np.array(np.broadcast_to(last, pred.shape[:-1] + last.shape))
     lookup = {n: i for i, n in enumerate(names)}
     angle_cols = np.array([lookup[n] for n in model.angle_names], dtype=int)
-    angles = pred[:, :model.n_angles]
-    if len(pred):
-        turns = np.round((last[angle_cols] - angles[0]) / (2.0 * np.pi))
-        out[:, angle_cols] = angles + 2.0 * np.pi * turns
-    if model.root_travel and len(pred):
+    angles = pred[..., :model.n_angles]
+    if pred.shape[-2]:
+        turns = np.round((last[angle_cols] - angles[..., :1, :]) / (2.0 * np.pi))
+        out[..., angle_cols] = angles + 2.0 * np.pi * turns
+    if model.root_travel and pred.shape[-2]:
         root_cols = np.array([lookup[n] for n in ROOT_DOF_NAMES], dtype=int)
-        feats = pred[:, model.channel_index(ROOT_FEATURE_NAMES)]
+        feats = pred[..., model.channel_index(ROOT_FEATURE_NAMES)]
         # ROOT_FEATURE_NAMES: height, v_forward, v_left, yaw_rate, tilt_x/y/z
-        feats[:, 1:3] *= float(stride) if travel else 0.0
+        feats[..., 1:3] *= float(stride) if travel else 0.0
         if not travel:
-            feats[:, 3] = 0.0
-        out[:, root_cols] = integrate_root(feats, fps, last[root_cols], model.root_frame)
+            feats[..., 3] = 0.0
+        out[..., root_cols] = integrate_root(feats, fps, last[root_cols], model.root_frame)
     return out
 
 

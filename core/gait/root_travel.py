@@ -186,8 +186,10 @@ def integrate_root(features, fps, start_root_dofs, frame=None):
 
     Parameters
     ----------
-    features : array_like, shape (n, 7)
-        Root features of the frames *after* the start pose (:data:`ROOT_FEATURE_NAMES`).
+    features : array_like, shape (n, 7) or (B…, n, 7)
+        Root features of the frames *after* the start pose (:data:`ROOT_FEATURE_NAMES`);
+        leading axes: several trajectories from the same start pose (each as if alone, bit
+        for bit).
     fps : float
     start_root_dofs : array_like, shape (6,)
         The last observed root DOFs (position in metres, angles in radians).
@@ -195,31 +197,35 @@ def integrate_root(features, fps, start_root_dofs, frame=None):
 
     Returns
     -------
-    ndarray, shape (n, 6)
+    ndarray, shape (n, 6) or (B…, n, 6)
         Root DOFs; angles continuous with the start pose's (no ±π flips).
     """
     frame = frame or RootFrame()
     features = np.asarray(features, dtype=float)
-    if features.ndim != 2 or features.shape[1] != 7:
+    if features.ndim < 2 or features.shape[-1] != 7:
         raise ValueError(f"Expected root features of shape (n, 7), got {features.shape}")
     if not np.all(np.isfinite(features)):
         raise ValueError("root features must be finite")
     if not fps > 0:
         raise ValueError(f"fps must be positive, got {fps}")
     start = _check_root_dofs(np.reshape(start_root_dofs, (1, 6)))[0]
-    n = len(features)
     psi0 = heading_angles(root_rotations(start[None], frame), frame)[0]
-    psi = psi0 + np.cumsum(features[:, 3]) / fps
-    mid = 0.5 * (np.concatenate([[psi0], psi[:-1]]) + psi)
+    psi = psi0 + np.cumsum(features[..., 3], axis=-1) / fps
+    before = np.concatenate([np.broadcast_to(psi0, psi.shape[:-1] + (1,)), psi[..., :-1]],
+                            axis=-1)
+    mid = 0.5 * (before + psi)
     fwd, left = _directions(mid, frame)
-    steps = (features[:, 1:2] * fwd + features[:, 2:3] * left) / fps
-    out = np.empty((n, 6))
-    out[:, :2] = start[:2] + np.cumsum(steps, axis=0)
-    out[:, 2] = features[:, 0]
-    g = _rz(psi) @ exp_so3(features[:, 4:7]) @ frame.rest  # G = Rz(ψ) T rest
+    steps = (features[..., 1:2] * fwd + features[..., 2:3] * left) / fps
+    out = np.empty(features.shape[:-1] + (6,))
+    out[..., :2] = start[:2] + np.cumsum(steps, axis=-2)
+    out[..., 2] = features[..., 0]
+    g = _rz(psi) @ exp_so3(features[..., 4:7]) @ frame.rest  # G = Rz(ψ) T rest
     angles = matrix_to_euler(np.swapaxes(frame.rest, -1, -2) @ g, frame.order)
-    angles = make_euler_continuous(np.vstack([start[3:6], angles]), frame.order)
-    # make_euler_continuous wraps its first row to (-π, π]: shift back onto the start's branch.
-    shift = start[3:6] - angles[0]
-    out[:, 3:6] = angles[1:] + shift
+    flat_angles = angles.reshape((-1,) + angles.shape[-2:])
+    flat_out = out.reshape((-1,) + out.shape[-2:])       # a view: out is new and contiguous
+    for one, rows in zip(flat_angles, flat_out):         # each sequence from the start pose
+        one = make_euler_continuous(np.vstack([start[3:6], one]), frame.order)
+        # make_euler_continuous wraps its first row to (-π, π]: shift back onto the start's
+        # branch.
+        rows[:, 3:6] = one[1:] + (start[3:6] - one[0])
     return out

@@ -8,7 +8,8 @@ from core.gait import adapt, observations_from_dofs
 from core.gait.ekf import make_context
 from core.gait.em import scaled_observations
 from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_legs_speed,
-                                  style_legs_speed, style_precision)
+                                  style_legs_speed, style_precision, styles_legs_speeds)
+from core.gait.prediction import dofs_from_observations, predict, predict_styles
 from core.gait.walk import WalkRequest, predict_walk
 from tests.gait_data import adapted_walk
 
@@ -175,5 +176,28 @@ def test_the_reference_s_windows_are_each_window_s_legs_speed(walker):
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) > 10
     mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
-    assert mean == pytest.approx(np.mean(speeds), rel=1e-12, abs=1e-12)
-    assert spread == pytest.approx(np.std(speeds), rel=1e-9, abs=1e-12)
+    assert mean == np.mean(speeds) and spread == np.std(speeds)   # batched windows: bit for bit
+
+
+def test_many_styles_at_once_are_each_style_alone_and_the_plain_prediction_s(walker):
+    """styles_legs_speeds (the gradient's 2J + 1 styles' cycles at once: one GP mean, one
+    forward kinematics, the root integrations and the speeds batched): each style's speed is,
+    bit for bit, legs_speed of its cycle predicted the plain way (predict, then
+    dofs_from_observations), and predict_styles' frames are predict's."""
+    model, skeleton, values, names, _, res = walker
+    ref = values[:N_REF]
+    omega = float(res.state[0])
+    n = int(round(2 * np.pi / omega))
+    styles = res.w + np.random.default_rng(7).normal(scale=0.5, size=(4, len(res.w)))
+    for residual in (None, res.residual):
+        batch = styles_legs_speeds(model, skeleton, ref[-1], FPS, omega, styles, residual,
+                                   res.offset)
+        frames = predict_styles(model, [omega, 0.0], styles, n + 1, residual=residual,
+                                offset=res.offset)
+        cols = [names.index(c) for c in model.dof_names]
+        for w, speed, cycle in zip(styles, batch, frames):
+            plain = predict(model, [omega, 0.0], w, n + 1, residual=residual, offset=res.offset)
+            assert cycle.tobytes() == plain.tobytes()
+            rows = np.tile(ref[-1], (n + 1, 1))
+            rows[:, cols] = dofs_from_observations(model, plain, ref[-1, cols], FPS)
+            assert speed == legs_speed(skeleton, rows, FPS, n, root_frame=model.root_frame)

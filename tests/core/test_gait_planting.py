@@ -5,8 +5,9 @@ kinematics and finite differences."""
 import numpy as np
 import pytest
 
-from core.gait.planting import (grounded_heights, pin_feet, reference_floor, relative_feet,
-                                running_max, smooth, stance_targets, travel_from_legs)
+from core.gait.planting import (grounded_heights, legs_velocities, pin_feet, reference_floor,
+                                relative_feet, running_max, smooth, stance_targets,
+                                travel_from_legs)
 from core.kinematics import chain_kinematics, forward_kinematics, local_rotations_from_dofs
 from core.kinematics.fk import chain_frames
 from core.mocap import asf_to_skeleton, read_asf
@@ -227,3 +228,26 @@ def test_pin_feet_leaves_a_pose_beyond_the_limits_where_its_foot_already_is():
     after = chain_kinematics(skeleton, pinned, index)[0][index[1]]
     np.testing.assert_allclose(after, here[:, 1], atol=1e-4)
     assert np.all(pinned[:, hip] >= limits[hip, 1] + np.radians(8.0) - np.radians(0.5))
+
+
+def test_the_legs_velocities_of_many_sequences_are_each_sequence_s_own():
+    """legs_velocities with a leading batch axis (the legs' travel step measures many windows
+    at once): each sequence's velocities equal, bit for bit, travel_from_legs's of it alone
+    (with an expected velocity and a lift, a flight's interpolation included)."""
+    skeleton, values = walker("35_01")
+    rel = relative_feet(skeleton, values)
+    floor = reference_floor(skeleton, values, FPS)
+    starts = [0, 17, 60, 101]
+    k = 70
+    rels = np.stack([rel[s:s + k] for s in starts])
+    heights = np.stack([values[s:s + k, 2] for s in starts])
+    heights[2, 20:30] += 0.2                          # a flight: no foot near the floor
+    lift = np.zeros_like(heights)
+    lift[3, 5:12] = 0.1
+    expected = np.stack([np.diff(values[s:s + k, :2], axis=0) * FPS for s in starts])
+    floors = floor + np.array([0.0, 0.01, -0.01, 0.0])
+    vel, share, above = legs_velocities(rels, heights, floors, FPS, expected, lift)
+    for b in range(len(starts)):
+        alone, _ = travel_from_legs(rels[b], heights[b], floors[b], FPS, expected[b], lift[b])
+        assert vel[b].tobytes() == alone.tobytes()
+    assert share.shape == above.shape == (len(starts), k - 1, 2)

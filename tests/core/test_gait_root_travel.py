@@ -140,3 +140,17 @@ def test_stream_equals_batch_after_the_first_frame():
     np.testing.assert_allclose(rows[0, others], batch[0, others], atol=1e-12)
     stream.reset()
     assert np.isnan(stream.push(values[10])[rates]).all()
+
+
+def test_several_trajectories_integrate_each_as_if_alone():
+    """integrate_root with leading axes (the legs' travel step integrates its 2J + 1 styles'
+    cycles at once): each trajectory equal, bit for bit, to its own integration."""
+    dofs = root("08_01", 120)
+    feats = root_features(dofs, 120.0)[1:121]
+    rng = np.random.default_rng(5)
+    many = feats + rng.normal(scale=0.05, size=(2, 3) + feats.shape)
+    many[0, 1, :, 3] += 0.8                          # one turns (yaw rate) more than the others
+    batch = integrate_root(many, 120.0, dofs[0])
+    assert batch.shape == (2, 3, 120, 6)
+    for index in np.ndindex(2, 3):
+        assert batch[index].tobytes() == integrate_root(many[index], 120.0, dofs[0]).tobytes()
