@@ -10,8 +10,9 @@ last observed frame) and a :class:`WalkRequest` into DOF rows of the walker's sk
    changes and a trial solve's root accelerates over the join beyond ``JOIN_TOLERANCE`` ×
    the reference frames' own 90th percentile (the stand-in for the capture's 99th), a longer
    join is tried (``JOIN_SCALES``, up to two steps; not toward or from a run) and the
-   shortest that is within it, else the mildest, kept: the stance foot's place relative to the hips changes with the style under the
-   planted root (``Δp s̈``, ``docs/gait.md``, *Stop 37: the join's jolt*).
+   shortest that is within it, else the mildest, kept: the stance foot's place relative to
+   the hips changes with the style under the planted root (``Δp s̈``, ``docs/gait.md``,
+   *Stop 37: the join's jolt*, *Stop 38*).
 2. **Retime as a person would**: a cadence factor moves the style along the model's
    ``cadence_style`` direction (how the training walkers' styles change with their cadence:
    longer strides and wider swings when they walk faster), ``style += log(cadence) ×
