@@ -220,11 +220,12 @@ def rhythm(model, observations, fps):
     lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
     hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
     best = (None, None, False)
+    legs_mirrored, legs = mirrored[:, left + right], x[:, left + right]   # once, not per lag
     for period in range(lo, hi + 1):
         half = int(round(period / 2))
         num = e1 = e2 = 0.0
         if pairs and n - half >= overlap:                  # the other leg's step
-            a, b = mirrored[:n - half][:, left + right], x[half:][:, left + right]
+            a, b = legs_mirrored[:n - half], legs[half:]
             num, e1, e2 = np.sum(a * b), np.sum(a * a), np.sum(b * b)
         whole = n - period >= overlap
         if whole:                                          # the same leg, a cycle later

@@ -458,23 +458,23 @@ def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     if extra_weights is not None:
         comb = comb + extra_weights
     n = len(ys)
-    states = np.empty((n, 2))
-    covs = np.empty((n, 2, 2))
-    sq = np.empty(n)
-    outliers = np.full(n, -1)
-    q = ctx.Q
+    q00, q01, q11 = ctx.q_floats
     omega, phi = float(x0[0]), float(x0[1])
     a, b, c = float(P0[0, 0]), float(P0[0, 1]), float(P0[1, 1])
     total = 0.0
+    rows = []                                   # per frame: ω, φ, a, b, c, squared innovation
+    outliers = []
     for t in range(n):
         if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
             phi = phi + omega
-            a, b, c = a + q[0, 0], a + b + q[0, 1], a + 2 * b + c + q[1, 1]
-        omega, phi, a, b, c, loglik, ee, count, outliers[t] = _update(ctx, omega, phi, a, b, c,
-                                                                      ys[t], comb)
+            a, b, c = a + q00, a + b + q01, a + 2 * b + c + q11
+        omega, phi, a, b, c, loglik, ee, count, outlier = _update(ctx, omega, phi, a, b, c,
+                                                                  ys[t], comb)
         total += loglik
-        states[t] = omega, phi
-        covs[t] = [[a, b], [b, c]]
-        sq[t] = ee / max(count, 1)
-    return FilterResult(states=states, covariances=covs, loglik=total, innovation_sq=sq,
-                        outliers=outliers)
+        rows.append((omega, phi, a, b, c, ee / max(count, 1)))
+        outliers.append(outlier)
+    rows = np.array(rows, dtype=float).reshape(n, 6)
+    covs = rows[:, [2, 3, 3, 4]].reshape(n, 2, 2)
+    return FilterResult(states=rows[:, :2].copy(), covariances=covs, loglik=total,
+                        innovation_sq=rows[:, 5].copy(),
+                        outliers=np.array(outliers, dtype=int).reshape(n))

@@ -185,9 +185,13 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
         a_sum = (visits.reshape(n_omega * n_phi, N_TABLE).astype(float)
                  @ mtm.reshape(N_TABLE, n_bases * n_bases)).reshape(n_omega, n_phi, n_bases,
                                                                     n_bases)
-    # Σ over frames of μᵀy: each frame's own projection row at the candidate's phase.
-    # (np.take: the same rows as proj[...] in half the time.)
-    b_sum = np.take(proj, t * N_TABLE + idx, axis=0).sum(axis=2)           # (nω, nφ, J)
+    # Σ over frames of μᵀy: each frame's own projection row at the candidate's phase, added
+    # frame by frame in frame order (as a sum over the frame axis adds them) without gathering
+    # the whole (nω, nφ, K, J) array first (the gather cost 5-10 ms of Predict Gait).
+    proj = proj.reshape(k_frames, N_TABLE, n_bases)
+    b_sum = np.take(proj[0], idx[:, :, 0], axis=0)                         # (nω, nφ, J)
+    for frame in range(1, k_frames):
+        b_sum += np.take(proj[frame], idx[:, :, frame], axis=0)
     yy = float(np.sum(ys * ys))
     r = ctx.r
     prec = ctx.w_prec
@@ -259,13 +263,14 @@ def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None):
     and the cost is the minimum over both."""
     phase = phi0 + omega * np.arange(len(ys))
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE
+    rows = mu[idx]                                                        # (K, J, Dc), once
     a_sum = mtm[idx].sum(axis=0)
-    b_sum = np.einsum("td,tjd->j", ys, mu[idx])
+    b_sum = np.einsum("td,tjd->j", ys, rows)
     r = ctx.r
     lhs = a_sum / r + ctx.w_prec
     rhs = b_sum / r + ctx.w_prec @ ctx.w_mean
     if offset_prec is not None:
-        m_sum = mu[idx].sum(axis=0)                                       # (J, Dc)
+        m_sum = rows.sum(axis=0)                                          # (J, Dc)
         y_sum = ys.sum(axis=0)
         diag = len(ys) / r + offset_prec                                  # D = n/r + λ
         mr = m_sum / r

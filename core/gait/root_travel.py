@@ -221,11 +221,8 @@ def integrate_root(features, fps, start_root_dofs, frame=None):
     out[..., 2] = features[..., 0]
     g = _rz(psi) @ exp_so3(features[..., 4:7]) @ frame.rest  # G = Rz(ψ) T rest
     angles = matrix_to_euler(np.swapaxes(frame.rest, -1, -2) @ g, frame.order)
-    flat_angles = angles.reshape((-1,) + angles.shape[-2:])
-    flat_out = out.reshape((-1,) + out.shape[-2:])       # a view: out is new and contiguous
-    for one, rows in zip(flat_angles, flat_out):         # each sequence from the start pose
-        one = make_euler_continuous(np.vstack([start[3:6], one]), frame.order)
-        # make_euler_continuous wraps its first row to (-π, π]: shift back onto the start's
-        # branch.
-        rows[:, 3:6] = one[1:] + (start[3:6] - one[0])
+    first = np.broadcast_to(start[3:6], angles.shape[:-2] + (1, 3))
+    angles = make_euler_continuous(np.concatenate((first, angles), axis=-2), frame.order)
+    # make_euler_continuous wraps its first row to (-π, π]: shift back onto the start's branch.
+    out[..., 3:6] = angles[..., 1:, :] + (start[3:6] - angles[..., :1, :])
     return out

@@ -159,41 +159,49 @@ def make_euler_continuous(angles, order="XYZ"):
 
     Parameters
     ----------
-    angles : array_like, shape (N, 3), radians
+    angles : array_like, shape (N, 3) or (B…, N, 3), radians
+        Leading axes: several sequences, each made continuous on its own (bit for bit as
+        alone).
     order : str
 
     Returns
     -------
-    ndarray, shape (N, 3), radians
+    ndarray, shape (N, 3) or (B…, N, 3), radians
         Same rotations, continuous representation; the first frame is kept as given.
     """
     angles = np.array(angles, dtype=float)
-    if angles.ndim != 2 or angles.shape[1] != 3:
+    if angles.ndim < 2 or angles.shape[-1] != 3:
         raise ValueError(f"Expected shape (N, 3), got {angles.shape}")
     i, j, k = _order_axes(order)
     alternate = angles.copy()
-    alternate[:, i] += np.pi
-    alternate[:, j] = np.pi - alternate[:, j]
-    alternate[:, k] += np.pi
-    if len(angles) < 2:
+    alternate[..., i] += np.pi
+    alternate[..., j] = np.pi - alternate[..., j]
+    alternate[..., k] += np.pi
+    if angles.shape[-2] < 2:
         return angles
     triples = (angles, alternate)
     # take_alternate[p][t]: frame t + 1 takes its alternate triple when frame t took triple p.
-    take_alternate = [np.abs(_wrapped_step(triples[p][:-1], alternate[1:])).sum(axis=1)
-                      < np.abs(_wrapped_step(triples[p][:-1], angles[1:])).sum(axis=1)
+    take_alternate = [np.abs(_wrapped_step(triples[p][..., :-1, :], alternate[..., 1:, :])).sum(
+                          axis=-1)
+                      < np.abs(_wrapped_step(triples[p][..., :-1, :], angles[..., 1:, :])).sum(
+                          axis=-1)
                       for p in (0, 1)]
     fixed = take_alternate[0] == take_alternate[1]          # the same choice after either triple
     swap = take_alternate[0] & ~take_alternate[1]            # the other triple than before
-    steps = np.arange(len(fixed))
-    last_fixed = np.maximum.accumulate(np.where(fixed, steps, -1))
-    swaps = np.cumsum(swap)
-    swaps_before = np.where(last_fixed >= 0, swaps[np.maximum(last_fixed, 0)], 0)
-    start = np.where(last_fixed >= 0, take_alternate[0][np.maximum(last_fixed, 0)], False)
-    chosen = np.concatenate(([False], start ^ ((swaps - swaps_before) % 2 == 1)))
-    picked = np.where(chosen[:, None], alternate, angles)
+    steps = np.arange(fixed.shape[-1])
+    last_fixed = np.maximum.accumulate(np.where(fixed, steps, -1), axis=-1)
+    swaps = np.cumsum(swap, axis=-1)
+    at_fixed = np.maximum(last_fixed, 0)
+    swaps_before = np.where(last_fixed >= 0, np.take_along_axis(swaps, at_fixed, axis=-1), 0)
+    start = np.where(last_fixed >= 0, np.take_along_axis(take_alternate[0], at_fixed, axis=-1),
+                     False)
+    chosen = np.concatenate((np.zeros(fixed.shape[:-1] + (1,), dtype=bool),
+                             start ^ ((swaps - swaps_before) % 2 == 1)), axis=-1)
+    picked = np.where(chosen[..., None], alternate, angles)
     out = np.empty_like(angles)
-    out[0] = angles[0]
-    out[1:] = angles[0] + np.cumsum(_wrapped_step(picked[:-1], picked[1:]), axis=0)
+    out[..., 0, :] = angles[..., 0, :]
+    out[..., 1:, :] = angles[..., :1, :] + np.cumsum(
+        _wrapped_step(picked[..., :-1, :], picked[..., 1:, :]), axis=-2)
     return out
 
 

@@ -98,6 +98,27 @@ def test_make_euler_continuous_equals_the_frame_by_frame_choice(order):
                                    _greedy_euler_continuity(principal, order), atol=1e-12)
 
 
+@pytest.mark.parametrize("order", EULER_ORDERS)
+def test_make_euler_continuous_of_many_sequences_is_each_sequence_s_own(order):
+    """Leading axes (the legs' travel step's root integration of many styles at once): each
+    sequence made continuous on its own, bit for bit; the greedy choice again."""
+    rng = np.random.default_rng(11)
+    middle = "XYZ".index(order[1])
+    walks = np.cumsum(rng.normal(scale=np.reshape([0.05, 0.5, 2.0, 6.0], (4, 1, 1, 1)),
+                                 size=(4, 2, 120, 3)), axis=-2)
+    walks[1, 0, :, middle] = np.pi / 2 + rng.normal(scale=0.01, size=120)
+    principal = matrix_to_euler(euler_to_matrix(walks, order), order)
+    batch = make_euler_continuous(principal, order)
+    assert batch.shape == principal.shape
+    for index in np.ndindex(4, 2):
+        alone = make_euler_continuous(principal[index], order)
+        assert batch[index].tobytes() == alone.tobytes()
+        np.testing.assert_allclose(alone, _greedy_euler_continuity(principal[index], order),
+                                   atol=1e-12)
+    single = principal[:, :, :1]
+    assert make_euler_continuous(single, order).tobytes() == single.tobytes()
+
+
 def test_axis_rotation_and_skew_identities():
     rng = np.random.default_rng(3)
     v, u = rng.normal(size=(2, 10, 3))
