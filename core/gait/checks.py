@@ -25,6 +25,14 @@ after adapting, on the model's fit (issue 21):
    channels) must reach ``MIN_TRAVEL`` (0.2 m/s): boxing footwork, punching, gesturing or
    balancing in place are refused (steady walks: 0.38 m/s and more; the slowest shipped walker,
    a sneaking one, 0.4). A walk cycle keyed in place is refused too: key its travel.
+   *Forwards*: the mean horizontal velocity must not point backwards from where the hips face
+   (its forward share, the mean ``root.v_forward`` over its norm, reaches
+   ``MIN_FORWARD_SHARE``, 0): every walker the model learned from walks forwards, and the
+   backward travel of the non-gait clips (the wind-up of the baseball pitch CMU 124_01, the
+   dance 05_10, the kick 74_03) passed every other check. The forward share of every shipped
+   gait's steady windows is 0.33 and more (a careful walk that curves, 139_31, at 0.5 s; 0.59
+   and more from 0.75 s). Each velocity is measured in the heading of its own frame, so a
+   walk that curves stays forwards.
 5. **Rhythm over the whole range** (:func:`rhythm`): for every period the model's walkers walk
    at (their periods × 0.8 … 1.25, the cadence prior), the range is compared with itself one cycle
    later and, mirrored left for right, half a cycle later (the other leg's step), wherever the
@@ -58,7 +66,7 @@ import numpy as np
 from .segments import MIN_STRENGTH
 
 __all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
-           "MIN_MOTION_DEG", "MIN_OVERLAP_S",
+           "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S",
            "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
            "fit_score", "gait_channels", "legs_together", "regularity", "rhythm",
            "with_fit"]
@@ -68,6 +76,7 @@ MAX_TILT_DEG = 60.0
 MAX_LEGS_TOGETHER = 0.5      # (reported; the refusal uses the alternation below)
 MIN_ALTERNATION_DEG = 3.5
 MIN_TRAVEL = 0.2            # m/s
+MIN_FORWARD_SHARE = 0.0     # the mean velocity's forward share (cosine from the heading)
 MAX_LEVEL_RANGE = 0.2       # m: the root's height range of a level walk (check 3's exception)
 MIN_STEADY_SPEED = 0.05     # m/s: the slowest horizontal speed of a walk that never stops
 MIN_OVERLAP_S = 0.2         # s of overlap for a rhythm comparison
@@ -103,6 +112,9 @@ class GaitCheck:
         Largest tilt of the root from upright, degrees (None without root channels).
     travel : float or None
         Mean horizontal root speed, m/s (None without root channels).
+    forward : float or None
+        Forward share of the mean horizontal root velocity: its component along the heading
+        over its norm, -1 … 1 (None without root channels or without travel).
     """
 
     motion_deg: float
@@ -114,6 +126,7 @@ class GaitCheck:
     warning: str = None
     tilt_deg: float = None
     travel: float = None
+    forward: float = None
 
 
 def gait_channels(model, count=N_GAIT_CHANNELS):
@@ -240,15 +253,17 @@ def rhythm(model, observations, fps):
 
 
 def _root_figures(model, obs):
-    """(largest tilt from upright in degrees, mean horizontal speed in m/s), or (None, None)
-    for a model without root travel."""
+    """(largest tilt from upright in degrees, mean horizontal speed in m/s, forward share of
+    the mean horizontal velocity), or (None, None, None) for a model without root travel (the
+    share is None for a root that does not travel)."""
     if not model.root_travel:
-        return None, None
+        return None, None, None
     tilt = obs[:, model.channel_index(["root.tilt_x", "root.tilt_y", "root.tilt_z"])]
     speed = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
     tilt_deg = float(np.degrees(np.linalg.norm(tilt, axis=1).max()))
-    travel = float(np.linalg.norm(np.nanmean(speed, axis=0)))
-    return tilt_deg, travel
+    mean = np.nanmean(speed, axis=0)            # (forward, left), each in its frame's heading
+    travel = float(np.linalg.norm(mean))
+    return tilt_deg, travel, (float(mean[0]) / travel if travel > 0 else None)
 
 
 def _start_and_end_speeds(model, obs):
@@ -309,9 +324,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     if motion < MIN_MOTION_DEG:
         return GaitCheck(motion, refusal=f"The legs hold still in {what} ({motion:.2f}° of "
                                          f"motion): there is no walk to continue")
-    tilt, travel = _root_figures(model, obs)
+    tilt, travel, forward = _root_figures(model, obs)
     if tilt is not None and tilt > MAX_TILT_DEG:
-        return GaitCheck(motion, tilt_deg=tilt, travel=travel,
+        return GaitCheck(motion, tilt_deg=tilt, travel=travel, forward=forward,
                          refusal=f"The body is not upright in {what} (tilted {tilt:.0f}° from "
                                  f"standing): that is not a walk or run the gait model can "
                                  f"continue")
@@ -327,6 +342,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         if (alternate and stepping < MIN_ALTERNATION_DEG
                 and not _level_travel(model, obs, fps, travel)):
             return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
+                             forward=forward,
                              refusal=f"Both legs move together in {what} (they differ by "
                                      f"{stepping:.1f}° only): that is a jump, hop, squat or "
                                      f"a dance step, not a walk or run the gait model can "
@@ -337,6 +353,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         return end is not None and end >= MIN_TRAVEL and _walks_at_end(model, obs, fps)
     if travel is not None and travel < MIN_TRAVEL:
         return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
+                         forward=forward,
                          refusal=f"The walker stays in place in {what} ({travel:.2f} m/s): "
                                  f"boxing, gesturing or stepping on the spot is not a walk or "
                                  f"run the gait model can continue (a walk cycle keyed in "
@@ -344,9 +361,17 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                      f". If it starts from standing (its last third walks at "
                                      f"{end:.2f} m/s), start the range where the walk has "
                                      f"begun" if under_way() else ""))
+    if forward is not None and forward < MIN_FORWARD_SHARE:
+        return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
+                         forward=forward,
+                         refusal=f"The walker travels backwards in {what} ({travel:.2f} m/s, "
+                                 f"{np.degrees(np.arccos(np.clip(forward, -1.0, 1.0))):.0f}° "
+                                 f"from where its hips face): the gait model continues walks "
+                                 f"and runs that go forwards")
     period, strength, whole = rhythm(model, obs, fps)
     if whole and strength < MIN_STRENGTH:
         return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward,
                          refusal=f"No steady rhythm in {what}: the legs repeat their steps "
                                  f"with a strength of {strength:.2f} (a walk or run reaches "
                                  f"{MIN_STRENGTH:g} or more)")
@@ -363,7 +388,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
     check = GaitCheck(motion, period, strength, together, None, None,
-                      "; ".join(warnings) or None, tilt, travel)
+                      "; ".join(warnings) or None, tilt, travel, forward)
     return check if result is None else with_fit(check, model, obs, result, what)
 
 

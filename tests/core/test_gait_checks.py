@@ -167,6 +167,54 @@ def test_forward_jumps_are_refused_at_half_a_second_too():
     obs = observe(model, values, names)
     for start in range(0, len(obs) - 30 + 1, 15):
         assert check_gait(model, obs[start:start + 30], 60.0).refusal is not None, start / 60
+# Windows of non-gait clips that step, travel and alternate their legs, but backwards: the
+# wind-up of the baseball pitch and its steps back after the throw, a dance step, the kick's
+# step back (docs/gait.md, *Stop 38*; they passed every check before the forward check).
+BACKWARDS = [("124_01", "pitch wind-up", 1.0, 0.75), ("124_01", "after the pitch", 1.0, 4.0),
+             ("124_01", "pitch wind-up", 1.67, 0.25), ("05_10", "dance", 0.75, 3.75),
+             ("74_03", "kick", 0.75, 2.5)]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", BACKWARDS)
+def test_non_gaits_that_travel_backwards_are_refused(clip, kind, window, start):
+    """The root's world displacement over the window, from the captured root positions and
+    the pelvis' facing (``walk_figures.foot_tracks``, not the observation channels), points
+    backwards; the check refuses the window for it, in plain words."""
+    from core.gait.walk_figures import _forward, foot_tracks
+    from core.mocap import asf_to_skeleton, read_asf
+    from core.mocap.bvh import cmu_template_asf
+
+    path = CMU / "not_gaits" / f"{clip}.amc"
+    values, names = load_clip(path)
+    asf_file = path.parent / f"{clip.split('_')[0]}.asf"
+    skeleton = asf_to_skeleton(read_asf(asf_file) if asf_file.exists() else cmu_template_asf())
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    tracks = foot_tracks(skeleton, values[a:b], 60.0)
+    facing = _forward(tracks, tracks.heading).mean(axis=0)
+    assert np.dot(tracks.root[-1, :2] - tracks.root[0, :2], facing) < 0.0, kind
+    model = load_stock_library()
+    check = check_gait(model, observe(model, values, names)[a:b], 60.0, what="the range")
+    assert check.refusal.startswith("The walker travels backwards in the range ("), kind
+    assert check.refusal.endswith("from where its hips face): the gait model continues walks "
+                                  "and runs that go forwards")
+    assert check.forward < 0.0 and check.travel >= checks.MIN_TRAVEL
+
+
+def test_a_walk_played_backwards_is_refused_the_same_walk_forwards_is_taken():
+    """CMU 35_07 played in reverse: the same legs and rhythm, the root travelling backwards
+    (its velocities negated, the turn too); every other check takes it."""
+    model, obs = walk_range()
+    back = obs[::-1].copy()
+    cols = model.channel_index(["root.v_forward", "root.v_left", "root.yaw_rate"])
+    back[:, cols] = -back[:, cols]
+    ahead = check_gait(model, obs, 60.0)
+    assert ahead.refusal is None and ahead.forward > 0.9
+    behind = check_gait(model, back, 60.0)
+    assert behind.refusal.startswith("The walker travels backwards")
+    assert behind.forward == pytest.approx(-ahead.forward, rel=1e-9)
+    assert behind.travel == pytest.approx(ahead.travel, rel=1e-9)
+
+
 # One clip of each kind that is not a gait (sample_scenes/data/cmu/not_gaits/README.md), and
 # the words its refusals use.
 NOT_GAITS = [("91_39", "jump"), ("118_05", "jump in place"), ("18_15", "chicken dance"),
@@ -375,6 +423,7 @@ def test_a_measurement_equal_to_a_threshold_passes_it(monkeypatch):
              ("MAX_TILT_DEG", base.tilt_deg, -np.inf, "The body is not upright"),
              ("MIN_ALTERNATION_DEG", stepping, np.inf, "Both legs move together"),
              ("MIN_TRAVEL", base.travel, np.inf, "The walker stays in place"),
+             ("MIN_FORWARD_SHARE", base.forward, np.inf, "The walker travels backwards"),
              ("MIN_STRENGTH", base.strength, np.inf, "No steady rhythm")]
     for name, value, beyond, refusal in cases:
         if name == "MIN_ALTERNATION_DEG":                # the walk travels level: no exception
@@ -426,6 +475,15 @@ def test_every_outcome_keeps_what_was_measured():
     assert passed.motion_deg == pytest.approx(motion, rel=1e-12)
     assert passed.tilt_deg == pytest.approx(np.degrees(0.3), rel=1e-12)
     assert passed.travel == pytest.approx(0.5, rel=1e-12)
+    assert passed.forward == pytest.approx(0.6, rel=1e-12)
+    # Travelling backwards, (-0.3, -0.4) m/s: refused, 127° from the heading, the figures kept.
+    backwards = check_gait(model, with_root(model, obs, speed=(-0.3, -0.4)), 60.0)
+    assert backwards.refusal.startswith("The walker travels backwards in the observed frames "
+                                        "(0.50 m/s, 127° from where its hips face)")
+    assert backwards.forward == pytest.approx(-0.6, rel=1e-12)
+    assert backwards.motion_deg == passed.motion_deg
+    assert backwards.tilt_deg == pytest.approx(np.degrees(0.3), rel=1e-12)
+    assert backwards.strength is None
     # Tilted 70 degrees on the last frame: refused, with the motion, tilt and travel.
     tilted = with_root(model, obs, tilt_end=(np.radians(70.0), 0.0, 0.0))
     bent = check_gait(model, tilted, 60.0)

@@ -1,0 +1,288 @@
+"""Per-window features of Predict Gait's acceptance (issue 21, stop 38; ``docs/gait.md``,
+*Stop 38*): every window of ``benchmarks/gait_acceptance.py`` (gaits from steady starts, the
+non-gait clips everywhere), the check's outcome and its measures, and candidate cues not yet
+used by ``core.gait.checks`` (the feet's contact alternation, the feet's travel, the rhythm at
+periods whose whole cycle the window holds). Writes a pickle of rows for the analysis
+(``--analyse``).
+
+::
+
+    nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --out build/cues.pkl
+    .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse build/cues.pkl
+"""
+
+import argparse
+import pickle
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import gait_acceptance as A  # noqa: E402
+from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
+from core.gait.checks import check_gait, gait_channels, _leg_pairs, MIN_OVERLAP_S, \
+    CADENCE_SPREAD  # noqa: E402
+from core.gait.walk_figures import foot_tracks  # noqa: E402
+from core.mocap import asf_to_skeleton, read_asf  # noqa: E402
+from core.mocap.bvh import cmu_template_asf  # noqa: E402
+
+FPS = A.FPS
+
+
+def skeleton_of(path):
+    path = Path(path)
+    asf_path = path.parent / f"{path.stem.split('_')[0]}.asf"
+    asf = read_asf(asf_path) if asf_path.exists() else cmu_template_asf()
+    return asf_to_skeleton(asf)
+
+
+def rhythm_table(model, obs, fps):
+    """{period_frames: (value, whole)} of ``checks.rhythm``'s comparisons, every period."""
+    pairs = _leg_pairs(model, gait_channels(model))
+    cols = sorted(set(gait_channels(model).tolist()) | {b for _, b in pairs})
+    x = obs[:, cols] - obs[:, cols].mean(axis=0)
+    position = {c: k for k, c in enumerate(cols)}
+    left = [position[a] for a, _ in pairs]
+    right = [position[b] for _, b in pairs]
+    mirrored = x.copy()
+    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
+    n = len(x)
+    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
+    periods = model.periods / model.fps * fps
+    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
+    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
+    out = {}
+    for period in range(lo, hi + 1):
+        half = int(round(period / 2))
+        halfv = wholev = None
+        if n - half >= overlap:
+            a, b = mirrored[:n - half][:, left + right], x[half:][:, left + right]
+            halfv = (np.sum(a * b), np.sum(a * a), np.sum(b * b))
+        if n - period >= overlap:
+            a, b = x[:n - period], x[period:]
+            wholev = (np.sum(a * b), np.sum(a * a), np.sum(b * b))
+        out[period] = (halfv, wholev)
+    return out
+
+
+def corr(parts):
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    num = sum(p[0] for p in parts)
+    e1 = sum(p[1] for p in parts)
+    e2 = sum(p[2] for p in parts)
+    return float(num / np.sqrt(e1 * e2)) if e1 > 0 and e2 > 0 else None
+
+
+def feet_features(tracks, s, n):
+    """Contact and travel of the feet over frames s … s+n."""
+    L = tracks.left[s:s + n]
+    R = tracks.right[s:s + n]
+    root = tracks.root[s:s + n]
+    low = np.minimum(L[:, 2], R[:, 2])
+    floor = float(np.percentile(low, 20))
+    # which foot is lower, with 2 cm hysteresis
+    state = 0 if L[0, 2] <= R[0, 2] else 1
+    switches = 0
+    states = [state]
+    for k in range(1, n):
+        d = L[k, 2] - R[k, 2]      # >0: right lower
+        if state == 0 and d > 0.02:
+            state, switches = 1, switches + 1
+        elif state == 1 and d < -0.02:
+            state, switches = 0, switches + 1
+        states.append(state)
+    states = np.array(states)
+    # planted: lower foot within 2.5 cm of floor and horizontally still (< 0.3 m/s)
+    feet = np.stack([L, R], axis=1)
+    hv = np.linalg.norm(np.gradient(feet[:, :, :2], axis=0), axis=2) * FPS
+    planted = (feet[:, :, 2] < floor + 0.04) & (hv < 0.3)
+    share_planted = planted.mean(axis=0)          # per foot
+    disp = np.linalg.norm(feet[-1, :, :2] - feet[0, :, :2], axis=1)
+    path = np.sum(np.linalg.norm(np.diff(feet[:, :, :2], axis=0), axis=2), axis=0)
+    root_disp = float(np.linalg.norm(root[-1, :2] - root[0, :2]))
+    root_path = float(np.sum(np.linalg.norm(np.diff(root[:, :2], axis=0), axis=1)))
+    # root travel carried by a planted foot: frames where some foot planted and root moves
+    rv = np.linalg.norm(np.diff(root[:, :2], axis=0), axis=1) * FPS
+    anyplanted = planted[1:].any(axis=1)
+    carried = float(np.sum(rv[anyplanted]) / max(np.sum(rv), 1e-9))
+    # planted foot sequences: each foot planted in turn
+    each_planted = int(np.sum(share_planted > 0.15))
+    height_range = float(np.ptp(root[:, 2]))
+    return dict(switches=switches, planted_l=share_planted[0], planted_r=share_planted[1],
+                disp_min=float(disp.min()), disp_max=float(disp.max()),
+                path_min=float(path.min()), path_max=float(path.max()),
+                root_disp=root_disp, root_path=root_path, carried=carried,
+                each_planted=each_planted, height_range=height_range,
+                min_speed=float(rv.min()), lower_share=float(states.mean()))
+
+
+def collect():
+    model = load_stock_library()
+    rows = []
+    for kind, folder, gait in (("gaits", A.CMU, True), ("not_gaits", A.NOT_GAITS, False)):
+        for path in sorted(folder.glob("*.amc")):
+            values, names = A.load(path)
+            skel = skeleton_of(path)
+            tracks = foot_tracks(skel, values, FPS, root_frame=None)
+            cols = [names.index(n) for n in model.dof_names]
+            obs = observations_from_dofs(model, values[:, cols], model.dof_names, FPS)
+            for window in A.WINDOWS:
+                n = int(round(window * FPS))
+                starts = A.steady_windows(values, names, window) if gait else \
+                    list(range(0, len(values) - n + 1, int(round(A.STEP_S * FPS))))
+                for s in starts:
+                    w = obs[s:s + n]
+                    check = check_gait(model, w, FPS)
+                    table = rhythm_table(model, w, FPS)
+                    whole_best = max((c for c in (corr([h, wh]) for h, wh in table.values()
+                                                  if wh is not None) if c is not None),
+                                     default=None)
+                    half_only = [corr([h]) for h, wh in table.values() if h is not None]
+                    whole_only = [corr([wh]) for h, wh in table.values() if wh is not None]
+                    row = dict(kind=kind, clip=path.stem, subject=path.stem.split("_")[0],
+                               window=window, start=s / FPS,
+                               accepted=check.refusal is None,
+                               reason=None if check.refusal is None
+                               else check.refusal.split(" in ")[0],
+                               strength=check.strength, period=check.period_s,
+                               travel=check.travel, together=check.legs_together,
+                               warning=check.warning,
+                               whole_best=whole_best,
+                               half_best=max((c for c in half_only if c is not None),
+                                             default=None),
+                               same_leg_best=max((c for c in whole_only if c is not None),
+                                                 default=None))
+                    row.update(feet_features(tracks, s, n))
+                    vel = np.nanmean(w[:, model.channel_index(["root.v_forward",
+                                                               "root.v_left"])], axis=0)
+                    row.update(v_forward=float(vel[0]), v_left=float(vel[1]))
+                    rows.append(row)
+            print(path.stem, len(rows), flush=True)
+    return rows
+
+
+# Cues: (name, function of a row, description). Each refuses a window whose value is below
+# a threshold; the leave-one-subject-out protocol of :func:`cross_validate` chooses it.
+CUES = (
+    ("forward share", lambda r: r["v_forward"] / np.hypot(r["v_forward"], r["v_left"]),
+     "mean horizontal velocity's component along the heading over its norm"),
+    ("feet: smaller displacement", lambda r: r["disp_min"],
+     "the foot that moved less: its horizontal displacement over the window (m)"),
+    ("feet: larger displacement / root's", lambda r: r["disp_max"] / r["root_disp"],
+     "the foot that moved more, over the root's displacement"),
+    ("root travel over a planted foot", lambda r: r["carried"],
+     "share of the root's path made while a foot is planted"),
+    ("slowest frame", lambda r: r["min_speed"], "the root's slowest horizontal speed (m/s)"),
+    ("stance changes", lambda r: r["switches"], "changes of the lower foot (2 cm hysteresis)"),
+    ("rhythm strength", lambda r: r["strength"], "checks.rhythm's best pooled correlation"),
+    ("rhythm at a whole cycle", lambda r: -1.0 if r["whole_best"] is None else r["whole_best"],
+     "best pooled correlation among periods whose whole cycle the window holds (-1: none)"),
+    ("stride (travel x period)", lambda r: r["travel"] * r["period"],
+     "the mean speed times the rhythm's best period (m)"),
+)
+
+
+def cross_validate(rows, min_window=0.75, cues=CUES):
+    """Leave one subject out: for each subject, the threshold is the lowest value of the cue
+    over the *other* subjects' accepted gait windows (windows of ``min_window`` s and more: the
+    rule keeps every training gait window), applied to the held-out subject's accepted
+    windows. Returns {cue: (gait windows lost, non-gait windows refused, accepted gait windows,
+    accepted non-gait windows, {clip: lost})}, held-out counts summed over subjects."""
+    taken = [r for r in rows if r["accepted"] and r["window"] >= min_window]
+    subjects = sorted({r["subject"] for r in taken})
+    out = {}
+    for name, value, _ in cues:
+        lost = refused = 0
+        where = {}
+        for s in subjects:
+            train = [value(r) for r in taken if r["subject"] != s and r["kind"] == "gaits"]
+            threshold = min(train)
+            for r in taken:
+                if r["subject"] == s and value(r) < threshold:
+                    if r["kind"] == "gaits":
+                        lost += 1
+                        where[r["clip"]] = where.get(r["clip"], 0) + 1
+                    else:
+                        refused += 1
+        out[name] = (lost, refused, sum(r["kind"] == "gaits" for r in taken),
+                     sum(r["kind"] != "gaits" for r in taken), where)
+    return out
+
+
+def cross_validate_pairs(rows, min_window=0.75, cues=CUES, levels=16):
+    """Leave one subject out for two cues together: a window is refused where both are below
+    their thresholds; on the other subjects the pair of thresholds (each among ``levels``
+    quantiles of its cue over the training windows) that refuses the most training non-gait
+    windows and no training gait window is chosen, then applied to the held-out subject.
+    Returns [(cue a, cue b, gait windows lost, non-gait windows refused, {clip: lost})]."""
+    taken = [r for r in rows if r["accepted"] and r["window"] >= min_window]
+    values = np.array([[value(r) for _, value, _ in cues] for r in taken], dtype=float)
+    gait = np.array([r["kind"] == "gaits" for r in taken])
+    subject = np.array([r["subject"] for r in taken])
+    clips = np.array([r["clip"] for r in taken])
+    out = []
+    for i in range(len(cues)):
+        for j in range(i + 1, len(cues)):
+            lost = refused = 0
+            where = {}
+            for s in np.unique(subject):
+                tr = subject != s
+                qa = np.quantile(values[tr, i], np.linspace(0, 1, levels))
+                qb = np.quantile(values[tr, j], np.linspace(0, 1, levels))
+                below = ((values[tr, i][None, None, :] < qa[:, None, None])
+                         & (values[tr, j][None, None, :] < qb[None, :, None]))
+                ok = ~np.any(below[:, :, gait[tr]], axis=2)
+                gain = np.where(ok, below[:, :, ~gait[tr]].sum(axis=2), -1)
+                a, b = np.unravel_index(np.argmax(gain), gain.shape)
+                if gain[a, b] <= 0:
+                    continue
+                te = ~tr
+                hit = te & (values[:, i] < qa[a]) & (values[:, j] < qb[b])
+                lost += int(np.sum(hit & gait))
+                refused += int(np.sum(hit & ~gait))
+                for c in clips[hit & gait]:
+                    where[c] = where.get(c, 0) + 1
+            out.append((cues[i][0], cues[j][0], lost, refused, where))
+    return out
+
+
+def analyse(rows):
+    """Print the false accepts' features, and the cross-validated cues before and after the
+    forward check (which the rows may predate: they record the velocity)."""
+    for label, subset in (("every accepted window", rows),
+                          ("accepted, travelling forwards (after the forward check)",
+                           [r for r in rows if not (r["accepted"] and r["v_forward"] < 0)])):
+        print(f"\n== leave one subject out, windows >= 0.75 s, {label}")
+        print("cue | held-out gait windows lost | held-out non-gait windows refused | lost where")
+        for name, (lost, refused, n_g, n_n, where) in cross_validate(subset).items():
+            print(f"{name} | {lost} of {n_g} | {refused} of {n_n} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+        print("pairs (both below): cue a | cue b | gait windows lost | non-gait refused | where")
+        for a, b, lost, refused, where in cross_validate_pairs(subset):
+            print(f"{a} | {b} | {lost} | {refused} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--out")
+    ap.add_argument("--analyse")
+    args = ap.parse_args(argv)
+    if args.out:
+        rows = collect()
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        with open(args.out, "wb") as f:
+            pickle.dump(rows, f)
+    if args.analyse:
+        with open(args.analyse, "rb") as f:
+            analyse(pickle.load(f))
+
+
+if __name__ == "__main__":
+    main()
