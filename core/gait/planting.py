@@ -21,6 +21,10 @@ legs instead (``docs/gait.md``, *Restyle and retime*):
   support). Frames with no foot within ``CONTACT_BAND`` of the floor (a run's flight) take the
   velocity interpolated between the neighbouring contacts (horizontal speed is constant in
   flight).
+* **Stance** (:func:`stance_targets`, :func:`pin_feet`): each stance foot is pinned on its spot
+  by the legs' inverse kinematics, eased in and out over ``PIN_RAMP_S`` in the swing; in a walk
+  a landing foot is held level (x, y) ``HOLD_LEVEL_S`` before it is held in height: it stops
+  over its spot before the ball of the foot comes down (the heel is down first).
 
 Everything works on DOF rows of a :class:`~core.kinematics.Skeleton` (the walker's own bone
 lengths) and plain arrays.
@@ -46,6 +50,7 @@ BACKWARD_TOLERANCE = 0.3    # m/s: a foot implying the root going back this fast
 SWING_CLEARANCE = 0.03     # m: a swinging foot passes at least this high above the floor
 SWING_SPEED = 0.5           # m/s: a foot near the floor moving faster than this swings
 PIN_RAMP_S = 0.05           # s: a planted foot is pinned fully after this, released before
+HOLD_LEVEL_S = 0.05         # s: a landing foot is held level (x, y) this much earlier
 
 
 def smooth(values, sigma_frames):
@@ -222,7 +227,7 @@ def _close_gaps(mask, longest):
     return out
 
 
-def stance_targets(points, carrying, floor, fps, reference_frames=0):
+def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOLD_LEVEL_S):
     """Where each foot stands while it carries the walker, and how firmly.
 
     Parameters
@@ -237,6 +242,9 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0):
         Leading frames that belong to the reference (their positions are what they are: a
         stance that starts there is anchored where the foot is once fully pinned, eased in
         from the first predicted frame).
+    level_s : float
+        Seconds a landing foot is held level (x, y) before it is held in height (0: the
+        same ramp for both; a run's feet meet the floor at speed, :func:`.walk._plant`).
 
     Returns
     -------
@@ -245,19 +253,29 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0):
         its positions over the stance, on the floor.
     weights : ndarray, shape (N, F)
         0 (free) … 1 (planted): 1 over each stance, smootherstep ramps of ``PIN_RAMP_S`` in
-        the swing before and after it.
+        the swing before and after it. A stance that starts after the reference is held
+        level (x, y) ``level_s`` earlier than in height (never from before the reference's
+        end): its weight is the level one and the target's height over the landing is the
+        foot's own moved by the height ramp's share, so ``p + w (target − p)`` comes down as
+        before while it stands still over its spot. (The ball of the foot lands after the
+        heel: still coming down, it moved 0.3-0.9 cm a frame while it was already the lower
+        foot, most of the slide that ``core.gait.foot_slide`` measures on predicted walks,
+        and more on the test rigs, whose balls land a frame later than the CMU skeleton's;
+        ``docs/gait_rigs.md``, *The feet held level*.)
     """
     pts = np.asarray(points, dtype=float)
     n, feet = pts.shape[:2]
     targets = pts.copy()
     weights = np.zeros((n, feet))
     ramp = max(1.0, PIN_RAMP_S * fps)
+    # A landing foot stops over its spot this many frames before the ball comes down.
+    lead = max(0.0, float(level_s)) * fps
     frames = np.arange(n)
     for f in range(feet):
         for a, b in _runs(np.asarray(carrying)[:, f]):
             if b - a < MIN_STANCE_FRAMES or b <= reference_frames:
                 continue
-            landing = None
+            landing, early = None, lead
             if a < reference_frames:
                 # Where the foot will be once fully pinned: it keeps moving as it did.
                 anchor = pts[min(b - 1, reference_frames - 1 + int(np.ceil(ramp))), f].copy()
@@ -281,12 +299,18 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0):
             else:
                 anchor = pts[a:b, f].mean(axis=0)
                 anchor[2] = max(float(floor), float(pts[a:b, f, 2].min()))
-                lo = max(reference_frames, int(np.floor(a - ramp)))
+                # (The level hold does not reach into the reference: there the foot is what
+                # the reference made it, and a hold begun there would pull the foot onto its
+                # spot over the join.)
+                early = max(0.0, min(lead, a - ramp - reference_frames))
+                lo = max(reference_frames, int(np.floor(a - ramp - early)))
             hi = min(n, int(np.ceil(b + ramp)))
             k = frames[lo:hi]
             # Pinned through the whole stance; the ramps lie in the swing on either side, so
             # the foot lands on its spot and leaves it upwards.
             rise = np.minimum((k - (a - ramp)) / ramp, ((b - 1 + ramp) - k) / ramp)
+            # Held level (x, y) from ``early`` before it is held in height.
+            level = np.minimum((k - (a - ramp - early)) / ramp, ((b - 1 + ramp) - k) / ramp)
             if a < reference_frames:
                 # Held from where the reference left it, eased in from the join (the foot
                 # keeps the reference's motion for a moment instead of stopping dead).
@@ -297,6 +321,13 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0):
             goal = np.broadcast_to(anchor, (len(k), 3)).copy()
             if landing is not None:                         # lowered while it lands
                 goal[:a - lo, 2] = pts[lo:a, f, 2] + landing * (anchor[2] - pts[lo:a, f, 2])
+            elif a >= reference_frames:
+                # The weight is the level one; the height's own share of it goes in the goal,
+                # so that p + w (goal - p) lowers the foot as the height's ramp does.
+                level_w = smootherstep_weights(level)
+                share = np.where(level_w > 0, w / np.maximum(level_w, 1e-12), 0.0)
+                goal[:, 2] = pts[lo:hi, f, 2] + share * (anchor[2] - pts[lo:hi, f, 2])
+                w = level_w
             take = w > weights[lo:hi, f]
             weights[lo:hi, f] = np.where(take, w, weights[lo:hi, f])
             targets[lo:hi, f] = np.where(take[:, None], goal, targets[lo:hi, f])

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .features import observations_from_dofs
-from .planting import MIN_EXPECTED, PIN_RAMP_S, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
+from .planting import HOLD_LEVEL_S, MIN_EXPECTED, PIN_RAMP_S, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
 from .prediction import (DEFAULT_BLEND_S, DEFAULT_VELOCITY_FRAMES, cycle_mean,
                          dofs_from_observations, predict_transition, smootherstep)
 from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
@@ -424,12 +424,15 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     roots = np.vstack([reference[-m:, [tx, ty, tz]], out[:, [tx, ty, tz]]])
     points = rel + roots[:, None, :]
     carrying = np.vstack([carrying[:1], carrying])              # frames -(m-1) … n
-    targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
+    # A walk's landing foot stops over its spot before the ball comes down; a run's meets the
+    # floor at speed (planting.stance_targets).
+    level_s = HOLD_LEVEL_S * (1.0 - float(np.max(flight)))
+    targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
     shift = _held_over_the_join(points, targets, pins, m, fps)
     if shift is not None:
         out[:, [tx, ty]] += shift[m:]
         points[:, :, :2] += shift[:, None, :]
-        targets, pins = stance_targets(points, carrying, floor, fps, reference_frames=m)
+        targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
     if not legs:
         return
     lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)

@@ -331,6 +331,30 @@ class RayHits:
     normals: np.ndarray = None
 
 
+def take_pairs(table, first, second):
+    """``table[first, second]`` for index arrays of one shape, as one flat gather.
+
+    ``np.take`` of the rows of the table seen as (A * B, ...) at ``first * B + second``: the
+    same values as NumPy's two-index fancy indexing, which costs about twice as much on the
+    tracker's (pose, part) and (frame, joint) lookups (docs/tracking.md, issue 22, session 38).
+
+    Parameters
+    ----------
+    table : ndarray, shape (A, B, ...)
+    first, second : ndarray of int, broadcast to one shape (...K)
+        In [0, A) and [0, B): not checked, and unlike fancy indexing a negative index does
+        not count from the end (the tracker's frame, pose, joint and part indices are never
+        negative).
+
+    Returns
+    -------
+    ndarray, shape (...K) + table.shape[2:]
+    """
+    table = np.asarray(table)
+    flat = table.reshape((-1,) + table.shape[2:])
+    return np.take(flat, np.asarray(first) * table.shape[1] + second, axis=0)
+
+
 def _cylinder_hits(d, a, w, length, r0, r1):
     """First hit ``t`` (point ``t d``, camera at the origin) of rays on tapered cylinders, pairwise.
 
@@ -343,8 +367,10 @@ def _cylinder_hits(d, a, w, length, r0, r1):
     d_w = np.einsum("ki,ki->k", d, w)
     rho0 = r0 + k * o_w
     # |q_perp|^2 = (r0 + k s)^2 for q = o + t d, s = q . w: a quadratic in t.
-    qa = np.einsum("ki,ki->k", d, d) - (1.0 + k * k) * d_w * d_w
-    qb = 2.0 * (np.einsum("ki,ki->k", o, d) - o_w * d_w - k * d_w * rho0)
+    dd = np.einsum("ki,ki->k", d, d)
+    od = np.einsum("ki,ki->k", o, d)
+    qa = dd - (1.0 + k * k) * d_w * d_w
+    qb = 2.0 * (od - o_w * d_w - k * d_w * rho0)
     oo = np.einsum("ki,ki->k", o, o)
     qc = oo - o_w * o_w - rho0 * rho0
     disc = qb * qb - 4.0 * qa * qc
@@ -358,8 +384,6 @@ def _cylinder_hits(d, a, w, length, r0, r1):
             s = o_w + t * d_w
             ok = valid & (t > 0) & (s >= 0) & (s <= length)
             best = np.where(ok & (t < best), t, best)
-        od = np.einsum("ki,ki->k", o, d)
-        dd = np.einsum("ki,ki->k", d, d)
         for sid, (s0, radius) in enumerate(((0.0, r0), (length, r1)), start=1):
             t = (s0 - o_w) / d_w
             # |o + t d|^2 - s0^2 = squared distance from the axis on the cap plane.
@@ -403,14 +427,15 @@ def _pair_hits(model, geo, d, ray_idx, part_idx, frames):
     if np.any(cyl):
         mi, pi = ray_idx[cyl], part_idx[cyl]
         fi = frames[mi]
-        t[cyl], face[cyl] = _cylinder_hits(d[mi], geo.starts[fi, pi], geo.axes[fi, pi],
-                                           geo.lengths[pi], geo.r0[pi], geo.r1[pi])
+        t[cyl], face[cyl] = _cylinder_hits(np.take(d, mi, axis=0), take_pairs(geo.starts, fi, pi),
+                                           take_pairs(geo.axes, fi, pi), geo.lengths[pi],
+                                           geo.r0[pi], geo.r1[pi])
     if not np.all(cyl):
         box = ~cyl
         mi, q = ray_idx[box], part_idx[box] - n_cyl
         fi = frames[mi]
-        t[box], face[box] = _box_hits(d[mi], geo.box_centres[fi, q], geo.box_rotations[fi, q],
-                                      geo.box_half_sizes[q])
+        t[box], face[box] = _box_hits(np.take(d, mi, axis=0), take_pairs(geo.box_centres, fi, q),
+                                      take_pairs(geo.box_rotations, fi, q), geo.box_half_sizes[q])
     return t, face
 
 
@@ -442,7 +467,9 @@ def _front_most(model, d, ray_idx, part_idx, t, face):
 def _hits(model, geo, d, frames, ray_idx, part_idx, normals):
     t, face = _pair_hits(model, geo, d, ray_idx, part_idx, frames)
     hit, depth, parts, face = _front_most(model, d, ray_idx, part_idx, t, face)
-    points = np.where(hit[:, None], d * np.where(hit, depth, 0.0)[:, None], np.nan)
+    hit_rows = np.flatnonzero(hit)
+    points = np.full(d.shape, np.nan)
+    points[hit_rows] = d[hit_rows] * depth[hit_rows, None]
     joints = np.where(hit, model.part_joints[np.maximum(parts, 0)], -1)
     out_normals = _normals(model, geo, frames, points, parts, face, hit) if normals else None
     return RayHits(hit=hit, points=points, depth=depth, parts=parts, joints=joints,
@@ -696,8 +723,8 @@ def _capsule_rows(model, camera, geo, poses, parts, v):
     if not len(cyl):
         return u_lo, u_hi
     f, p, v = poses[cyl], parts[cyl], v[cyl]
-    a = geo.starts[f, p]
-    b = a + geo.axes[f, p] * geo.lengths[p][:, None]
+    a = take_pairs(geo.starts, f, p)
+    b = a + take_pairs(geo.axes, f, p) * geo.lengths[p][:, None]
     r0, r1 = geo.r0[p], geo.r1[p]
     za, zb = a[:, 2] - r0, b[:, 2] - r1
     near = (za <= _NEAR) | (zb <= _NEAR)
@@ -795,8 +822,13 @@ def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0,
     # All grid nodes: pose, row, column -> pixel.
     node_pose = np.repeat(np.arange(n), sizes)
     k = np.arange(total) - start[node_pose]
-    node_row, node_col = k // np.maximum(cols[node_pose], 1), k % np.maximum(cols[node_pose], 1)
-    pixels = origin[node_pose] + strides[node_pose, None] * np.stack([node_col, node_row], axis=1)
+    node_row, node_col = np.divmod(k, np.maximum(cols[node_pose], 1))
+    # Column by column: the same products and sums as origin + stride * (col, row), without the
+    # (total, 2) integer stack and its broadcast (docs/tracking.md, issue 22, session 38).
+    node_stride = strides[node_pose]
+    pixels = np.empty((total, 2))
+    np.add(origin[node_pose, 0], node_stride * node_col, out=pixels[:, 0])
+    np.add(origin[node_pose, 1], node_stride * node_row, out=pixels[:, 1])
     # Pairs (node, part): the grid sub-rectangle inside each part's bounding box.
     s = strides[:, None]
     c0 = np.clip(np.ceil((bounds[..., 0] - lo_u[:, None]) / s - 1e-9), 0, cols[:, None])
@@ -832,14 +864,15 @@ def sample_silhouette(model, camera, rotations, origins, budget, min_stride=1.0,
             continue
         labels = hits.parts[start[f]:start[f] + sizes[f]].reshape(rows[f], cols[f])
         r = max(1, int(np.ceil(edge_margin / strides[f])))
-        pad = np.pad(labels, r, constant_values=-1)
+        pad = np.full((rows[f] + 2 * r, cols[f] + 2 * r), -1, dtype=labels.dtype)
+        pad[r:r + rows[f], r:r + cols[f]] = labels                  # np.pad's result, cheaper
         same = np.ones(labels.shape, dtype=bool)
         for dv in range(-r, r + 1):
             for du in range(-r, r + 1):
                 if dv or du:
                     same &= pad[r + dv:r + dv + rows[f], r + du:r + du + cols[f]] == labels
         interior[start[f]:start[f] + sizes[f]] = same.ravel()
-    hit = hits.hit
+    hit = np.flatnonzero(hits.hit)
     return SilhouetteSamples(frames=node_pose[hit], pixels=pixels[hit], points=hits.points[hit],
                              joints=hits.joints[hit], parts=hits.parts[hit],
                              interior=interior[hit], strides=strides, grid_origin=origin,

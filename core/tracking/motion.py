@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body_model import joint_frames_in_camera
+from .body_model import joint_frames_in_camera, take_pairs
 from .image import bilinear, sample_with_gradient
 from .jacobians import apply_motion, image_gradient_rows
 from .keypoint_cue import keypoint_residuals, keypoint_rows, keypoint_weights, pair_targets
@@ -217,8 +217,8 @@ def still_visible(samples, frames_cam, next_cam, next_samples, camera, tolerance
     rot, org = frames_cam
     rot1, org1 = next_cam
     f, k = samples.frames, samples.joints
-    local = np.einsum("mji,mj->mi", rot[f, k], samples.points - org[f, k])
-    moved = np.einsum("mij,mj->mi", rot1[f, k], local) + org1[f, k]
+    local = np.einsum("mji,mj->mi", take_pairs(rot, f, k), samples.points - take_pairs(org, f, k))
+    moved = np.einsum("mij,mj->mi", take_pairs(rot1, f, k), local) + take_pairs(org1, f, k)
     ok = moved[:, 2] > 0
     uv = camera.project(np.where(ok[:, None], moved, 1.0))
     parts, depth = next_samples.lookup(f, uv)
@@ -532,7 +532,8 @@ def _measured_points(problem, options, views, candidates, n):
         found = samples.points[c.safe] if samples.count else np.zeros(c.safe.shape + (3,))
         points = np.where(ok[..., None], found, 0.0)
         points[..., 2] = np.where(ok, points[..., 2], 1.0)
-        local_points = np.einsum("fsji,fsj->fsi", rot[fr, c.joints], points - org[fr, c.joints])
+        local_points = np.einsum("fsji,fsj->fsi", take_pairs(rot, fr, c.joints),
+                                 points - take_pairs(org, fr, c.joints))
         out.append(_ViewPoints(valid=ok, safe=c.safe, joints=c.joints, points=points,
                                local_points=local_points))
     return measurable, measured, out, view_samples
@@ -618,8 +619,8 @@ def _warped_residuals(skeleton, view, template, moved_pose):
     jts = template.joints
     moved_rot, moved_org = joint_frames_in_camera(skeleton, view.camera.world2camera,
                                                   *moved_pose)
-    moved = np.einsum("fsij,fsj->fsi", moved_rot[fr, jts], template.local_points) \
-        + moved_org[fr, jts]
+    moved = np.einsum("fsij,fsj->fsi", take_pairs(moved_rot, fr, jts), template.local_points) \
+        + take_pairs(moved_org, fr, jts)
     uv_b = camera.project(moved)
     sampled = bilinear(view.pyramid[template.level], uv_b[..., 0].ravel(), uv_b[..., 1].ravel(),
                        frames=template.next_images).reshape(template.value.shape)

@@ -32,7 +32,7 @@ from .acceptance import (NOT_TRACKED, TRACKED, PartVerdicts, blend_trajectories,
                          blend_weights, judge_parts, keep_interpolation,
                          outlier_shares, part_distances, problem_parts, seen_shares)
 from .body_model import (joint_frames_in_camera, part_areas, part_bounds, part_geometry,
-                         sample_silhouette)
+                         sample_silhouette, take_pairs)
 from .drift import (accumulate_rotations, accumulate_root_positions, correct_root_positions,
                     orientation_correction)
 from .hinge_twist import hinge_joints, retwist, untwist
@@ -271,20 +271,23 @@ def _photometric_differences(problem, frames_level, level, frames_cam, samples, 
     camera = (problem.camera if camera is None else camera).at_level(level)
     sel = samples.frames < n
     total = np.bincount(samples.frames[sel], minlength=n).astype(float)
-    sel &= samples.interior
+    sel = np.flatnonzero(sel & samples.interior)     # the indices once, for every gather
     f, k = samples.frames[sel], samples.joints[sel]
-    local = np.einsum("mji,mj->mi", rot[f, k], samples.points[sel] - org[f, k])
-    moved = np.einsum("mij,mj->mi", rot[f + 1, k], local) + org[f + 1, k]
+    local = np.einsum("mji,mj->mi", take_pairs(rot, f, k),
+                      samples.points[sel] - take_pairs(org, f, k))
+    moved = np.einsum("mij,mj->mi", take_pairs(rot, f + 1, k), local) + take_pairs(org, f + 1, k)
     uv = camera.project(np.where(moved[:, 2:3] > 0, moved, 1.0))
     parts, depth = samples.lookup(f + 1, uv)
     ok = ((moved[:, 2] > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width - 1)
           & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height - 1)
           & (parts == samples.parts[sel]) & (np.abs(depth - moved[:, 2]) < 0.02))
-    e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f[ok] + 1)
-    e0 = bilinear(frames_level, samples.pixels[sel][ok, 0], samples.pixels[sel][ok, 1],
-                  frames=f[ok])
+    ok = np.flatnonzero(ok)
+    f = f[ok]
+    e1 = bilinear(frames_level, uv[ok, 0], uv[ok, 1], frames=f + 1)
+    start = samples.pixels[sel[ok]]
+    e0 = bilinear(frames_level, start[:, 0], start[:, 1], frames=f)
     finite = np.isfinite(e1) & np.isfinite(e0)           # masked (non-finite) pixels: left out
-    return f[ok][finite], (e1 - e0)[finite], total
+    return f[finite], (e1 - e0)[finite], total
 
 
 def _allowed_ranges(problem, local_rotations, start, end, margin):

@@ -108,9 +108,10 @@ def test_stance_targets_pin_each_foot_where_it_stands_with_ramps():
     carrying[10:30, 0] = True
     targets, weights = stance_targets(points, carrying, 0.0, FPS)
     ramp = int(np.ceil(0.05 * FPS))                    # PIN_RAMP_S, in the swing either side
-    assert np.all(weights[:10 - ramp, 0] == 0) and np.all(weights[30 + ramp:, 0] == 0)
-    assert np.all(weights[10:30, 0] == 1.0)
-    assert 0 < weights[10 - 1, 0] < 1 and 0 < weights[30, 0] < 1
+    level = int(np.ceil(0.05 * FPS))                   # HOLD_LEVEL_S: held level that earlier
+    assert np.all(weights[:10 - ramp - level, 0] == 0) and np.all(weights[30 + ramp:, 0] == 0)
+    assert np.all(weights[10 - level:30, 0] == 1.0)
+    assert 0 < weights[10 - level - 1, 0] < 1 and 0 < weights[30, 0] < 1
     assert np.all(np.diff(weights[:20, 0]) >= 0) and np.all(np.diff(weights[20:, 0]) <= 0)
     np.testing.assert_allclose(targets[10:30, 0, 0], points[10:30, 0, 0].mean())
     assert np.all(weights[:, 1] == 0)
@@ -118,6 +119,37 @@ def test_stance_targets_pin_each_foot_where_it_stands_with_ramps():
     targets, weights = stance_targets(points, carrying, 0.0, FPS, reference_frames=15)
     np.testing.assert_allclose(targets[15:30, 0], np.broadcast_to(points[14 + 3, 0], (15, 3)))
     assert 0 < weights[15, 0] < weights[16, 0] < 1 and weights[20, 0] == 1.0
+
+
+def test_a_landing_foot_stops_over_its_spot_before_it_comes_down():
+    """The level hold (``HOLD_LEVEL_S``) before a stance: the foot reaches its spot in x and
+    y that much before the height ramp puts it on the floor; what the inverse kinematics
+    aims at (``p + w (target - p)``) is then the spot in x, y and the height ramp's share of
+    the way down in z. It leaves as before: up and on together."""
+    n = 40
+    points = np.zeros((n, 2, 3))
+    points[:, 0, 0] = np.linspace(0, 0.4, n)           # swinging forward
+    points[:, 0, 2] = 0.04 * np.abs(np.arange(n) - 20) / 20 + 0.01   # down at 20, then up
+    carrying = np.zeros((n, 2), dtype=bool)
+    carrying[14:26, 0] = True
+    targets, weights = stance_targets(points, carrying, 0.0, FPS)
+    aim = points + weights[:, :, None] * (targets - points)
+    from core.kinematics.contacts import smootherstep
+    spot = points[14:26, 0, 0].mean()
+    level = int(np.ceil(0.05 * FPS))
+    np.testing.assert_allclose(aim[14 - level:26, 0, 0], spot)   # still over its spot
+    # The height comes down as the height ramp alone lowers it (PIN_RAMP_S in the swing
+    # either side, a smootherstep).
+    ramp = 0.05 * FPS
+    k = np.arange(n)
+    below = smootherstep(np.minimum((k - (14 - ramp)) / ramp, ((25 + ramp) - k) / ramp))
+    anchor = max(0.0, points[14:26, 0, 2].min())
+    expect = points[:, 0, 2] + below * (anchor - points[:, 0, 2])
+    np.testing.assert_allclose(aim[:, 0, 2], expect, atol=1e-12)
+    assert np.all(np.diff(aim[:14, 0, 2]) <= 1e-12)            # comes down onto the floor
+    assert np.all(aim[14:26, 0, 2] == anchor)
+    assert aim[26, 0, 0] > spot and aim[26, 0, 2] > anchor       # released: up and on
+    assert aim[14 - level - 1, 0, 0] < spot                      # before the hold: on its way
 
 
 def test_a_foot_landing_just_after_the_join_is_held_from_the_first_predicted_frame():

@@ -200,6 +200,20 @@ def test_sampling_several_poses_equals_one_by_one(scene):
         np.testing.assert_array_equal(part.interior, alone.interior)
 
 
+def test_take_pairs_is_two_index_fancy_indexing():
+    """take_pairs(table, i, j) is table[i, j]: index arrays of any one shape, broadcast ones
+    (a column of frames against a table of joints), trailing axes kept, empty indices."""
+    table = RNG.random((5, 7, 3, 3))
+    i, j = RNG.integers(0, 5, 40), RNG.integers(0, 7, 40)
+    np.testing.assert_array_equal(body_model.take_pairs(table, i, j), table[i, j])
+    fr, jts = np.arange(5)[:, None], RNG.integers(0, 7, (5, 9))
+    got = body_model.take_pairs(table[..., 0], fr, jts)
+    assert got.shape == (5, 9, 3)
+    np.testing.assert_array_equal(got, table[..., 0][fr, jts])
+    empty = np.zeros(0, dtype=int)
+    assert body_model.take_pairs(table, empty, empty).shape == (0, 3, 3)
+
+
 def test_sampling_cost_does_not_grow_with_resolution():
     sk = two_arm_skeleton()
     body = two_arm_body(sk)
