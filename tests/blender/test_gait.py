@@ -903,19 +903,15 @@ def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp
         assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 25 §3 / issue 19 §2 (stop 37): with the style conditioned on the legs' travel "
-    "(core.gait.leg_travel) 35_01's legs go 1.169 -> 1.193 m/s and the one-step trial join reads "
-    "within JOIN_TOLERANCE x the reference's own largest (7.76 m/s^2), so no longer join is "
-    "tried: the join's largest is 6.11 m/s^2 against the capture's p99 5.76 (5.72 before, a "
-    "0.7 % margin; a two-step join gives 5.74). The product's stand-in for the capture's p99 "
-    "(the reference's largest x 0.8) reads high on 35_01: docs/gait.md, Stop 37"))
 def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, tmp_path):
     """Issue 25 §3 (stop 37): CMU 35_01 restyled to brisk at cadence 1.3 jolted its hips over
     the one-step join beyond the capture's 99th percentile (the restyle sweep: the stance
     foot's place relative to the hips changes with the style under the planted root). The
     join is now longer where a trial join jolts; the keyed root's largest acceleration (second
-    differences over 0.05 s) over the longest join there is (two steps) stays within it."""
+    differences over 0.05 s) over the longest join there is (two steps) stays within it.
+    Stop 38: the trial is judged against a stand-in for the capture's p99 that tracks it (1.25
+    × the reference's 90th percentile; the reference's largest × 0.8, before, read 1.35× the
+    p99 on 35_01 and kept the one-step join: 6.11 m/s² against 5.76)."""
     name, skeleton, layout, _ = observed_walk_on_floor(tmp_path, "35_01")
     capture, _ = trial_dofs("35_01")
     assert bpy.ops.track_and_stride.predict_gait(
@@ -930,7 +926,8 @@ def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, t
 
     steps = int(round(2 * 60.0 / 106.0 * FPS))                  # 35_01: 106 steps/min
     join = root_acc(np.vstack([ref, pred]))[N_OBS - 2 * h:N_OBS + steps - h + 1]
-    assert join.max() <= np.percentile(root_acc(capture), 99)
+    p99 = np.percentile(root_acc(capture), 99)
+    assert join.max() <= p99, (join.max(), p99)
 
 
 def test_a_walk_from_standing_is_refused_or_warned_in_plain_words(scene, tmp_path):

@@ -188,6 +188,49 @@ def test_a_join_that_would_jolt_blends_over_a_longer_join(walker, monkeypatch):
     assert join(before) > 1.0
 
 
+def test_the_fastest_walks_are_not_taken_for_runs_at_the_join(walker, monkeypatch):
+    """Stop 38: a join toward a run keeps its one step, and stop 37 took for a run any walk
+    above Froude 0.4 (where a run's flight begins to be kept): 35_01 restyled to long stride at
+    1.6 (0.44, a walk: the runs are at 0.9 and above) kept its one-step jolt, 1.82× the
+    capture's p99. A run is now above the walk-run transition's Froude number (0.5)."""
+    import core.gait.walk as walk_module
+    _, _, ref, res, _ = walker
+    values, _ = trial("35_01")
+    p99 = np.percentile(acceleration(values)[0], 99)
+
+    def join(out):
+        root, _ = acceleration(np.vstack([ref, out.dofs]))
+        return root[N_REF - 6:N_REF + int(np.ceil(out.blend_frames)) - 3 + 1].max() / p99
+
+    step = np.pi / res.state[0]
+    out = walk(walker, "long stride", cadence=1.6)
+    assert out.blend_frames > 1.2 * step
+    monkeypatch.setattr(walk_module, "JOIN_SCALES", (1.0,))  # one step
+    assert join(out) < 0.8 * join(walk(walker, "long stride", cadence=1.6))
+
+
+def test_the_join_rules_stand_in_for_the_capture_p99_shrugs_off_a_glitch(walker):
+    """Stop 38: the trial join is judged against a stand-in for the capture's 99th percentile
+    computed from the reference frames alone. Their largest acceleration (stop 37's stand-in,
+    × 0.8) is one stencil: it read 1.35× the capture's p99 on 35_01 (a two-step join was
+    needed and not tried). A high quantile (``JOIN_QUANTILE``) over all of them is not moved
+    by one bad frame: a 3 cm marker glitch in one reference frame's root (three stencils of
+    94) moves the ratio by about a tenth where it more than doubles the reference's
+    largest."""
+    import core.gait.walk as walk_module
+    _, skeleton, ref, _, floor = walker
+    names = list(skeleton.dof_names())
+    out = walk(walker, "brisk", cadence=1.3)
+    speed = np.full(2, 1.2)                                # a walk's speed (no run rule)
+    ratio = walk_module._join_ratio(ref, out.dofs, names, FPS, floor, speed, out.blend_frames)
+    glitch = ref.copy()
+    glitch[N_REF // 2, names.index("root.tx")] += 0.03
+    assert acceleration(glitch)[0].max() > 2.0 * acceleration(ref)[0].max()
+    moved = walk_module._join_ratio(glitch, out.dofs, names, FPS, floor, speed,
+                                    out.blend_frames)
+    assert ratio > 0.0 and moved == pytest.approx(ratio, rel=0.15)
+
+
 def test_retiming_up_strides_further_and_swings_wider_than_fast_forward(walker):
     """Issue 25: at 1.6× the fast-forward kept a normal walk's 1.33 m and 46° hip swing (real
     brisk walks: 1.82 m, 67°); slower, a real stroll shortens its stride."""
