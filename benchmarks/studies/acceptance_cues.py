@@ -24,8 +24,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
-from core.gait.checks import check_gait, gait_channels, _leg_pairs, MIN_OVERLAP_S, \
-    CADENCE_SPREAD  # noqa: E402
+from core.gait.checks import check_gait, rhythm_inputs  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
 from core.mocap import asf_to_skeleton, read_asf  # noqa: E402
 from core.mocap.bvh import cmu_template_asf  # noqa: E402
@@ -42,25 +41,14 @@ def skeleton_of(path):
 
 def rhythm_table(model, obs, fps):
     """{period_frames: (value, whole)} of ``checks.rhythm``'s comparisons, every period."""
-    pairs = _leg_pairs(model, gait_channels(model))
-    cols = sorted(set(gait_channels(model).tolist()) | {b for _, b in pairs})
-    x = obs[:, cols] - obs[:, cols].mean(axis=0)
-    position = {c: k for k, c in enumerate(cols)}
-    left = [position[a] for a, _ in pairs]
-    right = [position[b] for _, b in pairs]
-    mirrored = x.copy()
-    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
+    x, legs_mirrored, legs, overlap, (lo, hi) = rhythm_inputs(model, obs, fps)
     n = len(x)
-    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
-    periods = model.periods / model.fps * fps
-    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
-    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
     out = {}
     for period in range(lo, hi + 1):
         half = int(round(period / 2))
         halfv = wholev = None
         if n - half >= overlap:
-            a, b = mirrored[:n - half][:, left + right], x[half:][:, left + right]
+            a, b = legs_mirrored[:n - half], legs[half:]
             halfv = (np.sum(a * b), np.sum(a * a), np.sum(b * b))
         if n - period >= overlap:
             a, b = x[:n - period], x[period:]

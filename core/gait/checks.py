@@ -68,7 +68,7 @@ from .segments import MIN_STRENGTH
 __all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
            "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S",
            "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
-           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm",
+           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm", "rhythm_inputs",
            "with_fit"]
 
 MIN_MOTION_DEG = 1.0
@@ -200,6 +200,37 @@ def fit_score(model, observations, result):
     return 1.0 - sse / sst if sst > 0 else float("-inf")
 
 
+def rhythm_inputs(model, observations, fps):
+    """What :func:`rhythm` compares: the gait channels about their mean and the legs' pairs.
+
+    Returns
+    -------
+    x : ndarray, shape (n, c)
+        The gait channels (and the right side of every leg pair) minus their mean.
+    legs_mirrored, legs : ndarray, shape (n, 2p)
+        The legs' paired channels, left for right swapped and as observed (p pairs).
+    overlap : int
+        Frames of overlap a comparison needs (``MIN_OVERLAP_S``, at least 4).
+    periods : (int, int)
+        The shortest and longest period compared, frames (the model's periods at ``fps``
+        widened by ``CADENCE_SPREAD``).
+    """
+    obs = np.asarray(observations, dtype=float)
+    pairs = _leg_pairs(model, gait_channels(model))
+    cols = sorted(set(gait_channels(model).tolist()) | {b for _, b in pairs})
+    x = obs[:, cols] - obs[:, cols].mean(axis=0)
+    position = {c: k for k, c in enumerate(cols)}
+    left = [position[a] for a, _ in pairs]
+    right = [position[b] for _, b in pairs]
+    mirrored = x.copy()
+    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
+    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
+    periods = model.periods / model.fps * fps
+    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
+    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
+    return x, mirrored[:, left + right], x[:, left + right], overlap, (lo, hi)
+
+
 def rhythm(model, observations, fps):
     """Period and strength of the gait's rhythm over the whole range (module docstring, 5).
 
@@ -218,22 +249,10 @@ def rhythm(model, observations, fps):
         Whether the range held a whole cycle at that period (the same leg compared a cycle
         later, not only the other leg half a cycle later).
     """
-    obs = np.asarray(observations, dtype=float)
-    pairs = _leg_pairs(model, gait_channels(model))
-    cols = sorted(set(gait_channels(model).tolist()) | {b for _, b in pairs})
-    x = obs[:, cols] - obs[:, cols].mean(axis=0)
-    position = {c: k for k, c in enumerate(cols)}
-    left = [position[a] for a, _ in pairs]
-    right = [position[b] for _, b in pairs]
-    mirrored = x.copy()
-    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
+    x, legs_mirrored, legs, overlap, (lo, hi) = rhythm_inputs(model, observations, fps)
+    pairs = legs.shape[1] > 0
     n = len(x)
-    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
-    periods = model.periods / model.fps * fps
-    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
-    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
     best = (None, None, False)
-    legs_mirrored, legs = mirrored[:, left + right], x[:, left + right]   # once, not per lag
     for period in range(lo, hi + 1):
         half = int(round(period / 2))
         num = e1 = e2 = 0.0

@@ -84,6 +84,16 @@ def acceleration(rows, spacing=3):
     return np.linalg.norm(acc[:, :3], axis=1), np.linalg.norm(acc[:, 6:], axis=1)
 
 
+def join_over_capture_p99(ref, out, walker_id="35_01"):
+    """The root's largest acceleration over the whole join (every stencil that reaches a
+    predicted frame up to the blend's end) over the capture's 99th percentile, as
+    ``benchmarks/gait_restyle.py`` measures it."""
+    values, _ = trial(walker_id)
+    p99 = np.percentile(acceleration(values)[0], 99)
+    root, _ = acceleration(np.vstack([ref, out.dofs]))
+    return root[N_REF - 6:N_REF + int(np.ceil(out.blend_frames)) - 3 + 1].max() / p99
+
+
 @pytest.mark.parametrize("style", ["careful", "run"])
 def test_the_join_has_no_jolt(walker, style):
     """Issue 25: hips decelerating at 19 m/s² (careful), forearms jumping 0.6 → 9.7°/frame
@@ -167,12 +177,9 @@ def test_a_join_that_would_jolt_blends_over_a_longer_join(walker, monkeypatch):
     the capture's 99th percentile, as ``benchmarks/gait_restyle.py`` measures it."""
     import core.gait.walk as walk_module
     _, _, ref, res, _ = walker
-    values, _ = trial("35_01")
-    p99 = np.percentile(acceleration(values)[0], 99)
 
     def join(out):
-        root, _ = acceleration(np.vstack([ref, out.dofs]))
-        return root[N_REF - 6:N_REF + int(np.ceil(out.blend_frames)) - 3 + 1].max() / p99
+        return join_over_capture_p99(ref, out)
 
     style, cadence = "brisk", 1.3
     step = np.pi / res.state[0]
@@ -195,12 +202,9 @@ def test_the_fastest_walks_are_not_taken_for_runs_at_the_join(walker, monkeypatc
     capture's p99. A run is now above the walk-run transition's Froude number (0.5)."""
     import core.gait.walk as walk_module
     _, _, ref, res, _ = walker
-    values, _ = trial("35_01")
-    p99 = np.percentile(acceleration(values)[0], 99)
 
     def join(out):
-        root, _ = acceleration(np.vstack([ref, out.dofs]))
-        return root[N_REF - 6:N_REF + int(np.ceil(out.blend_frames)) - 3 + 1].max() / p99
+        return join_over_capture_p99(ref, out)
 
     step = np.pi / res.state[0]
     out = walk(walker, "long stride", cadence=1.6)
