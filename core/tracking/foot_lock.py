@@ -15,10 +15,13 @@ is locked and the leg chain solved to keep it there:
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
-* **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive bones of the leg
-  and the one after them) is solved for it: two-bone IK puts the ankle on the target with the
-  knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`, the rigs' shared IK),
-  the foot takes the target orientation. The pin is eased in and out over ``ramp`` frames
+* **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive segments of the
+  leg and the one after them, :func:`leg_chain`) is solved for it: two-bone IK puts the ankle
+  on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`,
+  the rigs' shared IK), the foot takes the target orientation. A *segment* is a bone with the
+  bones below it that the tracker does not turn (``problem.dof_mask`` all False: a rig's thigh
+  and shin split in two deforming halves, Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they
+  ride on it rigidly, so they cannot be a knee or an ankle. The pin is eased in and out over ``ramp`` frames
   outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
   Planted*) but never over a key. Key frames are returned bit for bit, and so are the frames of
   an interval that kept the keys' in-between (the footage did not support tracking there).
@@ -78,10 +81,17 @@ class FootLock:
     shift: float
 
 
-def leg_chain(skeleton, bones):
+def leg_chain(skeleton, bones, dof_mask=None):
     """(thigh, shin, foot, points): the leg's IK chain among ``bones`` (indices of one leg
     part) and the bones whose heads/tails make the foot's contact points (the foot and every
-    bone below it), or None when the leg has no such chain."""
+    bone below it), or None when the leg has no such chain.
+
+    The chain follows the leg down from its top bone; a bone whose rotation is not estimated
+    (its row of ``dof_mask`` (J, 3) bool all False) joins its parent's segment (it rides on it
+    rigidly: a twist half of a split thigh or shin). Thigh and shin are the first bones of the
+    two consecutive segments longest together at rest (hip to ankle), the foot the first bone
+    of the segment after them. ``dof_mask`` None: every bone turns (each its own segment).
+    """
     bones = set(int(b) for b in bones)
     top = [b for b in bones if skeleton.parents[b] not in bones]
     if len(top) != 1:
@@ -94,13 +104,21 @@ def leg_chain(skeleton, bones):
         # Follow the child with the longest descent (the leg, not a twist or helper bone).
         b = max(kids, key=lambda c: _depth(skeleton, c, bones))
         chain.append(b)
-    if len(chain) < 3:
+    rigid = (np.zeros(skeleton.n_joints, dtype=bool) if dof_mask is None
+             else ~np.asarray(dof_mask, dtype=bool).any(axis=1))
+    starts = [c for i, c in enumerate(chain) if i == 0 or not rigid[c]]
+    if len(starts) < 3:
         return None
-    seg = [np.linalg.norm(skeleton.offsets[c]) for c in chain[1:]]   # length of chain[i]
+    # Rest heads (armature frame) of the chain; a segment's length runs from its first bone's
+    # head to the next segment's (one bone per segment: the norm of that bone's offset).
+    rest = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3))
+    _, heads = forward_kinematics(skeleton, rest, np.zeros((1, 3)))
+    seg = [np.linalg.norm(heads[0, starts[i + 1]] - heads[0, starts[i]])
+           for i in range(len(starts) - 1)]
     best = max(range(len(seg) - 1), key=lambda i: seg[i] + seg[i + 1]) if len(seg) > 1 else None
-    if best is None or best + 2 >= len(chain):
+    if best is None or best + 2 >= len(starts):
         return None
-    thigh, shin, foot = chain[best], chain[best + 1], chain[best + 2]
+    thigh, shin, foot = starts[best], starts[best + 1], starts[best + 2]
     below = [j for j in bones if foot in skeleton.chain(j)]
     return thigh, shin, foot, sorted(below)
 
@@ -170,7 +188,9 @@ def _minimal_rotation(u, v):
 
 def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot_goal):
     """New local rotations of thigh, shin and foot at ``rows`` putting the ankle on
-    ``ankle_goal`` (M, 3) and the foot's world frame on ``foot_goal`` (M, 3, 3)."""
+    ``ankle_goal`` (M, 3) and the foot's world frame on ``foot_goal`` (M, 3, 3). Bones between
+    thigh and shin, or shin and foot (a segment's rigid halves, :func:`leg_chain`) keep their
+    local rotations: they turn with the bone above them."""
     rot, pos = forward_kinematics(skeleton, local[rows], roots[rows])
     hip, knee, ankle = pos[:, thigh], pos[:, shin], pos[:, foot]
     upper = np.linalg.norm(knee - hip, axis=1)
@@ -179,14 +199,20 @@ def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot
     turn_thigh = _minimal_rotation(knee - hip, new_knee - hip)
     g_thigh = turn_thigh @ rot[:, thigh]
     shin_dir = np.einsum("nij,nj->ni", turn_thigh, ankle - knee)
-    g_shin = _minimal_rotation(shin_dir, ankle_goal - new_knee) @ turn_thigh @ rot[:, shin]
-    parent = skeleton.parents[thigh]
+    turn_shin = _minimal_rotation(shin_dir, ankle_goal - new_knee) @ turn_thigh
+    g_shin = turn_shin @ rot[:, shin]
+    parents = skeleton.parents
+    parent = parents[thigh]
     g_parent = rot[:, parent] if parent >= 0 else np.eye(3)[None]
+    # The world frames of the shin's and the foot's parents after the turns (the thigh and
+    # the shin themselves, or a rigid half riding on them).
+    above_shin = g_thigh if parents[shin] == thigh else turn_thigh @ rot[:, parents[shin]]
+    above_foot = g_shin if parents[foot] == shin else turn_shin @ rot[:, parents[foot]]
     rest = skeleton.rest_rotations
     out = local[rows].copy()
     out[:, thigh] = rest[thigh].T @ np.swapaxes(g_parent, -1, -2) @ g_thigh
-    out[:, shin] = rest[shin].T @ np.swapaxes(g_thigh, -1, -2) @ g_shin
-    out[:, foot] = rest[foot].T @ np.swapaxes(g_shin, -1, -2) @ foot_goal
+    out[:, shin] = rest[shin].T @ np.swapaxes(above_shin, -1, -2) @ g_shin
+    out[:, foot] = rest[foot].T @ np.swapaxes(above_foot, -1, -2) @ foot_goal
     return out
 
 
@@ -276,7 +302,7 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
         if name not in parts:
             continue
         bones = np.flatnonzero(part_of == parts.index(name))
-        chain = leg_chain(sk, bones)
+        chain = leg_chain(sk, bones, mask)
         if chain is None:
             skipped.append(f"{side} leg: no thigh, shin and foot found")
             continue

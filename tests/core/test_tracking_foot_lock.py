@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from core.kinematics import exp_so3, forward_kinematics
+from core.kinematics import Skeleton, exp_so3, forward_kinematics
 from core.mocap import asf_to_skeleton
 from core.mocap.bvh import cmu_template_asf
 from core.tracking import foot_lock
@@ -49,6 +49,77 @@ def test_leg_chain_of_the_cmu_skeleton(skeleton):
     thigh, shin, foot, points = leg_chain(skeleton, bones)
     assert [skeleton.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
     assert [skeleton.names[b] for b in points] == ["lfoot", "ltoes"]
+
+
+def _split(sk, names):
+    """``sk`` with each joint of ``names`` split in two halves (a ``'<name> 2'`` joint halfway
+    to its one child, no DOF, identity rest): a rig's thigh and shin made of two deforming
+    bones, as Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``. Returns the skeleton and, per
+    joint of it, the joint of ``sk`` it is (-1 for a half)."""
+    order = []                                       # (old joint, is its half)
+    for i in range(sk.n_joints):
+        order += [(i, False)] + [(i, True)] * (sk.names[i] in names)
+    index = {key: k for k, key in enumerate(order)}
+    cut = {i: 0.5 * sk.offsets[sk.children(i)[0]] for i in range(sk.n_joints)
+           if sk.names[i] in names}
+    parents, offsets, tails, rest, axes = [], [], [], [], []
+    for i, half in order:
+        p = int(sk.parents[i])
+        if half:
+            parents.append(index[(i, False)])
+            offsets.append(cut[i])
+            tails.append(sk.tails[i] - cut[i])
+        else:
+            parents.append(-1 if p < 0 else index[(p, p in cut)])
+            offsets.append(sk.offsets[i] - cut.get(p, 0.0))
+            tails.append(cut.get(i, sk.tails[i]))
+        rest.append(np.eye(3) if half else sk.rest_rotations[i])
+        axes.append(() if half else sk.dof_axes[i])
+    split = Skeleton([sk.names[i] + " 2" * half for i, half in order], parents, offsets, rest,
+                     tails, axes, None, sk.root_translation)
+    return split, np.array([-1 if half else i for i, half in order])
+
+
+def test_a_leg_of_split_bones_locks_as_the_whole_leg(skeleton):
+    """A thigh and shin of two deforming halves each, the halves not turned by tracking (their
+    ``dof_mask`` rows all False, as a mapped Rigify rig's): the chain is thigh, shin, foot, not
+    a half, and the lock puts every joint where it puts the unsplit skeleton's (the halves
+    ride on the bone above them, their own rotations untouched)."""
+    sk = skeleton
+    parts, part_of = problem_parts(_problem(sk))
+    regions = [parts[p] for p in part_of]
+    halves = ("lfemur", "ltibia", "rfemur", "rtibia")
+    split, old_of = _split(sk, halves)
+    assert split.n_joints == sk.n_joints + 4
+    split_regions = [regions[old_of[k] if old_of[k] >= 0 else old_of[split.parents[k]]]
+                     for k in range(split.n_joints)]
+    mask = np.ones((split.n_joints, 3), dtype=bool)
+    mask[old_of < 0] = False
+    roots, local = _clip(sk)
+    split_local = np.broadcast_to(np.eye(3), (len(local), split.n_joints, 3, 3)).copy()
+    split_local[:, old_of >= 0] = local
+    # The same body: every original joint where the unsplit skeleton has it.
+    _, pos = forward_kinematics(sk, local, roots)
+    _, split_pos = forward_kinematics(split, split_local, roots)
+    np.testing.assert_allclose(split_pos[:, old_of >= 0], pos, atol=1e-12)
+    problem = SimpleNamespace(skeleton=split, regions=split_regions, dof_mask=mask)
+    bones = np.flatnonzero(np.array(split_regions) == "left leg")
+    thigh, shin, foot, points = leg_chain(split, bones, mask)
+    assert [split.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
+    assert [split.names[b] for b in points] == ["lfoot", "ltoes"]
+    keys = [0, len(roots) - 1]
+    plain = SimpleNamespace(skeleton=sk, regions=regions, dof_mask=None)
+    _, out, locks, _ = lock_feet(plain, keys, roots, local, FPS)
+    _, split_out, split_locks, skipped = lock_feet(problem, keys, roots, split_local, FPS)
+    assert skipped == [] and len(split_locks) == len(locks) >= 1
+    assert [lk[:4] for lk in split_locks] == [lk[:4] for lk in locks]
+    _, want = forward_kinematics(sk, out, roots)
+    _, got = forward_kinematics(split, split_out, roots)
+    np.testing.assert_allclose(got[:, old_of >= 0], want, atol=1e-9)
+    np.testing.assert_array_equal(split_out[:, old_of < 0], split_local[:, old_of < 0])
+    # Without the mask every half counts as a bone that bends: a half is taken for the knee.
+    wrong = leg_chain(split, bones)
+    assert [split.names[b] for b in wrong[:3]] != ["lfemur", "ltibia", "lfoot"]
 
 
 def test_a_sliding_standing_foot_is_pinned_and_keys_kept(skeleton):
