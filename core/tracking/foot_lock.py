@@ -19,9 +19,9 @@ is locked and the leg chain solved to keep it there:
   leg and the one after them, :func:`leg_chain`) is solved for it: two-bone IK puts the ankle
   on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`,
   the rigs' shared IK), the foot takes the target orientation. A *segment* is a bone with the
-  bones below it that the tracker does not turn (``problem.dof_mask`` all False: a rig's thigh
-  and shin split in two deforming halves, Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they
-  ride on it rigidly, so they cannot be a knee or an ankle. The pin is eased in and out over ``ramp`` frames
+  bones below it that the tracker does not turn and that continue its line (``problem.
+  dof_mask`` all False: a rig's thigh and shin split in two deforming halves, Rigify's
+  ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they ride on it rigidly, so they are no knee. The pin is eased in and out over ``ramp`` frames
   outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
   Planted*) but never over a key. Key frames are returned bit for bit, and so are the frames of
   an interval that kept the keys' in-between (the footage did not support tracking there).
@@ -41,6 +41,11 @@ from ..rigs.ik import solve_two_bone
 from .acceptance import LEFT_LEG, RIGHT_LEG, problem_parts
 
 __all__ = ["FootLock", "FootLockRule", "leg_chain", "lock_feet"]
+
+#: Cosine of the largest rest angle between a bone and its parent at which a bone the tracker
+#: does not turn counts as the second half of its parent (:func:`leg_chain`): the halves of a
+#: split thigh or shin are in line (0°), a foot is at 60-110° to its shin.
+HALF_COS = np.cos(np.radians(30.0))
 
 
 @dataclass(frozen=True)
@@ -87,8 +92,9 @@ def leg_chain(skeleton, bones, dof_mask=None):
     bone below it), or None when the leg has no such chain.
 
     The chain follows the leg down from its top bone; a bone whose rotation is not estimated
-    (its row of ``dof_mask`` (J, 3) bool all False) joins its parent's segment (it rides on it
-    rigidly: a twist half of a split thigh or shin). Thigh and shin are the first bones of the
+    (its row of ``dof_mask`` (J, 3) bool all False) and that continues its parent's line at
+    rest (within ``arccos(HALF_COS)``, 30°) joins its parent's segment: it rides on it
+    rigidly, the second half of a split thigh or shin. Thigh and shin are the first bones of the
     two consecutive segments longest together at rest (hip to ankle), the foot the first bone
     of the segment after them. ``dof_mask`` None: every bone turns (each its own segment).
     """
@@ -104,15 +110,21 @@ def leg_chain(skeleton, bones, dof_mask=None):
         # Follow the child with the longest descent (the leg, not a twist or helper bone).
         b = max(kids, key=lambda c: _depth(skeleton, c, bones))
         chain.append(b)
-    rigid = (np.zeros(skeleton.n_joints, dtype=bool) if dof_mask is None
+    # Rest pose (armature frame): heads, and bone directions head -> tail.
+    rest = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3))
+    frames, heads = forward_kinematics(skeleton, rest, np.zeros((1, 3)))
+    along = np.einsum("bij,bj->bi", frames[0], skeleton.tails)
+    along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-12)
+    fixed = (np.zeros(skeleton.n_joints, dtype=bool) if dof_mask is None
              else ~np.asarray(dof_mask, dtype=bool).any(axis=1))
-    starts = [c for i, c in enumerate(chain) if i == 0 or not rigid[c]]
+    # A half: not turned, and it continues its parent's line (a locked foot, at an angle to
+    # its shin, stays the foot).
+    starts = [c for i, c in enumerate(chain)
+              if i == 0 or not (fixed[c] and along[c] @ along[chain[i - 1]] > HALF_COS)]
     if len(starts) < 3:
         return None
-    # Rest heads (armature frame) of the chain; a segment's length runs from its first bone's
-    # head to the next segment's (one bone per segment: the norm of that bone's offset).
-    rest = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3))
-    _, heads = forward_kinematics(skeleton, rest, np.zeros((1, 3)))
+    # A segment's length runs from its first bone's head to the next segment's (one bone per
+    # segment: the norm of that bone's offset).
     seg = [np.linalg.norm(heads[0, starts[i + 1]] - heads[0, starts[i]])
            for i in range(len(starts) - 1)]
     best = max(range(len(seg) - 1), key=lambda i: seg[i] + seg[i + 1]) if len(seg) > 1 else None

@@ -49,6 +49,11 @@ def test_leg_chain_of_the_cmu_skeleton(skeleton):
     thigh, shin, foot, points = leg_chain(skeleton, bones)
     assert [skeleton.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
     assert [skeleton.names[b] for b in points] == ["lfoot", "ltoes"]
+    # A foot the tracker does not turn (all its axes locked) is still the foot: it is at an
+    # angle to the shin, no second half of it.
+    mask = np.ones((skeleton.n_joints, 3), dtype=bool)
+    mask[[skeleton.index("lfoot"), skeleton.index("ltoes")]] = False
+    assert leg_chain(skeleton, bones, mask)[:3] == (thigh, shin, foot)
 
 
 def _split(sk, names):
