@@ -401,7 +401,9 @@ def prepare_tracking(context, settings):
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth,
                               foot_lock=bool(settings.keep_feet_planted),
-                              frame_rate=scene.render.fps / scene.render.fps_base)
+                              frame_rate=scene.render.fps / scene.render.fps_base,
+                              # the world's up (Z) in the armature's space: heights of feet
+                              up=tuple(rigid_armature2world(rig)[2, :3].tolist()))
     # With several cameras the acceptance rule is not applied (AcceptanceRule.several_views,
     # core): its thresholds were chosen on single cameras.
     return TrackRequest(

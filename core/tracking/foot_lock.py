@@ -9,7 +9,8 @@ is locked and the leg chain solved to keep it there:
 * **Contact** — *low and slow*, judged on the tracked trajectory and the keys: a foot stands at
   frame f when its lowest point (the foot bone's head and tail, its toes' tails) is within
   ``FootLockRule.low`` of the floor, the floor being the lowest such point over the **keys**
-  (the animator's poses say where the ground is; world Z up, Blender's), and its tracked speed
+  (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
+  in the armature's space: ``up``), and its tracked speed
   over ``span`` frames centred on f is under ``slow`` (a sliding stance foot is much slower
   than a swinging one). Runs shorter than ``min_frames`` are left alone.
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
@@ -270,7 +271,7 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
     return out
 
 
-def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
+def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0, 0.0, 1.0)):
     """Lock the standing feet of a tracked sequence (module docstring).
 
     Parameters
@@ -288,6 +289,9 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
         Indices left exactly as they are besides the keys (the tracker passes the frames of
         intervals that kept the keys' in-between: what the report calls the in-between stays
         the in-between).
+    up : array_like, shape (3,), optional
+        The world's up direction in the sequence's space (any length; ``TrackingOptions.up``):
+        heights are measured along it.
 
     Returns
     -------
@@ -322,13 +326,15 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
     if not legs or n < 3:
         return roots, local, [], skipped
     rot, pos = forward_kinematics(sk, local, roots)
+    up = np.asarray(up, dtype=float) / np.linalg.norm(up)
     points = {s: _foot_points(sk, rot, pos, c[3]) for s, c in legs.items()}
-    floor = min(float(p[keys][..., 2].min()) for p in points.values())
+    height = {s: p @ up for s, p in points.items()}
+    floor = min(float(h[keys].min()) for h in height.values())
     ramp = max(1, int(round(rule.ramp * fps)))
     out = local.copy()
     locks = []
     for side, (thigh, shin, foot, _) in legs.items():
-        low = points[side][..., 2].min(axis=1) <= floor + rule.low
+        low = height[side].min(axis=1) <= floor + rule.low
         slow = _span_speed(points[side], rule.span, fps) <= rule.slow
         ankle, foot_rot = pos[:, foot], rot[:, foot]
         goal_pos, goal_rot = ankle.copy(), foot_rot.copy()

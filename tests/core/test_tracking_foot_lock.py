@@ -166,6 +166,30 @@ def test_a_sliding_standing_foot_is_pinned_and_keys_kept(skeleton):
     assert shift == pytest.approx(slide.max(), abs=0.01)
 
 
+def test_heights_are_measured_along_the_worlds_up(skeleton):
+    """An armature object turned 90° about X (an FBX import, Mixamo's) has the world's up along
+    its +Y: the same clip in that space, with ``up`` +Y, locks the same contacts to the same
+    joints (turned). (Along the armature's Z, the rule before stop 39, the bench's Mixamo rig
+    never had a foot low enough: docs/bench_rigs.md, *Stop 39*.)"""
+    sk = skeleton
+    roots, local = _clip(sk)
+    turn = exp_so3(np.array([-np.pi / 2, 0.0, 0.0]))         # world -> the armature's space
+    rest0 = sk.rest_rotations[0]
+    turned_local = local.copy()
+    turned_local[:, 0] = rest0.T @ turn @ rest0 @ local[:, 0]
+    turned_roots = (turn @ (sk.offsets[0] + roots)[..., None])[..., 0] - sk.offsets[0]
+    keys = [0, len(roots) - 1]
+    _, out, locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+    up = turn @ [0.0, 0.0, 1.0]
+    np.testing.assert_allclose(up, [0.0, 1.0, 0.0], atol=1e-15)
+    _, turned_out, turned_locks, _ = lock_feet(_problem(sk), keys, turned_roots, turned_local,
+                                               FPS, up=3.0 * up)      # any length
+    assert [lk[:4] for lk in turned_locks] == [lk[:4] for lk in locks] and locks
+    _, pos = forward_kinematics(sk, out, roots)
+    _, turned_pos = forward_kinematics(sk, turned_out, turned_roots)
+    np.testing.assert_allclose(turned_pos, pos @ turn.T, atol=1e-9)
+
+
 def test_nothing_standing_changes_nothing(skeleton):
     sk = skeleton
     roots, local = _clip(sk)
