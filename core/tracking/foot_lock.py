@@ -10,22 +10,23 @@ is locked and the leg chain solved to keep it there:
   frame f when its lowest point (the foot bone's head and tail, its toes' tails) is within
   ``FootLockRule.low`` of the floor, the floor being the lowest such point over the **keys**
   (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
-  in the armature's space: ``up``), and its tracked speed
-  over ``span`` frames centred on f is under ``slow`` (a sliding stance foot is much slower
-  than a swinging one). Runs shorter than ``min_frames`` are left alone.
+  in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
+  is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
+  than ``min_frames`` are left alone.
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
 * **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive segments of the
   leg and the one after them, :func:`leg_chain`) is solved for it: two-bone IK puts the ankle
-  on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`,
-  the rigs' shared IK), the foot takes the target orientation. A *segment* is a bone with the
-  bones below it that the tracker does not turn and that continue its line (``problem.
-  dof_mask`` all False: a rig's thigh and shin split in two deforming halves, Rigify's
-  ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they ride on it rigidly, so they are no knee. The pin is eased in and out over ``ramp`` frames
-  outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
-  Planted*) but never over a key. Key frames are returned bit for bit, and so are the frames of
-  an interval that kept the keys' in-between (the footage did not support tracking there).
+  on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.
+  solve_two_bone`, the rigs' shared IK), the foot takes the target orientation. A *segment*
+  is a bone with the bones below it that the tracker does not turn and that continue its
+  line (``problem.dof_mask`` all False: a rig's thigh and shin split in two deforming halves,
+  Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they ride on it rigidly, so they are no
+  knee. The pin is eased in and out over ``ramp`` frames outside the run
+  (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet Planted*) but
+  never over a key. Key frames are returned bit for bit, and so are the frames of an interval
+  that kept the keys' in-between (the footage did not support tracking there).
 
 A leg whose bones turn about some axes only (``problem.dof_mask``: a mapped rig's hinge knee
 and untwisting foot, Table 1) is solved on those axes only (damped Gauss-Newton, the
@@ -95,9 +96,9 @@ def leg_chain(skeleton, bones, dof_mask=None):
     The chain follows the leg down from its top bone; a bone whose rotation is not estimated
     (its row of ``dof_mask`` (J, 3) bool all False) and that continues its parent's line at
     rest (within ``arccos(HALF_COS)``, 30°) joins its parent's segment: it rides on it
-    rigidly, the second half of a split thigh or shin. Thigh and shin are the first bones of the
-    two consecutive segments longest together at rest (hip to ankle), the foot the first bone
-    of the segment after them. ``dof_mask`` None: every bone turns (each its own segment).
+    rigidly, the second half of a split thigh or shin. Thigh and shin are the first bones of
+    the two consecutive segments longest together at rest (hip to ankle), the foot the first
+    bone of the segment after them. ``dof_mask`` None: every bone turns (each its own segment).
     """
     bones = set(int(b) for b in bones)
     top = [b for b in bones if skeleton.parents[b] not in bones]
