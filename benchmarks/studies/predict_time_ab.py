@@ -23,7 +23,8 @@ Usage (from the repository root, one BLAS thread as the operator runs in Blender
         --a main --b HEAD [--rounds 9 --calls 7 --trial 08_01 --frames 100 --length 4]
 
 ``--profile REF`` (a commit, WORKTREE or a zip) instead runs one process with it under cProfile (the calls after a
-warm-up) and prints where the time goes.
+warm-up) and prints where the time goes (the statistics also go to
+``build/predict_time_ab/profile.pstats``).
 """
 
 import argparse
@@ -122,6 +123,7 @@ def child(args):
         for _ in range(args.calls):
             call()
         profiler.disable()
+        profiler.dump_stats(str(OUT / "profile.pstats"))   # for pstats' callers / callees
         stats = pstats.Stats(profiler, stream=sys.stderr)
         stats.sort_stats("cumulative").print_stats(45)
         stats.sort_stats("tottime").print_stats(25)

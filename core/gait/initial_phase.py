@@ -228,9 +228,17 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=RE
     t_mid = 0.5 * (len(ys) - 1)
     x = np.array([np.log(omega), phi0 + omega * t_mid])          # (log ω, φ at the middle)
 
+    scored = {}
+
     def score(p):
-        om = float(np.exp(p[0]))
-        return _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy, offset_prec)
+        # A point scored before (the downhill step is the neighbour just scored; a vertex at
+        # 0 is the point itself) is not scored again: the same inputs give the same score.
+        key = tuple(p.tolist())
+        if key not in scored:
+            om = float(np.exp(p[0]))
+            scored[key] = _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy,
+                                     offset_prec)
+        return scored[key]
 
     best = score(x)
     steps = np.array([log_step, phi_step])
