@@ -367,11 +367,15 @@ def _scratch(ctx, alpha_comb):
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     """Scalar core of :func:`ekf_update`: floats, the squared innovation ``eᵀe``, the number of
     channels used and the index of a channel left out as an outlier (-1: none)."""
+    return _update_in(_scratch(ctx, alpha_comb), ctx, w_pred, phi_pred, a, b, c, y, alpha_comb)
+
+
+def _update_in(s, ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
+    """:func:`_update` with the scratch arrays ``s`` of ``alpha_comb``'s layout (``_scratch``)."""
     # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g]); with the offset b as a last row of alpha_comb
     # (P+1 rows, :mod:`.online`) the first row is μ(x⁻) w + b. ctx.kernel_pair(_one)'s
     # operations, in the context's scratch arrays (tests/core/test_gait_ekf.py checks them
     # against kernel_pair bit for bit).
-    s = _scratch(ctx, alpha_comb)
     query = s.query
     query[0] = math.cos(phi_pred)
     query[1] = math.sin(phi_pred)
@@ -507,12 +511,13 @@ def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     total = 0.0
     rows = []                                   # per frame: ω, φ, a, b, c, squared innovation
     outliers = []
+    scratch = _scratch(ctx, comb)
     for t in range(n):
         if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
             phi = phi + omega
             a, b, c = a + q00, a + b + q01, a + 2 * b + c + q11
-        omega, phi, a, b, c, loglik, ee, count, outlier = _update(ctx, omega, phi, a, b, c,
-                                                                  ys[t], comb)
+        omega, phi, a, b, c, loglik, ee, count, outlier = _update_in(scratch, ctx, omega, phi,
+                                                                     a, b, c, ys[t], comb)
         total += loglik
         rows.append((omega, phi, a, b, c, ee / max(count, 1)))
         outliers.append(outlier)
