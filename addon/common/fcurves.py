@@ -177,56 +177,14 @@ def evaluate_fcurves(bag, channels, frames, defaults):
     frames = np.asarray(frames, dtype=float)
     out = np.tile(np.asarray(defaults, dtype=float), (len(frames), 1))
     present = np.zeros(len(channels), dtype=bool)
-    at = frames.astype(np.float32)          # evaluate() takes the frame as a C float
     for c, channel in enumerate(channels):
         fcurve = bag.fcurves.find(channel[0], index=channel[1]) if bag is not None else None
         if fcurve is None:
             continue
         present[c] = True
-        values = _values_on_keys(fcurve, frames, at)
-        if values is None:
-            evaluate = fcurve.evaluate
-            values = [evaluate(f) for f in frames]
-        out[:, c] = values
+        evaluate = fcurve.evaluate
+        out[:, c] = [evaluate(f) for f in frames]
     return out, present
-
-
-# Blender finds a key "on" the evaluated frame within this distance (BKE_fcurve's binary
-# search threshold); keys closer than twice it to each other take the slow path.
-_ON_KEY = 1e-4
-
-
-def _values_on_keys(fcurve, frames, at):
-    """What ``fcurve.evaluate`` gives at ``frames`` when every one of them is exactly the frame
-    of one of its keys, read from the keys in one bulk read; None otherwise.
-
-    Blender evaluates a frame between the first and the last key that lies on a key (its binary
-    search finds the key within ``_ON_KEY``) as that key's value (``fcurve_eval_keyframes_
-    interpolate``); the first and last keys' frames go through the extrapolation code, so they
-    are evaluated as before. The slow path is kept for curves with modifiers, with fewer than
-    three keys, whose keys are out of order or closer than twice the search's threshold, and
-    for any frame that is not a key's. For the float properties Predict and the pose readers
-    key (an integer property's curve also rounds the value)."""
-    if len(fcurve.modifiers):
-        return None
-    points = fcurve.keyframe_points
-    n = len(points)
-    if n < 3:
-        return None
-    co = np.empty(2 * n, dtype=np.float32)
-    points.foreach_get("co", co)
-    key_frames, key_values = co[0::2], co[1::2]
-    if not np.all(key_frames[1:] - key_frames[:-1] > 2.0 * _ON_KEY):
-        return None
-    where = np.searchsorted(key_frames, at).clip(max=n - 1)
-    if not np.array_equal(key_frames[where], at):
-        return None
-    values = key_values[where].astype(float)
-    ends = np.flatnonzero((where == 0) | (where == n - 1))
-    evaluate = fcurve.evaluate
-    for i in ends.tolist():
-        values[i] = evaluate(frames[i])
-    return values
 
 
 _KEYFRAME_PROPS = (("co", 2, np.float32), ("handle_left", 2, np.float32),

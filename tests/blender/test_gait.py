@@ -589,69 +589,6 @@ def test_keys_inserted_after_and_between_the_user_s_keys_as_before(scene):
                 assert a[prop].tobytes() == b[prop].tobytes(), (case, unsorted, prop)
 
 
-def test_curves_read_on_their_keys_are_what_evaluate_gives(scene, tmp_path):
-    """``evaluate_fcurves`` reads frames that lie on keys from the keys themselves (stop 39):
-    every value equals ``fcurve.evaluate``'s bit for bit -- on an imported walk's curves at
-    its keyed frames and at frames between them, and on curves with constant, linear and
-    Bézier keys, free handles, linear extrapolation, a modifier, keys out of order, keys
-    closer than Blender's search threshold and only two keys."""
-    fcurves = bridge("common.fcurves")
-
-    def evaluated(bag, channels, frames):
-        out = np.empty((len(frames), len(channels)))
-        for c, (path, index) in enumerate(channels):
-            fc = bag.fcurves.find(path, index=index)
-            out[:, c] = [fc.evaluate(f) for f in frames]
-        return out
-
-    obj = import_observed(tmp_path)
-    bag, table = fcurve_table(obj)
-    channels = sorted(table)
-    for frames in (np.arange(1.0, 101.0), np.arange(0.0, 103.0), np.arange(1.0, 100.0, 0.5),
-                   np.array([50.0, 3.0, 100.0, 1.0, 50.0])):
-        read, present = fcurves.evaluate_fcurves(bag, channels, frames, np.zeros(len(channels)))
-        assert present.all()
-        assert read.tobytes() == evaluated(bag, channels, frames).tobytes()
-
-    empty = bpy.data.objects.new("curves", None)
-    scene.collection.objects.link(empty)
-    action, slot = fcurves.ensure_action(empty, "curves")
-    bag = fcurves.channelbag(action, slot, ensure=True)
-    rng = np.random.default_rng(11)
-    frames = np.array([1.0, 2.0, 4.0, 5.0, 7.5, 9.0, 12.0, 13.0])
-    channels = []
-    for k, (interpolation, extend) in enumerate([("BEZIER", "CONSTANT"), ("LINEAR", "LINEAR"),
-                                                 ("CONSTANT", "LINEAR"), ("BEZIER", "LINEAR")]):
-        path = f'["c{k}"]'
-        fc = fcurves.write_new_fcurves(bag, [(path, 0, None)], frames,
-                                       rng.normal(size=(len(frames), 1)), interpolation)[0]
-        fc.extrapolation = extend
-        handles = np.array(fcurves.keyframe_state(fc)["handle_right"])
-        handles[:, 1] += rng.normal(size=len(frames))
-        kinds = np.full(len(frames), fcurves.enum_value(bpy.types.Keyframe, "handle_right_type",
-                                                         "FREE"), dtype=np.int32)
-        fc.keyframe_points.foreach_set("handle_right_type", kinds)
-        fc.keyframe_points.foreach_set("handle_left_type", kinds)
-        fc.keyframe_points.foreach_set("handle_right", handles.reshape(-1))
-        channels.append((path, 0))
-    with_modifier = bag.fcurves.find('["c3"]', index=0)
-    with_modifier.modifiers.new("NOISE")
-    for path, frames_k in (('["close"]', [1.0, 2.0, 2.00015, 5.0]),
-                           ('["two"]', [1.0, 13.0])):
-        fcurves.write_new_fcurves(bag, [(path, 0, None)], np.array(frames_k),
-                                  rng.normal(size=(len(frames_k), 1)), "BEZIER")
-        channels.append((path, 0))
-    unsorted = fcurves.write_new_fcurves(bag, [('["unsorted"]', 0, None)], frames,
-                                         rng.normal(size=(len(frames), 1)), "BEZIER")[0]
-    co = np.array(fcurves.keyframe_state(unsorted)["co"])[::-1].copy()
-    unsorted.keyframe_points.foreach_set("co", co.reshape(-1))
-    channels.append(('["unsorted"]', 0))
-    for at in (frames, frames[::-1], np.array([0.0, 1.0, 13.0, 14.0]), np.array([2.0]),
-               np.array([2.00015, 5.0]), np.arange(0.0, 15.0, 0.25)):
-        read, _ = fcurves.evaluate_fcurves(bag, channels, at, np.zeros(len(channels)))
-        assert read.tobytes() == evaluated(bag, channels, at).tobytes(), at
-
-
 def test_new_action_copies_the_observed_keys_with_their_types_and_easing(scene, tmp_path):
     learn_from_files()
     obj = import_observed(tmp_path)
