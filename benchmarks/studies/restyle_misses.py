@@ -22,10 +22,23 @@ join over the leave-one-walker-out windows.
    reach the first 3 predicted frames (``keyed``, ``captured``: the figure of stops 31-35)
    and the whole step the join blends over (``keyed_step``, ``captured_step``, since stop 36).
 
-About 3 min on the 2-core machine (``careful`` or ``join`` alone: those sections)::
+4. **The table's join misses** (stop 39; ``table``, not run by default, 1 min): brisk,
+   dribble at 1.6 and stiff at 1.3 / 1.6 on the table's walker and fold model: where the
+   root's largest acceleration over the join lies (predicted frame, share of the blend,
+   horizontal or vertical, the joint groups' angular acceleration at that stencil), the
+   requested walk's own after the join, and the same join with each term changed alone:
+   joins forced to 1 / 1.5 / 2 / 3 steps, the reference's velocity faded over 0.1 / 0.5 /
+   1.0 s (``walk.JOIN_S``, 0.25), the root from the model's speed (Keep Feet Planted off),
+   the style's change alone (cadence 1) and the cadence's alone (the normal style at the
+   same steps per minute); every figure over the walker's capture's 99th percentile, as the
+   table's goal.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_misses.py [careful] [join]
+About 3 min on the 2-core machine (``careful``, ``join`` or ``table`` alone: those sections)::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/studies/restyle_misses.py [careful] [join] [table]
 """
+
+import contextlib
 
 import sys
 from pathlib import Path
@@ -39,7 +52,10 @@ sys.path.insert(0, str(ROOT))
 import gait_lowo as L  # noqa: E402
 import gait_restyle as R  # noqa: E402
 from build_stock_gaits import FPS, training_pieces  # noqa: E402
-from core.gait import adapt, observations_from_dofs  # noqa: E402
+import core.gait.walk as W  # noqa: E402
+from core.gait import adapt, observations_from_dofs, restyle  # noqa: E402
+from core.gait.leg_travel import fit_leg_travel  # noqa: E402
+from core.gait.root_travel import ROOT_DOF_NAMES  # noqa: E402
 from core.gait.checks import check_gait  # noqa: E402
 from core.gait.learning import _merge_named, learn_model  # noqa: E402
 from core.gait.prediction import cycle_mean  # noqa: E402
@@ -194,9 +210,100 @@ def join():
     print(f"   all: {total}")
 
 
+JOINT_GROUPS = {"legs": ("femur", "tibia", "foot", "toes"),
+                "spine/head": ("lowerback", "upperback", "thorax", "neck", "head"),
+                "arms": ("clavicle", "humerus", "radius"),
+                "hands": ("wrist", "hand", "finger", "thumb")}
+
+
+@contextlib.contextmanager
+def _patched(**values):
+    """Module constants of core.gait.walk changed for a study run, restored after."""
+    old = {k: getattr(W, k) for k in values}
+    for k, v in values.items():
+        setattr(W, k, v)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            setattr(W, k, v)
+
+
+def table_joins(cases=(("brisk", 1.6), ("dribble", 1.6), ("stiff", 1.3), ("stiff", 1.6),
+                       ("normal", 1.6))):
+    print("4. the table's join misses (07_04, fold model): root acceleration over the "
+          "capture's 99th percentile")
+    model = L.fold_model(L.Method("method"), [s for s in L.SUBJECTS if s != "07"])
+    values, names = L.load(R.WALKER)
+    values = np.asarray(values)
+    skeleton = R.skeleton_of(R.WALKER)
+    ref = values[R.REFERENCE[0]:R.REFERENCE[1]]
+    cols = [names.index(n) for n in model.dof_names]
+    obs = observations_from_dofs(model, ref[:, cols], model.dof_names, FPS)
+    res = adapt(model, obs, fps=FPS)
+    w_walker = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual).w
+    h = max(1, int(round(R.JOIN_SPACING_S * FPS)))
+    angles = [i for i, n in enumerate(names) if n not in ROOT_DOF_NAMES]
+    p99 = np.percentile(R.acceleration_norms(values, angles, h)[0], 99)
+    n_pred = int(round(R.PREDICT_S * FPS))
+
+    def solve(style, cadence, steps=None, plant=True, factor=None, join_s=None):
+        """(walk, root accelerations (rows), join window rows, steady rows)."""
+        w, f = restyle(model, w_walker, "normal", style, 1.0) if style != "normal" \
+            else (None, 1.0)
+        patch = {} if join_s is None else {"JOIN_S": join_s}
+        if steps is not None:
+            patch["JOIN_SCALES"] = (1.0,)            # no trial joins: this length
+        with _patched(**patch):
+            walk = predict_walk(model, skeleton, ref, FPS, res.state, w_walker, n_pred,
+                                WalkRequest(w=w, style_cadence=f if factor is None else factor,
+                                            cadence=cadence, plant=plant,
+                                            blend_steps=steps or 1.0),
+                                offset=res.offset, residual=res.residual,
+                                start=res.last_observation)
+        rows = np.vstack([ref, walk.dofs])
+        acc = (rows[2 * h:] - 2 * rows[h:-h] + rows[:-2 * h]) * (FPS / h) ** 2
+        end = len(ref) + int(np.ceil(walk.blend_frames))
+        return walk, acc, np.arange(len(ref) - 2 * h, end - h + 1), np.arange(end - h + 1,
+                                                                              len(acc))
+
+    def line(walk, acc, window, steady):
+        root = np.linalg.norm(acc[:, :3], axis=1)
+        i = window[np.argmax(root[window])]
+        return (f"join {root[i] / p99:.2f} at predicted frame {i + h - len(ref)} "
+                f"(blend {walk.blend_frames:.0f}), the walk's own after it "
+                f"{root[steady].max() / p99:.2f}"), i
+
+    for style, cadence in cases:
+        walk, acc, window, steady = solve(style, cadence)
+        text, i = line(walk, acc, window, steady)
+        a = acc[i]
+        group = {g: float(np.linalg.norm([a[j] for j in angles
+                                          if any(p in names[j] for p in pats)]))
+                 for g, pats in JOINT_GROUPS.items()}
+        horizontal = np.linalg.norm(acc[steady][:, :2], axis=1).max() / p99
+        vertical = np.abs(acc[steady][:, 2]).max() / p99
+        print(f"   {style}@{cadence:g}: {text}; at that stencil horizontal "
+              f"{np.hypot(a[0], a[1]):.1f}, vertical {a[2]:+.1f} m/s², angles (rad/s²) "
+              + ", ".join(f"{g} {v:.0f}" for g, v in group.items())
+              + f"; after the join horizontal {horizontal:.2f}, vertical {vertical:.2f}")
+        for steps in (1.0, 1.5, 2.0, 3.0):
+            print(f"      forced {steps:g} steps: {line(*solve(style, cadence, steps=steps))[0]}")
+        for join_s in (0.1, 0.5, 1.0):
+            print(f"      JOIN_S {join_s:g} s: "
+                  f"{line(*solve(style, cadence, join_s=join_s))[0]}")
+        print(f"      Keep Feet Planted off: {line(*solve(style, cadence, plant=False))[0]}")
+        print(f"      the style alone (cadence 1): {line(*solve(style, 1.0))[0]}")
+        factor = 1.0 if style == "normal" else restyle(model, w_walker, "normal", style, 1.0)[1]
+        print(f"      the cadence alone (normal at {factor * cadence:.2f}×): "
+              f"{line(*solve('normal', cadence, factor=factor))[0]}")
+
+
 if __name__ == "__main__":
     parts = sys.argv[1:] or ["careful", "join"]     # "careful" = sections 1-2, "join" = 3
     if "careful" in parts:
         careful_and_runs()
     if "join" in parts:
         join()
+    if "table" in parts:
+        table_joins()

@@ -30,7 +30,7 @@ def main(argv=None):
     parser.add_argument("--output", default=None, help="JSON of every case's figures")
     args = parser.parse_args(argv)
     model = GaitModel.load(args.stock)
-    total, failed, beyond, blocks = 0, 0, 0, {}
+    total, failed, beyond, by_style, either, blocks = 0, 0, 0, 0, 0, {}
     for walker in WALKERS:
         block = R.run_restyle(model=model, walker=walker)
         blocks[walker] = block
@@ -38,6 +38,8 @@ def main(argv=None):
         total += s["cases"]
         failed += s["cases"] - s["met"]
         beyond += s["cases"] - s["met_with_join_vs_steady"]
+        by_style += s["cases"] - s["met_with_join_vs_style"]
+        either += s["cases"] - s["met_with_join_vs_either"]
         print(f"{walker}: {s['cases'] - s['met']} of {s['cases']} failed: {s['failed']}")
         for style, by in block["cases"].items():
             for cad, r in by.items():
@@ -45,12 +47,16 @@ def main(argv=None):
                     f = r["natural"]
                     print(f"   {style}@{cad}: slip {f['slip_cm_s']:.1f} skate {f['skate_cm_s']:.1f}"
                           f" root/legs {f['root_vs_legs']:.2f} low {f['lowest_foot_cm']:.1f}"
-                          f" join {f['join_accel_ratio']:.2f} (vs steady {f['join_vs_steady']:.2f})"
+                          f" join {f['join_accel_ratio']:.2f} (vs steady {f['join_vs_steady']:.2f},"
+                          f" vs the style's captures {f['join_accel_ratio_style']:.2f},"
+                          f" vs either {f['join_accel_ratio_either']:.2f})"
                           f" drift {f['heading_drift_deg']:.1f}"
                           f" stride {f['stride_m']:.2f} ({r['fast_forward']['stride_m']:.2f})"
                           f" swing {f['hip_swing_deg']:.0f} ({r['fast_forward']['hip_swing_deg']:.0f})")
     print(f"sweep: {failed} of {total} cases failed ({beyond} with the join judged against the "
-          f"larger of the capture's 99th percentile and the walk's own largest after it)")
+          f"larger of the capture's 99th percentile and the walk's own largest after it; "
+          f"{by_style} against the requested style's captured walks' 99th percentile, {either} "
+          f"against the larger of the walker's and the style's)")
     if args.output:
         Path(args.output).write_text(json.dumps(blocks, indent=1, default=float))
 
