@@ -258,24 +258,44 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
     old_frames = old["co"][:, 0].astype(np.float64)
     keep = np.ones(len(frames), dtype=bool)
     if len(old_frames):
-        nearest = np.min(np.abs(frames[:, None] - old_frames[None, :]), axis=1)
-        keep = nearest > 1e-4
+        keep = _nearest_distance(frames, np.sort(old_frames)) > 1e-4
     frames, values = frames[keep], values[keep]
     if len(frames) == 0:
         return 0
     n_old = len(old_frames)
     points.add(len(frames))
-    co = np.concatenate([old["co"], np.stack([frames, values], axis=1).astype(np.float32)])
+    new_co = np.stack([frames, values], axis=1).astype(np.float32)
+    co = np.concatenate([old["co"], new_co])
     points.foreach_set("co", co.reshape(-1))
     fcurve.update()  # sorts keys, computes handles of the new ones
     if n_old:
-        new_state = _keyframe_state(points, only=geometry)
-        positions = np.searchsorted(new_state["co"][:, 0], old["co"][:, 0])
+        # Where the old keys are after the sort. Old keys in order and new ones after the last
+        # of them, in order (a prediction after the observed range): Blender's sort, which
+        # swaps only keys out of order, leaves every key where it is, so the old keys are the
+        # first n_old and their frames need not be read again.
+        kept = co[:, 0]
+        if np.all(kept[1:] > kept[:-1]):
+            positions = np.arange(n_old)
+            new_state = _keyframe_state(points, only=geometry[1:])
+        else:
+            new_state = _keyframe_state(points, only=geometry)
+            positions = np.searchsorted(new_state["co"][:, 0], old["co"][:, 0])
         for prop in ("handle_left", "handle_right"):
             array = new_state[prop]
             array[positions] = old[prop]
             points.foreach_set(prop, array.reshape(-1))
     return int(len(frames))
+
+
+def _nearest_distance(frames, sorted_frames):
+    """``min_j |frames[i] - sorted_frames[j]|`` for every ``i`` (N,): the same differences as
+    the full (N, M) table's, taken only at the two neighbours of each frame in
+    ``sorted_frames`` (ascending, M >= 1), which hold the minimum."""
+    if np.isnan(sorted_frames[-1]):        # (NaN sorts last) as the full table: NaN everywhere
+        return np.min(np.abs(frames[:, None] - sorted_frames[None, :]), axis=1)
+    right = np.searchsorted(sorted_frames, frames).clip(max=len(sorted_frames) - 1)
+    left = (right - 1).clip(min=0)
+    return np.minimum(np.abs(frames - sorted_frames[left]), np.abs(frames - sorted_frames[right]))
 
 
 def enum_value(struct, prop, identifier):

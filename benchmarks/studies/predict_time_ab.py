@@ -10,7 +10,9 @@ and wall time are recorded, and the CPU time of ``predict_walk`` inside it (a ti
 around the add-on's reference to it). Round r runs A then B when r is even, B then A when
 odd. Reported: each side's median and least over all calls, the median of the per-round
 ratios B / A (each round's median B over its median A: two processes close in time share the
-machine's load), and ``predict_walk``'s median.
+machine's load), ``predict_walk``'s median, and whether both sides keyed the same curves (a
+SHA-1 of every key of the action after each process's last call: co, handles,
+interpolation, handle types, easing, type).
 
 A commit is built without touching any worktree: ``git archive <commit>`` into a temporary
 folder, then ``tools/build_extension.py --output X.zip`` run there with this Python (a bpy
@@ -23,7 +25,8 @@ Usage (from the repository root, one BLAS thread as the operator runs in Blender
         --a main --b HEAD [--rounds 9 --calls 7 --trial 08_01 --frames 100 --length 4]
 
 ``--profile REF`` (a commit, WORKTREE or a zip) instead runs one process with it under cProfile (the calls after a
-warm-up) and prints where the time goes.
+warm-up) and prints where the time goes (the statistics also go to
+``build/predict_time_ab/profile.pstats``).
 """
 
 import argparse
@@ -122,6 +125,7 @@ def child(args):
         for _ in range(args.calls):
             call()
         profiler.disable()
+        profiler.dump_stats(str(OUT / "profile.pstats"))   # for pstats' callers / callees
         stats = pstats.Stats(profiler, stream=sys.stderr)
         stats.sort_stats("cumulative").print_stats(45)
         stats.sort_stats("tottime").print_stats(25)
@@ -129,7 +133,31 @@ def child(args):
     del inner[:]
     times = [call() for _ in range(args.calls)]
     print(json.dumps({"cpu_s": [t[0] for t in times], "wall_s": [t[1] for t in times],
-                      "predict_walk_cpu_s": inner}))
+                      "predict_walk_cpu_s": inner, "keys_sha1": keys_digest(bpy)}))
+
+
+def keys_digest(bpy):
+    """SHA-1 of every key of the active object's action after the last call (co, handles,
+    interpolation, handle types, easing, type of every key of every F-curve, in data path
+    order): two builds that key the same curves give the same digest."""
+    import hashlib
+    import numpy as np
+    anim = bpy.context.active_object.animation_data
+    bag = anim.action.layers[0].strips[0].channelbag(anim.action_slot)
+    digest = hashlib.sha1()
+    for fc in sorted(bag.fcurves, key=lambda f: (f.data_path, f.array_index)):
+        digest.update(f"{fc.data_path}[{fc.array_index}]".encode())
+        points = fc.keyframe_points
+        for prop, width, dtype in (("co", 2, np.float32), ("handle_left", 2, np.float32),
+                                   ("handle_right", 2, np.float32),
+                                   ("interpolation", 1, np.int32),
+                                   ("handle_left_type", 1, np.int32),
+                                   ("handle_right_type", 1, np.int32), ("easing", 1, np.int32),
+                                   ("type", 1, np.int32)):
+            array = np.empty(len(points) * width, dtype=dtype)
+            points.foreach_get(prop, array)
+            digest.update(array.tobytes())
+    return digest.hexdigest()
 
 
 def run_child(zip_path, args, profile=False):
@@ -169,6 +197,7 @@ def main():
     inner = {"a": [], "b": []}
     wall = {"a": [], "b": []}
     ratios = []
+    digests = {"a": set(), "b": set()}
     for r in range(args.rounds):
         order = ("a", "b") if r % 2 == 0 else ("b", "a")
         med = {}
@@ -177,6 +206,7 @@ def main():
             cpu[side] += t["cpu_s"]
             wall[side] += t["wall_s"]
             inner[side] += t["predict_walk_cpu_s"]
+            digests[side].add(t["keys_sha1"])
             med[side] = statistics.median(t["cpu_s"])
         ratios.append(med["b"] / med["a"])
         print(f"round {r + 1}: A {med['a']:.3f} s, B {med['b']:.3f} s CPU (B/A "
@@ -188,7 +218,9 @@ def main():
               "wall_median_s": {s: statistics.median(wall[s]) for s in wall},
               "cpu_min_s": {s: min(cpu[s]) for s in cpu},
               "predict_walk_cpu_median_s": {s: statistics.median(inner[s]) for s in inner},
-              "ratio_b_over_a_median": statistics.median(ratios), "round_ratios": ratios}
+              "ratio_b_over_a_median": statistics.median(ratios), "round_ratios": ratios,
+              "keys_sha1": {s: sorted(digests[s]) for s in digests},
+              "same_keys": digests["a"] == digests["b"] and len(digests["a"]) == 1}
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     Path(args.output).write_text(json.dumps(result, indent=1))
     print(f"A {result['a']}: CPU median {result['cpu_median_s']['a']:.3f} s (least "
@@ -199,7 +231,8 @@ def main():
           f"per-round B/A median {result['ratio_b_over_a_median']:.3f} "
           f"(range {min(ratios):.3f}-{max(ratios):.3f}); of it predict_walk: A "
           f"{result['predict_walk_cpu_median_s']['a'] * 1e3:.0f} ms, B "
-          f"{result['predict_walk_cpu_median_s']['b'] * 1e3:.0f} ms (CPU medians)")
+          f"{result['predict_walk_cpu_median_s']['b'] * 1e3:.0f} ms (CPU medians); keys "
+          f"{'identical' if result['same_keys'] else 'DIFFERENT'} (SHA-1 of every key)")
 
 
 if __name__ == "__main__":

@@ -329,16 +329,63 @@ def ekf_predict(x, P, Q):
             np.array([[a + Q[0, 0], a + b + Q[0, 1]], [a + b + Q[1, 0], a + 2 * b + c + Q[1, 1]]]))
 
 
+class _Scratch:
+    """Preallocated arrays of :func:`_update` for one weight layout (P or P+1 GP rows, Dc
+    channels): the same operations as :func:`_kernel_pair` and the products after it, written
+    into these arrays instead of fresh ones (the batch EM runs about 1000 updates per call;
+    the allocations and the tuple conversion were a third of each)."""
+
+    __slots__ = ("weights", "query", "rows", "exponent", "kernel", "pair", "linear", "both",
+                 "innovation", "both_t", "gram")
+
+    def __init__(self, weights, n_channels):
+        m = weights.shape[1] // 5
+        self.weights = weights
+        self.query = np.ones(3)                           # [cos φ, sin φ, 1]
+        self.rows = np.empty(5 * m)
+        self.exponent = self.rows[:m]
+        self.pair = self.rows[m:3 * m].reshape(2, m)
+        self.linear = self.rows[3 * m:].reshape(2, m)
+        self.kernel = np.empty(m)
+        self.both = np.empty((2, n_channels))
+        self.innovation = self.both[0]
+        self.both_t = self.both.T
+        self.gram = np.empty((2, 2))
+
+
+def _scratch(ctx, alpha_comb):
+    """The :class:`_Scratch` of ``alpha_comb``'s layout, cached on the context."""
+    key = ("scratch", alpha_comb.shape)
+    scratch = ctx._cache.get(key)
+    if scratch is None:
+        weights = ctx._pair_weights if len(alpha_comb) == ctx.n_phases \
+            else ctx._pair_weights_one
+        scratch = ctx._cache[key] = _Scratch(weights, alpha_comb.shape[1])
+    return scratch
+
+
 def _update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
     """Scalar core of :func:`ekf_update`: floats, the squared innovation ``eᵀe``, the number of
     channels used and the index of a channel left out as an outlier (-1: none)."""
+    return _update_in(_scratch(ctx, alpha_comb), ctx, w_pred, phi_pred, a, b, c, y, alpha_comb)
+
+
+def _update_in(s, ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
+    """:func:`_update` with the scratch arrays ``s`` of ``alpha_comb``'s layout (``_scratch``)."""
     # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19: H = [0, g]); with the offset b as a last row of alpha_comb
-    # (P+1 rows, :mod:`.online`) the first row is μ(x⁻) w + b
-    pair = ctx.kernel_pair(phi_pred) if len(alpha_comb) == ctx.n_phases \
-        else ctx.kernel_pair_one(phi_pred)
-    both = pair @ alpha_comb
-    np.subtract(y, both[0], out=both[0])           # innovation e = y - μ(x⁻) w (eq. 21)
-    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    # (P+1 rows, :mod:`.online`) the first row is μ(x⁻) w + b. ctx.kernel_pair(_one)'s
+    # operations, in the context's scratch arrays (tests/core/test_gait_ekf.py checks them
+    # against kernel_pair bit for bit).
+    query = s.query
+    query[0] = math.cos(phi_pred)
+    query[1] = math.sin(phi_pred)
+    np.dot(query, s.weights, out=s.rows)
+    np.exp(s.exponent, out=s.kernel)
+    np.multiply(s.pair, s.kernel, out=s.pair)
+    np.add(s.pair, s.linear, out=s.pair)
+    both = np.matmul(s.pair, alpha_comb, out=s.both)
+    np.subtract(y, s.innovation, out=s.innovation)  # innovation e = y - μ(x⁻) w (eq. 21)
+    (ee, ge), (_, gg) = np.matmul(both, s.both_t, out=s.gram).tolist()
     cols = None
     if not math.isfinite(ee):                      # missing channels (NaN): drop them
         cols = np.flatnonzero(np.isfinite(both[0]))
@@ -464,12 +511,13 @@ def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     total = 0.0
     rows = []                                   # per frame: ω, φ, a, b, c, squared innovation
     outliers = []
+    scratch = _scratch(ctx, comb)
     for t in range(n):
         if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
             phi = phi + omega
             a, b, c = a + q00, a + b + q01, a + 2 * b + c + q11
-        omega, phi, a, b, c, loglik, ee, count, outlier = _update(ctx, omega, phi, a, b, c,
-                                                                  ys[t], comb)
+        omega, phi, a, b, c, loglik, ee, count, outlier = _update_in(scratch, ctx, omega, phi,
+                                                                     a, b, c, ys[t], comb)
         total += loglik
         rows.append((omega, phi, a, b, c, ee / max(count, 1)))
         outliers.append(outlier)

@@ -106,14 +106,50 @@ class GridResult:
                 for i, j in idx[order]]
 
 
+_MODEL_TABLES = "_phase_tables_by_channels"   # the model's cache of the tables (read-only)
+_MODEL_TABLES_SIZE = 8
+
+
+def _model_tables(ctx):
+    """The tables' cache on the context's model: they depend only on the model's GP and the
+    observed channels (not on the frame rate or the priors), and a model is immutable (its
+    arrays are read-only), so every context of the same model and channels shares them
+    (Predict Gait builds a context per call: the tables cost about 3 ms each time)."""
+    store = ctx.model.__dict__.setdefault(_MODEL_TABLES, {})
+    if len(store) > _MODEL_TABLES_SIZE:
+        store.clear()
+    return store
+
+
 def phase_tables(ctx):
     """``μ`` (N_TABLE, J, Dc) and ``μμᵀ`` (N_TABLE, J, J) on the phases ``2π i / N_TABLE``,
-    cached on the context."""
+    read-only, cached on the context and on its model (per channel set)."""
     cached = getattr(ctx, "_phase_tables", None)
     if cached is None:
-        mu = ctx.means(2.0 * np.pi * np.arange(N_TABLE) / N_TABLE)
-        cached = (mu, np.einsum("tjd,tkd->tjk", mu, mu))
+        store = _model_tables(ctx)
+        key = ("tables", tuple(ctx.channels.tolist()))
+        cached = store.get(key)
+        if cached is None:
+            mu = ctx.means(2.0 * np.pi * np.arange(N_TABLE) / N_TABLE)
+            cached = (mu, np.einsum("tjd,tkd->tjk", mu, mu))
+            for array in cached:
+                array.setflags(write=False)
+            store[key] = cached
         object.__setattr__(ctx, "_phase_tables", cached)
+    return cached
+
+
+def _upper_table(ctx, mtm, ok):
+    """``μμᵀ``'s upper-triangle columns (N_TABLE, J(J+1)/2) and the triangle's indices; cached
+    with the tables when every channel is scored (``ok`` all true)."""
+    key = ("upper", tuple(ctx.channels.tolist()))
+    store = _model_tables(ctx) if ok.all() else {}
+    cached = store.get(key)
+    if cached is None:
+        triangle = np.triu_indices(mtm.shape[1])
+        cached = (np.ascontiguousarray(mtm[:, triangle[0], triangle[1]]), triangle)
+        cached[0].setflags(write=False)
+        store[key] = cached
     return cached
 
 
@@ -182,16 +218,22 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
         cells = np.arange(n_omega * n_phi)[:, None] * N_TABLE
         visits = np.bincount((cells + idx.reshape(n_omega * n_phi, k_frames)).ravel(),
                              minlength=n_omega * n_phi * N_TABLE)
-        a_sum = (visits.reshape(n_omega * n_phi, N_TABLE).astype(float)
-                 @ mtm.reshape(N_TABLE, n_bases * n_bases)).reshape(n_omega, n_phi, n_bases,
-                                                                    n_bases)
+        # μμᵀ is symmetric (the same products summed in the same order for (j, k) and
+        # (k, j)): the product is taken for the upper triangle's columns only and mirrored,
+        # each column the product of the same two vectors as in the full product.
+        upper, triangle = _upper_table(ctx, mtm, ok)
+        half = visits.reshape(n_omega * n_phi, N_TABLE).astype(float) @ upper
+        a_sum = np.empty((n_omega, n_phi, n_bases, n_bases))
+        a_sum[:, :, triangle[0], triangle[1]] = half.reshape(n_omega, n_phi, -1)
+        a_sum[:, :, triangle[1], triangle[0]] = half.reshape(n_omega, n_phi, -1)
     # Σ over frames of μᵀy: each frame's own projection row at the candidate's phase, added
     # frame by frame in frame order (as a sum over the frame axis adds them) without gathering
     # the whole (nω, nφ, K, J) array first (the gather cost 5-10 ms of Predict Gait).
     proj = proj.reshape(k_frames, N_TABLE, n_bases)
-    b_sum = np.take(proj[0], idx[:, :, 0], axis=0)                         # (nω, nφ, J)
+    by_frame = np.ascontiguousarray(idx.transpose(2, 0, 1))               # (K, nω, nφ)
+    b_sum = np.take(proj[0], by_frame[0], axis=0)                          # (nω, nφ, J)
     for frame in range(1, k_frames):
-        b_sum += np.take(proj[frame], idx[:, :, frame], axis=0)
+        b_sum += np.take(proj[frame], by_frame[frame], axis=0)
     yy = float(np.sum(ys * ys))
     r = ctx.r
     prec = ctx.w_prec
@@ -228,9 +270,17 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=RE
     t_mid = 0.5 * (len(ys) - 1)
     x = np.array([np.log(omega), phi0 + omega * t_mid])          # (log ω, φ at the middle)
 
+    scored = {}
+
     def score(p):
-        om = float(np.exp(p[0]))
-        return _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy, offset_prec)
+        # A point scored before (the downhill step is the neighbour just scored; a vertex at
+        # 0 is the point itself) is not scored again: the same inputs give the same score.
+        key = tuple(p.tolist())
+        if key not in scored:
+            om = float(np.exp(p[0]))
+            scored[key] = _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy,
+                                     offset_prec)
+        return scored[key]
 
     best = score(x)
     steps = np.array([log_step, phi_step])

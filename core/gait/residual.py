@@ -115,10 +115,15 @@ def residual_values(beta, phis, residuals, query, ratio=DEFAULT_RESIDUAL_RATIO):
     if ok.all():
         coef = np.linalg.solve(feats.T @ feats + np.diag(ridge), feats.T @ res)
     else:
-        # One solve per distinct pattern of observed frames.
-        patterns, inverse = np.unique(ok.T, axis=0, return_inverse=True)
-        for k, pattern in enumerate(patterns):
-            cols = np.nonzero(inverse.reshape(-1) == k)[0]
+        # One solve per distinct pattern of observed frames (grouped by the pattern's bytes:
+        # the same groups, each in channel order, as np.unique(ok.T, axis=0) gives, without
+        # its sort; the groups' order does not matter, each solve fills its own columns).
+        groups = {}
+        for c, row in enumerate(np.ascontiguousarray(ok.T)):
+            groups.setdefault(row.tobytes(), []).append(c)
+        for members in groups.values():
+            cols = np.array(members)
+            pattern = ok[:, members[0]]
             f = feats[pattern]
             coef[:, cols] = np.linalg.solve(f.T @ f + np.diag(ridge), f.T @ res[pattern][:, cols])
     return out_feats @ coef

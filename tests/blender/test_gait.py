@@ -503,6 +503,92 @@ def test_restyle_by_named_styles_into_a_new_action(scene, tmp_path):
     assert angle_rms(written[:, 3:], expected[:, 3:]) < 1e-5
 
 
+def _insert_keys_preserving_as_before(fcurves, bag, data_path, index, frames, values):
+    """``insert_keys_preserving`` as it was before stop 39 (the full |Δframe| table, the
+    keys' frames read again after the sort), for the comparison below."""
+    fcurve = bag.fcurves.find(data_path, index=index)
+    points = fcurve.keyframe_points
+    geometry = ("co", "handle_left", "handle_right")
+    old = fcurves._keyframe_state(points, only=geometry)
+    old_frames = old["co"][:, 0].astype(np.float64)
+    keep = np.min(np.abs(frames[:, None] - old_frames[None, :]), axis=1) > 1e-4
+    frames, values = frames[keep], values[keep]
+    if len(frames) == 0:
+        return 0
+    points.add(len(frames))
+    co = np.concatenate([old["co"], np.stack([frames, values], axis=1).astype(np.float32)])
+    points.foreach_set("co", co.reshape(-1))
+    fcurve.update()
+    new_state = fcurves._keyframe_state(points, only=geometry)
+    positions = np.searchsorted(new_state["co"][:, 0], old["co"][:, 0])
+    for prop in ("handle_left", "handle_right"):
+        array = new_state[prop]
+        array[positions] = old[prop]
+        points.foreach_set(prop, array.reshape(-1))
+    return int(len(frames))
+
+
+def test_keys_inserted_after_and_between_the_user_s_keys_as_before(scene):
+    """``insert_keys_preserving`` finds the keys already there from each frame's two
+    neighbours and skips reading the frames again when every new key comes after the old
+    ones (stop 39): the curves it leaves are the ones the plain form left, bit for bit (every
+    key's co, handles, interpolation, handle types, easing), for new keys after the user's,
+    between them, on some of them, and for a curve whose keys are out of order."""
+    fcurves = bridge("common.fcurves")
+    obj = bpy.data.objects.new("keys", None)
+    scene.collection.objects.link(obj)
+    action, slot = fcurves.ensure_action(obj, "keys")
+    bag = fcurves.channelbag(action, slot, ensure=True)
+    rng = np.random.default_rng(7)
+    user = np.array([1.0, 2.0, 3.0, 5.0, 8.0, 9.0, 13.0, 21.0])
+    cases = [np.arange(22.0, 60.0),                            # after every user key
+             np.arange(0.0, 30.0, 0.5),                        # between and on them
+             np.array([4.0, 13.00002, 40.0, 6.5]),             # one within 1e-4 of a key
+             np.array([21.0, 3.0])]                            # only on keys: nothing added
+    for case, frames in enumerate(cases):
+        values = rng.normal(size=len(frames))
+        for unsorted in (False, True):
+            curves = []
+            for k in range(2):
+                path = f'["case{case}_{int(unsorted)}_{k}"]'
+                fcurves.write_new_fcurves(bag, [(path, 0, None)], user,
+                                          rng.normal(size=(len(user), 1)) if k == 0
+                                          else curves[0][1][:, None], "BEZIER")
+                fc = bag.fcurves.find(path, index=0)
+                points = fc.keyframe_points
+                if k == 0:
+                    kinds = np.array([fcurves.enum_value(bpy.types.Keyframe, "handle_left_type", t)
+                                      for t in ("FREE", "VECTOR", "AUTO_CLAMPED", "ALIGNED",
+                                                "AUTO", "FREE", "AUTO_CLAMPED", "VECTOR")],
+                                     dtype=np.int32)
+                    co = np.empty(2 * len(user), dtype=np.float32)
+                    points.foreach_get("co", co)
+                    curves.append((kinds, co[1::2].astype(float)))
+                kinds = curves[0][0]
+                points.foreach_set("handle_left_type", kinds)
+                points.foreach_set("handle_right_type", kinds)
+                fc.update()
+                handles = np.array(fcurves._keyframe_state(points)["handle_left"])
+                handles[0] += (0.3, -0.2)                                  # a FREE handle moved
+                points.foreach_set("handle_left", handles.reshape(-1))
+                if unsorted:                                               # out of order, as
+                    co = np.empty(2 * len(user), dtype=np.float32)         # a script can leave
+                    points.foreach_get("co", co)
+                    co = co.reshape(-1, 2)[::-1].copy()
+                    points.foreach_set("co", co.reshape(-1))
+                curves.append(fc)
+            fast, plain = curves[1], curves[2]
+            assert all(fcurves.keyframe_state(fast)[p].tobytes() ==
+                       fcurves.keyframe_state(plain)[p].tobytes() for p in ("co", "handle_left"))
+            n = fcurves.insert_keys_preserving(bag, fast.data_path, 0, None, frames, values)
+            n_plain = _insert_keys_preserving_as_before(fcurves, bag, plain.data_path, 0,
+                                                        frames, values)
+            assert n == n_plain == len(frames) - {0: 0, 1: 8, 2: 1, 3: 2}[case]
+            a, b = fcurves.keyframe_state(fast), fcurves.keyframe_state(plain)
+            for prop in a:
+                assert a[prop].tobytes() == b[prop].tobytes(), (case, unsorted, prop)
+
+
 def test_new_action_copies_the_observed_keys_with_their_types_and_easing(scene, tmp_path):
     learn_from_files()
     obj = import_observed(tmp_path)

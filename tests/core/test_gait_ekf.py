@@ -212,6 +212,68 @@ def test_an_outlier_channel_is_left_out_like_a_missing_one(ctx):
         make_context(model, outlier_ratio=0.0)
 
 
+def test_the_scratch_arrays_compute_what_fresh_arrays_did(ctx):
+    """``_update`` writes the kernel pair and its products into arrays cached on the context:
+    the same operations as the plain form, so every output equals the plain form's bit for
+    bit, for the style weights (P rows) and with the offset row (P + 1), alternating the two
+    layouts, with a missing and an outlier channel, and the scratch's contents never leak into
+    the next update."""
+    model = small_model()
+    y0 = observations("35_05")[40] / ctx.scale
+    plain = ctx.combine(model.styles[2])
+    with_offset = np.vstack([plain, np.full(plain.shape[1], 0.01)])
+    rng = np.random.default_rng(3)
+    missing = y0.copy()
+    missing[5] = np.nan
+    glitch = ctx.kernel_pair(2.0)[0] @ plain + 0.02     # close to the model at φ = 2 ...
+    glitch[40] += 0.95 * np.pi                          # ... but one channel half a turn off
+    left_out = set()
+    for phi, y, comb in [(0.3, y0, plain), (2.0, y0, with_offset), (4.1, missing, plain),
+                         (2.0, glitch, plain), (1.1, y0 + 0.01 * rng.normal(size=len(y0)),
+                                                      plain), (2.0, glitch, with_offset)]:
+        a, b, c = 1e-4, 2e-5, 0.04
+        out = _update(ctx, 0.09, phi, a, b, c, y, comb)
+        assert out == _update_with_fresh_arrays(ctx, 0.09, phi, a, b, c, y, comb)
+        left_out.add(out[8] >= 0)
+    assert left_out == {True, False}
+
+
+def _update_with_fresh_arrays(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
+    """``_update`` as it was before stop 39 (fresh arrays), for the comparison above."""
+    pair = ctx.kernel_pair(phi_pred) if len(alpha_comb) == ctx.n_phases \
+        else ctx.kernel_pair_one(phi_pred)
+    both = pair @ alpha_comb
+    np.subtract(y, both[0], out=both[0])
+    (ee, ge), (_, gg) = (both @ both.T).tolist()
+    cols = None
+    if not math.isfinite(ee):
+        cols = np.flatnonzero(np.isfinite(both[0]))
+        both = both[:, cols]
+        (ee, ge), (_, gg) = (both @ both.T).tolist()
+    n = both.shape[1]
+    r = ctx.r
+    outlier = -1
+    if ee > ctx.outlier_gate * n * r and n > 1:
+        e2 = both[0] * both[0]
+        k = int(e2.argmax())
+        if e2[k] > ctx.outlier_ratio * (ee - e2[k]):
+            outlier = k if cols is None else int(cols[k])
+            both = np.delete(both, k, axis=1)
+            (ee, ge), (_, gg) = (both @ both.T).tolist()
+            n -= 1
+    det = a * c - b * b
+    ia, ib, ic = c / det, -b / det, a / det + gg / r
+    det_i = ia * ic - ib * ib
+    pa, pb, pc = ic / det_i, -ib / det_i, ia / det_i
+    s = ge / r
+    omega = min(max(w_pred + pb * s, ctx.omega_min), ctx.omega_max)
+    phi = (phi_pred + pc * s) % (2.0 * math.pi)
+    one = 1.0 + c * gg / r
+    loglik = -0.5 * (n * math.log(2.0 * math.pi * r) + math.log(one) + ee / r
+                     - c * ge * ge / (r * r * one))
+    return omega, phi, pa, pb, pc, loglik, ee, n, outlier
+
+
 def test_outputs_stay_defined_for_wild_observations(ctx):
     w = small_model().styles[0]
     x, p, loglik = ekf_update(ctx, [0.1, 1.0], np.diag([1e-3, 1.0]), np.full(63, 1e6), w)

@@ -90,6 +90,36 @@ def test_every_grid_cell_scores_as_the_single_candidate_does():
                 np.testing.assert_allclose(w, grid.styles[i, j], rtol=1e-8, atol=1e-10)
 
 
+def test_the_tables_are_shared_by_the_model_s_contexts_and_a_missing_channel_is_left_out():
+    """The phase tables (and the grid's upper triangle of μμᵀ) are computed once per model
+    and channel set and shared, read-only, by every context of it (stop 39: Predict Gait
+    builds a context per call); a context of other channels gets its own. A window with a
+    channel missing in one frame scores as the window without that channel does."""
+    model = small_model()
+    a, b = make_context(model), make_context(model, fps=50.0)
+    mu, mtm = phase_tables(a)
+    assert phase_tables(b)[0] is mu and phase_tables(b)[1] is mtm
+    assert not mu.flags.writeable and not mtm.flags.writeable
+    fresh = a.means(2.0 * np.pi * np.arange(N_TABLE) / N_TABLE)
+    np.testing.assert_array_equal(mu, fresh)
+    names = model.channel_names[:3] + model.channel_names[4:]
+    sub = make_context(model, channels=names)
+    assert phase_tables(sub)[0].shape == (N_TABLE, model.n_bases, len(names))
+    ys = observations("35_03")[:100] / a.scale
+    gap = ys.copy()
+    gap[17, 3] = np.nan
+    with_gap, without = grid_search(a, gap), grid_search(sub, np.delete(ys, 3, axis=1))
+    np.testing.assert_allclose(with_gap.costs, without.costs, rtol=1e-9)
+    np.testing.assert_allclose(with_gap.a_sum, without.a_sum, rtol=1e-12)
+    # the grid's μμᵀ sums are symmetric and equal the gathered rows' sums
+    full = grid_search(a, ys)
+    i, j = np.unravel_index(np.argmin(full.costs), full.costs.shape)
+    cells = np.rint((full.phis[j] + full.omegas[i] * np.arange(100)) * N_TABLE
+                    / (2 * np.pi)).astype(int) % N_TABLE
+    np.testing.assert_allclose(full.a_sum, mtm[cells].sum(axis=0), rtol=1e-12)
+    np.testing.assert_array_equal(full.a_sum, full.a_sum.T)
+
+
 @pytest.mark.parametrize("trial", ["35_03", "35_06"])
 def test_refined_start_hardly_moves_when_the_walker_holds_a_posture_offset(trial):
     """A walker whose mean pose is off by one prior standard deviation per channel (a rig read

@@ -53,6 +53,14 @@ def test_residual_values_equal_the_exact_gp_posterior_mean():
                                _exact_gp_mean(beta, phis[ok], res[ok, 1:2], query, 3.0)[:, 0],
                                rtol=1e-7, atol=1e-10)
     np.testing.assert_array_equal(got[:, 2], 0.0)
+    # Channels sharing a pattern of missing frames are solved together, each as if alone.
+    shared = np.hstack([holes, res[:, 1:2] * 2.0 - 0.1, res[:, :1]])
+    shared[::4, 3] = np.nan
+    together = residual_values(beta, phis, shared, query, 3.0)
+    np.testing.assert_allclose(together[:, :3], got, rtol=1e-12, atol=1e-14)
+    for c in range(shared.shape[1]):
+        alone = residual_values(beta, phis, shared[:, c:c + 1], query, 3.0)
+        np.testing.assert_allclose(together[:, c], alone[:, 0], rtol=1e-12, atol=1e-14)
     with pytest.raises(ValueError, match="ratio"):
         residual_values(beta, phis, res, query, 0.0)
     with pytest.raises(ValueError, match="residuals"):
