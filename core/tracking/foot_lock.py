@@ -30,7 +30,9 @@ is locked and the leg chain solved to keep it there:
 
 A leg whose bones turn about some axes only (``problem.dof_mask``: a mapped rig's hinge knee
 and untwisting foot, Table 1) is solved on those axes only (damped Gauss-Newton, the
-tracker's right perturbations), as close as they allow.
+tracker's right perturbations), as close as they allow; a hinge knee keeps the side it
+bends to in the tracked pose and is not straightened past ``MIN_KNEE_BEND`` (an ankle goal out
+of reach would carry it through straight into the mirror bend, which a rig's IK cannot take).
 """
 
 from dataclasses import dataclass
@@ -230,6 +232,24 @@ def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot
     return out
 
 
+#: Bend (radians) a hinge knee's lock does not straighten it past (unless tracked straighter):
+#: a rig's IK cannot tell which way a straight knee bends.
+MIN_KNEE_BEND = np.radians(5.0)
+
+
+def _knee_bend(rot, pos, chain, axis):
+    """Signed bend (M,) of a leg's knee about its hinge: the sine of the angle from the thigh
+    (hip → knee) to the shin (knee → ankle), positive about the shin's local ``axis`` in the
+    world (``rot``, ``pos``: forward kinematics (M, B, 3, 3), (M, B, 3); ``chain``: thigh,
+    shin, foot)."""
+    thigh, shin, foot = chain
+    u = pos[:, shin] - pos[:, thigh]
+    v = pos[:, foot] - pos[:, shin]
+    hinge = rot[:, shin, :, axis]
+    return np.einsum("ni,ni->n", np.cross(u, v), hinge) / (
+        np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+
+
 def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foot_goal,
                       iterations=12, reach=0.15):
     """As :func:`_solve_leg` for a leg whose bones turn about some axes only (``axes`` (3, 3)
@@ -249,6 +269,15 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
         return np.concatenate([ankle_goal - pos[:, foot], reach * world_turn], axis=1), rot, pos
 
     res, rot, pos = residual(out)
+    # A hinge knee (one free axis) keeps the side it bends to in the tracked pose: an ankle
+    # goal beyond the leg's reach pulls the knee straight, and the steps would carry it
+    # through straight into the mirror bend (the same reach), which a rig's IK knee cannot
+    # take (Rigify's IK leg keyed it as the thigh turned half a turn: docs/bench_rigs.md,
+    # *Stop 39*, Predict after tracking).
+    hinge = [a for a in range(3) if axes[1][a]]
+    bend0 = _knee_bend(rot, pos, chain, hinge[0]) if len(hinge) == 1 else np.zeros(len(rows))
+    side = np.sign(bend0)
+    least = np.minimum(np.abs(bend0), np.sin(MIN_KNEE_BEND))
     damping = np.full(len(rows), 1e-6)
     for _ in range(iterations):
         jac = np.zeros((len(rows), 6, len(cols)))
@@ -266,6 +295,8 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
             trial[:, b] = trial[:, b] @ exp_so3(turn)
         new_res, new_rot, new_pos = residual(trial)
         better = np.sum(new_res ** 2, 1) <= np.sum(res ** 2, 1)
+        if len(hinge) == 1:
+            better &= _knee_bend(new_rot, new_pos, chain, hinge[0]) * side >= least
         out[better], res[better] = trial[better], new_res[better]
         rot[better], pos[better] = new_rot[better], new_pos[better]
         damping = np.where(better, damping / 3.0, damping * 10.0)

@@ -262,3 +262,38 @@ def test_frames_kept_as_they_are_stay_bit_for_bit(skeleton):
     _, out, locks, _ = lock_feet(_problem(sk), [0, 15, 30], roots, local, FPS, keep=keep)
     np.testing.assert_array_equal(out[keep], local[keep])
     assert not np.array_equal(out[1:15], local[1:15])     # the other interval was locked
+
+
+def test_a_hinge_knee_is_not_straightened_through_or_past_its_least_bend(skeleton):
+    """The planted ankle out of the leg's reach (the body sways 8 cm away from the standing
+    foot): a hinge knee is straightened towards it but not past ``MIN_KNEE_BEND`` and never bent
+    the other way (the steps carried it through straight into the mirror bend, which a rig's
+    IK knee keyed as the thigh turned half a turn: Rigify IK, docs/bench_rigs.md, *Stop 39*).
+    Where the leg can reach, the foot is still pinned."""
+    sk = skeleton
+    roots, local = _clip(sk)
+    roots[:, 0] *= -1.0                      # the body sways away from the standing foot
+    mask = np.ones((sk.n_joints, 3), dtype=bool)
+    chain = [sk.index(n) for n in ("lfemur", "ltibia", "lfoot")]
+    mask[chain[1], 1:] = False
+    mask[chain[2], 1] = False
+    keys = [0, len(roots) - 1]
+    _, out, locks, _ = lock_feet(_problem(sk, mask), keys, roots, local, FPS)
+    assert [lk[:4] for lk in locks if lk[0] == "left"] == [("left", 0, len(roots) - 1, tuple(keys))]
+    rot, pos = forward_kinematics(sk, local, roots)
+    rot2, pos2 = forward_kinematics(sk, out, roots)
+    tracked = foot_lock._knee_bend(rot, pos, chain, 0)
+    locked = foot_lock._knee_bend(rot2, pos2, chain, 0)
+    assert np.all(tracked > np.sin(foot_lock.MIN_KNEE_BEND))
+    # Out of reach in the middle: the knee went as straight as allowed, on its own side.
+    hip_to_goal = np.linalg.norm(pos[0, chain[2]] - pos2[:, chain[0]], axis=1)
+    thigh = np.linalg.norm(pos[0, chain[1]] - pos[0, chain[0]])
+    shin = np.linalg.norm(pos[0, chain[2]] - pos[0, chain[1]])
+    assert hip_to_goal.max() > thigh + shin                 # beyond the straight leg
+    assert locked.min() >= np.sin(foot_lock.MIN_KNEE_BEND) - 1e-12
+    assert locked.min() < 1.5 * np.sin(foot_lock.MIN_KNEE_BEND)
+    # Within reach (near the keys) the ankle is pinned as before.
+    near = hip_to_goal < np.sqrt(thigh ** 2 + shin ** 2 + 2 * thigh * shin * np.cos(0.2))
+    assert near[1:-1].any()
+    err = np.linalg.norm(pos2[near, chain[2]] - pos[0, chain[2]], axis=1)
+    assert err.max() < 0.01
