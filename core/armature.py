@@ -190,18 +190,24 @@ def dofs_to_channels(skeleton, layout, dofs):
     out = np.zeros((len(dofs), len(layout.channels)))
     direct = layout.channel_dofs >= 0
     out[:, direct] = dofs[:, layout.channel_dofs[direct]] * layout.channel_signs[direct]
-    done = set()
+    done, by_mode = set(), {}
     for c, (name, path, index) in enumerate(layout.channels):
         i = skeleton.index(name)
         if path == "location":
             out[:, c] = translation @ layout.bone_rotations[0][:, index]
         elif layout.channel_dofs[c] < 0 and i not in done:
-            s = layout.joint2bone[i]
-            basis = s @ local[:, i] @ s.T
-            mode = layout.rotation_modes[i]
-            euler = make_euler_continuous(matrix_to_euler(basis, mode), mode)
-            out[:, c:c + 3] = euler
+            by_mode.setdefault(layout.rotation_modes[i], []).append((c, i))
             done.add(i)
+    # The decomposed bones of one rotation mode together (issue 21): the same element-wise
+    # arithmetic as one bone at a time, bit for bit (make_euler_continuous: a batch is made
+    # continuous sequence by sequence, each as alone).
+    for mode, bones in by_mode.items():
+        cols, joints = zip(*bones)
+        s = layout.joint2bone[list(joints)][:, None]                       # (B, 1, 3, 3)
+        basis = s @ np.swapaxes(local[:, list(joints)], 0, 1) @ np.swapaxes(s, -1, -2)
+        euler = make_euler_continuous(matrix_to_euler(basis, mode), mode)  # (B, N, 3)
+        for b, c in enumerate(cols):
+            out[:, c:c + 3] = euler[b]
     return out
 
 

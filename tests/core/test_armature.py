@@ -34,6 +34,39 @@ def blender_pose_heads(layout, channels):
     return out
 
 
+def _channels_one_bone_at_a_time(sk, layout, values):
+    """dofs_to_channels as it was before issue 21's batching: one decomposed bone at a time."""
+    from core.kinematics import make_euler_continuous, matrix_to_euler
+    translation, local = local_rotations_from_dofs(sk, values)
+    out = np.zeros((len(values), len(layout.channels)))
+    direct = layout.channel_dofs >= 0
+    out[:, direct] = values[:, layout.channel_dofs[direct]] * layout.channel_signs[direct]
+    done = set()
+    for c, (name, path, index) in enumerate(layout.channels):
+        i = sk.index(name)
+        if path == "location":
+            out[:, c] = translation @ layout.bone_rotations[0][:, index]
+        elif layout.channel_dofs[c] < 0 and i not in done:
+            s = layout.joint2bone[i]
+            mode = layout.rotation_modes[i]
+            out[:, c:c + 3] = make_euler_continuous(matrix_to_euler(s @ local[:, i] @ s.T, mode),
+                                                    mode)
+            done.add(i)
+    return out
+
+
+@pytest.mark.parametrize("trial", ["08_01", "35_17"])
+def test_channels_of_bones_batched_are_bit_for_bit_one_at_a_time(trial):
+    """The decomposed bones converted together give the bytes of one bone at a time."""
+    asf = read_asf(asf_path(trial))
+    sk = asf_to_skeleton(asf)
+    layout = armature_layout(sk)
+    values = read_amc(cmu_path(trial + ".amc"), asf).values
+    for rows in (values, values[:1], values[::7] + 0.4):
+        assert dofs_to_channels(sk, layout, rows).tobytes() == \
+            _channels_one_bone_at_a_time(sk, layout, rows).tobytes()
+
+
 @pytest.mark.parametrize("trial", ["08_01", "35_17"])
 def test_blender_evaluation_of_channels_reproduces_core_fk(trial):
     asf = read_asf(asf_path(trial))
