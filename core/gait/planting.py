@@ -20,7 +20,10 @@ legs instead (``docs/gait.md``, *Restyle and retime*):
   by ``exp(−height above the floor / 1 cm)`` (the lower foot dominates; both in double
   support). Frames with no foot within ``CONTACT_BAND`` of the floor (a run's flight) take the
   velocity interpolated between the neighbouring contacts (horizontal speed is constant in
-  flight).
+  flight). A run's landing (``travel_from_legs(..., landing=True)``, frames with a flight lift):
+  the foot that comes down carries only once it has stopped over the floor (its forward speed
+  over the floor, with the root at its take-off speed, within ``SWING_SPEED``); the frames
+  before are flight too, for the travel along the walk (the sideways sway stays the legs').
 * **Stance** (:func:`stance_targets`, :func:`pin_feet`): each stance foot is pinned on its spot
   by the legs' inverse kinematics, eased in and out over ``PIN_RAMP_S`` in the swing; in a walk
   a landing foot is held level (x, y) ``HOLD_LEVEL_S`` before it is held in height: it stops
@@ -130,7 +133,7 @@ def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames
     return required + lift, lift
 
 
-def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None):
+def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, landing=False):
     """Horizontal root velocities that keep the stance foot still (module docstring).
 
     Parameters
@@ -148,6 +151,14 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None):
     lift : array_like, shape (N + 1,), optional
         The flight part of the heights (:func:`grounded_heights`): a frame lifted by more than
         ``CONTACT_BAND`` is in flight, the feet are judged without the lift otherwise.
+    landing : bool
+        A run's landings (frames where ``lift`` is above 0; needs ``expected``): a foot that
+        comes down after a flight carries the walker only from the frame its forward speed
+        over the floor, with the root still at the speed it left the floor with, is within
+        ``SWING_SPEED``, or it stops slowing down (:func:`_landed`; until then it is still
+        swinging: not carrying, and the velocity along ``expected`` is interpolated across
+        those frames as across the flight, the sideways one stays the legs'). False, or no
+        lift anywhere: the velocities are :func:`legs_velocities`'s, bit for bit.
 
     Returns
     -------
@@ -157,10 +168,27 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None):
     carrying : ndarray, shape (N, F), bool
         Where each foot carries the walker (on the floor, and most of the weight).
     """
-    vel, share, above = legs_velocities(relative, heights, floor, fps, expected, lift)
+    if landing and lift is not None and expected is not None:
+        vel, share, above, contact = _raw_velocities(relative, heights, floor, fps, expected,
+                                                     lift)
+        lift = np.asarray(lift, dtype=float)
+        exp = np.asarray(expected, dtype=float)
+        norm = np.linalg.norm(exp, axis=-1, keepdims=True)
+        ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
+        along = np.sum(vel * ahead, axis=-1)
+        late = contact & ~_landed(along, contact, 0.5 * (lift[1:] + lift[:-1]) > 0.0)
+        landed = _interpolate_flight(vel.copy(), contact & ~late) if late.any() else None
+        _interpolate_flight(vel, contact)
+        if landed is not None:
+            # only the travel along the walk changes: the sideways sway stays the legs'
+            vel += np.sum((landed - vel) * ahead, axis=-1, keepdims=True) * ahead
+    else:
+        vel, share, above = legs_velocities(relative, heights, floor, fps, expected, lift)
+        late = np.zeros(len(vel), dtype=bool)
     # A foot carries the walker through its whole stance, a run's push-off included (the lift
-    # only decides how the root travels): the legs reach down to it (pin_feet).
-    carrying = (share > 0.5) & (above < CONTACT_BAND)
+    # only decides how the root travels): the legs reach down to it (pin_feet); not while it
+    # is still coming down at speed after a flight (landing).
+    carrying = (share > 0.5) & (above < CONTACT_BAND) & ~late[:, None]
     for f in range(carrying.shape[1]):                  # a stance is not broken by a frame
         carrying[:, f] = _close_gaps(carrying[:, f], MIN_STANCE_FRAMES)
     return vel, carrying
@@ -181,6 +209,14 @@ def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
     above : ndarray, shape (B…, N, F)
         Each foot's height above the floor (m, ≥ 0, the step's mean, lift removed).
     """
+    vel, share, above, contact = _raw_velocities(relative, heights, floor, fps, expected,
+                                                 lift)
+    return _interpolate_flight(vel, contact), share, above
+
+
+def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None):
+    """:func:`legs_velocities`'s (velocities, share, above) before the frames without
+    contact are interpolated, and the contact (B…, N) bool."""
     rel = np.asarray(relative, dtype=float)
     heights = np.asarray(heights, dtype=float)
     lift = np.zeros(heights.shape) if lift is None else np.asarray(lift, dtype=float)
@@ -208,13 +244,49 @@ def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
     share = weight / weight.sum(axis=-1)[..., None]
     vel = -np.einsum("...f,...fc->...c", share, step)
     contact = (above.min(axis=-1) < CONTACT_BAND) & ~airborne
-    frames = np.arange(step.shape[-3])
+    return vel, share, above, contact
+
+
+def _interpolate_flight(vel, contact):
+    """In place: each sequence's velocities (B…, N, 2) of the frames without contact
+    (B…, N) interpolated between its contact frames' (horizontal speed is constant in
+    flight); ``vel`` returned."""
+    frames = np.arange(vel.shape[-2])
     flat_vel = vel.reshape((-1,) + vel.shape[-2:])
     for v, c in zip(flat_vel, contact.reshape(-1, contact.shape[-1])):
         if c.any() and not c.all():
             for k in range(2):
                 v[:, k] = np.interp(frames, frames[c], v[c, k])
-    return flat_vel.reshape(vel.shape), share, above
+    return flat_vel.reshape(vel.shape)
+
+
+def _landed(along, contact, flying):
+    """(N,) bool: the contact frames (N,) where the foot down carries the walker, a run's
+    landings moved to where the landing foot has stopped.
+
+    In a frame where the walk may fly (``flying``) that follows one without contact, the
+    foot down implies the root speed ``along[i]`` (N, m/s, along the walk); with the root
+    still at the speed it left the floor with (the last contact's, constant in flight) that
+    foot still swings forward over the floor at ``along[last] − along[i]``. While that is
+    above ``SWING_SPEED`` and the foot is still slowing down (the implied speed rising), the
+    frame is flight: a run retimed past its data lands its foot still swinging forward
+    relative to the hips, and the root following it stopped dead and went on at 3 m/s within
+    a few frames (54 m/s² on CMU 07_04 at cadence 1.6, docs/gait.md, *Stop 39, runs*). A
+    landing foot that implies a faster root (pushing off at once), or a stance slower
+    throughout (a run slowing down), carries as before.
+    """
+    out = np.asarray(contact, dtype=bool).copy()
+    last = None
+    for i in range(len(out)):
+        if not out[i]:
+            continue
+        if last is not None and flying[i] and not out[i - 1] \
+                and along[last] - along[i] > SWING_SPEED \
+                and i + 1 < len(out) and along[i + 1] > along[i]:
+            out[i] = False
+            continue
+        last = i
+    return out
 
 
 def _close_gaps(mask, longest):

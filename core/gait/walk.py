@@ -407,7 +407,11 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # forward while it was still the lower one kept carrying: the root jumped 1 m/s at the
     # change of foot and the landing foot slid 3 cm (docs/gait.md, *The three misses*).
     expected = _walking_sense(reference, rx, frame, fps) * heading_directions(mid, frame)[0]
-    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift)
+    # A run's landing foot carries from where it has stopped over the floor (planting's
+    # `landing`: a run retimed past its data lands its foot still swinging forward, and the
+    # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
+    # runs*). Without a flight lift (a walk below FLIGHT_FROUDE) nothing changes.
+    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
