@@ -190,18 +190,24 @@ def dofs_to_channels(skeleton, layout, dofs):
     out = np.zeros((len(dofs), len(layout.channels)))
     direct = layout.channel_dofs >= 0
     out[:, direct] = dofs[:, layout.channel_dofs[direct]] * layout.channel_signs[direct]
-    done = set()
+    done, by_mode = set(), {}
     for c, (name, path, index) in enumerate(layout.channels):
         i = skeleton.index(name)
         if path == "location":
             out[:, c] = translation @ layout.bone_rotations[0][:, index]
         elif layout.channel_dofs[c] < 0 and i not in done:
-            s = layout.joint2bone[i]
-            basis = s @ local[:, i] @ s.T
-            mode = layout.rotation_modes[i]
-            euler = make_euler_continuous(matrix_to_euler(basis, mode), mode)
-            out[:, c:c + 3] = euler
+            by_mode.setdefault(layout.rotation_modes[i], []).append((c, i))
             done.add(i)
+    # The decomposed bones of one rotation mode together (issue 21): the same element-wise
+    # arithmetic as one bone at a time, bit for bit (make_euler_continuous: a batch is made
+    # continuous sequence by sequence, each as alone).
+    for mode, bones in by_mode.items():
+        cols, joints = zip(*bones)
+        s = layout.joint2bone[list(joints)][:, None]                       # (B, 1, 3, 3)
+        basis = s @ np.swapaxes(local[:, list(joints)], 0, 1) @ np.swapaxes(s, -1, -2)
+        euler = make_euler_continuous(matrix_to_euler(basis, mode), mode)  # (B, N, 3)
+        for b, c in enumerate(cols):
+            out[:, c:c + 3] = euler[b]
     return out
 
 
@@ -258,20 +264,26 @@ def channels_to_dofs(skeleton, layout, channels):
     out = np.zeros((len(values), skeleton.n_dofs))
     direct = layout.channel_dofs >= 0
     out[:, layout.channel_dofs[direct]] = values[:, direct] * layout.channel_signs[direct]
-    done = set()
+    done, groups = set(), {}
     for c, (name, path, index) in enumerate(layout.channels):
         i = skeleton.index(name)
         if path == "location" and index == 0:
             out[:, :3] = values[:, c:c + 3] @ layout.bone_rotations[0].T
         elif path == "rotation_euler" and layout.channel_dofs[c] < 0 and i not in done:
-            s = layout.joint2bone[i]
-            basis = euler_to_matrix(values[:, c:c + 3], layout.rotation_modes[i])
-            local = s.T @ basis @ s
             order = "".join(_LETTERS[a] for a in _full_order(skeleton.dof_axes[i]))
-            euler = make_euler_continuous(matrix_to_euler(local, order), order)
-            cols = np.nonzero((joint == i) & ~is_trans)[0]
-            out[:, cols] = euler[:, axis[cols]]
+            groups.setdefault((layout.rotation_modes[i], order), []).append((c, i))
             done.add(i)
+    # The decomposed bones of one rotation mode and DOF order together (issue 21), bit for bit
+    # as one bone at a time (as in dofs_to_channels).
+    for (mode, order), bones in groups.items():
+        cols, joints = zip(*bones)
+        s = layout.joint2bone[list(joints)][:, None]                       # (B, 1, 3, 3)
+        angles = np.stack([values[:, c:c + 3] for c in cols])              # (B, N, 3)
+        local = np.swapaxes(s, -1, -2) @ euler_to_matrix(angles, mode) @ s
+        euler = make_euler_continuous(matrix_to_euler(local, order), order)
+        for b, i in enumerate(joints):
+            dof = np.nonzero((joint == i) & ~is_trans)[0]
+            out[:, dof] = euler[b][:, axis[dof]]
     return out
 
 

@@ -380,28 +380,47 @@ def _co(fcurve):
     return co.reshape(-1, 2)
 
 
-def _keys_digest(bag, targets, first, last):
-    """SHA-1 of the keys (frame, value) in [first, last] of the target F-curves."""
+class _KeyReads:
+    """The (K, 2) float32 keys (frame, value) of a bag's F-curves, each curve read once
+    (``_co``) and kept: one call's checks read the same curves before it writes anything
+    (issue 21). Not for after a write: build a new one, or call ``_co`` directly."""
+
+    def __init__(self, bag):
+        self.bag = bag
+        self._read = {}
+
+    def __call__(self, path, index):
+        """The F-curve's keys, shape (K, 2), or None when the bag has no such curve."""
+        key = (path, index)
+        if key not in self._read:
+            fcurve = self.bag.fcurves.find(path, index=index)
+            self._read[key] = None if fcurve is None else _co(fcurve)
+        return self._read[key]
+
+
+def _keys_digest(bag, targets, first, last, keys=None):
+    """SHA-1 of the keys (frame, value) in [first, last] of the target F-curves (``keys``: a
+    :class:`_KeyReads` of ``bag`` made since its last change, else the curves are read)."""
+    keys = _KeyReads(bag) if keys is None else keys
     digest = hashlib.sha1()
     for path, index, _ in targets:
-        fcurve = bag.fcurves.find(path, index=index)
-        if fcurve is None:
+        co = keys(path, index)
+        if co is None:
             continue
-        co = _co(fcurve)
         inside = (co[:, 0] >= first - 1e-4) & (co[:, 0] <= last + 1e-4)
         digest.update(f"{path}[{index}]".encode())
         digest.update(np.ascontiguousarray(co[inside]).tobytes())
     return digest.hexdigest()
 
 
-def intact_prediction(bag, grig, action):
+def intact_prediction(bag, grig, action, keys=None):
     """The record of the object's earlier prediction on ``action`` when its keys are still as
     written (the animator has not changed them), else None."""
     rec = _record(action, grig.obj)
     if rec is None:
         return None
     first, last = rec["frames"]
-    return rec if _keys_digest(bag, grig.targets(), first, last) == rec["digest"] else None
+    return rec if _keys_digest(bag, grig.targets(), first, last, keys) == rec["digest"] else None
 
 
 def _store_record(action, obj, observed, frames, digest):
@@ -438,15 +457,16 @@ def _remove_keys(bag, targets, first, last):
         fcurve.update()
 
 
-def _conflicts(bag, targets, first, last, ignore=None):
+def _conflicts(bag, targets, first, last, ignore=None, keys=None):
     """Number of target F-curves with keys in [first, last] (keys in ``ignore`` = (a, b), an
-    earlier prediction about to be replaced, do not count)."""
+    earlier prediction about to be replaced, do not count; ``keys`` as in ``_keys_digest``)."""
+    keys = _KeyReads(bag) if keys is None else keys
     count = 0
     for path, index, _ in targets:
-        fcurve = bag.fcurves.find(path, index=index)
-        if fcurve is None or len(fcurve.keyframe_points) == 0:
+        co = keys(path, index)
+        if co is None or len(co) == 0:
             continue
-        co = _co(fcurve)[:, 0]
+        co = co[:, 0]
         hit = (co >= first - 1e-4) & (co <= last + 1e-4)
         if ignore is not None:
             hit &= ~((co >= ignore[0] - 1e-4) & (co <= ignore[1] + 1e-4))
@@ -454,26 +474,28 @@ def _conflicts(bag, targets, first, last, ignore=None):
     return count
 
 
-def _count_keys(bag, targets, first, last):
+def _count_keys(bag, targets, first, last, keys=None):
+    keys = _KeyReads(bag) if keys is None else keys
     total = 0
     for path, index, _ in targets:
-        fcurve = bag.fcurves.find(path, index=index)
-        if fcurve is not None and len(fcurve.keyframe_points):
-            co = _co(fcurve)[:, 0]
+        co = keys(path, index)
+        if co is not None and len(co):
+            co = co[:, 0]
             total += int(np.sum((co >= first - 1e-4) & (co <= last + 1e-4)))
     return total
 
 
 # ------------------------------------------------------------------------------ predict
-def _observed_range(grig, scene, options, bag, record):
+def _observed_range(grig, scene, options, bag, record, keys=None):
     """(first, last) frames to observe: the keyed range up to an intact earlier prediction
-    (which is replaced, not observed), the scene's, or the custom one."""
+    (which is replaced, not observed), the scene's, or the custom one (``keys`` as in
+    ``_keys_digest``)."""
+    keys = _KeyReads(bag) if keys is None else keys
     obj = grig.obj
     if options.range_mode == "ACTION":
-        lo, _ = keyed_range(grig)
+        lo, hi = keyed_range(grig, keys)
         first = int(np.ceil(lo - 1e-4))
-        last = record["observed"][1] if record is not None else \
-            int(np.floor(keyed_range(grig)[1] + 1e-4))
+        last = record["observed"][1] if record is not None else int(np.floor(hi + 1e-4))
     else:
         first, last = frame_range(grig, scene, options.range_mode, options.frame_start,
                                   options.frame_end)
@@ -484,7 +506,7 @@ def _observed_range(grig, scene, options, bag, record):
                             f"Keyed Range to replace that prediction")
     if last <= first:
         raise GaitError(f"The frame range {first}–{last} of {obj.name} is empty")
-    if _count_keys(bag, grig.reads(), first, last) == 0:
+    if _count_keys(bag, grig.reads(), first, last, keys) == 0:
         raise GaitError(f"Frames {first}–{last} of {obj.name} hold no keys on the bones the gait "
                         f"model reads: key or import a few steps of the walk there first")
     fps = scene_fps(scene)
@@ -495,13 +517,14 @@ def _observed_range(grig, scene, options, bag, record):
     return first, last
 
 
-def _check_target(obj, grig, options, bag, frames, record):
-    """Refusals about the keys the prediction would write (After Observed)."""
+def _check_target(obj, grig, options, bag, frames, record, keys=None):
+    """Refusals about the keys the prediction would write (After Observed; ``keys`` as in
+    ``_keys_digest``)."""
     anim = obj.animation_data
     if options.target != "AFTER":
         return
     ignore = tuple(record["frames"]) if record is not None else None
-    clash = _conflicts(bag, grig.targets(), frames[0], frames[-1], ignore)
+    clash = _conflicts(bag, grig.targets(), frames[0], frames[-1], ignore, keys)
     if clash:
         raise GaitError(f"Frames {frames[0]}–{frames[-1]} already hold keys on {clash} "
                         f"F-curves of {anim.action.name}: choose Target › New Action, a shorter "
@@ -550,8 +573,11 @@ def predict_gait(context, obj, options):
     cols = _model_columns(model, grig)
     bag = _action_bag(obj)                               # refuses an armature without action
     action = obj.animation_data.action
-    record = intact_prediction(bag, grig, action)
-    first, last = _observed_range(grig, scene, options, bag, record)
+    # The checks before the writes read each curve's keys once (nothing changes them until the
+    # writes; the digest stored after writing reads the written curves afresh).
+    keys = _KeyReads(bag)
+    record = intact_prediction(bag, grig, action, keys)
+    first, last = _observed_range(grig, scene, options, bag, record, keys)
     dofs, residual = read_dofs(grig, np.arange(first, last + 1), model_hold(model, grig),
                                residual=True)
     model_dofs = dofs[:, cols]
@@ -578,7 +604,7 @@ def predict_gait(context, obj, options):
                         "earlier frames")
     frames = last + np.arange(1, n + 1)
     if options.target == "AFTER":
-        _check_target(obj, grig, options, bag, frames, record)
+        _check_target(obj, grig, options, bag, frames, record, keys)
     try:
         request = walk_request(model, options, walker, fps)
         walk = predict_walk(model, grig.skeleton, dofs, fps, walker.state, walker.w, n, request,

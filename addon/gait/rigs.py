@@ -354,14 +354,21 @@ def read_current(grig, hold=None):
     return grig.space.dofs(*grig.mapped.current_pose(), hold=hold)[0]
 
 
-def keyed_range(grig):
-    """(first, last) keyed frame over the F-curves the rig reads; :class:`GaitError` if none."""
-    bag = _action_bag(grig.obj)
+def keyed_range(grig, keys=None):
+    """(first, last) keyed frame over the F-curves the rig reads; :class:`GaitError` if none.
+    ``keys(path, index)``: the (K, 2) keys of the action's curve or None (a reader of curves
+    already read, ``bridge._KeyReads``); default: read them here."""
+    if keys is None:
+        bag = _action_bag(grig.obj)
+
+        def keys(path, index):
+            fcurve = bag.fcurves.find(path, index=index)
+            return None if fcurve is None else key_coordinates(fcurve)
     lo, hi = np.inf, -np.inf
     for path, index, _ in grig.reads():
-        fcurve = bag.fcurves.find(path, index=index)
-        if fcurve is not None and len(fcurve.keyframe_points):
-            co = key_coordinates(fcurve)[:, 0]
+        co = keys(path, index)
+        if co is not None and len(co):
+            co = co[:, 0]
             lo, hi = min(lo, float(co.min())), max(hi, float(co.max()))
     if not np.isfinite(lo):
         raise GaitError(f"{grig.obj.name}'s action has no keys on the bones the gait model reads")

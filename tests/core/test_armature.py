@@ -34,6 +34,70 @@ def blender_pose_heads(layout, channels):
     return out
 
 
+def _channels_one_bone_at_a_time(sk, layout, values):
+    """dofs_to_channels as it was before issue 21's batching: one decomposed bone at a time."""
+    from core.kinematics import make_euler_continuous, matrix_to_euler
+    translation, local = local_rotations_from_dofs(sk, values)
+    out = np.zeros((len(values), len(layout.channels)))
+    direct = layout.channel_dofs >= 0
+    out[:, direct] = values[:, layout.channel_dofs[direct]] * layout.channel_signs[direct]
+    done = set()
+    for c, (name, path, index) in enumerate(layout.channels):
+        i = sk.index(name)
+        if path == "location":
+            out[:, c] = translation @ layout.bone_rotations[0][:, index]
+        elif layout.channel_dofs[c] < 0 and i not in done:
+            s = layout.joint2bone[i]
+            mode = layout.rotation_modes[i]
+            out[:, c:c + 3] = make_euler_continuous(matrix_to_euler(s @ local[:, i] @ s.T, mode),
+                                                    mode)
+            done.add(i)
+    return out
+
+
+def _dofs_one_bone_at_a_time(sk, layout, values):
+    """channels_to_dofs as it was before issue 21's batching: one decomposed bone at a time."""
+    from core.armature import _LETTERS, _full_order
+    from core.kinematics import make_euler_continuous, matrix_to_euler
+    joint, axis, is_trans = sk.dof_table()
+    out = np.zeros((len(values), sk.n_dofs))
+    direct = layout.channel_dofs >= 0
+    out[:, layout.channel_dofs[direct]] = values[:, direct] * layout.channel_signs[direct]
+    done = set()
+    for c, (name, path, index) in enumerate(layout.channels):
+        i = sk.index(name)
+        if path == "location" and index == 0:
+            out[:, :3] = values[:, c:c + 3] @ layout.bone_rotations[0].T
+        elif path == "rotation_euler" and layout.channel_dofs[c] < 0 and i not in done:
+            s = layout.joint2bone[i]
+            local = s.T @ euler_to_matrix(values[:, c:c + 3], layout.rotation_modes[i]) @ s
+            order = "".join(_LETTERS[a] for a in _full_order(sk.dof_axes[i]))
+            euler = make_euler_continuous(matrix_to_euler(local, order), order)
+            cols = np.nonzero((joint == i) & ~is_trans)[0]
+            out[:, cols] = euler[:, axis[cols]]
+            done.add(i)
+    return out
+
+
+@pytest.mark.parametrize("trial", ["08_01", "35_17"])
+def test_channels_of_bones_batched_are_bit_for_bit_one_at_a_time(trial):
+    """The decomposed bones converted together (both ways) give the bytes of one bone at a
+    time."""
+    asf = read_asf(asf_path(trial))
+    sk = asf_to_skeleton(asf)
+    layout = armature_layout(sk)
+    values = read_amc(cmu_path(trial + ".amc"), asf).values
+    for rows in (values, values[:1], values[::7] + 0.4):
+        channels = dofs_to_channels(sk, layout, rows)
+        assert channels.tobytes() == _channels_one_bone_at_a_time(sk, layout, rows).tobytes()
+        # And back (channels_to_dofs), on the channels and on hand-edited ones (turned off the
+        # DOF axes, past the Euler branch).
+        for edited in (channels, channels + 0.3 * np.sin(np.arange(channels.size)).reshape(
+                channels.shape)):
+            assert channels_to_dofs(sk, layout, edited).tobytes() == \
+                _dofs_one_bone_at_a_time(sk, layout, edited).tobytes()
+
+
 @pytest.mark.parametrize("trial", ["08_01", "35_17"])
 def test_blender_evaluation_of_channels_reproduces_core_fk(trial):
     asf = read_asf(asf_path(trial))
