@@ -237,8 +237,10 @@ def error_breakdown(errors, frames, keys):
             "at_keys_max_cm": float(errors[at_keys].max())}
 
 
-def worker_track(kind, every, render, extension):
-    """One Track Keyframes run (module docstring); returns its result dict."""
+def worker_track(kind, every, render, extension, keep_feet_planted=True):
+    """One Track Keyframes run (module docstring); returns its result dict.
+    ``keep_feet_planted``: the Track panel's *Keep Feet Planted* (on by default, as the
+    panel's)."""
     import bpy
 
     from sample_scenes.rig_specs import RIG_SPECS
@@ -249,6 +251,7 @@ def worker_track(kind, every, render, extension):
     interior = [f for f in range(1, n + 1) if f not in keys]
     obj, fp = open_rig_scene(render, keys)
     bpy.context.scene.track_and_stride_track.processes = 1
+    bpy.context.scene.track_and_stride_track.keep_feet_planted = bool(keep_feet_planted)
     controls = set(spec.controls) or set(spec.deform_bones)
     every_frame = list(range(1, n + 1))
     interpolated = _joint_errors_cm(obj, spec, fp, every_frame)
@@ -339,7 +342,8 @@ def worker_main(args):
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="ts-bench-rigs-"))
     from benchmarks import rig_gait
     if args.worker == "track":
-        result = worker_track(args.kind, args.every, args.render, args.extension)
+        result = worker_track(args.kind, args.every, args.render, args.extension,
+                              not args.no_keep_feet_planted)
     elif args.worker == "gait_predict":
         result = rig_gait.worker_predict(args.kind, args.render, args.extension, args.mode,
                                          args.arrays)
@@ -443,6 +447,8 @@ def main(argv=None):
     parser.add_argument("--no-tracking", action="store_true",
                         help="skip the tracking rows (keys every 10/15/20)")
     parser.add_argument("--no-gait", action="store_true", help="skip the gait rows (issue 19)")
+    parser.add_argument("--no-keep-feet-planted", action="store_true",
+                        help="track with Keep Feet Planted off (a study: on is the default)")
     parser.add_argument("--study-walk-template", action="store_true",
                         help="gait rows also read with the walk's own CMU template "
                              "(benchmarks/studies/rig_gait_template.py)")
@@ -471,7 +477,8 @@ def main(argv=None):
                            "cpu_count": os.cpu_count(), "numpy": np.__version__},
                "clip": {"motion": "CMU 35_01 walk", "frames": N_FRAMES, "fps": 30,
                         "track_size": "x".join(map(str, TRACK_SIZE)),
-                        "fit_body_size": "x".join(map(str, FIT_SIZE))},
+                        "fit_body_size": "x".join(map(str, FIT_SIZE)),
+                        "keep_feet_planted": not args.no_keep_feet_planted},
                "timing_s": {}, "rigs": {}}
     for kind in rigs:
         row = {"tracking": {}}
@@ -490,7 +497,8 @@ def main(argv=None):
             print(f"{kind}:", flush=True)
         for every in spacings:
             t = run_worker(kind, "track", render, args.extension, args.timeout,
-                           args.memory_limit_gb, every)
+                           args.memory_limit_gb, every,
+                           extra=["--no-keep-feet-planted"] * args.no_keep_feet_planted)
             row["tracking"][f"keys_every_{every}"] = t
             print(f"  keys every {every}: {t.get('status')} tracker {_fmt(t.get('tracker_cm'), 2)}"
                   f" cm, interpolation {_fmt(t.get('interpolation_cm'), 2)} cm, unmapped "

@@ -617,10 +617,12 @@ class MappedRig:
                 else ControlStep(st.control, st.rule, st.joint, st.limb, compensate=-1)
                 for st in steps]
 
-    def prepare_keys(self, frames, root_translation, local_rotations, bones=None):
-        """Find the control values of poses now (:meth:`control_values`), before anything is
-        written: :meth:`write_pose_keys` of any of these frames then keys them as found. A
-        failure (a non-finite value) is raised here, while the file is unchanged.
+    def prepare_keys(self, frames, root_translation, local_rotations, bones=None,
+                     stretch=None):
+        """Find the control values of poses now (:meth:`control_values`, with the joints'
+        ``stretch`` when given), before anything is written: :meth:`write_pose_keys` of any
+        of these frames then keys them as found. A failure (a non-finite value) is raised
+        here, while the file is unchanged.
 
         Raises
         ------
@@ -633,7 +635,7 @@ class MappedRig:
         wanted = set(self.controls if bones is None else bones)
         steps = [s for s in self.steps if s.control in wanted]
         frames = np.asarray(frames, dtype=float)
-        values, errors = self.control_values(frames, root_translation, local, steps)
+        values, errors = self.control_values(frames, root_translation, local, steps, stretch)
         if not all(np.all(np.isfinite(v)) for v in values.values()):
             raise ValueError("refusing to key non-finite control values")
         self.last_errors = errors
@@ -1086,14 +1088,15 @@ def step_errors(steps, joints, target):
     return angle, dist
 
 
-def verify_pose(rig, frames, root_translation, local_rotations):
+def verify_pose(rig, frames, root_translation, local_rotations, stretch=None):
     """Largest angle (radians) and distance (metres) left between what the rig's controls
-    move, as Blender now evaluates the rig at ``frames``, and the given poses
-    (:func:`step_errors`; after keys were written)."""
+    move, as Blender now evaluates the rig at ``frames``, and the given poses (with the
+    joints' ``stretch`` when given, :meth:`MappedRig.read_pose`) (:func:`step_errors`; after
+    keys were written)."""
     if not rig.steps:
         return 0.0, 0.0
     scene = bpy.context.scene
-    target = world_poses(rig.skeleton, root_translation, local_rotations)
+    target = world_poses(rig.skeleton, root_translation, local_rotations, stretch)
     matrices = evaluated_matrices(scene, rig.obj, rig.model.pose_bones, frames)
     rot, pos = joint_world_poses(rig.model, matrices)
     actual = np.zeros(rot.shape[:2] + (4, 4))

@@ -101,6 +101,9 @@ class TrackRequest:
         Per camera (problem order), the 2D keypoints linked to it (``core.tracking.
         CameraKeypoints``, frame 0 = the first keyframe) or None; None when no camera has any
         (:mod:`.keypoints`).
+    key_stretch : ndarray, shape (K, J, 3), or None
+        A mapped rig's joints at the keyframes beyond the rigid model skeleton's (metres,
+        ``core.rigs.joint_stretch``: a stretchy IK limb); None for a plain armature.
     """
 
     obj_name: str
@@ -124,6 +127,7 @@ class TrackRequest:
     written: int = 0              # keys written by apply_result
     root_pivot: np.ndarray = None
     keypoints: list = None
+    key_stretch: np.ndarray = None
 
     @property
     def n_views(self):
@@ -358,7 +362,13 @@ def prepare_tracking(context, settings):
         cameras = [_camera_in_armature_space(
             scene, camera_obj, rig, settings.clip if settings.source == "CLIP" else None)]
         footages, names = [footage], [camera_obj.name]
-    key_roots, key_locals = read_pose(rig, key_frames)
+    key_stretch = None
+    if isinstance(rig, MappedRig):
+        # A stretchy IK limb (Rigify's) puts its joints off the rigid model skeleton's: how
+        # far at the keys, carried over the in-between when keying (apply_result).
+        key_roots, key_locals, key_stretch = rig.read_pose(key_frames, stretch=True)
+    else:
+        key_roots, key_locals = read_pose(rig, key_frames)
     mask = rig.dof_mask
     if isinstance(rig, MappedRig):
         # The anatomy the CMU skeleton has (knees, elbows and toes are hinges, feet do not
@@ -391,7 +401,9 @@ def prepare_tracking(context, settings):
     options = TrackingOptions(max_iterations=settings.iterations, tau=settings.rank_threshold,
                               estimate_depth=settings.estimate_depth,
                               foot_lock=bool(settings.keep_feet_planted),
-                              frame_rate=scene.render.fps / scene.render.fps_base)
+                              frame_rate=scene.render.fps / scene.render.fps_base,
+                              # the world's up (Z) in the armature's space: heights of feet
+                              up=tuple(rigid_armature2world(rig)[2, :3].tolist()))
     # With several cameras the acceptance rule is not applied (AcceptanceRule.several_views,
     # core): its thresholds were chosen on single cameras.
     return TrackRequest(
@@ -399,6 +411,7 @@ def prepare_tracking(context, settings):
         options=options, processes=settings.processes or preferences().track_processes or None,
         footage=footages[0], footages=footages, view_names=names,
         key_frames=key_frames, tracked_before=tracked_before, key_roots=key_roots,
+        key_stretch=key_stretch,
         key_locals=key_locals, key_values=evaluate_channels_at(obj, rig, key_frames),
         tracked_bones=tracked_bones, state=channel_state(obj, rig), replaced=replaced,
         root_pivot=hip_pivot(rig.model) if isinstance(rig, MappedRig) else None,
@@ -548,7 +561,8 @@ def apply_result(context, request, result):
         try:
             request.rig.prepare_keys(frames[between], result.root_translations[between],
                                      result.local_rotations[between],
-                                     bones=request.tracked_bones)
+                                     bones=request.tracked_bones,
+                                     stretch=key_stretch_at(request, frames[between]))
         except ValueError as exc:
             raise TrackError(f"{exc}; nothing was written") from None
     remove_replaced_keys(request.rig, request.tracked_bones, request.replaced)  # Track Between
@@ -588,6 +602,23 @@ def apply_result(context, request, result):
     return summary, warnings
 
 
+def key_stretch_at(request, frames):
+    """The keys' stretch (:attr:`TrackRequest.key_stretch`) at scene ``frames`` (N, J, 3):
+    linear in time between the keys around each frame, held beyond the first and last (the
+    tracked pose keeps the rigid skeleton's lengths; a stretchy limb stretches between the
+    keys as it does at them); None without it."""
+    stretch = request.key_stretch
+    if stretch is None:
+        return None
+    keys = np.asarray(request.key_frames, dtype=float)
+    frames = np.asarray(frames, dtype=float)
+    if len(keys) == 1:
+        return np.repeat(stretch[:1], len(frames), axis=0)
+    j = np.clip(np.searchsorted(keys, frames, side="right") - 1, 0, len(keys) - 2)
+    s = np.clip((frames - keys[j]) / (keys[j + 1] - keys[j]), 0.0, 1.0)[:, None, None]
+    return (1.0 - s) * stretch[j] + s * stretch[j + 1]
+
+
 def foot_lock_note(result, first):
     """The report's words on the planted feet: which contacts were locked (scene frames)."""
     locks = getattr(result, "foot_locks", [])
@@ -611,7 +642,7 @@ def _rig_fit_note(request, frames, result):
     if not np.any(sel):
         return None
     angle, dist = verify_pose(request.rig, frames[sel], result.root_translations[sel],
-                              result.local_rotations[sel])
+                              result.local_rotations[sel], key_stretch_at(request, frames[sel]))
     if angle <= RIG_FIT_ANGLE and dist <= RIG_FIT_DISTANCE:
         return None
     return (f"{request.obj_name}'s controls could not put every part exactly on the tracked "

@@ -9,23 +9,30 @@ is locked and the leg chain solved to keep it there:
 * **Contact** — *low and slow*, judged on the tracked trajectory and the keys: a foot stands at
   frame f when its lowest point (the foot bone's head and tail, its toes' tails) is within
   ``FootLockRule.low`` of the floor, the floor being the lowest such point over the **keys**
-  (the animator's poses say where the ground is; world Z up, Blender's), and its tracked speed
-  over ``span`` frames centred on f is under ``slow`` (a sliding stance foot is much slower
-  than a swinging one). Runs shorter than ``min_frames`` are left alone.
+  (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
+  in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
+  is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
+  than ``min_frames`` are left alone.
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
-* **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive bones of the leg
-  and the one after them) is solved for it: two-bone IK puts the ankle on the target with the
-  knee in its tracked bending plane (:func:`core.rigs.ik.solve_two_bone`, the rigs' shared IK),
-  the foot takes the target orientation. The pin is eased in and out over ``ramp`` frames
-  outside the run (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet
-  Planted*) but never over a key. Key frames are returned bit for bit, and so are the frames of
-  an interval that kept the keys' in-between (the footage did not support tracking there).
+* **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive segments of the
+  leg and the one after them, :func:`leg_chain`) is solved for it: two-bone IK puts the ankle
+  on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.
+  solve_two_bone`, the rigs' shared IK), the foot takes the target orientation. A *segment*
+  is a bone with the bones below it that the tracker does not turn and that continue its
+  line (``problem.dof_mask`` all False: a rig's thigh and shin split in two deforming halves,
+  Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``): they ride on it rigidly, so they are no
+  knee. The pin is eased in and out over ``ramp`` frames outside the run
+  (:func:`core.kinematics.contacts.smootherstep`, as the gait side's *Keep Feet Planted*) but
+  never over a key. Key frames are returned bit for bit, and so are the frames of an interval
+  that kept the keys' in-between (the footage did not support tracking there).
 
 A leg whose bones turn about some axes only (``problem.dof_mask``: a mapped rig's hinge knee
 and untwisting foot, Table 1) is solved on those axes only (damped Gauss-Newton, the
-tracker's right perturbations), as close as they allow.
+tracker's right perturbations), as close as they allow; a hinge knee keeps the side it
+bends to in the tracked pose and is not straightened past ``MIN_KNEE_BEND`` (an ankle goal out
+of reach would carry it through straight into the mirror bend, which a rig's IK cannot take).
 """
 
 from dataclasses import dataclass
@@ -38,6 +45,11 @@ from ..rigs.ik import solve_two_bone
 from .acceptance import LEFT_LEG, RIGHT_LEG, problem_parts
 
 __all__ = ["FootLock", "FootLockRule", "leg_chain", "lock_feet"]
+
+#: Cosine of the largest rest angle between a bone and its parent at which a bone the tracker
+#: does not turn counts as the second half of its parent (:func:`leg_chain`): the halves of a
+#: split thigh or shin are in line (0°), a foot is at 60-110° to its shin.
+HALF_COS = np.cos(np.radians(30.0))
 
 
 @dataclass(frozen=True)
@@ -78,10 +90,18 @@ class FootLock:
     shift: float
 
 
-def leg_chain(skeleton, bones):
+def leg_chain(skeleton, bones, dof_mask=None):
     """(thigh, shin, foot, points): the leg's IK chain among ``bones`` (indices of one leg
     part) and the bones whose heads/tails make the foot's contact points (the foot and every
-    bone below it), or None when the leg has no such chain."""
+    bone below it), or None when the leg has no such chain.
+
+    The chain follows the leg down from its top bone; a bone whose rotation is not estimated
+    (its row of ``dof_mask`` (J, 3) bool all False) and that continues its parent's line at
+    rest (within ``arccos(HALF_COS)``, 30°) joins its parent's segment: it rides on it
+    rigidly, the second half of a split thigh or shin. Thigh and shin are the first bones of
+    the two consecutive segments longest together at rest (hip to ankle), the foot the first
+    bone of the segment after them. ``dof_mask`` None: every bone turns (each its own segment).
+    """
     bones = set(int(b) for b in bones)
     top = [b for b in bones if skeleton.parents[b] not in bones]
     if len(top) != 1:
@@ -94,13 +114,27 @@ def leg_chain(skeleton, bones):
         # Follow the child with the longest descent (the leg, not a twist or helper bone).
         b = max(kids, key=lambda c: _depth(skeleton, c, bones))
         chain.append(b)
-    if len(chain) < 3:
+    # Rest pose (armature frame): heads, and bone directions head -> tail.
+    rest = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3))
+    frames, heads = forward_kinematics(skeleton, rest, np.zeros((1, 3)))
+    along = np.einsum("bij,bj->bi", frames[0], skeleton.tails)
+    along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-12)
+    fixed = (np.zeros(skeleton.n_joints, dtype=bool) if dof_mask is None
+             else ~np.asarray(dof_mask, dtype=bool).any(axis=1))
+    # A half: not turned, and it continues its parent's line (a locked foot, at an angle to
+    # its shin, stays the foot).
+    starts = [c for i, c in enumerate(chain)
+              if i == 0 or not (fixed[c] and along[c] @ along[chain[i - 1]] > HALF_COS)]
+    if len(starts) < 3:
         return None
-    seg = [np.linalg.norm(skeleton.offsets[c]) for c in chain[1:]]   # length of chain[i]
+    # A segment's length runs from its first bone's head to the next segment's (one bone per
+    # segment: the norm of that bone's offset).
+    seg = [np.linalg.norm(heads[0, starts[i + 1]] - heads[0, starts[i]])
+           for i in range(len(starts) - 1)]
     best = max(range(len(seg) - 1), key=lambda i: seg[i] + seg[i + 1]) if len(seg) > 1 else None
-    if best is None or best + 2 >= len(chain):
+    if best is None or best + 2 >= len(starts):
         return None
-    thigh, shin, foot = chain[best], chain[best + 1], chain[best + 2]
+    thigh, shin, foot = starts[best], starts[best + 1], starts[best + 2]
     below = [j for j in bones if foot in skeleton.chain(j)]
     return thigh, shin, foot, sorted(below)
 
@@ -170,7 +204,9 @@ def _minimal_rotation(u, v):
 
 def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot_goal):
     """New local rotations of thigh, shin and foot at ``rows`` putting the ankle on
-    ``ankle_goal`` (M, 3) and the foot's world frame on ``foot_goal`` (M, 3, 3)."""
+    ``ankle_goal`` (M, 3) and the foot's world frame on ``foot_goal`` (M, 3, 3). Bones between
+    thigh and shin, or shin and foot (a segment's rigid halves, :func:`leg_chain`) keep their
+    local rotations: they turn with the bone above them."""
     rot, pos = forward_kinematics(skeleton, local[rows], roots[rows])
     hip, knee, ankle = pos[:, thigh], pos[:, shin], pos[:, foot]
     upper = np.linalg.norm(knee - hip, axis=1)
@@ -179,15 +215,39 @@ def _solve_leg(skeleton, roots, local, thigh, shin, foot, rows, ankle_goal, foot
     turn_thigh = _minimal_rotation(knee - hip, new_knee - hip)
     g_thigh = turn_thigh @ rot[:, thigh]
     shin_dir = np.einsum("nij,nj->ni", turn_thigh, ankle - knee)
-    g_shin = _minimal_rotation(shin_dir, ankle_goal - new_knee) @ turn_thigh @ rot[:, shin]
-    parent = skeleton.parents[thigh]
+    turn_shin = _minimal_rotation(shin_dir, ankle_goal - new_knee) @ turn_thigh
+    g_shin = turn_shin @ rot[:, shin]
+    parents = skeleton.parents
+    parent = parents[thigh]
     g_parent = rot[:, parent] if parent >= 0 else np.eye(3)[None]
+    # The world frames of the shin's and the foot's parents after the turns (the thigh and
+    # the shin themselves, or a rigid half riding on them).
+    above_shin = g_thigh if parents[shin] == thigh else turn_thigh @ rot[:, parents[shin]]
+    above_foot = g_shin if parents[foot] == shin else turn_shin @ rot[:, parents[foot]]
     rest = skeleton.rest_rotations
     out = local[rows].copy()
     out[:, thigh] = rest[thigh].T @ np.swapaxes(g_parent, -1, -2) @ g_thigh
-    out[:, shin] = rest[shin].T @ np.swapaxes(g_thigh, -1, -2) @ g_shin
-    out[:, foot] = rest[foot].T @ np.swapaxes(g_shin, -1, -2) @ foot_goal
+    out[:, shin] = rest[shin].T @ np.swapaxes(above_shin, -1, -2) @ g_shin
+    out[:, foot] = rest[foot].T @ np.swapaxes(above_foot, -1, -2) @ foot_goal
     return out
+
+
+#: Bend (radians) a hinge knee's lock does not straighten it past (unless tracked straighter):
+#: a rig's IK cannot tell which way a straight knee bends.
+MIN_KNEE_BEND = np.radians(5.0)
+
+
+def _knee_bend(rot, pos, chain, axis):
+    """Signed bend (M,) of a leg's knee about its hinge: the sine of the angle from the thigh
+    (hip → knee) to the shin (knee → ankle), positive about the shin's local ``axis`` in the
+    world (``rot``, ``pos``: forward kinematics (M, B, 3, 3), (M, B, 3); ``chain``: thigh,
+    shin, foot)."""
+    thigh, shin, foot = chain
+    u = pos[:, shin] - pos[:, thigh]
+    v = pos[:, foot] - pos[:, shin]
+    hinge = rot[:, shin, :, axis]
+    return np.einsum("ni,ni->n", np.cross(u, v), hinge) / (
+        np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
 
 
 def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foot_goal,
@@ -209,6 +269,15 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
         return np.concatenate([ankle_goal - pos[:, foot], reach * world_turn], axis=1), rot, pos
 
     res, rot, pos = residual(out)
+    # A hinge knee (one free axis) keeps the side it bends to in the tracked pose: an ankle
+    # goal beyond the leg's reach pulls the knee straight, and the steps would carry it
+    # through straight into the mirror bend (the same reach), which a rig's IK knee cannot
+    # take (Rigify's IK leg keyed it as the thigh turned half a turn: docs/bench_rigs.md,
+    # *Stop 39*, Predict after tracking).
+    hinge = [a for a in range(3) if axes[1][a]]
+    bend0 = _knee_bend(rot, pos, chain, hinge[0]) if len(hinge) == 1 else np.zeros(len(rows))
+    side = np.sign(bend0)
+    least = np.minimum(np.abs(bend0), np.sin(MIN_KNEE_BEND))
     damping = np.full(len(rows), 1e-6)
     for _ in range(iterations):
         jac = np.zeros((len(rows), 6, len(cols)))
@@ -226,13 +295,15 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
             trial[:, b] = trial[:, b] @ exp_so3(turn)
         new_res, new_rot, new_pos = residual(trial)
         better = np.sum(new_res ** 2, 1) <= np.sum(res ** 2, 1)
+        if len(hinge) == 1:
+            better &= _knee_bend(new_rot, new_pos, chain, hinge[0]) * side >= least
         out[better], res[better] = trial[better], new_res[better]
         rot[better], pos[better] = new_rot[better], new_pos[better]
         damping = np.where(better, damping / 3.0, damping * 10.0)
     return out
 
 
-def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
+def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0, 0.0, 1.0)):
     """Lock the standing feet of a tracked sequence (module docstring).
 
     Parameters
@@ -250,6 +321,9 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
         Indices left exactly as they are besides the keys (the tracker passes the frames of
         intervals that kept the keys' in-between: what the report calls the in-between stays
         the in-between).
+    up : array_like, shape (3,), optional
+        The world's up direction in the sequence's space (any length; ``TrackingOptions.up``):
+        heights are measured along it.
 
     Returns
     -------
@@ -276,7 +350,7 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
         if name not in parts:
             continue
         bones = np.flatnonzero(part_of == parts.index(name))
-        chain = leg_chain(sk, bones)
+        chain = leg_chain(sk, bones, mask)
         if chain is None:
             skipped.append(f"{side} leg: no thigh, shin and foot found")
             continue
@@ -284,13 +358,15 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=()):
     if not legs or n < 3:
         return roots, local, [], skipped
     rot, pos = forward_kinematics(sk, local, roots)
+    up = np.asarray(up, dtype=float) / np.linalg.norm(up)
     points = {s: _foot_points(sk, rot, pos, c[3]) for s, c in legs.items()}
-    floor = min(float(p[keys][..., 2].min()) for p in points.values())
+    height = {s: p @ up for s, p in points.items()}
+    floor = min(float(h[keys].min()) for h in height.values())
     ramp = max(1, int(round(rule.ramp * fps)))
     out = local.copy()
     locks = []
     for side, (thigh, shin, foot, _) in legs.items():
-        low = points[side][..., 2].min(axis=1) <= floor + rule.low
+        low = height[side].min(axis=1) <= floor + rule.low
         slow = _span_speed(points[side], rule.span, fps) <= rule.slow
         ankle, foot_rot = pos[:, foot], rot[:, foot]
         goal_pos, goal_rot = ankle.copy(), foot_rot.copy()

@@ -462,7 +462,8 @@ def _lock_feet(problem, options, keys, result):
     keep = [f for i, r in enumerate(result.intervals) if r.kept_iteration == 0 or r.diverged
             for f in range(index[i] + 1, index[i + 1])]
     _, local, locks, notes = lock_feet(problem, index, result.root_translations,
-                                       result.local_rotations, options.frame_rate, keep=keep)
+                                       result.local_rotations, options.frame_rate, keep=keep,
+                                       up=options.up)
     result.local_rotations = local
     first = int(result.frames[0])
     result.foot_locks = [FootLock(side, first + a, first + b,

@@ -310,6 +310,10 @@ class TrackingOptions:
         does not slide (:mod:`core.tracking.foot_lock`); keys unchanged. On by default.
     frame_rate : float
         Frames per second of the clip (the foot lock's "slow" is a speed).
+    up : tuple of 3 float
+        The world's up direction in the problem's space (the armature's; any length): the
+        foot lock's heights are measured along it. (0, 0, 1): Blender's Z, for an armature
+        object that is not turned (an FBX import turned 90° about X has its up along +Y).
     """
 
     tau: float = 0.02
@@ -354,10 +358,14 @@ class TrackingOptions:
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
     frame_rate: float = 24.0
+    up: tuple = (0.0, 0.0, 1.0)
 
     def __post_init__(self):
         if not (np.isfinite(self.frame_rate) and self.frame_rate > 0):
             raise ValueError(f"frame_rate must be a positive number, got {self.frame_rate}")
+        up = np.asarray(self.up, dtype=float)
+        if up.shape != (3,) or not np.all(np.isfinite(up)) or not np.linalg.norm(up) > 0:
+            raise ValueError(f"up must be a non-zero finite 3-vector, got {self.up!r}")
         if self.seed not in ("interpolation", "forward", "bidirectional"):
             raise ValueError(f"seed must be 'interpolation', 'forward' or 'bidirectional', got "
                              f"{self.seed!r}")

@@ -10,7 +10,8 @@ loose on purpose (one stride, small footage): the accuracy figures are the bench
 import numpy as np
 import pytest
 
-from blender_support import bpy
+from blender_support import addon_module, bpy
+from core.rigs.retarget import world_poses
 from rig_fixtures import RIG_KINDS, RIG_SPECS, open_rig_scene, part_joints, rig_footage
 from sample_scenes.rig_walk import read_truth
 
@@ -81,3 +82,36 @@ def test_track_keyframes_on_each_rig_beats_the_keys_in_between(kind):
     bag = obj.animation_data.action.layers[0].strips[0].channelbag(obj.animation_data.action_slot)
     curves = {f.data_path for f in bag.fcurves}
     assert {'["Tracked: left leg"]', '["Tracked: right arm"]'} <= curves
+
+
+def test_a_stretchy_ik_leg_is_keyed_with_the_stretch_of_the_keys():
+    """Rigify's IK legs stretch: at the keys the rig's knees and ankles are off the rigid model
+    skeleton's (``core.rigs.joint_stretch``). Track Keyframes reads that stretch at the keys and
+    keys the in-between frames with it, linear between the keys (``bridge.key_stretch_at``):
+    a tracked pose equal to a key's is keyed where the key has the rig's joints, not where the
+    rigid skeleton would put them (docs/bench_rigs.md, *Stop 39*)."""
+    obj, fp = open_rig_scene(rig_footage("rigify_ik", size=SIZE), keys=KEYS)
+    bridge = addon_module("tracking.bridge")
+    request = bridge.prepare_tracking(bpy.context, bpy.context.scene.track_and_stride_track)
+    rig, stretch = request.rig, request.key_stretch
+    assert stretch.shape == (len(KEYS), rig.skeleton.n_joints, 3)
+    np.testing.assert_array_equal(bridge.key_stretch_at(request, KEYS), stretch)
+    mid = bridge.key_stretch_at(request, [0.5 * (KEYS[0] + KEYS[1])])
+    np.testing.assert_allclose(mid[0], 0.5 * (stretch[0] + stretch[1]), rtol=0, atol=1e-15)
+    # The first key's pose keyed at the next two frames, with and without its stretch.
+    ankles = [rig.skeleton.names.index(f"{side} foot") for side in ("left", "right")]
+    roots, local = request.key_roots[:1], request.key_locals[:1]
+    want = world_poses(rig.skeleton, roots, local, stretch[:1])[0, ankles, :3, 3]
+    rigid = world_poses(rig.skeleton, roots, local)[0, ankles, :3, 3]
+    frames, bones = [KEYS[0] + 1, KEYS[0] + 2], request.tracked_bones
+    for frame, s in zip(frames, (stretch[:1], None)):
+        rig.prepare_keys([frame], roots, local, bones=bones, stretch=s)
+        rig.write_pose_keys([frame], roots, local, bones=bones)
+    got = []
+    for frame in frames:
+        r, lo, st = rig.read_pose([frame], stretch=True)
+        got.append(world_poses(rig.skeleton, r, lo, st)[0, ankles, :3, 3])
+    off = np.linalg.norm(rigid - want, axis=1).max()
+    assert off > 0.002, off                          # the key's ankles stretch by millimetres
+    assert np.linalg.norm(got[0] - want, axis=1).max() < 0.2 * off
+    assert np.linalg.norm(got[1] - want, axis=1).max() > 0.5 * off

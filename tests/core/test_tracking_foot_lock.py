@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from core.kinematics import exp_so3, forward_kinematics
+from core.kinematics import Skeleton, exp_so3, forward_kinematics
 from core.mocap import asf_to_skeleton
 from core.mocap.bvh import cmu_template_asf
 from core.tracking import foot_lock
@@ -49,6 +49,82 @@ def test_leg_chain_of_the_cmu_skeleton(skeleton):
     thigh, shin, foot, points = leg_chain(skeleton, bones)
     assert [skeleton.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
     assert [skeleton.names[b] for b in points] == ["lfoot", "ltoes"]
+    # A foot the tracker does not turn (all its axes locked) is still the foot: it is at an
+    # angle to the shin, no second half of it.
+    mask = np.ones((skeleton.n_joints, 3), dtype=bool)
+    mask[[skeleton.index("lfoot"), skeleton.index("ltoes")]] = False
+    assert leg_chain(skeleton, bones, mask)[:3] == (thigh, shin, foot)
+
+
+def _split(sk, names):
+    """``sk`` with each joint of ``names`` split in two halves (a ``'<name> 2'`` joint halfway
+    to its one child, no DOF, identity rest): a rig's thigh and shin made of two deforming
+    bones, as Rigify's ``DEF-thigh.L`` / ``DEF-thigh.L.001``. Returns the skeleton and, per
+    joint of it, the joint of ``sk`` it is (-1 for a half)."""
+    order = []                                       # (old joint, is its half)
+    for i in range(sk.n_joints):
+        order += [(i, False)] + [(i, True)] * (sk.names[i] in names)
+    index = {key: k for k, key in enumerate(order)}
+    cut = {i: 0.5 * sk.offsets[sk.children(i)[0]] for i in range(sk.n_joints)
+           if sk.names[i] in names}
+    parents, offsets, tails, rest, axes = [], [], [], [], []
+    for i, half in order:
+        p = int(sk.parents[i])
+        if half:
+            parents.append(index[(i, False)])
+            offsets.append(cut[i])
+            tails.append(sk.tails[i] - cut[i])
+        else:
+            parents.append(-1 if p < 0 else index[(p, p in cut)])
+            offsets.append(sk.offsets[i] - cut.get(p, 0.0))
+            tails.append(cut.get(i, sk.tails[i]))
+        rest.append(np.eye(3) if half else sk.rest_rotations[i])
+        axes.append(() if half else sk.dof_axes[i])
+    split = Skeleton([sk.names[i] + " 2" * half for i, half in order], parents, offsets, rest,
+                     tails, axes, None, sk.root_translation)
+    return split, np.array([-1 if half else i for i, half in order])
+
+
+def test_a_leg_of_split_bones_locks_as_the_whole_leg(skeleton):
+    """A thigh and shin of two deforming halves each, the halves not turned by tracking (their
+    ``dof_mask`` rows all False, as a mapped Rigify rig's): the chain is thigh, shin, foot, not
+    a half, and the lock puts every joint where it puts the unsplit skeleton's (the halves
+    ride on the bone above them, their own rotations untouched)."""
+    sk = skeleton
+    parts, part_of = problem_parts(_problem(sk))
+    regions = [parts[p] for p in part_of]
+    halves = ("lfemur", "ltibia", "rfemur", "rtibia")
+    split, old_of = _split(sk, halves)
+    assert split.n_joints == sk.n_joints + 4
+    split_regions = [regions[old_of[k] if old_of[k] >= 0 else old_of[split.parents[k]]]
+                     for k in range(split.n_joints)]
+    mask = np.ones((split.n_joints, 3), dtype=bool)
+    mask[old_of < 0] = False
+    roots, local = _clip(sk)
+    split_local = np.broadcast_to(np.eye(3), (len(local), split.n_joints, 3, 3)).copy()
+    split_local[:, old_of >= 0] = local
+    # The same body: every original joint where the unsplit skeleton has it.
+    _, pos = forward_kinematics(sk, local, roots)
+    _, split_pos = forward_kinematics(split, split_local, roots)
+    np.testing.assert_allclose(split_pos[:, old_of >= 0], pos, atol=1e-12)
+    problem = SimpleNamespace(skeleton=split, regions=split_regions, dof_mask=mask)
+    bones = np.flatnonzero(np.array(split_regions) == "left leg")
+    thigh, shin, foot, points = leg_chain(split, bones, mask)
+    assert [split.names[b] for b in (thigh, shin, foot)] == ["lfemur", "ltibia", "lfoot"]
+    assert [split.names[b] for b in points] == ["lfoot", "ltoes"]
+    keys = [0, len(roots) - 1]
+    plain = SimpleNamespace(skeleton=sk, regions=regions, dof_mask=None)
+    _, out, locks, _ = lock_feet(plain, keys, roots, local, FPS)
+    _, split_out, split_locks, skipped = lock_feet(problem, keys, roots, split_local, FPS)
+    assert skipped == [] and len(split_locks) == len(locks) >= 1
+    assert [lk[:4] for lk in split_locks] == [lk[:4] for lk in locks]
+    _, want = forward_kinematics(sk, out, roots)
+    _, got = forward_kinematics(split, split_out, roots)
+    np.testing.assert_allclose(got[:, old_of >= 0], want, atol=1e-9)
+    np.testing.assert_array_equal(split_out[:, old_of < 0], split_local[:, old_of < 0])
+    # Without the mask every half counts as a bone that bends: a half is taken for the knee.
+    wrong = leg_chain(split, bones)
+    assert [split.names[b] for b in wrong[:3]] != ["lfemur", "ltibia", "lfoot"]
 
 
 def test_a_sliding_standing_foot_is_pinned_and_keys_kept(skeleton):
@@ -88,6 +164,30 @@ def test_a_sliding_standing_foot_is_pinned_and_keys_kept(skeleton):
     side, first, last, inside, shift = left_locks[0]
     assert (first, last, inside) == (0, len(roots) - 1, tuple(keys))
     assert shift == pytest.approx(slide.max(), abs=0.01)
+
+
+def test_heights_are_measured_along_the_worlds_up(skeleton):
+    """An armature object turned 90° about X (an FBX import, Mixamo's) has the world's up along
+    its +Y: the same clip in that space, with ``up`` +Y, locks the same contacts to the same
+    joints (turned). (Along the armature's Z, the rule before stop 39, the bench's Mixamo rig
+    never had a foot low enough: docs/bench_rigs.md, *Stop 39*.)"""
+    sk = skeleton
+    roots, local = _clip(sk)
+    turn = exp_so3(np.array([-np.pi / 2, 0.0, 0.0]))         # world -> the armature's space
+    rest0 = sk.rest_rotations[0]
+    turned_local = local.copy()
+    turned_local[:, 0] = rest0.T @ turn @ rest0 @ local[:, 0]
+    turned_roots = (turn @ (sk.offsets[0] + roots)[..., None])[..., 0] - sk.offsets[0]
+    keys = [0, len(roots) - 1]
+    _, out, locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+    up = turn @ [0.0, 0.0, 1.0]
+    np.testing.assert_allclose(up, [0.0, 1.0, 0.0], atol=1e-15)
+    _, turned_out, turned_locks, _ = lock_feet(_problem(sk), keys, turned_roots, turned_local,
+                                               FPS, up=3.0 * up)      # any length
+    assert [lk[:4] for lk in turned_locks] == [lk[:4] for lk in locks] and locks
+    _, pos = forward_kinematics(sk, out, roots)
+    _, turned_pos = forward_kinematics(sk, turned_out, turned_roots)
+    np.testing.assert_allclose(turned_pos, pos @ turn.T, atol=1e-9)
 
 
 def test_nothing_standing_changes_nothing(skeleton):
@@ -162,3 +262,38 @@ def test_frames_kept_as_they_are_stay_bit_for_bit(skeleton):
     _, out, locks, _ = lock_feet(_problem(sk), [0, 15, 30], roots, local, FPS, keep=keep)
     np.testing.assert_array_equal(out[keep], local[keep])
     assert not np.array_equal(out[1:15], local[1:15])     # the other interval was locked
+
+
+def test_a_hinge_knee_is_not_straightened_through_or_past_its_least_bend(skeleton):
+    """The planted ankle out of the leg's reach (the body sways 8 cm away from the standing
+    foot): a hinge knee is straightened towards it but not past ``MIN_KNEE_BEND`` and never bent
+    the other way (the steps carried it through straight into the mirror bend, which a rig's
+    IK knee keyed as the thigh turned half a turn: Rigify IK, docs/bench_rigs.md, *Stop 39*).
+    Where the leg can reach, the foot is still pinned."""
+    sk = skeleton
+    roots, local = _clip(sk)
+    roots[:, 0] *= -1.0                      # the body sways away from the standing foot
+    mask = np.ones((sk.n_joints, 3), dtype=bool)
+    chain = [sk.index(n) for n in ("lfemur", "ltibia", "lfoot")]
+    mask[chain[1], 1:] = False
+    mask[chain[2], 1] = False
+    keys = [0, len(roots) - 1]
+    _, out, locks, _ = lock_feet(_problem(sk, mask), keys, roots, local, FPS)
+    assert [lk[:4] for lk in locks if lk[0] == "left"] == [("left", 0, len(roots) - 1, tuple(keys))]
+    rot, pos = forward_kinematics(sk, local, roots)
+    rot2, pos2 = forward_kinematics(sk, out, roots)
+    tracked = foot_lock._knee_bend(rot, pos, chain, 0)
+    locked = foot_lock._knee_bend(rot2, pos2, chain, 0)
+    assert np.all(tracked > np.sin(foot_lock.MIN_KNEE_BEND))
+    # Out of reach in the middle: the knee went as straight as allowed, on its own side.
+    hip_to_goal = np.linalg.norm(pos[0, chain[2]] - pos2[:, chain[0]], axis=1)
+    thigh = np.linalg.norm(pos[0, chain[1]] - pos[0, chain[0]])
+    shin = np.linalg.norm(pos[0, chain[2]] - pos[0, chain[1]])
+    assert hip_to_goal.max() > thigh + shin                 # beyond the straight leg
+    assert locked.min() >= np.sin(foot_lock.MIN_KNEE_BEND) - 1e-12
+    assert locked.min() < 1.5 * np.sin(foot_lock.MIN_KNEE_BEND)
+    # Within reach (near the keys) the ankle is pinned as before.
+    near = hip_to_goal < np.sqrt(thigh ** 2 + shin ** 2 + 2 * thigh * shin * np.cos(0.2))
+    assert near[1:-1].any()
+    err = np.linalg.norm(pos2[near, chain[2]] - pos[0, chain[2]], axis=1)
+    assert err.max() < 0.01
