@@ -194,10 +194,14 @@ def ref_online_forecast(ctx, state, n_frames, omega_scale=1.0, blend_s=DEFAULT_B
     return out[1:] * ctx.scale
 
 
-def ref_update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
+def ref_update(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb, pair=None):
     """Scalar core of :func:`ekf_update`: floats, the squared innovation ``eᵀe``, the number of
-    channels used and the index of a channel left out as an outlier (-1: none)."""
-    both = np.vstack(_kernel(ctx, phi_pred)) @ alpha_comb  # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19)
+    channels used and the index of a channel left out as an outlier (-1: none). ``pair``: the
+    kernel and its φ-derivative at ``phi_pred`` (2, P) if given (a test comparing bit for bit
+    with the filter's own kernel), else the GP's."""
+    if pair is None:
+        pair = np.vstack(_kernel(ctx, phi_pred))
+    both = pair @ alpha_comb                       # [μ(x⁻) w; ∂(μ w)/∂φ] (eq. 19)
     np.subtract(y, both[0], out=both[0])           # innovation e = y - μ(x⁻) w (eq. 21)
     (ee, ge), (_, gg) = (both @ both.T).tolist()
     cols = None

@@ -12,6 +12,7 @@ from core.gait.ekf import FilterResult, _update, ekf_filter, ekf_predict, ekf_up
     make_context, observation_jacobian, observation_mean
 from core.gait.model import FPS_RANGE
 from core.gait.online import OnlineConfig
+from tests.core.gait_online_reference import ref_update
 from tests.gait_data import observations, small_model
 
 A = np.array([[1.0, 0.0], [1.0, 1.0]])
@@ -214,7 +215,8 @@ def test_an_outlier_channel_is_left_out_like_a_missing_one(ctx):
 
 def test_the_scratch_arrays_compute_what_fresh_arrays_did(ctx):
     """``_update`` writes the kernel pair and its products into arrays cached on the context:
-    the same operations as the plain form, so every output equals the plain form's bit for
+    the same operations as the plain form (the reference's `ref_update` given the same kernel
+    pair), so every output equals the plain form's bit for
     bit, for the style weights (P rows) and with the offset row (P + 1), alternating the two
     layouts, with a missing and an outlier channel, and the scratch's contents never leak into
     the next update."""
@@ -233,45 +235,10 @@ def test_the_scratch_arrays_compute_what_fresh_arrays_did(ctx):
                                                       plain), (2.0, glitch, with_offset)]:
         a, b, c = 1e-4, 2e-5, 0.04
         out = _update(ctx, 0.09, phi, a, b, c, y, comb)
-        assert out == _update_with_fresh_arrays(ctx, 0.09, phi, a, b, c, y, comb)
+        pair = ctx.kernel_pair(phi) if len(comb) == ctx.n_phases else ctx.kernel_pair_one(phi)
+        assert out == ref_update(ctx, 0.09, phi, a, b, c, y, comb, pair=pair)
         left_out.add(out[8] >= 0)
     assert left_out == {True, False}
-
-
-def _update_with_fresh_arrays(ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
-    """``_update`` as it was before stop 39 (fresh arrays), for the comparison above."""
-    pair = ctx.kernel_pair(phi_pred) if len(alpha_comb) == ctx.n_phases \
-        else ctx.kernel_pair_one(phi_pred)
-    both = pair @ alpha_comb
-    np.subtract(y, both[0], out=both[0])
-    (ee, ge), (_, gg) = (both @ both.T).tolist()
-    cols = None
-    if not math.isfinite(ee):
-        cols = np.flatnonzero(np.isfinite(both[0]))
-        both = both[:, cols]
-        (ee, ge), (_, gg) = (both @ both.T).tolist()
-    n = both.shape[1]
-    r = ctx.r
-    outlier = -1
-    if ee > ctx.outlier_gate * n * r and n > 1:
-        e2 = both[0] * both[0]
-        k = int(e2.argmax())
-        if e2[k] > ctx.outlier_ratio * (ee - e2[k]):
-            outlier = k if cols is None else int(cols[k])
-            both = np.delete(both, k, axis=1)
-            (ee, ge), (_, gg) = (both @ both.T).tolist()
-            n -= 1
-    det = a * c - b * b
-    ia, ib, ic = c / det, -b / det, a / det + gg / r
-    det_i = ia * ic - ib * ib
-    pa, pb, pc = ic / det_i, -ib / det_i, ia / det_i
-    s = ge / r
-    omega = min(max(w_pred + pb * s, ctx.omega_min), ctx.omega_max)
-    phi = (phi_pred + pc * s) % (2.0 * math.pi)
-    one = 1.0 + c * gg / r
-    loglik = -0.5 * (n * math.log(2.0 * math.pi * r) + math.log(one) + ee / r
-                     - c * ge * ge / (r * r * one))
-    return omega, phi, pa, pb, pc, loglik, ee, n, outlier
 
 
 def test_outputs_stay_defined_for_wild_observations(ctx):
