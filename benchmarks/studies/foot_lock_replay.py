@@ -16,7 +16,8 @@ Prints per camera and spacing the foot skate (cm/s, ``benchmarks/real/feet.py``)
 tracker as replayed, of the tracked poses without the lock and of the keys' slerp, the
 held-out MPJPE (cm), and with ``--explain`` per foot the reference's contact frames that the
 lock did not lock (and the skate there) against the slerp's. ``--set NAME=VALUE`` overrides
-the ``FootLockRule`` of the replay (``low``, ``slow``, ``span``, ``min_frames``, ``ramp``).
+the ``FootLockRule`` of the replay (``low``, ``slow``, ``span``, ``min_frames``, ``ramp``,
+``keyed``, ``keep_low``; stop 40's hysteresis: ``--set keyed=slow``).
 Conclusion: ``docs/tracking.md`` *Planted feet in tracking*.
 """
 import argparse
