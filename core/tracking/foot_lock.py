@@ -12,11 +12,11 @@ is locked and the leg chain solved to keep it there:
   (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
   in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
   is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
-  than ``min_frames`` are left alone. With ``FootLockRule(keyed='slow')`` (stop 40, not the
-  default) a contact, once started, goes on while the foot stays within ``keep_low`` of the
-  floor and the tracked foot *or the keys' in-between* is slow (:func:`standing`: a tracked
-  foot that jitters or drifts up a little while the keys hold it still no longer breaks a
-  contact into short runs whose ease in and out snap the foot).
+  than ``min_frames`` are left alone. A contact, once started, goes on while the foot stays
+  within ``keep_low`` of the floor and the tracked foot *or the keys' in-between* is slow, the
+  tracked foot under ``keep_slow`` (:func:`standing`, stop 40: a tracked foot that slides or
+  drifts up a little while the keys hold it still no longer breaks a contact into short runs
+  whose ease in and out snapped the foot).
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
@@ -73,16 +73,20 @@ class FootLockRule:
     ramp : float
         Seconds over which the lock eases in before a run and out after it.
     keyed : str
-        How a contact goes on once it has started (:func:`standing`): ``'none'`` (default)
-        -- only while the tracked foot is low and slow; ``'slow'`` (stop 40, a study, not the
-        default) -- while the foot stays within ``keep_low`` of the floor and either the
+        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (default,
+        stop 40) -- while the foot stays within ``keep_low`` of the floor and either the
         tracked foot or the keys' in-between (per bone slerp of the keys, as the tracker
-        starts from) moves it slower than ``slow``: on bench-real every camera's feet slide
-        less than the slerp's, but the metarig walk tracked at keys every 0.5 s and continued
-        by Predict Gait walks 16 % slow (docs/tracking.md, *Planted feet*, stop 40).
+        starts from) moves it slower than ``slow``, the tracked foot slower than
+        ``keep_slow``; ``'none'`` -- only while the tracked foot is low and slow (the rule
+        before stop 40).
     keep_low : float
         Metres above the keys' floor within which a standing foot stays standing
         (``keyed`` 'slow'; twice ``low``: hysteresis).
+    keep_slow : float
+        Metres per second under which the tracked foot must stay for the keys to keep a
+        contact going (``keyed`` 'slow'; twice ``slow``: a tracker's slide of a standing foot
+        was 0.4-0.73 m/s on bench-real, a swing is 1-4 m/s; without it the runs reached into
+        a walk's early and late swing, docs/tracking.md, *Planted feet*, stop 40).
     """
 
     low: float = 0.05
@@ -90,8 +94,9 @@ class FootLockRule:
     span: int = 5
     min_frames: int = 3
     ramp: float = 0.05
-    keyed: str = "none"
+    keyed: str = "slow"
     keep_low: float = 0.10
+    keep_slow: float = 0.8
 
     def __post_init__(self):
         if self.keyed not in ("slow", "none"):
@@ -430,9 +435,10 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
     locks = []
     for side, (thigh, shin, foot, _) in legs.items():
         low = height[side].min(axis=1) <= floor + rule.low
-        slow = _span_speed(points[side], rule.span, fps) <= rule.slow
-        held = (_span_speed(keyed[side], rule.span, fps) <= rule.slow
-                if rule.keyed == "slow" else None)
+        tracked_speed = _span_speed(points[side], rule.span, fps)
+        slow = tracked_speed <= rule.slow
+        held = ((_span_speed(keyed[side], rule.span, fps) <= rule.slow)
+                & (tracked_speed <= rule.keep_slow) if rule.keyed == "slow" else None)
         ankle, foot_rot = pos[:, foot], rot[:, foot]
         goal_pos, goal_rot = ankle.copy(), foot_rot.copy()
         weight = np.zeros(n)

@@ -316,9 +316,10 @@ def _burst(sk, n=31):
 def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     """A contact, once the tracked foot has started it (low and slow), goes on while the foot
     stays low and the tracked foot **or the keys' in-between** is slow (hysteresis,
-    ``FootLockRule.keyed`` 'slow', stop 40, not the default): one run over the clip, not runs
-    cut where the tracked foot slides faster than ``slow``, whose ease in and out snapped the
-    foot (bench-real cam01 at keys every 10: 134 cm/s). With the default ``keyed='none'`` the
+    ``FootLockRule.keyed`` 'slow', the default since stop 40): one run over the clip, not runs
+    cut where the tracked foot slides faster than ``slow`` (but under ``keep_slow``), whose ease
+    in and out snapped the foot (bench-real cam01 at keys every 10: 134 cm/s). With
+    ``keyed='none'`` (the rule before) or a tracked slide faster than ``keep_slow`` the
     tracked speed alone splits it. The lifted right foot is never locked over its swing (its runs at
     the ends, where it is low and slow, stay short)."""
     sk = skeleton
@@ -330,20 +331,22 @@ def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     speed = foot_lock._span_speed(tracked_pos[:, [foot]], 5, FPS)
     fast = np.flatnonzero(speed > foot_lock.FootLockRule().slow)
     assert fast.tolist() == [13, 17]                     # the slide breaks the tracked runs
-    hysteresis = foot_lock.FootLockRule(keyed="slow")
-    _, out, locks, _ = lock_feet(_problem(sk), keys, tracked, local, FPS, rule=hysteresis)
+    _, out, locks, _ = lock_feet(_problem(sk), keys, tracked, local, FPS)
     assert [lk[:3] for lk in locks if lk[0] == "left"] == [("left", 0, 30)]
     _, pos2 = forward_kinematics(sk, out, tracked)
     # Pinned where the keys put it (the keys hold it still; the root slid under it).
     np.testing.assert_allclose(pos2[:, foot], np.broadcast_to(pos[0, foot], pos2[:, foot].shape),
                                atol=1e-6)
     np.testing.assert_array_equal(out[keys], local[keys])
-    _, _, old, _ = lock_feet(_problem(sk), keys, tracked, local, FPS)      # the default
     right = [lk[:3] for lk in locks if lk[0] == "right"]
     assert all(last < 8 or first > 22 for _, first, last in right)      # not over the swing
-    # The default: the tracked speed alone cuts the contact at the slide.
-    old_left = [lk[:3] for lk in old if lk[0] == "left"]
-    assert len(old_left) >= 2 and old_left[0] == ("left", 0, 12)
+    # The rule before, or a slide faster than keep_slow (its 5-frame speed is 0.56 m/s at
+    # frames 13 and 17): the tracked speed alone cuts the contact at the slide.
+    assert 0.5 < speed[13] < foot_lock.FootLockRule().keep_slow
+    for rule in (foot_lock.FootLockRule(keyed="none"), foot_lock.FootLockRule(keep_slow=0.5)):
+        _, _, old, _ = lock_feet(_problem(sk), keys, tracked, local, FPS, rule=rule)
+        old_left = [lk[:3] for lk in old if lk[0] == "left"]
+        assert len(old_left) >= 2 and old_left[0] == ("left", 0, 12)
 
 
 def test_standing_starts_on_the_tracked_foot_and_goes_on_on_weaker_evidence():
