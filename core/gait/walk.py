@@ -410,7 +410,8 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A run's landing foot carries from where it has stopped over the floor (planting's
     # `landing`: a run retimed past its data lands its foot still swinging forward, and the
     # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
-    # runs*). Without a flight lift (a walk below FLIGHT_FROUDE) nothing changes.
+    # runs*), at any change of foot, with a flight frame or not (*Stop 40*). Without a flight
+    # lift (a walk below FLIGHT_FROUDE) nothing changes.
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
@@ -431,12 +432,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A walk's landing foot stops over its spot before the ball comes down; a run's meets the
     # floor at speed (planting.stance_targets).
     level_s = HOLD_LEVEL_S * (1.0 - float(np.max(flight)))
-    targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
+    # A run's stance foot is held on the floor and let go before it leaves it (stop 40).
+    run = bool(np.max(flight) > 0.0)
+    targets, pins = stance_targets(points, carrying, floor, fps, m, level_s, run)
     shift = _held_over_the_join(points, targets, pins, m, fps)
     if shift is not None:
         out[:, [tx, ty]] += shift[m:]
         points[:, :, :2] += shift[:, None, :]
-        targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
+        targets, pins = stance_targets(points, carrying, floor, fps, m, level_s, run)
     if not legs:
         return
     lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)
