@@ -152,7 +152,18 @@ def robust_spread(speeds):
     onto the tracked pose) enters every window holding those frames, the windows split in two
     groups, and their standard deviation measures the slip instead of how the walker's legs
     repeat their travel (``docs/gait_rigs.md``, *Stop 40*); the median's deviation is the
-    larger group's."""
+    larger group's.
+
+    Parameters
+    ----------
+    speeds : array_like, shape (W,)
+        The windows' legs' speeds (m/s), W ≥ 1.
+
+    Returns
+    -------
+    float
+        ``1.4826 · median(|speeds − median(speeds)|)`` (m/s; 0 for a single window).
+    """
     speeds = np.asarray(speeds, dtype=float)
     return float(MAD_TO_SD * np.median(np.abs(speeds - np.median(speeds))))
 
