@@ -237,7 +237,7 @@ def smooth_sideways(velocities, ahead, sigma_frames):
     m/s RMS where the root's is 0.07-0.11; smoothed over a step its error falls to about the
     root's own sway (tests/core/test_gait_planting.py). Its mean, the path, is kept away from
     the ends; within 3 σ of them the smoothing reflects the sequence (a run's path over its
-    last cycle turned by up to 1.6° more, docs/gait.md, *Stop 40*). :func:`.walk._plant`
+    last cycle turned by up to 1.6° more, docs/gait.md, *Stop 40, restyle*). :func:`.walk._plant`
     smooths a run's over a step.
     """
     vel = np.asarray(velocities, dtype=float)
@@ -321,8 +321,8 @@ def _landed(along, contact, flying, foot=None):
     carrying foot ``foot[i]`` (N,: the foot with most of the weight) is not the last contact
     frame's (a run whose take-off foot is still near the floor when the other comes down: CMU
     35_01's runs have no flight frame, and their root slowed 3.65 → 0.52 m/s at every landing,
-    docs/gait.md, *Stop 40*), the foot down implies the root speed ``along[i]`` (N, m/s, along
-    the walk); with the root
+    docs/gait.md, *Stop 40, restyle*), the foot down implies the root speed ``along[i]`` (N,
+    m/s, along the walk); with the root
     still at the speed it left the floor with (the last contact's, constant in flight) that
     foot still swings forward over the floor at ``along[last] − along[i]``. While that is
     above ``SWING_SPEED`` and the foot is still slowing down (the implied speed rising), the
@@ -382,7 +382,7 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOL
         where a walk's lower foot is on it), and released over the last ``PIN_RAMP_S`` of the
         stance instead of the swing after it (the take-off foot leaves the floor at the
         root's speed: held after its stance the leg could not reach back to it, 2-9 cm short,
-        and the foot slid below the floor; docs/gait.md, *Stop 40*).
+        and the foot slid below the floor; docs/gait.md, *Stop 40, restyle*).
 
     Returns
     -------

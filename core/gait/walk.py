@@ -410,8 +410,8 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A run's landing foot carries from where it has stopped over the floor (planting's
     # `landing`: a run retimed past its data lands its foot still swinging forward, and the
     # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
-    # runs*), at any change of foot, with a flight frame or not (*Stop 40*). Without a flight
-    # lift (a walk below FLIGHT_FROUDE) nothing changes.
+    # runs*), at any change of foot, with a flight frame or not (*Stop 40, restyle*). Without a
+    # flight lift (a walk below FLIGHT_FROUDE) nothing changes.
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
@@ -422,7 +422,8 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     if run_share > 0.0:
         # A run's legs say next to nothing of its sideways sway (planting.smooth_sideways):
         # the planted root weaved 11-18 cm from side to side (the captured runs 1.2-1.9 cm).
-        # Smoothed over a step (σ, scaled by the share of flight; docs/gait.md, *Stop 40*).
+        # Smoothed over a step (σ, scaled by the share of flight; docs/gait.md, *Stop 40,
+        # restyle*).
         vel = smooth_sideways(vel, expected, run_share * fps / (2.0 * cycle_hz))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
