@@ -12,7 +12,11 @@ is locked and the leg chain solved to keep it there:
   (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
   in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
   is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
-  than ``min_frames`` are left alone.
+  than ``min_frames`` are left alone. A contact, once started, goes on while the foot stays
+  within ``keep_low`` of the floor and the tracked foot *or the keys' in-between* is slow, the
+  tracked foot under ``keep_slow`` (:func:`standing`, stop 40: a tracked foot that slides or
+  drifts up a little while the keys hold it still no longer breaks a contact into short runs
+  whose ease in and out snapped the foot).
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
@@ -44,7 +48,7 @@ from ..kinematics.contacts import runs, smootherstep
 from ..rigs.ik import solve_two_bone
 from .acceptance import LEFT_LEG, RIGHT_LEG, problem_parts
 
-__all__ = ["FootLock", "FootLockRule", "leg_chain", "lock_feet"]
+__all__ = ["FootLock", "FootLockRule", "leg_chain", "lock_feet", "standing"]
 
 #: Cosine of the largest rest angle between a bone and its parent at which a bone the tracker
 #: does not turn counts as the second half of its parent (:func:`leg_chain`): the halves of a
@@ -68,6 +72,21 @@ class FootLockRule:
         Shortest run of standing frames that is locked.
     ramp : float
         Seconds over which the lock eases in before a run and out after it.
+    keyed : str
+        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (default,
+        stop 40) -- while the foot stays within ``keep_low`` of the floor and either the
+        tracked foot or the keys' in-between (per bone slerp of the keys, as the tracker
+        starts from) moves it slower than ``slow``, the tracked foot slower than
+        ``keep_slow``; ``'none'`` -- only while the tracked foot is low and slow (the rule
+        before stop 40).
+    keep_low : float
+        Metres above the keys' floor within which a standing foot stays standing
+        (``keyed`` 'slow'; twice ``low``: hysteresis).
+    keep_slow : float
+        Metres per second under which the tracked foot must stay for the keys to keep a
+        contact going (``keyed`` 'slow'; twice ``slow``: a tracker's slide of a standing foot
+        was 0.4-0.73 m/s on bench-real, a swing is 1-4 m/s; without it the runs reached into
+        a walk's early and late swing, docs/tracking.md, *Planted feet*, stop 40).
     """
 
     low: float = 0.05
@@ -75,6 +94,13 @@ class FootLockRule:
     span: int = 5
     min_frames: int = 3
     ramp: float = 0.05
+    keyed: str = "slow"
+    keep_low: float = 0.10
+    keep_slow: float = 0.8
+
+    def __post_init__(self):
+        if self.keyed not in ("slow", "none"):
+            raise ValueError(f"keyed must be 'slow' or 'none', got {self.keyed!r}")
 
 
 @dataclass(frozen=True)
@@ -303,6 +329,45 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
     return out
 
 
+def standing(low, slow, held=None, min_frames=3, near=None):
+    """Runs ``[(start, stop), ...]`` (stop exclusive) where a foot stands.
+
+    A run starts where the foot is ``low`` and ``slow`` (tracked, (N,) bool) for at least
+    ``min_frames`` frames, and goes on, before and after, while it stays ``near`` the floor
+    ((N,) bool; None: ``low``) and either the tracked foot or the keys' in-between (``held``,
+    (N,) bool; None: the run is the low and slow frames alone) is slow: hysteresis --
+    strict evidence to start a contact (the tracked foot itself), weaker evidence to keep it
+    (the keys hold the foot still where the tracked foot jitters or slides faster than
+    ``slow``: the tracker's error, which the lock is there to remove). A foot the keys hold
+    still but the tracked trajectory never sees standing is left alone (a swing between two
+    keys that put the foot in the same place)."""
+    seeds = [(a, b) for a, b in runs(low & slow) if b - a >= min_frames]
+    if held is None:
+        return seeds
+    held = np.asarray(held, dtype=bool)
+    out = []
+    for a, b in runs((low if near is None else near) & (slow | held)):
+        if any(a <= s and t <= b for s, t in seeds):
+            out.append((a, b))
+    return out
+
+
+def _keys_inbetween(roots, local, keys):
+    """The keys' in-between (N, 3), (N, B, 3, 3): per bone slerp of the local rotations,
+    linear root, between consecutive ``keys`` (indices; held before the first and after the
+    last) -- ``trajectory.interpolate_poses`` over the whole sequence."""
+    n = len(local)
+    r, lo = roots.copy(), local.copy()
+    r[:keys[0]], lo[:keys[0]] = roots[keys[0]], local[keys[0]]
+    r[keys[-1]:], lo[keys[-1]:] = roots[keys[-1]], local[keys[-1]]
+    for k0, k1 in zip(keys[:-1], keys[1:]):
+        s = (np.arange(k0, k1 + 1) - k0) / (k1 - k0)
+        w = log_so3(np.swapaxes(local[k0], -1, -2) @ local[k1])
+        lo[k0:k1 + 1] = local[k0][None] @ exp_so3(s[:, None, None] * w[None])
+        r[k0:k1 + 1] = roots[k0][None] + s[:, None] * (roots[k1] - roots[k0])[None]
+    return r[:n], lo[:n]
+
+
 def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0, 0.0, 1.0)):
     """Lock the standing feet of a tracked sequence (module docstring).
 
@@ -360,6 +425,9 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
     rot, pos = forward_kinematics(sk, local, roots)
     up = np.asarray(up, dtype=float) / np.linalg.norm(up)
     points = {s: _foot_points(sk, rot, pos, c[3]) for s, c in legs.items()}
+    if rule.keyed == "slow":
+        k_rot, k_pos = forward_kinematics(sk, *_keys_inbetween(roots, local, keys)[::-1])
+        keyed = {s: _foot_points(sk, k_rot, k_pos, c[3]) for s, c in legs.items()}
     height = {s: p @ up for s, p in points.items()}
     floor = min(float(h[keys].min()) for h in height.values())
     ramp = max(1, int(round(rule.ramp * fps)))
@@ -367,14 +435,16 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
     locks = []
     for side, (thigh, shin, foot, _) in legs.items():
         low = height[side].min(axis=1) <= floor + rule.low
-        slow = _span_speed(points[side], rule.span, fps) <= rule.slow
+        tracked_speed = _span_speed(points[side], rule.span, fps)
+        slow = tracked_speed <= rule.slow
+        held = ((_span_speed(keyed[side], rule.span, fps) <= rule.slow)
+                & (tracked_speed <= rule.keep_slow) if rule.keyed == "slow" else None)
         ankle, foot_rot = pos[:, foot], rot[:, foot]
         goal_pos, goal_rot = ankle.copy(), foot_rot.copy()
         weight = np.zeros(n)
         found = []
-        for a, b in runs(low & slow):
-            if b - a < rule.min_frames:
-                continue
+        near = height[side].min(axis=1) <= floor + max(rule.keep_low, rule.low)
+        for a, b in standing(low, slow, held, rule.min_frames, near):
             inside = [k for k in keys if a <= k < b]
             p, r = _anchor(ankle, foot_rot, a, b, inside)
             goal_pos[a:b], goal_rot[a:b], weight[a:b] = p, r, 1.0

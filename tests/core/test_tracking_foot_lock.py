@@ -297,3 +297,74 @@ def test_a_hinge_knee_is_not_straightened_through_or_past_its_least_bend(skeleto
     assert near[1:-1].any()
     err = np.linalg.norm(pos2[near, chain[2]] - pos[0, chain[2]], axis=1)
     assert err.max() < 0.01
+
+
+def _burst(sk, n=31):
+    """The keys hold the left foot still (``_clip`` without the sway, the right leg swinging);
+    the tracked in-between slides the body, standing foot and all, 7.5 cm sideways and back
+    over frames 12-18 (2.5 cm a frame, 0.75 m/s at 30 fps: a tracker following image noise),
+    so that the tracked foot's 5-frame speed is above ``FootLockRule.slow`` at frames 13 and
+    17."""
+    roots, local = _clip(sk, n)
+    roots[:, 0] = 0.0
+    tracked = roots.copy()
+    f = np.arange(n)
+    tracked[:, 0] = np.where((f >= 12) & (f <= 18), 0.025 * np.minimum(f - 12, 18 - f), 0.0)
+    return roots, local, tracked
+
+
+def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
+    """A contact, once the tracked foot has started it (low and slow), goes on while the foot
+    stays low and the tracked foot **or the keys' in-between** is slow (hysteresis,
+    ``FootLockRule.keyed`` 'slow', the default since stop 40): one run over the clip, not runs
+    cut where the tracked foot slides faster than ``slow`` (but under ``keep_slow``), whose ease
+    in and out snapped the foot (bench-real cam01 at keys every 10: 134 cm/s). With
+    ``keyed='none'`` (the rule before) or a tracked slide faster than ``keep_slow`` the
+    tracked speed alone splits it. The lifted right foot is never locked over its swing (its runs at
+    the ends, where it is low and slow, stay short)."""
+    sk = skeleton
+    roots, local, tracked = _burst(sk)
+    keys = [0, 10, 20, 30]
+    rot, pos = forward_kinematics(sk, local, roots)
+    _, tracked_pos = forward_kinematics(sk, local, tracked)
+    foot = sk.index("lfoot")
+    speed = foot_lock._span_speed(tracked_pos[:, [foot]], 5, FPS)
+    fast = np.flatnonzero(speed > foot_lock.FootLockRule().slow)
+    assert fast.tolist() == [13, 17]                     # the slide breaks the tracked runs
+    _, out, locks, _ = lock_feet(_problem(sk), keys, tracked, local, FPS)
+    assert [lk[:3] for lk in locks if lk[0] == "left"] == [("left", 0, 30)]
+    _, pos2 = forward_kinematics(sk, out, tracked)
+    # Pinned where the keys put it (the keys hold it still; the root slid under it).
+    np.testing.assert_allclose(pos2[:, foot], np.broadcast_to(pos[0, foot], pos2[:, foot].shape),
+                               atol=1e-6)
+    np.testing.assert_array_equal(out[keys], local[keys])
+    right = [lk[:3] for lk in locks if lk[0] == "right"]
+    assert all(last < 8 or first > 22 for _, first, last in right)      # not over the swing
+    # The rule before, or a slide faster than keep_slow (its 5-frame speed is 0.56 m/s at
+    # frames 13 and 17): the tracked speed alone cuts the contact at the slide.
+    assert 0.5 < speed[13] < foot_lock.FootLockRule().keep_slow
+    for rule in (foot_lock.FootLockRule(keyed="none"), foot_lock.FootLockRule(keep_slow=0.5)):
+        _, _, old, _ = lock_feet(_problem(sk), keys, tracked, local, FPS, rule=rule)
+        old_left = [lk[:3] for lk in old if lk[0] == "left"]
+        assert len(old_left) >= 2 and old_left[0] == ("left", 0, 12)
+
+
+def test_standing_starts_on_the_tracked_foot_and_goes_on_on_weaker_evidence():
+    """``standing``: a run needs ``min_frames`` tracked low-and-slow frames to start; it goes on
+    through frames that are near and held (keys slow), not through frames that are not near;
+    frames held but never started stay out."""
+    low = np.array([0, 1, 1, 1, 1, 0, 1, 1, 0, 0, 0, 1, 1, 1, 0, 0], bool)
+    slow = np.array([1, 1, 1, 1, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1], bool)
+    near = low.copy()
+    near[5] = True
+    held = np.ones(16, bool)
+    assert foot_lock.standing(low, slow, None, 3) == [(1, 4), (11, 14)]
+    assert foot_lock.standing(low, slow, held, 3) == [(1, 5), (11, 14)]
+    assert foot_lock.standing(low, slow, held, 3, near) == [(1, 8), (11, 14)]
+    # held alone starts nothing: frames 6-7 are low and slow for two frames only
+    assert foot_lock.standing(low & (np.arange(16) > 5), slow, held, 3, near) == [(11, 14)]
+
+
+def test_an_unknown_keyed_rule_is_refused():
+    with pytest.raises(ValueError, match="keyed must be 'slow' or 'none'"):
+        foot_lock.FootLockRule(keyed="both")
