@@ -134,7 +134,17 @@ def sufficient_statistics(ctx, phis, ys):
     if not ok.all():
         mu = mu * ok[:, None, :]
         ys = np.where(ok, ys, 0.0)
-    return np.einsum("njd,nkd->jk", mu, mu), np.einsum("njd,nd->j", mu, ys)
+    return _normal_matrix(mu), np.einsum("njd,nd->j", mu, ys)
+
+
+def _normal_matrix(mu):
+    """``Σ_t μ_tᵀ μ_t`` (J, J) of ``mu`` (N, J, Dc) as one BLAS product of its (J, N·Dc)
+    layout (eq. 23's normal matrix; NumPy takes ``X @ Xᵀ`` as a symmetric rank-k update, so the
+    result is exactly symmetric). The einsum it replaced summed the same products in another
+    order: equal to rounding, about 4× faster on 100 frames of 63 channels (docs/gait.md,
+    *Stop 40*)."""
+    flat = np.ascontiguousarray(mu.transpose(1, 0, 2)).reshape(mu.shape[1], -1)
+    return flat @ flat.T
 
 
 def m_step(ctx, a_sum, b_sum):
@@ -158,7 +168,7 @@ def offset_statistics(ctx, phis, ys):
     if not ok.all():
         mu = mu * ok[:, None, :]
         ys = np.where(ok, ys, 0.0)
-    return (np.einsum("njd,nkd->jk", mu, mu), np.einsum("njd,nd->j", mu, ys), mu.sum(axis=0),
+    return (_normal_matrix(mu), np.einsum("njd,nd->j", mu, ys), mu.sum(axis=0),
             ys.sum(axis=0), ok.sum(axis=0).astype(float))
 
 

@@ -164,7 +164,10 @@ def _parabola_vertex(before, centre, after):
 
 def _cadence_prior(ctx, omegas):
     """The cadence prior's cost term (module docstring) at ``omegas`` (n,)."""
-    z = (np.log(omegas)[:, None] - np.log(ctx.omega_train)[None, :]) / OMEGA_LOG_SD
+    log_train = ctx._cache.get("log_omega_train")
+    if log_train is None:                 # the same logarithms every call: computed once
+        log_train = ctx._cache["log_omega_train"] = np.log(ctx.omega_train)[None, :]
+    z = (np.log(omegas)[:, None] - log_train) / OMEGA_LOG_SD
     zmin = np.min(z**2, axis=1)
     return zmin - 2.0 * np.log(np.mean(np.exp(-0.5 * (z**2 - zmin[:, None])), axis=1))
 
@@ -251,7 +254,7 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
             a_sum[i, j].copy(), b_sum[i, j].copy())
     if refine:
         omega, phi0, best = _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0,
-                                    np.log(omegas[1] / omegas[0]), 2.0 * np.pi / n_phi)
+                                    np.log(omegas[1] / omegas[0]), 2.0 * np.pi / n_phi, proj)
     w_best, cost_best, resid_best, a_best, b_best = best
     return GridResult(omega=omega, phi0=phi0,
                       phi_last=float((phi0 + omega * (k_frames - 1)) % (2.0 * np.pi)),
@@ -259,14 +262,17 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
                       a_sum=a_best, b_sum=b_best, n_frames=k_frames, styles=w, phis=phis)
 
 
-def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=REFINE_ROUNDS):
+def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, proj=None,
+            rounds=REFINE_ROUNDS):
     """Descend the continuous cost from a grid candidate, in turn along log ω (holding the
     phase at the window's middle frame: the cost's valley runs along ω there, while at fixed
     φ₀ it runs diagonally) and along the phase, each time to the vertex of the parabola through
     the cost at the point and a step either side (at most one step), halving the steps every
-    round. Returns ``(ω, φ₀, score)`` with ``score`` as :func:`_score_one`'s."""
+    round. ``proj`` (K, N_TABLE, J): the grid's projections of the frames on the table
+    (:func:`_score_one`). Returns ``(ω, φ₀, score)`` with ``score`` as :func:`_score_one`'s."""
     lo, hi = np.log(ctx.omega_min), np.log(ctx.omega_max)
     offset_prec = None if ctx.offset_prec is None else ctx.offset_prec[ok]
+    y_sum = None if offset_prec is None else ys.sum(axis=0)        # the same for every point
     t_mid = 0.5 * (len(ys) - 1)
     x = np.array([np.log(omega), phi0 + omega * t_mid])          # (log ω, φ at the middle)
 
@@ -279,7 +285,7 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=RE
         if key not in scored:
             om = float(np.exp(p[0]))
             scored[key] = _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy,
-                                     offset_prec)
+                                     offset_prec, proj, y_sum)
         return scored[key]
 
     best = score(x)
@@ -305,27 +311,36 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, rounds=RE
     return omega, float((x[1] - omega * t_mid) % (2.0 * np.pi)), best
 
 
-def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None):
+def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None, proj=None, y_sum=None):
     """(w, cost, residual, Σ μᵀμ, Σ μᵀy) of one candidate (ω, φ₀): the grid's scoring at a
     single point (``mu``, ``mtm`` the tables of the scored channels). With ``offset_prec``
     (Dc,) the walker's posture offset ``b ~ N(0, diag(1/offset_prec))`` is estimated with the
     style, as adaptation's M-step does (``core.gait.em``: ``b`` eliminated, a J × J system),
-    and the cost is the minimum over both."""
+    and the cost is the minimum over both. ``proj`` (K, N_TABLE, J), the frames' projections
+    ``y_t · μ`` on every table phase (:func:`grid_search`'s), gives ``Σ μᵀy`` as the grid sums
+    it (each frame's row at the candidate's phase, in frame order) instead of the einsum over
+    the gathered rows (equal to rounding; stop 40); ``y_sum`` is ``ys.sum(axis=0)`` when the
+    caller has it."""
     phase = phi0 + omega * np.arange(len(ys))
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE
     rows = mu[idx]                                                        # (K, J, Dc), once
     a_sum = mtm[idx].sum(axis=0)
-    b_sum = np.einsum("td,tjd->j", ys, rows)
+    if proj is None:
+        b_sum = np.einsum("td,tjd->j", ys, rows)
+    else:
+        b_sum = proj[np.arange(len(ys)), idx].sum(axis=0)
     r = ctx.r
     lhs = a_sum / r + ctx.w_prec
-    rhs = b_sum / r + ctx.w_prec @ ctx.w_mean
+    rhs = b_sum / r + ctx.w_prior_term                                    # Λ w̄
     if offset_prec is not None:
         m_sum = rows.sum(axis=0)                                          # (J, Dc)
-        y_sum = ys.sum(axis=0)
+        if y_sum is None:
+            y_sum = ys.sum(axis=0)
         diag = len(ys) / r + offset_prec                                  # D = n/r + λ
         mr = m_sum / r
-        lhs = lhs - (mr / diag) @ mr.T
-        rhs = rhs - (mr / diag) @ (y_sum / r)
+        scaled = mr / diag
+        lhs = lhs - scaled @ mr.T
+        rhs = rhs - scaled @ (y_sum / r)
     w = np.linalg.solve(lhs, rhs)
     resid = yy - 2.0 * w @ b_sum + w @ a_sum @ w
     cost = max(resid, 0.0) / r

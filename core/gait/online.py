@@ -244,12 +244,41 @@ def _combined(ctx, w, b):
     return out, out[:-1]
 
 
+def _lapack_solve1():
+    """NumPy's LAPACK gufunc behind ``np.linalg.solve`` for one right-hand side
+    (``numpy.linalg._umath_linalg.solve1``: LU with partial pivoting, ``dgesv``), when this
+    NumPy has it and it gives ``np.linalg.solve``'s bits on a test system; else None."""
+    try:
+        from numpy.linalg import _umath_linalg
+        gufunc = _umath_linalg.solve1
+        a = np.array([[4.0, 1.0, 0.5, 0.0], [1.0, 3.0, 0.2, 0.1], [0.5, 0.2, 2.0, -0.3],
+                      [0.0, 0.1, -0.3, 1.5]])
+        b = np.array([1.0, -2.0, 0.5, 0.25])
+        if np.array_equal(gufunc(a, b), np.linalg.solve(a, b)):
+            return gufunc
+    except Exception:                    # a NumPy without it, or one that answers otherwise
+        pass
+    return None
+
+
+# np.linalg.solve's own checks and type dispatch cost about half of a 4 × 4 solve (docs/gait.md,
+# *Stop 40*): the online M-step calls the LAPACK gufunc it wraps (the same bits) with its
+# floating-point errors silenced, and np.linalg.solve where the answer is not finite (a singular
+# or non-finite system: its LinAlgError or NaN, as before, and no warning on the way).
+_SOLVE1 = _lapack_solve1()
+
+
 def _solve(lhs_rhs):
-    """Solution of ``[A | b]`` (J, J+1): ``A⁻¹ b`` (J,), ``A`` symmetric positive definite."""
-    # NumPy's private LAPACK gufunc (numpy.linalg._umath_linalg) would save about 5 % of an
-    # online step; the public np.linalg.solve is kept so that no NumPy release can break it.
+    """Solution of ``[A | b]`` (J, J+1): ``A⁻¹ b`` (J,), ``A`` symmetric positive definite
+    (``np.linalg.solve``'s result; raises ``LinAlgError`` on a singular system)."""
     n = len(lhs_rhs)
-    return np.linalg.solve(lhs_rhs[:, :n], lhs_rhs[:, n])     # raises on a singular system
+    a, b = lhs_rhs[:, :n], lhs_rhs[:, n]
+    if _SOLVE1 is not None:
+        with np.errstate(all="ignore"):
+            x = _SOLVE1(a, b)
+        if math.isfinite(x[0]):          # a failed factorisation is NaN throughout
+            return x
+    return np.linalg.solve(a, b)
 
 
 def _offset_solve(ctx, stats, s_aug, eta):
@@ -377,7 +406,7 @@ def _discounted_moments(ctx, state, y, phi, eta, n_obs, outlier):
     n_aug = (n_bases + 1) * n_ch
     # f = [μ; y] (J+1, Dc) then μ [μ; y]ᵀ (J, J+1), flat, in the layout of OnlineState.moments
     f = np.empty(n_aug + n_bases * (n_bases + 1))
-    np.dot(ctx.kernel_value(phi), ctx.alpha_flat, out=f[:n_aug - n_ch])      # μ(x̂_t) (J, Dc)
+    np.dot(_kernel_value(ctx, phi), ctx.alpha_flat, out=f[:n_aug - n_ch])    # μ(x̂_t) (J, Dc)
     f[n_aug - n_ch:n_aug] = y
     muy = f[:n_aug].reshape(n_bases + 1, n_ch)
     mu = muy[:n_bases]
@@ -404,6 +433,34 @@ def _discounted_moments(ctx, state, y, phi, eta, n_obs, outlier):
         return stats, None, None
     moments = np.concatenate((s_aug.ravel(), stats.ravel()))    # the layout for the next frame
     return moments[n_aug:].reshape(stats.shape), moments[:n_aug].reshape(s_aug.shape), moments
+
+
+class _KernelScratch:
+    """Arrays of :func:`_kernel_value` (one context's row weights)."""
+
+    __slots__ = ("query", "rows", "exponent", "linear", "kernel")
+
+    def __init__(self, weights):
+        m = weights.shape[1] // 2
+        self.query = np.ones(3)                            # [cos φ, sin φ, 1]
+        self.rows = np.empty(2 * m)
+        self.exponent, self.linear = self.rows[:m], self.rows[m:]
+        self.kernel = np.empty(m)
+
+
+def _kernel_value(ctx, phi):
+    """``ctx.kernel_value(phi)``'s operations written into arrays cached on the context (the
+    same bits; the result is overwritten by the next call: use it at once)."""
+    s = ctx._cache.get("online_kernel")
+    if s is None:
+        s = ctx._cache["online_kernel"] = _KernelScratch(ctx._rows_weights)
+    query = s.query
+    query[0] = math.cos(phi)
+    query[1] = math.sin(phi)
+    np.dot(query, ctx._rows_weights, out=s.rows)
+    np.exp(s.exponent, out=s.kernel)
+    np.add(s.kernel, s.linear, out=s.kernel)
+    return s.kernel
 
 
 def _try_relock(ctx, config, state, relock, trigger):

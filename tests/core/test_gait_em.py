@@ -210,6 +210,46 @@ def test_batch_em_recovers_a_walkers_posture_offset():
     assert err[0] < 0.5 * err[1]
 
 
+def test_statistics_as_one_product_equal_the_frame_by_frame_sums():
+    """Σ μᵀμ (one BLAS product since stop 40) against the plain sum over frames of each
+    frame's μᵀμ, to rounding, and exactly symmetric; the other statistics as before."""
+    model = small_model()
+    ctx = make_context(model)
+    ys = observations("35_03")[:100] / ctx.scale
+    phis = np.linspace(0.2, 9.0, 100)
+    a_sum, b_sum, m_sum, y_sum, counts = offset_statistics(ctx, phis, ys)
+    mu = ctx.means(phis)
+    plain = np.zeros((model.n_bases, model.n_bases))
+    for frame in mu:
+        plain += frame @ frame.T
+    np.testing.assert_allclose(a_sum, plain, rtol=1e-12, atol=1e-12 * np.abs(plain).max())
+    np.testing.assert_array_equal(a_sum, a_sum.T)
+    np.testing.assert_array_equal(sufficient_statistics(ctx, phis, ys)[0], a_sum)
+    np.testing.assert_allclose(b_sum, sum(m @ y for m, y in zip(mu, ys)), rtol=1e-12)
+    np.testing.assert_array_equal(m_sum, mu.sum(axis=0))
+    np.testing.assert_array_equal(counts, np.full(ys.shape[1], 100.0))
+
+
+def test_a_refined_point_scored_from_the_grid_s_projections_as_from_the_rows():
+    """The refinement scores Σ μᵀy from the grid's projections of the frames on the table
+    (stop 40): the same cost, style and sums as the einsum over the gathered rows, to
+    rounding, with and without the posture offset."""
+    model = small_model()
+    ctx = make_context(model)
+    ys = observations("35_03")[:100] / ctx.scale
+    mu, mtm = phase_tables(ctx)
+    yy = float(np.sum(ys * ys))
+    proj = (ys @ mu.reshape(N_TABLE * model.n_bases, -1).T).reshape(len(ys), N_TABLE, -1)
+    for omega, phi0 in ((0.071, 0.4), (0.093, 2.9), (0.12, 5.5)):
+        for prec in (None, ctx.offset_prec):
+            plain = _score_one(ctx, ys, mu, mtm, omega, phi0, yy, prec)
+            fast = _score_one(ctx, ys, mu, mtm, omega, phi0, yy, prec, proj, ys.sum(axis=0))
+            np.testing.assert_allclose(fast[1], plain[1], rtol=1e-10)
+            np.testing.assert_allclose(fast[0], plain[0], rtol=1e-9, atol=1e-12)
+            np.testing.assert_array_equal(fast[3], plain[3])
+            np.testing.assert_allclose(fast[4], plain[4], rtol=1e-12, atol=1e-12)
+
+
 def test_statistics_skip_missing_values():
     model = small_model()
     ctx = make_context(model)

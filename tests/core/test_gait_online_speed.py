@@ -84,3 +84,38 @@ def test_small_solve_equals_numpy_and_raises_on_a_singular_system():
     singular[:, :5] = 0.0
     with pytest.raises(np.linalg.LinAlgError):
         online._solve(singular)
+
+
+def test_the_m_step_s_solver_gives_np_linalg_solve_s_bits_and_its_errors(monkeypatch):
+    """The online M-step calls NumPy's LAPACK gufunc directly (stop 40): the same bits as
+    ``np.linalg.solve`` on the systems it solves (symmetric positive definite, 4 and 13
+    styles), NaN where the system holds NaN, and ``LinAlgError`` on a singular system, with no
+    warning on the way (pytest.ini makes a RuntimeWarning from core an error); without the
+    gufunc, ``np.linalg.solve``."""
+    from core.gait import online
+    rng = np.random.default_rng(3)
+    for n in (4, 13):
+        for _ in range(50):
+            m = rng.standard_normal((n, 3 * n))
+            lhs = np.column_stack([m @ m.T + 0.1 * np.eye(n), rng.standard_normal(n)])
+            want = np.linalg.solve(lhs[:, :n], lhs[:, n])
+            assert online._solve(lhs).tobytes() == want.tobytes()
+    lhs[1, 2] = np.nan
+    assert np.isnan(online._solve(lhs)).any()
+    singular = np.zeros((4, 5))
+    with pytest.raises(np.linalg.LinAlgError):
+        online._solve(singular)
+    monkeypatch.setattr(online, "_SOLVE1", None)
+    with pytest.raises(np.linalg.LinAlgError):
+        online._solve(singular)
+    lhs[1, 2] = 0.5
+    assert online._solve(lhs).tobytes() == np.linalg.solve(lhs[:, :13], lhs[:, 13]).tobytes()
+
+
+def test_the_m_step_s_kernel_row_is_the_context_s():
+    """The online M-step's kernel row, written into cached arrays (stop 40), equals
+    ``kernel_value`` bit for bit, call after call."""
+    from core.gait.online import _kernel_value
+    ctx = make_context(small_model())
+    for phi in np.linspace(-1.0, 8.0, 37):
+        assert _kernel_value(ctx, float(phi)).tobytes() == ctx.kernel_value(float(phi)).tobytes()
