@@ -24,7 +24,9 @@ the change goes along ``P⁻¹ g``, the smallest change in the posterior's own m
 ``(w' − w)ᵀ P (w' − w)`` for a given change of the legs' speed (the directions the observed
 frames pin down stay where they are; the change goes where the frames say least), by the
 gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + σ²)`` of the difference. σ is the reference's own: the
-standard deviation of the one-cycle legs' speed over those cycle windows. A steady walker's
+spread of the one-cycle legs' speed over those cycle windows (:func:`robust_spread`, the
+median absolute deviation scaled to a standard deviation, since stop 40: a tracked foot's
+slip over a few frames splits the overlapping windows in two groups). A steady walker's
 legs repeat their travel (CMU 35's walks: 0.005-0.02 m/s over a steady piece) and its style
 is moved nearly all the way; an irregular one's do not (CMU 139's careful walks 0.03-0.18,
 08's 0.09-0.18) and its style little. The step is solved along ``P⁻¹ g`` with a secant on the
@@ -49,12 +51,13 @@ from .root_travel import _directions as heading_directions
 from .walk_figures import CMU_FEET
 
 __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed",
-           "style_legs_speed", "style_precision", "styles_legs_speeds"]
+           "robust_spread", "style_legs_speed", "style_precision", "styles_legs_speeds"]
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
 SECANT_STEPS = 6
 SPEED_TOLERANCE = 1e-4       # m/s
+MAD_TO_SD = 1.482602218505602  # a normal distribution's σ per median absolute deviation, 1/Φ⁻¹(3/4)
 
 
 @dataclass(frozen=True)
@@ -127,7 +130,7 @@ def _legs_speeds(rel, root, fps, frame):
 
 
 def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
-    """The reference's legs' speed and its spread (m/s): the mean and the standard deviation
+    """The reference's legs' speed and its spread (m/s): the mean and :func:`robust_spread`
     of :func:`legs_speed` over every window of ``n_steps`` steps (a cycle) the reference holds
     (a spread of 0 for a single window)."""
     reference = np.asarray(reference, dtype=float)
@@ -138,7 +141,31 @@ def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_
     k = int(n_steps) + 1
     windows = np.arange(len(reference) - k + 1)[:, None] + np.arange(k)   # (W, k) rows
     speeds = _legs_speeds(rel[windows], root[windows], fps, frame)
-    return float(np.mean(speeds)), float(np.std(speeds))
+    return float(np.mean(speeds)), robust_spread(speeds)
+
+
+def robust_spread(speeds):
+    """The spread (m/s) of the one-cycle legs' speeds of a reference's cycle windows: the
+    median absolute deviation from their median, scaled to a normal distribution's standard
+    deviation (``MAD_TO_SD``; Hampel 1974). Overlapping windows share a few frames' slip: a
+    tracked foot that jumps under the hips in a handful of frames (a lock's release, a snap
+    onto the tracked pose) enters every window holding those frames, the windows split in two
+    groups, and their standard deviation measures the slip instead of how the walker's legs
+    repeat their travel (``docs/gait_rigs.md``, *Stop 40*); the median's deviation is the
+    larger group's.
+
+    Parameters
+    ----------
+    speeds : array_like, shape (W,)
+        The windows' legs' speeds (m/s), W ≥ 1.
+
+    Returns
+    -------
+    float
+        ``1.4826 · median(|speeds − median(speeds)|)`` (m/s; 0 for a single window).
+    """
+    speeds = np.asarray(speeds, dtype=float)
+    return float(MAD_TO_SD * np.median(np.abs(speeds - np.median(speeds))))
 
 
 def _cycle_steps(omega):
