@@ -258,13 +258,22 @@ def mixamo_joints():
     return joints
 
 
+def mixamo_scale(joints):
+    """The uniform scale (cm per table unit) giving the Mixamo table the subject's leg length."""
+    leg = np.mean([np.linalg.norm(joints[f"mixamorig:{s}UpLeg"][1] - joints[f"mixamorig:{s}Leg"][1])
+                   + np.linalg.norm(joints[f"mixamorig:{s}Leg"][1]
+                                    - joints[f"mixamorig:{s}Foot"][1]) for s in ("Left", "Right")])
+    return 100.0 * cmu_leg_length() / leg
+
+
 def mixamo_rest(joints, scale):
     """Heads and tails (cm, Mixamo's frame) of the Mixamo-style skeleton scaled by ``scale`` and
     fitted to the CMU subject's (``rig_fit``; the subject's skeleton turned into Mixamo's
     Y-up, Z-forward frame). Mixamo bones point at their (first) child, leaf bones continue
-    their parent: after the fit a bone's tail is again its first child's head (the one neck
-    bone, fitted to the CMU's two, turns by 7°, and the walk puts the head joint 1.5 cm from
-    the subject's)."""
+    their parent: after the fit a bone's tail is again its first child's head, but for the one
+    neck bone, fitted to the CMU's two: it keeps its direction and length, and the head starts
+    where the walk puts subject 35's (pointing it at the head turned it 7° and put the head
+    joint 1.5 cm off; tracking on Mixamo was 4-9 % worse that way, docs/bench_rigs.md)."""
     from sample_scenes.rig_fit import fit_skeleton
     children = {}
     for name, (parent, _) in joints.items():
@@ -281,7 +290,7 @@ def mixamo_rest(joints, scale):
     heads, tails = fit_skeleton(heads, tails, parents, RIG_SPECS["mixamo_fbx"].parts, cmu)
     for name in joints:
         kids = children.get(name, [])
-        if kids:
+        if kids and name != "mixamorig:Neck":
             tails[name] = heads[kids[0]]
     return heads, tails
 
@@ -289,10 +298,7 @@ def mixamo_rest(joints, scale):
 def _build_mixamo(fbx_path):
     """Mixamo-style skeleton -> FBX (bundled exporter, centimetres, Y up) -> bundled importer."""
     joints = mixamo_joints()
-    leg = np.mean([np.linalg.norm(joints[f"mixamorig:{s}UpLeg"][1] - joints[f"mixamorig:{s}Leg"][1])
-                   + np.linalg.norm(joints[f"mixamorig:{s}Leg"][1]
-                                    - joints[f"mixamorig:{s}Foot"][1]) for s in ("Left", "Right")])
-    scale = 100.0 * cmu_leg_length() / leg
+    scale = mixamo_scale(joints)
     scene = bpy.context.scene
     # One Blender unit = 1 cm: the exporter writes a centimetre FBX (UnitScaleFactor 1), as
     # Mixamo's files are.
@@ -384,9 +390,16 @@ def bpy_version():
 
 def rig_stamp(kind):
     """The parameters a cached rig depends on (their hash names the file)."""
-    return {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy_version(),
-            "cmu_subject": CMU_SUBJECT, "leg_length": round(cmu_leg_length(), 6),
-            "skeleton": skeleton_digest()}
+    stamp = {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy_version(),
+             "cmu_subject": CMU_SUBJECT, "leg_length": round(cmu_leg_length(), 6),
+             "skeleton": skeleton_digest()}
+    if stamp["kind"] == "mixamo_fbx":
+        # Its fitted joint table is computed here: its digest is the rig's geometry.
+        joints = mixamo_joints()
+        heads, tails = mixamo_rest(joints, mixamo_scale(joints))
+        table = np.concatenate([np.r_[heads[n], tails[n]] for n in sorted(heads)])
+        stamp["geometry"] = hashlib.sha1(np.round(table, 6).tobytes()).hexdigest()[:10]
+    return stamp
 
 
 def rig_blend_path(kind, cache=None):
