@@ -20,14 +20,18 @@ legs instead (``docs/gait.md``, *Restyle and retime*):
   by ``exp(−height above the floor / 1 cm)`` (the lower foot dominates; both in double
   support). Frames with no foot within ``CONTACT_BAND`` of the floor (a run's flight) take the
   velocity interpolated between the neighbouring contacts (horizontal speed is constant in
-  flight). A run's landing (``travel_from_legs(..., landing=True)``, frames with a flight lift):
-  the foot that comes down carries only once it has stopped over the floor (its forward speed
-  over the floor, with the root at its take-off speed, within ``SWING_SPEED``); the frames
-  before are flight too, for the travel along the walk (the sideways sway stays the legs').
+  flight). A run's change of foot (``travel_from_legs(..., landing=True)``, frames with a
+  flight lift, after a flight frame or not): the take-off foot no longer carries once it rises
+  out of ``CONTACT_BAND``, and the foot that comes down carries only once it has stopped over
+  the floor (its forward speed over the floor, with the root at its take-off speed, within
+  ``SWING_SPEED``); the frames between are flight too, for the travel along the walk (the
+  sideways sway stays the legs').
 * **Stance** (:func:`stance_targets`, :func:`pin_feet`): each stance foot is pinned on its spot
   by the legs' inverse kinematics, eased in and out over ``PIN_RAMP_S`` in the swing; in a walk
   a landing foot is held level (x, y) ``HOLD_LEVEL_S`` before it is held in height: it stops
-  over its spot before the ball of the foot comes down (the heel is down first).
+  over its spot before the ball of the foot comes down (the heel is down first). A run's stance
+  foot is held on the floor and released over the last ``PIN_RAMP_S`` of its stance (it leaves
+  the floor at speed: held after it, the legs could not reach back to it).
 
 Everything works on DOF rows of a :class:`~core.kinematics.Skeleton` (the walker's own bone
 lengths) and plain arrays.
@@ -40,7 +44,8 @@ from ..kinematics.fk import chain_frames, chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
 __all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "grounded_heights",
-           "legs_velocities", "reference_floor", "relative_feet", "travel_from_legs"]
+           "legs_velocities", "reference_floor", "relative_feet", "smooth_sideways",
+           "travel_from_legs"]
 
 CONTACT_BAND = 0.025        # m: a foot this close to the floor can carry the walker
 CLEARANCE_SOFTNESS = 0.02   # m: ε of the soft clearance threshold
@@ -152,13 +157,17 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, la
         The flight part of the heights (:func:`grounded_heights`): a frame lifted by more than
         ``CONTACT_BAND`` is in flight, the feet are judged without the lift otherwise.
     landing : bool
-        A run's landings (frames where ``lift`` is above 0; needs ``expected``): a foot that
-        comes down after a flight carries the walker only from the frame its forward speed
-        over the floor, with the root still at the speed it left the floor with, is within
-        ``SWING_SPEED``, or it stops slowing down (:func:`_landed`; until then it is still
-        swinging: not carrying, and the velocity along ``expected`` is interpolated across
-        those frames as across the flight, the sideways one stays the legs'). False, or no
-        lift anywhere: the velocities are :func:`legs_velocities`'s, bit for bit.
+        A run's changes of foot (frames where ``lift`` is above 0; needs ``expected``): a foot
+        that comes down after a flight, or takes over from the other foot without one, carries
+        the walker only from the frame its forward speed over the floor, with the root still
+        at the speed it left the last carrying frame with, is within ``SWING_SPEED``, or it
+        stops slowing down (:func:`_landed`; until then it is still swinging: not carrying,
+        and the velocity along ``expected`` is interpolated across those frames as across the
+        flight, the sideways one stays the legs'); the take-off foot, while it has the weight
+        but has risen out of ``CONTACT_BAND``, says nothing either (those frames are flight
+        too); and a foot pinned from a flight frame waits until it has stopped over the floor
+        as solved (or stops slowing down). False, or no lift anywhere: the velocities and
+        carrying are :func:`legs_velocities`'s, bit for bit.
 
     Returns
     -------
@@ -176,22 +185,66 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, la
         norm = np.linalg.norm(exp, axis=-1, keepdims=True)
         ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
         along = np.sum(vel * ahead, axis=-1)
-        late = contact & ~_landed(along, contact, 0.5 * (lift[1:] + lift[:-1]) > 0.0)
+        flying = 0.5 * (lift[1:] + lift[:-1]) > 0.0
+        foot = np.argmax(share, axis=-1)
+        # A run's take-off foot that carries while it rises off the floor (the landing foot,
+        # still swinging, implies the root going back and does not take the weight) no
+        # longer says where the root goes: those frames are flight too.
+        rising = flying & (np.take_along_axis(above, foot[:, None], axis=-1)[:, 0]
+                           >= CONTACT_BAND)
+        late = contact & ~_landed(along, contact & ~rising, flying, foot)
         landed = _interpolate_flight(vel.copy(), contact & ~late) if late.any() else None
         _interpolate_flight(vel, contact)
         if landed is not None:
             # only the travel along the walk changes: the sideways sway stays the legs'
             vel += np.sum((landed - vel) * ahead, axis=-1, keepdims=True) * ahead
+        # Each foot's forward speed over the floor with the root as solved (m/s, (N, F)), and
+        # the root speed it implies (rising while the foot still slows down).
+        implied = -np.einsum("nfc,nc->nf", np.diff(np.asarray(relative, dtype=float)[..., :2],
+                                                    axis=0) * fps, ahead)
+        over_floor = np.sum(vel * ahead, axis=-1)[:, None] - implied
     else:
         vel, share, above = legs_velocities(relative, heights, floor, fps, expected, lift)
         late = np.zeros(len(vel), dtype=bool)
+        over_floor = None
     # A foot carries the walker through its whole stance, a run's push-off included (the lift
     # only decides how the root travels): the legs reach down to it (pin_feet); not while it
     # is still coming down at speed after a flight (landing).
     carrying = (share > 0.5) & (above < CONTACT_BAND) & ~late[:, None]
     for f in range(carrying.shape[1]):                  # a stance is not broken by a frame
         carrying[:, f] = _close_gaps(carrying[:, f], MIN_STANCE_FRAMES)
+        if over_floor is None:
+            continue
+        # A run's foot that lands in a flight frame (the root's speed interpolated there)
+        # while it still swings forward over the floor faster than SWING_SPEED and still slows
+        # down does not carry yet: pinned there, it was stopped dead from several m/s within
+        # the pin's ramp, a centimetre above the floor (CMU 08_04 run at 1.0: 3.7 m/s).
+        for a, b in _runs(carrying[:, f]):
+            i = a
+            while i < b - 1 and flying[i] and over_floor[i, f] > SWING_SPEED \
+                    and implied[i + 1, f] > implied[i, f]:
+                carrying[i, f] = False
+                i += 1
     return vel, carrying
+
+
+def smooth_sideways(velocities, ahead, sigma_frames):
+    """Velocities (N, 2) with their component across ``ahead`` (N, 2, unit directions of the
+    walk) smoothed over ``sigma_frames`` (Gaussian σ), the component along it unchanged.
+
+    A run's legs say next to nothing of its sideways sway: on the captured runs 35_17/18/20/21
+    (their root the truth) the legs' sideways velocity (:func:`travel_from_legs`) is 0.33-0.53
+    m/s RMS where the root's is 0.07-0.11; smoothed over a step its error falls to about the
+    root's own sway (tests/core/test_gait_planting.py). Its mean, the path, is kept away from
+    the ends; within 3 σ of them the smoothing reflects the sequence (a run's path over its
+    last cycle turned by up to 1.6° more, docs/gait.md, *Stop 40, restyle*). :func:`.walk._plant`
+    smooths a run's over a step.
+    """
+    vel = np.asarray(velocities, dtype=float)
+    ahead = np.asarray(ahead, dtype=float)
+    side = np.stack([-ahead[:, 1], ahead[:, 0]], axis=1)
+    lateral = np.sum(vel * side, axis=1)
+    return vel + (smooth(lateral, sigma_frames) - lateral)[:, None] * side
 
 
 def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
@@ -260,12 +313,16 @@ def _interpolate_flight(vel, contact):
     return flat_vel.reshape(vel.shape)
 
 
-def _landed(along, contact, flying):
+def _landed(along, contact, flying, foot=None):
     """(N,) bool: the contact frames (N,) where the foot down carries the walker, a run's
     landings moved to where the landing foot has stopped.
 
-    In a frame where the walk may fly (``flying``) that follows one without contact, the
-    foot down implies the root speed ``along[i]`` (N, m/s, along the walk); with the root
+    In a frame where the walk may fly (``flying``) that follows one without contact, or whose
+    carrying foot ``foot[i]`` (N,: the foot with most of the weight) is not the last contact
+    frame's (a run whose take-off foot is still near the floor when the other comes down: CMU
+    35_01's runs have no flight frame, and their root slowed 3.65 → 0.52 m/s at every landing,
+    docs/gait.md, *Stop 40, restyle*), the foot down implies the root speed ``along[i]`` (N,
+    m/s, along the walk); with the root
     still at the speed it left the floor with (the last contact's, constant in flight) that
     foot still swings forward over the floor at ``along[last] − along[i]``. While that is
     above ``SWING_SPEED`` and the foot is still slowing down (the implied speed rising), the
@@ -280,7 +337,8 @@ def _landed(along, contact, flying):
     for i in range(len(out)):
         if not out[i]:
             continue
-        if last is not None and flying[i] and not out[i - 1] \
+        if last is not None and flying[i] \
+                and (not out[i - 1] or (foot is not None and foot[i] != foot[last])) \
                 and along[last] - along[i] > SWING_SPEED \
                 and i + 1 < len(out) and along[i + 1] > along[i]:
             out[i] = False
@@ -299,7 +357,8 @@ def _close_gaps(mask, longest):
     return out
 
 
-def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOLD_LEVEL_S):
+def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOLD_LEVEL_S,
+                   run=False):
     """Where each foot stands while it carries the walker, and how firmly.
 
     Parameters
@@ -317,6 +376,13 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOL
     level_s : float
         Seconds a landing foot is held level (x, y) before it is held in height (0: the
         same ramp for both; a run's feet meet the floor at speed, :func:`.walk._plant`).
+    run : bool
+        A run (a flight lift somewhere): each stance is held on the floor itself (a run's
+        grounded root leaves the stance foot 1-2 cm above it between the changes of foot,
+        where a walk's lower foot is on it), and released over the last ``PIN_RAMP_S`` of the
+        stance instead of the swing after it (the take-off foot leaves the floor at the
+        root's speed: held after its stance the leg could not reach back to it, 2-9 cm short,
+        and the foot slid below the floor; docs/gait.md, *Stop 40, restyle*).
 
     Returns
     -------
@@ -365,12 +431,14 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOL
                 # the join, and the foot jumps it at release instead: CMU 35_08 1.6 -> 2.2
                 # cm/s.)
                 anchor = pts[reference_frames, f].copy()
-                anchor[2] = max(float(floor), float(pts[a:b, f, 2].min()))
+                anchor[2] = float(floor) if run else \
+                    max(float(floor), float(pts[a:b, f, 2].min()))
                 lo = reference_frames
                 landing = smootherstep_weights((frames[lo:a] - (a - ramp)) / ramp)
             else:
                 anchor = pts[a:b, f].mean(axis=0)
-                anchor[2] = max(float(floor), float(pts[a:b, f, 2].min()))
+                anchor[2] = float(floor) if run else \
+                    max(float(floor), float(pts[a:b, f, 2].min()))
                 # (The level hold does not reach into the reference: there the foot is what
                 # the reference made it, and a hold begun there would pull the foot onto its
                 # spot over the join.)
@@ -378,17 +446,18 @@ def stance_targets(points, carrying, floor, fps, reference_frames=0, level_s=HOL
                 lo = max(reference_frames, int(np.floor(a - ramp - early)))
             hi = min(n, int(np.ceil(b + ramp)))
             k = frames[lo:hi]
+            release = float(b) if run else b - 1 + ramp
             # Pinned through the whole stance; the ramps lie in the swing on either side, so
             # the foot lands on its spot and leaves it upwards.
-            rise = np.minimum((k - (a - ramp)) / ramp, ((b - 1 + ramp) - k) / ramp)
+            rise = np.minimum((k - (a - ramp)) / ramp, (release - k) / ramp)
             # Held level (x, y) from ``early`` before it is held in height.
-            level = np.minimum((k - (a - ramp - early)) / ramp, ((b - 1 + ramp) - k) / ramp)
+            level = np.minimum((k - (a - ramp - early)) / ramp, (release - k) / ramp)
             if a < reference_frames:
                 # Held from where the reference left it, eased in from the join (the foot
                 # keeps the reference's motion for a moment instead of stopping dead).
-                rise = np.minimum((k - reference_frames + 1) / ramp, ((b - 1 + ramp) - k) / ramp)
+                rise = np.minimum((k - reference_frames + 1) / ramp, (release - k) / ramp)
             if landing is not None:
-                rise = ((b - 1 + ramp) - k) / ramp          # held from the join, released as usual
+                rise = (release - k) / ramp          # held from the join, released as usual
             w = smootherstep_weights(rise)
             goal = np.broadcast_to(anchor, (len(k), 3)).copy()
             if landing is not None:                         # lowered while it lands

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .features import observations_from_dofs
-from .planting import HOLD_LEVEL_S, MIN_EXPECTED, PIN_RAMP_S, pin_feet, swing_clearance, smooth, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
+from .planting import HOLD_LEVEL_S, MIN_EXPECTED, PIN_RAMP_S, pin_feet, swing_clearance, smooth, smooth_sideways, stance_targets, grounded_heights, reference_floor, relative_feet, travel_from_legs
 from .prediction import (DEFAULT_BLEND_S, DEFAULT_VELOCITY_FRAMES, cycle_mean,
                          dofs_from_observations, predict_transition, smootherstep)
 from .root_travel import ROOT_DOF_NAMES, _directions as heading_directions, heading_angles, \
@@ -410,13 +410,21 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A run's landing foot carries from where it has stopped over the floor (planting's
     # `landing`: a run retimed past its data lands its foot still swinging forward, and the
     # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
-    # runs*). Without a flight lift (a walk below FLIGHT_FROUDE) nothing changes.
+    # runs*), at any change of foot, with a flight frame or not (*Stop 40, restyle*). Without a
+    # flight lift (a walk below FLIGHT_FROUDE) nothing changes.
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
     vel = smooth(vel, SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
                  * (1.0 - 0.75 * float(np.mean(flight))))
+    run_share = float(np.mean(flight))
+    if run_share > 0.0:
+        # A run's legs say next to nothing of its sideways sway (planting.smooth_sideways):
+        # the planted root weaved 11-18 cm from side to side (the captured runs 1.2-1.9 cm).
+        # Smoothed over a step (σ, scaled by the share of flight; docs/gait.md, *Stop 40,
+        # restyle*).
+        vel = smooth_sideways(vel, expected, run_share * fps / (2.0 * cycle_hz))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
         vel[m - 2]
@@ -431,12 +439,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A walk's landing foot stops over its spot before the ball comes down; a run's meets the
     # floor at speed (planting.stance_targets).
     level_s = HOLD_LEVEL_S * (1.0 - float(np.max(flight)))
-    targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
+    # A run's stance foot is held on the floor and let go before it leaves it (stop 40).
+    run = bool(np.max(flight) > 0.0)
+    targets, pins = stance_targets(points, carrying, floor, fps, m, level_s, run)
     shift = _held_over_the_join(points, targets, pins, m, fps)
     if shift is not None:
         out[:, [tx, ty]] += shift[m:]
         points[:, :, :2] += shift[:, None, :]
-        targets, pins = stance_targets(points, carrying, floor, fps, m, level_s)
+        targets, pins = stance_targets(points, carrying, floor, fps, m, level_s, run)
     if not legs:
         return
     lifted, lifts = swing_clearance(points, pins, floor, fps, reference_frames=m)

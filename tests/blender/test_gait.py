@@ -989,6 +989,39 @@ def test_a_restyled_walk_keeps_the_observed_path_through_the_operator(scene, tmp
         assert abs((turn + 180.0) % 360.0 - 180.0) <= 3.0, (style, turn)
 
 
+def test_a_run_retimed_up_keeps_its_speed_at_every_landing_through_the_operator(scene, tmp_path):
+    """Issue 25, stop 40: CMU 35_01 restyled to a run and retimed up. Its landings have no
+    flight frame (the take-off foot is still near the floor when the other comes down), so
+    stop 39's landing rule, which started from a flight frame, did not see them: the planted
+    root stopped dead at every landing (its slowest forward speed after the join -0.05 × its
+    median at 1.3, tests/core/test_gait_walk.py's setup) and the feet slipped 3.6 cm/s and
+    floated 1.5 cm (the restyle sweep's 35_01 row). The keyed root's slowest forward speed
+    after the join is above half the slowest of the captured runs 35_17/18/20/21 (0.79-0.88
+    × their median), and the feet stay planted on the observed floor."""
+    from core.gait.walk_figures import walk_summary
+
+    name, skeleton, layout, floor = observed_walk_on_floor(tmp_path, "35_01")
+
+    def forward_speed(rows):
+        v = np.diff(rows[:, :2], axis=0) * FPS
+        return v @ (v.sum(axis=0) / np.linalg.norm(v.sum(axis=0)))
+
+    captured = []
+    for trial in ("35_17", "35_18", "35_20", "35_21"):
+        s = forward_speed(trial_dofs(trial)[0])
+        s = s[len(s) // 5:-len(s) // 5]
+        captured.append(s.min() / np.median(s))
+    assert bpy.ops.track_and_stride.predict_gait(
+        horizon=4.0, style_mode="RESTYLE", restyle_from="normal", restyle_to="run",
+        restyle_amount=1.0, cadence=1.3) == {"FINISHED"}
+    _, pred = keyed_walk(bpy.data.objects[name], skeleton, layout, 4 * FPS)
+    s = forward_speed(pred)[FPS:]                     # after the join (one step, < 1 s)
+    assert s.min() > 0.5 * min(captured) * np.median(s), (s.min(), np.median(s))
+    f = walk_summary(skeleton, pred, FPS, period_frames(pred[:, 6:]), floor=floor)
+    assert abs(f["slip_cm_s"]) <= 5.0 and abs(f["root_vs_legs"] - 1.0) <= 0.05
+    assert abs(f["lowest_foot_cm"]) <= 2.0 and f["skate_cm_s"] <= 20.0
+
+
 def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, tmp_path):
     """Issue 25 §3 (stop 37): CMU 35_01 restyled to brisk at cadence 1.3 jolted its hips over
     the one-step join beyond the capture's 99th percentile (the restyle sweep: the stance
