@@ -12,7 +12,7 @@ Kinds (:data:`RIG_KINDS`)
 ``rigify_ik``   The same rig with the limbs in IK (``IK_FK`` = 0.0, as Rigify generates it; no
                 pole: the knee/elbow direction is the ``thigh_ik``/``upper_arm_ik`` rotation).
 ``mixamo_fbx``  A Mixamo-style skeleton (65 bones: ``mixamorig:Hips`` … five fingers, leaf bones
-                ``HeadTop_End``, ``LeftToe_End``, ``…Index4``; Mixamo's T-pose and proportions)
+                ``HeadTop_End``, ``LeftToe_End``, ``…Index4``; Mixamo's T-pose)
                 written in centimetres, Y up, with the bundled FBX exporter and read back with
                 the bundled importer: the armature comes in as Mixamo files do (object scale
                 0.01, rotation 90° about X from the importer's axis conversion, bones and
@@ -22,8 +22,13 @@ Kinds (:data:`RIG_KINDS`)
                 the root of the armature), the foot copying the target's rotation. The animator
                 keys the targets and poles; thigh/shin keys have no effect.
 
-Every rig is scaled so that its thigh + shin length equals the CMU subject's (as an animator
-fits the metarig to the character), so that the same walk puts every rig's feet on the floor.
+Every rig is **fitted to the CMU subject's skeleton** (:mod:`rig_fit`, as an animator fits a
+metarig to a character): scaled to the subject's thigh + shin length, then every mapped joint
+moved so that the walk puts it where the subject has it -- thigh/shin split, hip width, feet,
+spine, neck, clavicle and arm segments, each side its own -- keeping the rig's rest directions
+and rolls (the metarig's A-pose arms, Mixamo's T-pose and axes). Bones that are no mapped part
+(face, fingers, pelvis, heel) move with their mapped ancestor. Before stop 40 the rigs were
+only scaled (the metarig's legs split 0.473 / 0.400 m against the subject's 0.42 / 0.45).
 
 What each rig *is* for the tests and the benchmark is in :data:`rig_specs.RIG_SPECS`: per body
 part the deforming bones that are that part (the truth is read from them), and the controls the
@@ -34,7 +39,8 @@ Generated rigs are slow to build (Rigify: about 20 s): :func:`ensure_rig_blend` 
 (``python sample_scenes/rig_scenes.py build <kind> --output <file>``) so that the caller's
 session never enables Rigify; :func:`load_rig` appends the cached rig into the current file.
 ``rigify_fk`` and ``rigify_ik`` share one generated rig. Bump :data:`RIG_VERSION` when a builder
-changes.
+changes; the stamp also holds a digest of the subject's skeleton file the rigs are fitted to, and
+the scenes of ``rig_footage`` hold the rig's stamp, so a rig of other geometry is never reused.
 
 Needs ``bpy``.
 """
@@ -62,8 +68,8 @@ from sample_scenes.rig_specs import RIG_KINDS, RIG_SPECS  # noqa: E402,F401  (re
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
 RIG_CACHE = ROOT / "build" / "rigs"
 #: Version of the builders below (part of every cache stamp).
-RIG_VERSION = 1
-#: The CMU subject whose skeleton is the reference and whose leg length every rig gets.
+RIG_VERSION = 2
+#: The CMU subject whose skeleton is the reference and to which every rig is fitted.
 CMU_SUBJECT = "35"
 
 # --------------------------------------------------------------------------------------------
@@ -85,8 +91,53 @@ def _enable_rigify():
         raise RuntimeError("Rigify (bundled with Blender) could not be enabled")
 
 
+def cmu_rest():
+    """The CMU subject's rest skeleton, {bone: (head, tail)} (m, Blender's frame; rig_fit)."""
+    from sample_scenes.rig_fit import cmu_rest as rest
+    return rest(CMU / f"{CMU_SUBJECT}.asf")
+
+
+def skeleton_digest():
+    """SHA-1 (10 hex digits) of the subject's skeleton file the rigs are fitted to."""
+    return hashlib.sha1((CMU / f"{CMU_SUBJECT}.asf").read_bytes()).hexdigest()[:10]
+
+
+def _fit_edit_bones(obj, parts, cmu, unit=1.0):
+    """Fit ``obj``'s armature (rest, armature space) to ``cmu`` (rig_fit.fit_skeleton).
+
+    ``cmu`` is in the armature's frame and ``unit`` its unit (metres per unit)."""
+    from sample_scenes.rig_fit import fit_skeleton
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    edit = obj.data.edit_bones
+    heads = {b.name: np.array(b.head) for b in edit}
+    tails = {b.name: np.array(b.tail) for b in edit}
+    parents = {b.name: b.parent.name if b.parent else None for b in edit}
+    rolls = {b.name: b.roll for b in edit}
+    cmu = {n: (h / unit, t / unit) for n, (h, t) in cmu.items()}
+    new_h, new_t = fit_skeleton(heads, tails, parents, parts, cmu)
+    # Parents first: a connected child's head is its parent's tail (the same point here).
+    order, seen = [], set()
+
+    def visit(name):
+        if name in seen:
+            return
+        if parents[name] is not None:
+            visit(parents[name])
+        seen.add(name)
+        order.append(name)
+    for name in heads:
+        visit(name)
+    for name in order:
+        bone = edit[name]
+        bone.head, bone.tail = tuple(new_h[name]), tuple(new_t[name])
+        bone.roll = rolls[name]
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+
 def _add_metarig():
-    """Blender's Human metarig, scaled (scale applied) to the CMU subject's leg length."""
+    """Blender's Human metarig, scaled (scale applied) to the CMU subject's leg length and
+    fitted to its skeleton (module docstring)."""
     _enable_rigify()
     bpy.ops.object.armature_human_metarig_add()
     meta = bpy.context.active_object
@@ -95,6 +146,7 @@ def _add_metarig():
     s = cmu_leg_length() / legs
     meta.scale = (s, s, s)
     bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+    _fit_edit_bones(meta, RIG_SPECS["metarig"].parts, cmu_rest())
     return meta
 
 
@@ -169,7 +221,8 @@ def _rest_keeping_pole_angle(obj, side):
 
 
 #: Mixamo "Y Bot"-like joint positions (cm; X left, Y up, Z forward: Mixamo's frame) and
-#: parents: Mixamo's 65-bone skeleton. Scaled to the CMU subject's leg length when built.
+#: parents: Mixamo's 65-bone skeleton. Scaled to the CMU subject's leg length and fitted to its
+#: skeleton when built (:func:`mixamo_rest`).
 _MIXAMO_SPINE = (("Hips", None, (0, 100, -1.5)), ("Spine", "Hips", (0, 110, 1.0)),
                  ("Spine1", "Spine", (0, 121.5, 1.5)), ("Spine2", "Spine1", (0, 134.5, 1.5)),
                  ("Neck", "Spine2", (0, 149.5, -0.5)), ("Head", "Neck", (0, 160, 2)),
@@ -205,13 +258,47 @@ def mixamo_joints():
     return joints
 
 
-def _build_mixamo(fbx_path):
-    """Mixamo-style skeleton -> FBX (bundled exporter, centimetres, Y up) -> bundled importer."""
-    joints = mixamo_joints()
+def mixamo_scale(joints):
+    """The uniform scale (cm per table unit) giving the Mixamo table the subject's leg length."""
     leg = np.mean([np.linalg.norm(joints[f"mixamorig:{s}UpLeg"][1] - joints[f"mixamorig:{s}Leg"][1])
                    + np.linalg.norm(joints[f"mixamorig:{s}Leg"][1]
                                     - joints[f"mixamorig:{s}Foot"][1]) for s in ("Left", "Right")])
-    scale = 100.0 * cmu_leg_length() / leg
+    return 100.0 * cmu_leg_length() / leg
+
+
+def mixamo_rest(joints, scale):
+    """Heads and tails (cm, Mixamo's frame) of the Mixamo-style skeleton scaled by ``scale`` and
+    fitted to the CMU subject's (``rig_fit``; the subject's skeleton turned into Mixamo's
+    Y-up, Z-forward frame). Mixamo bones point at their (first) child, leaf bones continue
+    their parent: after the fit a bone's tail is again its first child's head, but for the one
+    neck bone, fitted to the CMU's two: it keeps its direction and length, and the head starts
+    where the walk puts subject 35's (pointing it at the head turned it 7° and put the head
+    joint 1.5 cm off; tracking on Mixamo was 4-9 % worse that way, docs/bench_rigs.md)."""
+    from sample_scenes.rig_fit import fit_skeleton
+    children = {}
+    for name, (parent, _) in joints.items():
+        children.setdefault(parent, []).append(name)
+    heads = {n: scale * h for n, (_, h) in joints.items()}
+    tails = {}
+    for name, (parent, head) in joints.items():
+        kids = children.get(name, [])
+        tails[name] = (heads[kids[0]] if kids
+                       else heads[name] + 0.5 * (heads[name] - heads[parent]))
+    parents = {n: p for n, (p, _) in joints.items()}
+    to_mixamo = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])    # Z up -> Y up
+    cmu = {n: (100.0 * to_mixamo @ h, 100.0 * to_mixamo @ t) for n, (h, t) in cmu_rest().items()}
+    heads, tails = fit_skeleton(heads, tails, parents, RIG_SPECS["mixamo_fbx"].parts, cmu)
+    for name in joints:
+        kids = children.get(name, [])
+        if kids and name != "mixamorig:Neck":
+            tails[name] = heads[kids[0]]
+    return heads, tails
+
+
+def _build_mixamo(fbx_path):
+    """Mixamo-style skeleton -> FBX (bundled exporter, centimetres, Y up) -> bundled importer."""
+    joints = mixamo_joints()
+    scale = mixamo_scale(joints)
     scene = bpy.context.scene
     # One Blender unit = 1 cm: the exporter writes a centimetre FBX (UnitScaleFactor 1), as
     # Mixamo's files are.
@@ -227,22 +314,17 @@ def _build_mixamo(fbx_path):
     children = {}
     for name, (parent, _) in joints.items():
         children.setdefault(parent, []).append(name)
+    heads, tails = mixamo_rest(joints, scale)
     edit = {}
-    for name, (parent, head) in joints.items():
+    for name in joints:
         bone = data.edit_bones.new(name)
-        kids = children.get(name, [])
-        bone.head = tuple(scale * head)
-        if kids:
-            # Mixamo bones point at their (first) child; the leaf bones continue the parent.
-            tail = joints[kids[0]][1]
-        else:
-            tail = head + 0.5 * (head - joints[parent][1])
-        bone.tail = tuple(scale * tail)
+        bone.head, bone.tail = tuple(heads[name]), tuple(tails[name])
         edit[name] = bone
     for name, (parent, _) in joints.items():
         if parent is not None:
             edit[name].parent = edit[parent]
-            edit[name].use_connect = len(children[parent]) == 1
+            edit[name].use_connect = (len(children[parent]) == 1 and np.allclose(
+                edit[name].head, edit[parent].tail, atol=1e-4))
     # Mixamo's rest orientations: limb bones rolled so that their X axes do not follow
     # Blender's default (the importer keeps the rolls through the FBX bind pose).
     for name, bone in edit.items():
@@ -308,8 +390,16 @@ def bpy_version():
 
 def rig_stamp(kind):
     """The parameters a cached rig depends on (their hash names the file)."""
-    return {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy_version(),
-            "cmu_subject": CMU_SUBJECT, "leg_length": round(cmu_leg_length(), 6)}
+    stamp = {"kind": _base_kind(kind), "version": RIG_VERSION, "bpy": bpy_version(),
+             "cmu_subject": CMU_SUBJECT, "leg_length": round(cmu_leg_length(), 6),
+             "skeleton": skeleton_digest()}
+    if stamp["kind"] == "mixamo_fbx":
+        # Its fitted joint table is computed here: its digest is the rig's geometry.
+        joints = mixamo_joints()
+        heads, tails = mixamo_rest(joints, mixamo_scale(joints))
+        table = np.concatenate([np.r_[heads[n], tails[n]] for n in sorted(heads)])
+        stamp["geometry"] = hashlib.sha1(np.round(table, 6).tobytes()).hexdigest()[:10]
+    return stamp
 
 
 def rig_blend_path(kind, cache=None):

@@ -12,8 +12,9 @@ resampled as *Import › Acclaim* resamples it, as world joint rotations and pos
   metarig's A-pose arms, the CMU's T-pose arms and splayed rest legs, Mixamo's T-pose and the
   rigs' different foot angles all walk the same way;
 * **position** — the hips are placed so that the midpoint of the rig's hip joints is the CMU's
-  (every rig has the CMU's leg length, so the feet land where the CMU's do); every other bone's
-  head follows its parent part rigidly with the rig's own rest offsets.
+  (every rig is fitted to the CMU subject's skeleton, ``rig_fit``, so every mapped joint lands
+  where the CMU's does); every other bone's head follows its parent part rigidly with the rig's
+  own rest offsets.
 
 :func:`drive_walk` brings the rig's deforming bones to those targets **through its controls**
 (:attr:`RigSpec.drives`): frame by frame, each control's ``pose_bone.matrix`` is corrected by
@@ -40,17 +41,9 @@ from mathutils import Matrix, Quaternion
 
 from core.kinematics import forward_kinematics, local_rotations_from_dofs
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
+from sample_scenes.rig_fit import CMU_SOURCE  # the parts' CMU bones (shared with the fit)
 from sample_scenes.rig_scenes import CMU, CMU_SUBJECT
 from sample_scenes.rig_specs import PART_PARENTS, PARTS, SIDES
-
-#: CMU bones whose world rotation each part takes (one per rig bone of the part, spread).
-CMU_SOURCE = {"hips": ("root",), "spine": ("lowerback", "upperback"), "chest": ("thorax",),
-              "neck": ("lowerneck", "upperneck"), "head": ("head",)}
-for _s, _c, _ in SIDES:
-    CMU_SOURCE.update({f"clavicle.{_s}": (f"{_c}clavicle",), f"upper_arm.{_s}": (f"{_c}humerus",),
-                       f"forearm.{_s}": (f"{_c}radius",), f"hand.{_s}": (f"{_c}hand",),
-                       f"thigh.{_s}": (f"{_c}femur",), f"shin.{_s}": (f"{_c}tibia",),
-                       f"foot.{_s}": (f"{_c}foot",), f"toe.{_s}": (f"{_c}toes",)})
 
 
 @dataclass(frozen=True)

@@ -41,13 +41,22 @@ def test_each_rig_has_its_deforming_bones_and_controls_and_no_keys(kind):
         assert name in obj.pose.bones, name
     assert obj.animation_data is None or obj.animation_data.action is None
     assert bpy.context.view_layer.objects.active == obj
-    # Every rig has the CMU subject's leg length (m), so that one walk fits them all.
-    heads = {n: np.array(obj.matrix_world) @ np.r_[bones[n].head_local, 1.0]
-             for n in (spec.parts["thigh.L"][0], spec.parts["shin.L"][0],
-                       spec.parts["foot.L"][0])}
-    legs = (np.linalg.norm(heads[spec.parts["shin.L"][0]] - heads[spec.parts["thigh.L"][0]])
-            + np.linalg.norm(heads[spec.parts["foot.L"][0]] - heads[spec.parts["shin.L"][0]]))
-    assert legs == pytest.approx(rig_scenes.cmu_leg_length(), rel=0.03)
+    # Every rig is fitted to the CMU subject's skeleton (m): each side's thigh, shin and foot
+    # (hip, knee, ankle, ball of the foot) and the hip width are the subject's, so that one
+    # walk puts every rig's joints where the subject's are.
+    world = np.array(obj.matrix_world)
+
+    def head(part):
+        return (world @ np.r_[bones[spec.parts[part][0]].head_local, 1.0])[:3]
+    cmu = rig_scenes.cmu_rest()
+    for s, c in (("L", "l"), ("R", "r")):
+        for part, nxt, bone in (("thigh", "shin", "femur"), ("shin", "foot", "tibia"),
+                                ("foot", "toe", "foot")):
+            length = np.linalg.norm(head(f"{nxt}.{s}") - head(f"{part}.{s}"))
+            want = np.linalg.norm(cmu[f"{c}{bone}"][1] - cmu[f"{c}{bone}"][0])
+            assert length == pytest.approx(want, abs=1e-4), (part, s)
+    width = np.linalg.norm(head("thigh.L") - head("thigh.R"))
+    assert width == pytest.approx(np.linalg.norm(cmu["lfemur"][0] - cmu["rfemur"][0]), abs=1e-4)
 
 
 def test_the_metarig_is_blenders_human_metarig_with_face_and_fingers():
@@ -139,6 +148,12 @@ def test_rigs_are_cached_per_bpy_version_and_generator_stamp(monkeypatch):
     assert fk == ik                                       # one generated rig for both modes
     assert f"-{rig_scenes.bpy_version()}-" in fk.name and fk.parent.name == "rigs"
     monkeypatch.setattr(rig_scenes, "RIG_VERSION", rig_scenes.RIG_VERSION + 1)
+    assert rig_scenes.rig_blend_path("rigify_fk") != fk
+    # The geometry the rigs are fitted to is part of the stamp: another skeleton file, another
+    # rig (and, through the stamp, another rig scene).
+    monkeypatch.setattr(rig_scenes, "RIG_VERSION", rig_scenes.RIG_VERSION - 1)
+    assert rig_scenes.rig_blend_path("rigify_fk") == fk
+    monkeypatch.setattr(rig_scenes, "skeleton_digest", lambda: "0123456789")
     assert rig_scenes.rig_blend_path("rigify_fk") != fk
 
 
