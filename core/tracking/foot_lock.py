@@ -12,11 +12,12 @@ is locked and the leg chain solved to keep it there:
   (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
   in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
   is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
-  than ``min_frames`` are left alone. A contact, once started, goes on while the foot stays
-  within ``keep_low`` of the floor and the tracked foot *or the keys' in-between* is slow, the
-  tracked foot under ``keep_slow`` (:func:`standing`, stop 40: a tracked foot that slides or
-  drifts up a little while the keys hold it still no longer breaks a contact into short runs
-  whose ease in and out snapped the foot).
+  than ``min_frames`` are left alone. With ``FootLockRule.keyed`` 'slow' (stop 40; not the
+  default, see the class) a contact, once started, goes on while the foot stays within
+  ``keep_low`` of the floor and the tracked foot *or the keys' in-between* is slow, the
+  tracked foot under ``keep_slow`` (:func:`standing`: a tracked foot that slides or drifts up
+  a little while the keys hold it still no longer breaks a contact into short runs whose ease
+  in and out snapped the foot).
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
   the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
@@ -73,12 +74,14 @@ class FootLockRule:
     ramp : float
         Seconds over which the lock eases in before a run and out after it.
     keyed : str
-        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (default,
-        stop 40) -- while the foot stays within ``keep_low`` of the floor and either the
+        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (stop 40;
+        **off by default**: on the fitted test rigs it made Predict after tracking worse, CMU
+        13.5 -> 16.1 cm, metarig 17.0 -> 26.5, and the tracked walk's prediction 0.79 of the
+        walker's speed, docs/tracking.md, *Planted feet*, stop 40) -- while the foot stays
+        within ``keep_low`` of the floor and either the
         tracked foot or the keys' in-between (per bone slerp of the keys, as the tracker
         starts from) moves it slower than ``slow``, the tracked foot slower than
-        ``keep_slow``; ``'none'`` -- only while the tracked foot is low and slow (the rule
-        before stop 40).
+        ``keep_slow``; ``'none'`` (default) -- only while the tracked foot is low and slow.
     keep_low : float
         Metres above the keys' floor within which a standing foot stays standing
         (``keyed`` 'slow'; twice ``low``: hysteresis).
@@ -94,7 +97,7 @@ class FootLockRule:
     span: int = 5
     min_frames: int = 3
     ramp: float = 0.05
-    keyed: str = "slow"
+    keyed: str = "none"
     keep_low: float = 0.10
     keep_slow: float = 0.8
 

@@ -316,7 +316,7 @@ def _burst(sk, n=31):
 def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     """A contact, once the tracked foot has started it (low and slow), goes on while the foot
     stays low and the tracked foot **or the keys' in-between** is slow (hysteresis,
-    ``FootLockRule.keyed`` 'slow', the default since stop 40): one run over the clip, not runs
+    ``FootLockRule.keyed`` 'slow', stop 40, not the default): one run over the clip, not runs
     cut where the tracked foot slides faster than ``slow`` (but under ``keep_slow``), whose ease
     in and out snapped the foot (bench-real cam01 at keys every 10: 134 cm/s). With
     ``keyed='none'`` (the rule before) or a tracked slide faster than ``keep_slow`` the
@@ -331,7 +331,8 @@ def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     speed = foot_lock._span_speed(tracked_pos[:, [foot]], 5, FPS)
     fast = np.flatnonzero(speed > foot_lock.FootLockRule().slow)
     assert fast.tolist() == [13, 17]                     # the slide breaks the tracked runs
-    _, out, locks, _ = lock_feet(_problem(sk), keys, tracked, local, FPS)
+    _, out, locks, _ = lock_feet(_problem(sk), keys, tracked, local, FPS,
+                                 rule=foot_lock.FootLockRule(keyed="slow"))
     assert [lk[:3] for lk in locks if lk[0] == "left"] == [("left", 0, 30)]
     _, pos2 = forward_kinematics(sk, out, tracked)
     # Pinned where the keys put it (the keys hold it still; the root slid under it).
@@ -343,7 +344,7 @@ def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     # The rule before, or a slide faster than keep_slow (its 5-frame speed is 0.56 m/s at
     # frames 13 and 17): the tracked speed alone cuts the contact at the slide.
     assert 0.5 < speed[13] < foot_lock.FootLockRule().keep_slow
-    for rule in (foot_lock.FootLockRule(keyed="none"), foot_lock.FootLockRule(keep_slow=0.5)):
+    for rule in (foot_lock.FootLockRule(), foot_lock.FootLockRule(keyed="slow", keep_slow=0.5)):
         _, _, old, _ = lock_feet(_problem(sk), keys, tracked, local, FPS, rule=rule)
         old_left = [lk[:3] for lk in old if lk[0] == "left"]
         assert len(old_left) >= 2 and old_left[0] == ("left", 0, 12)
