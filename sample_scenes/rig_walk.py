@@ -41,7 +41,7 @@ from mathutils import Matrix, Quaternion
 
 from core.kinematics import forward_kinematics, local_rotations_from_dofs
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
-from sample_scenes.rig_fit import CMU_SOURCE  # the parts' CMU bones (shared with the fit)
+from sample_scenes.rig_fit import CMU_SOURCE, smallest_rotation  # shared with the fit
 from sample_scenes.rig_scenes import CMU, CMU_SUBJECT
 from sample_scenes.rig_specs import PART_PARENTS, PARTS, SIDES
 
@@ -95,15 +95,6 @@ def source_walk(trial="35_01", frames=61, start=0, fps=30.0):
     directions = tails / np.linalg.norm(tails, axis=1, keepdims=True)
     return Walk(tuple(sk.names), rot, pos, rest_rot[0], rest_pos[0], directions, trial,
                 float(fps), int(start))
-
-
-def smallest_rotation(a, b):
-    """The smallest rotation (3, 3) taking unit vector ``a`` to unit vector ``b``."""
-    v, c = np.cross(a, b), float(np.dot(a, b))
-    if c < -1.0 + 1e-12:
-        raise ValueError("opposite directions: no unique smallest rotation")
-    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + k + k @ k / (1.0 + c)
 
 
 def _orthonormal(m):
