@@ -36,8 +36,8 @@ from ...core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_d
                            asf_to_skeleton, cmu_template_asf, fill_unmapped,
                            world_deltas_from_asf_dofs)
 from ..mocap.acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
-from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, key_coordinates,
-                              pose_bone_path)
+from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving_many,
+                              key_coordinates, pose_bone_path)
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature, rigid_armature2world
 
 # Metres per armature unit a BVH conversion may use: metres, CMU file units (1/0.45 inch),
@@ -427,10 +427,15 @@ def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None, residual
     return values
 
 
-def key_values(grig, bag, frames, values):
+def key_values(grig, bag, frames, values, known=None):
     """Key ``values`` (from :func:`channel_values`) at ``frames`` into ``bag`` in bulk, existing
-    keys untouched. Returns the number of keys written."""
-    written = 0
-    for c, (path, index, group) in enumerate(grig.targets()):
-        written += insert_keys_preserving(bag, path, index, group, frames, values[:, c])
+    keys untouched (:func:`insert_keys_preserving_many`: each curve as
+    ``insert_keys_preserving`` keys it). Returns the number of keys written. ``known``: a dict
+    given by the caller gets ``{(path, index): (K, 2) float32 keys}`` of the curves whose keys
+    after the call are known without reading them back (``insert_keys_preserving_many``)."""
+    targets = grig.targets()
+    written, keys = insert_keys_preserving_many(bag, targets, frames, values)
+    if known is not None:
+        known.update({(path, index): co for (path, index, _), co in zip(targets, keys)
+                      if co is not None})
     return written
