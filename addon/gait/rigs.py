@@ -282,8 +282,8 @@ def read_dofs(grig, frames, hold=None, residual=False):
     bag = _action_bag(grig.obj)
     if grig.kind == "MAPPED":
         if not residual:
-            return grig.space.dofs(*grig.mapped.read_pose(frames), hold=hold)
-        translation, local, stretch = grig.mapped.read_pose(frames, stretch=True)
+            return grig.space.dofs(*grig.mapped.read_pose(frames, rigid_ik=True), hold=hold)
+        translation, local, stretch = grig.mapped.read_pose(frames, stretch=True, rigid_ik=True)
         dofs = grig.space.dofs(translation, local, hold=hold)
         rest = RigResidual(grig.space.residuals(translation, local, dofs), stretch)
         return dofs, rest
@@ -351,7 +351,7 @@ def current_values(bag, targets, frame, obj):
 def read_current(grig, hold=None):
     """A mapped rig's DOF row (n_dofs,) as it is evaluated now (the frame shown; no frame
     change, so a frame handler can call it)."""
-    return grig.space.dofs(*grig.mapped.current_pose(), hold=hold)[0]
+    return grig.space.dofs(*grig.mapped.current_pose(rigid_ik=True), hold=hold)[0]
 
 
 def keyed_range(grig, keys=None):

@@ -12,6 +12,7 @@ import pytest
 from core.kinematics import exp_so3, forward_kinematics, local_rotations_from_dofs, rest_pose
 from core.mocap import asf_to_skeleton, read_amc, read_asf
 from core.rigs import (BodyMap, PartMap, joint_stretch, minimal_rotation, model_skeleton,
+                       rigid_limbs, solve_two_bone,
                        skeleton_pose, world_poses)
 from core.rigs.gait_space import LEG_RANGE, carried_residual, gait_space
 
@@ -418,6 +419,10 @@ def test_a_stretched_joint_is_given_back_by_its_stretch():
                                pos, atol=1e-12)
 
 
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
 def _descends(sk, j, ancestor):
     while j >= 0:
         if j == ancestor:
@@ -465,3 +470,42 @@ def test_the_planted_skeleton_has_its_joints_where_the_rig_keyed_with_the_residu
     np.testing.assert_allclose(same.offsets, space.skeleton.offsets, atol=1e-15)
     with pytest.raises(ValueError, match="residual"):
         space.planted_skeleton(carried[:-1])
+
+
+@pytest.mark.parametrize("stretch", [1.01, 1.003])
+def test_a_stretchy_ik_leg_is_read_as_the_rigid_leg_reaching_its_ankle(stretch):
+    """``rigid_limbs`` (stop 41): an IK leg that reaches its ankle with bones ``stretch``
+    times as long as at rest (Rigify's IK stretch) bends its knee less than the rigid leg
+    reaching the same ankle in the same plane; read as the rigid limb it is that rigid leg
+    -- the pose the stretched one was made from (law of cosines, ``core.rigs.ik``), not the
+    function's own formula. The foot and everything else keep their frames; a rigid pose
+    comes back as it is. (Last in the file: its rig draws from the module's RNG, which the
+    other tests' synthetic rigs would otherwise see shifted.)"""
+    rig = SyntheticRig(frames=30)
+    sk = rig.model.skeleton
+    rot, pos = forward_kinematics(sk, rig.local, rig.root_translation)
+    a, m, e = (rig.model.joint_of_part(f"left {p}") for p in ("thigh", "shin", "foot"))
+    hip, knee, ankle = pos[:, a], pos[:, m], pos[:, e]
+    bend = np.degrees(np.arccos(np.clip(np.sum(_unit(knee - hip) * _unit(ankle - knee), axis=-1),
+                                        -1.0, 1.0)))
+    bent = bend > 3.0                    # a straight leg has no plane to bend in
+    assert bent.sum() >= 10
+    rot, pos = rot[bent], pos[bent]
+    hip, knee, ankle = pos[:, a], pos[:, m], pos[:, e]
+    upper = np.linalg.norm(knee - hip, axis=-1)
+    lower = np.linalg.norm(ankle - knee, axis=-1)
+    knee1 = solve_two_bone(hip, ankle, stretch * upper, stretch * lower, knee)
+    np.testing.assert_allclose(np.linalg.norm(ankle - knee1, axis=-1), stretch * lower,
+                               rtol=1e-9)                      # the ankle is reached
+    stretched = rot.copy()
+    stretched[:, a] = minimal_rotation(knee - hip, knee1 - hip) @ rot[:, a]
+    stretched[:, m] = minimal_rotation(ankle - knee, ankle - knee1) @ rot[:, m]
+    moved = pos.copy()
+    moved[:, m] = knee1
+    assert angle_deg(stretched[:, a], rot[:, a]).mean() > 0.3    # the stretch turned the thigh
+    got = rigid_limbs(sk, stretched, moved, [(a, m, e)])
+    assert angle_deg(got[:, [a, m]], rot[:, [a, m]]).max() < 1e-6
+    others = [j for j in range(sk.n_joints) if j not in (a, m)]
+    np.testing.assert_allclose(got[:, others], stretched[:, others], atol=1e-12)
+    np.testing.assert_allclose(rigid_limbs(sk, rot, pos, [(a, m, e)]), rot, atol=1e-9)
+    np.testing.assert_allclose(rigid_limbs(sk, stretched, moved, []), stretched, atol=1e-12)
