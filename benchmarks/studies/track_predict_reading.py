@@ -14,8 +14,8 @@ the cycle windows') and ``RESULT``: the prediction's error against the render's 
 arrays (the reference DOF rows, the feet relative to the root, per leg the hip/knee/ankle
 before and after the lock) for ``--frames OUT.npz [OTHER.npz ...]``, which prints per frame
 the legs' velocity Predict reads (``planting.legs_velocities``), the root's, the left foot's
-weight share and both feet's heights above the floor. Conclusion: ``docs/tracking.md``,
-*Planted feet*, *Stop 41*.
+weight share and both feet's heights above their floors (each foot's own since stop 42).
+Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41* and *Stop 42*.
 """
 
 import dataclasses, os, sys, tempfile, json
@@ -35,11 +35,12 @@ def show_frames(paths):
     for path in paths:
         d = np.load(path)
         rel, root = d["rel_feet"], d["root"]
-        floor = np.percentile(np.min(rel[..., 2], axis=-1) + root[:, 2], FLOOR_PERCENTILE)
+        floor = planting.foot_floors(rel[..., 2], root[:, 2], FLOOR_PERCENTILE)  # stop 42
         v = np.diff(root[:, :2], axis=0) * 30.0
         ahead = v.mean(0) / np.linalg.norm(v.mean(0))
         vel, share, above = planting.legs_velocities(rel, root[:, 2], floor, 30.0,
-                                                     np.repeat(ahead[None], len(v), 0))
+                                                     np.repeat(ahead[None], len(v), 0),
+                                                     per_foot=True)
         out.append((vel @ ahead, v @ ahead, share[:, 0], above))
         print(path, "legs", round(float((vel @ ahead).mean()), 3), "root",
               round(float((v @ ahead).mean()), 3), "windows", np.round(d["win_speeds"], 3))

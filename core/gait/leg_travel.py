@@ -44,7 +44,7 @@ import numpy as np
 
 from .em import offset_statistics, scaled_observations
 from .ekf import make_context
-from .planting import MIN_EXPECTED, legs_velocities, relative_feet
+from .planting import MIN_EXPECTED, foot_floors, legs_velocities, relative_feet
 from .prediction import dofs_from_observations, predict_styles
 from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
 from .root_travel import _directions as heading_directions
@@ -53,7 +53,7 @@ from .walk_figures import CMU_FEET
 __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed",
            "robust_spread", "style_legs_speed", "style_precision", "styles_legs_speeds"]
 
-FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
+FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of each foot's height
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
 SECANT_STEPS = 6
 SPEED_TOLERANCE = 1e-4       # m/s
@@ -85,11 +85,14 @@ class LegTravelFit:
 
 def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
     """Speed (m/s) at which the legs of DOF rows carry the root over their last ``n_steps``
-    frame steps: the norm of the mean of ``planting.travel_from_legs``'s velocities on the floor
-    of those frames, the walk expected to go along the root's heading (forwards, or backwards
-    where the root went backwards) as Predict Gait's planting expects it (a swing foot that
-    skims the floor is not taken for the stance foot: on the slow CMU walk 08_04 the lower foot
-    alone gave 0.66-1.04 m/s for a root at 1.04-1.08).
+    frame steps: the norm of the mean of ``planting.travel_from_legs``'s velocities, each foot
+    read against its own floor over those frames (``planting.foot_floors``: its
+    ``FLOOR_PERCENTILE``-th percentile height, since stop 42; one floor for both feet read a
+    tracked stance standing a centimetre or two above the other as flight), the walk expected
+    to go along the root's heading (forwards, or backwards where the root went backwards) as
+    Predict Gait's planting expects it (a swing foot that skims the floor is not taken for the
+    stance foot: on the slow CMU walk 08_04 the lower foot alone gave 0.66-1.04 m/s for a root
+    at 1.04-1.08).
 
     Parameters
     ----------
@@ -119,13 +122,14 @@ def _legs_speeds(rel, root, fps, frame):
     window's own frames)."""
     n_windows, m = root.shape[:2]
     heights = root[..., 2]
-    floor = np.percentile(np.min(rel[..., 2], axis=-1) + heights, FLOOR_PERCENTILE, axis=-1)
+    floor = foot_floors(rel[..., 2], heights, FLOOR_PERCENTILE)      # (B, F): each foot's own
     heading = heading_angles(root_rotations(root.reshape(-1, 6), frame).reshape(
         n_windows, m, 3, 3), frame)                                # unwrapped along each window
     ahead = heading_directions(0.5 * (heading[:, 1:] + heading[:, :-1]), frame)[0]
     along = np.mean(np.sum(np.diff(root[..., :2], axis=-2) * fps * ahead, axis=-1), axis=-1)
     sense = np.where(along <= -MIN_EXPECTED, -1.0, 1.0)
-    vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead)
+    vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead,
+                                per_foot=True)
     return np.array([np.linalg.norm(v.mean(axis=0)) for v in vel])
 
 
