@@ -40,7 +40,7 @@ def show_frames(paths):
         ahead = v.mean(0) / np.linalg.norm(v.mean(0))
         vel, share, above = planting.legs_velocities(rel, root[:, 2], floor, 30.0,
                                                      np.repeat(ahead[None], len(v), 0),
-                                                     per_foot=True)
+                                                     per_foot=True, root_velocity=v)
         out.append((vel @ ahead, v @ ahead, share[:, 0], above))
         print(path, "legs", round(float((vel @ ahead).mean()), 3), "root",
               round(float((v @ ahead).mean()), 3), "windows", np.round(d["win_speeds"], 3))
@@ -106,7 +106,8 @@ def fit_wrap(model, skeleton, dofs, fps, obs, result, residual=None, **kw):
     rel = lt.relative_feet(skeleton, np.asarray(dofs), lt.CMU_FEET)
     k = n + 1
     win = np.arange(len(dofs) - k + 1)[:, None] + np.arange(k)
-    cap["win_speeds"] = lt._legs_speeds(rel[win], root[win], fps, model.root_frame)
+    cap["win_speeds"] = lt._legs_speeds(rel[win], root[win], fps, model.root_frame,
+                                        observed=True)
     cap["rel_feet"] = rel; cap["root"] = root; cap["cycle_n"] = n
     cap["dof_names"] = np.array(names)
     print("FIT", cap["fit"], "omega", result.state, "n", n, "win", np.round(cap["win_speeds"], 3))

@@ -277,7 +277,8 @@ def foot_floors(relative_z, heights, percentile):
     return np.percentile(z, percentile, axis=-2)
 
 
-def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False):
+def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False,
+                    root_velocity=None):
     """:func:`travel_from_legs`'s velocities of one or many sequences at once: every array may
     carry leading batch axes ``B…`` (``relative`` (B…, N + 1, F, 3), ``heights`` and ``lift``
     (B…, N + 1), ``floor`` a float or (B…), ``expected`` (B…, N, 2)); each sequence's
@@ -285,6 +286,11 @@ def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per
     element-wise operations, reductions over the feet and coordinates only).
     ``per_foot``: ``floor`` is each foot's own, (B…, F) (:func:`foot_floors`): a foot's
     height, its contact and its weight are read against its own floor.
+    ``root_velocity`` (B…, N, 2), m/s, optional: the root's own velocity. A foot that moves
+    over the ground faster than ``SWING_SPEED`` with the root at it (a landing foot still
+    swinging forward, a swing foot skimming the floor) neither carries nor makes a frame a
+    contact frame, whatever its height: only the choice of the carrying foot and of the
+    contact frames use it, the velocities are still the feet's.
 
     Returns
     -------
@@ -295,11 +301,12 @@ def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per
         Each foot's height above the floor (m, ≥ 0, the step's mean, lift removed).
     """
     vel, share, above, contact = _raw_velocities(relative, heights, floor, fps, expected,
-                                                 lift, per_foot)
+                                                 lift, per_foot, root_velocity)
     return _interpolate_flight(vel, contact), share, above
 
 
-def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False):
+def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False,
+                    root_velocity=None):
     """:func:`legs_velocities`'s (velocities, share, above) before the frames without
     contact are interpolated, and the contact (B…, N) bool."""
     rel = np.asarray(relative, dtype=float)
@@ -313,15 +320,20 @@ def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None, per
     airborne = 0.5 * (lift[..., 1:] + lift[..., :-1]) > CONTACT_BAND
     step = np.diff(rel[..., :2], axis=-3) * fps                              # (B…, N, F, 2)
     low = above.min(axis=-1, keepdims=True)
+    if root_velocity is None:
+        swinging = np.zeros(above.shape, dtype=bool)
+    else:                               # over the ground with the root at its own velocity
+        ground = step + np.asarray(root_velocity, dtype=float)[..., None, :]
+        swinging = np.sum(ground ** 2, axis=-1) > SWING_SPEED ** 2             # (B…, N, F)
     if expected is None:
-        lower = np.argmin(above, axis=-1)
+        lower = np.argmin(above + swinging, axis=-1)          # (a metre: a swinging foot last)
     else:
         exp = np.asarray(expected, dtype=float)
         norm = np.linalg.norm(exp, axis=-1, keepdims=True)
         ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
         backwards = np.maximum(np.einsum("...fc,...c->...f", step, ahead), 0.0)  # root back
         miss = (backwards / BACKWARD_TOLERANCE) ** 2
-        lower = np.argmin((above - low) / WEIGHT_SCALE + miss, axis=-1)
+        lower = np.argmin((above - low) / WEIGHT_SCALE + miss + 1e3 * swinging, axis=-1)
     first = -np.take_along_axis(step, lower[..., None, None], axis=-2)[..., 0, :]  # still
     # A foot carries the walker when it is near the floor and (nearly) still with the root at
     # the first guess: the swing foot skims the floor at walking speed and does not count.
@@ -329,7 +341,7 @@ def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None, per
     weight = np.exp(-(above - low) / WEIGHT_SCALE - still / SPEED_SCALE**2)
     share = weight / weight.sum(axis=-1)[..., None]
     vel = -np.einsum("...f,...fc->...c", share, step)
-    contact = (above.min(axis=-1) < CONTACT_BAND) & ~airborne
+    contact = ((above < CONTACT_BAND) & ~swinging).any(axis=-1) & ~airborne
     return vel, share, above, contact
 
 

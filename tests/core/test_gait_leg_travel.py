@@ -35,7 +35,9 @@ def test_the_legs_speed_of_a_captured_walk_is_its_root_speed(walker):
     for end in (N_REF, N_REF + 37, len(values)):
         rows = values[end - n - 1:end]
         root = np.hypot(*(rows[-1, [tx, ty]] - rows[0, [tx, ty]])) * FPS / n
-        assert legs_speed(skeleton, rows, FPS, n) == pytest.approx(root, rel=0.08)
+        for observed in (False, True):
+            assert legs_speed(skeleton, rows, FPS, n, observed=observed) == pytest.approx(
+                root, rel=0.08)
 
 
 def test_style_precision_is_the_hessian_of_the_m_step_objective_with_the_offset_minimised(
@@ -79,7 +81,8 @@ def test_the_fitted_style_s_legs_travel_as_far_as_the_reference_s_by_the_smalles
     fit = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
     n = int(round(2 * np.pi / res.state[0]))
     assert fit.changed
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert fit.reference_speed == np.mean(speeds)
 
@@ -142,7 +145,8 @@ def test_by_default_the_style_moves_by_the_kalman_gain_of_the_reference_s_own_sp
     ref = values[:N_REF]
     n = int(round(2 * np.pi / res.state[0]))
     mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) == N_REF - n and spread == robust_spread(speeds) and 0 < spread < 0.05
     assert mean == np.mean(speeds)
@@ -189,7 +193,8 @@ def test_the_reference_s_windows_are_each_window_s_legs_speed(walker):
     model, skeleton, values, _, _, res = walker
     n = int(round(2 * np.pi / res.state[0]))
     ref = values[:N_REF]
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) > 10
     mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
@@ -270,15 +275,16 @@ def test_a_centimetre_between_the_two_feet_s_stances_does_not_change_the_legs_sp
     level, lowered = (_tracked_walk(d, cycle, fps=fps) for d in (0.0, 0.015))
     rel, root, stances, x = lowered
     true = (x[windows[:, -1]] - x[windows[:, 0]]) * fps / cycle
-    speeds = [_legs_speeds(r[windows], q[windows], fps, frame) for r, q, _, _ in
-              (level, lowered)]
+    speeds = [_legs_speeds(r[windows], q[windows], fps, frame, observed=True)
+              for r, q, _, _ in (level, lowered)]
     np.testing.assert_allclose(speeds[1], speeds[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(speeds[1], true, rtol=0.005)
     # Each stance frame is read on the floor (its own), the swing's high frames are not.
     w = windows[0]
     floors = foot_floors(rel[w][..., 2], root[w, 2], FLOOR_PERCENTILE)
     assert floors[0] - floors[1] == pytest.approx(0.015, abs=1e-9)
-    _, _, above = legs_velocities(rel[w], root[w, 2], floors, fps, per_foot=True)
+    _, _, above = legs_velocities(rel[w], root[w, 2], floors, fps, per_foot=True,
+                                  root_velocity=np.diff(root[w, :2], axis=0) * fps)
     both = stances[w][1:] & stances[w][:-1]
     assert (above[both] < 1e-9).all()
     assert (above[~(stances[w][1:] | stances[w][:-1])] > CONTACT_BAND).any()
