@@ -226,12 +226,13 @@ def test_many_styles_at_once_are_each_style_alone_and_the_plain_prediction_s(wal
             assert speed == legs_speed(skeleton, rows, FPS, n, root_frame=model.root_frame)
 
 
-def _tracked_walk(right_lower, cycle=36, cycles=3, fps=30.0):
+def _tracked_walk(right_lower, cycle=36, cycles=3, fps=30.0, skim=0.0):
     """A synthetic walk as tracking leaves it: the root at 0.95-1.45 m/s along +X (the speed
     oscillating twice a cycle), each ball (contact point) still in the world over its stance
     (60 % of the cycle, the feet half a cycle apart), swinging to its next spot 0.3 m ahead
     of the root's landing position over a 6 cm arc; the right foot's whole track stands
-    ``right_lower`` metres under the left's. Returns the feet relative to the root (N, 2, 3),
+    ``right_lower`` metres under the left's. ``skim``: the last share of each swing goes on at
+    the stance's height (a tracked foot down before it has stopped). Returns the feet relative to the root (N, 2, 3),
     the root DOFs (N, 6), the stance masks (N, 2) and the root's X."""
     n = cycle * cycles + 1
     t = np.arange(n, dtype=float)
@@ -255,7 +256,8 @@ def _tracked_walk(right_lower, cycle=36, cycles=3, fps=30.0):
                 s = (p - 0.6) / 0.4
                 ease = s ** 3 * (10 - 15 * s + 6 * s * s)
                 nxt = x_at(land + cycle) + 0.3
-                feet[i, f] = spot + (nxt - spot) * ease, side, base + 0.06 * np.sin(np.pi * s)
+                arc = 0.06 * np.sin(np.pi * min(s / (1.0 - skim), 1.0))
+                feet[i, f] = spot + (nxt - spot) * ease, side, base + arc
     root = np.zeros((n, 6))
     root[:, 0], root[:, 2] = x, 0.9
     return feet - root[:, None, :3], root, stances, x
@@ -288,3 +290,24 @@ def test_a_centimetre_between_the_two_feet_s_stances_does_not_change_the_legs_sp
     both = stances[w][1:] & stances[w][:-1]
     assert (above[both] < 1e-9).all()
     assert (above[~(stances[w][1:] | stances[w][:-1])] > CONTACT_BAND).any()
+
+
+def test_a_foot_down_before_it_has_stopped_does_not_carry_an_observed_walk():
+    """Stop 42: the tracked Rigify FK walk's left foot came down to its floor while still
+    moving forward at about 1 m/s; read against its own floor it took the weight a frame early
+    and the legs' speed fell 1.104 -> 1.055 m/s. An observed walk's foot carries only while it
+    moves over the ground (the root at its own velocity) slower than ``SWING_SPEED``: with the
+    last fifth of every swing skimming the floor the reading is still the root's travel, and
+    without the root's velocity (the feet judged by their height alone) it is not."""
+    fps, cycle = 30.0, 36
+    frame = RootFrame(rest=np.eye(3), forward_axis=0)
+    windows = np.arange(2 * cycle + 1)[:, None] + np.arange(cycle + 1)
+    rel, root, stances, x = _tracked_walk(0.015, cycle, fps=fps, skim=0.2)
+    true = (x[windows[:, -1]] - x[windows[:, 0]]) * fps / cycle
+    np.testing.assert_allclose(_legs_speeds(rel[windows], root[windows], fps, frame,
+                                            observed=True), true, rtol=0.005)
+    w = windows[0]
+    floors = foot_floors(rel[w][..., 2], root[w, 2], FLOOR_PERCENTILE)
+    ahead = np.tile([1.0, 0.0], (cycle, 1))
+    by_height, _, _ = legs_velocities(rel[w], root[w, 2], floors, fps, ahead, per_foot=True)
+    assert abs(by_height[:, 0].mean() - true[0]) > 0.01
