@@ -59,6 +59,7 @@ GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
+FLIGHT_SAME = 1e-9           # a share of flight that varies less than this is one share
 MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
 JOIN_SPACING_S = 0.05        # s: second differences over this (mocap's frame-to-frame are noise)
 # Lengths of the ramp tried against a jolt (× blend_steps). Until stop 41 a run kept one step
@@ -417,8 +418,9 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
     sigma = SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
-    if np.ptp(flight) == 0.0:
-        # One share of flight throughout (a walk, a run or a jog continued): as before stop 41.
+    if np.ptp(flight) <= FLIGHT_SAME:
+        # One share of flight throughout (a walk, a run or a jog continued: the blend of a style
+        # with itself varies it by round-off only): as before stop 41, bit for bit.
         run_share = float(np.mean(flight))
         vel = smooth(vel, sigma * (1.0 - 0.75 * run_share))
         if run_share > 0.0:
