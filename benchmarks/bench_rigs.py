@@ -531,8 +531,10 @@ def main(argv=None):
             print(f"  gait: {g.get('status')} angle {_fmt(g.get('angle_diff_deg'), 2)}° root "
                   f"{_fmt(g.get('root_diff_cm'), 2)} cm round trip "
                   f"{_fmt(g.get('round_trip_deg'), 3)}° foot slide "
-                  f"{_fmt(g.get('foot_slide_cm_s'), 1)} (CMU "
-                  f"{_fmt(g.get('cmu_foot_slide_cm_s'), 1)}) cm/s; tracked → predicted "
+                  f"{_fmt(g.get('foot_slide_cm_s'), 3)} (CMU "
+                  f"{_fmt(g.get('cmu_foot_slide_cm_s'), 3)}; every frame's lower foot "
+                  f"{_fmt(g.get('foot_slide_lower_cm_s'), 3)}, CMU "
+                  f"{_fmt(g.get('cmu_foot_slide_lower_cm_s'), 3)}) cm/s; tracked → predicted "
                   f"{_fmt(t.get('tracked_cm'), 1)} cm, true walk → "
                   f"{_fmt(t.get('true_walk_cm'), 1)} cm, keys only → "
                   f"{_fmt(t.get('keys_only_cm'), 1)} cm", flush=True)

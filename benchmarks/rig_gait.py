@@ -28,7 +28,11 @@ process with the built extension installed (``bench_rigs.run_worker``).
   the residual a predicted frame carries (one per bone, the mean over the reference) instead
   of each frame's own: what of the rig's pose the prediction's convention keeps.
 * ``foot_slide_cm_s``: ``core.gait.foot_slide`` of the balls of the rig's feet (the heads of
-  its toe bones) over the predicted frames, beside ``cmu_foot_slide_cm_s``.
+  its toe bones) over the predicted frames, beside ``cmu_foot_slide_cm_s``: the stance foot's
+  speed on the frames it carries weight (low and vertically slow, stop 41;
+  ``foot_slide_carrying_frames`` of them). ``foot_slide_lower_cm_s`` (and
+  ``cmu_foot_slide_lower_cm_s``): the figure before stop 41, the lower foot's speed on every
+  frame (``core.gait.foot_slide.lower_foot_slide``).
 * ``user_keys_bit_for_bit``, ``keys_on_unmapped_bones``, ``seconds``, the operator's report.
 
 ``track_then_predict`` (per rig): the reference frames as an animator gets them from the
@@ -289,7 +293,7 @@ def bench_gait(kind, extension, run, workdir, study=False):
     ``run(kind, task, render, extra)`` runs a worker in a fresh process; ``workdir`` keeps the
     arrays (the CMU skeleton's prediction is made once and reused by every rig); ``study``
     adds ``benchmarks/studies/rig_gait_template.py``'s rows (``gait.with_walk_template``)."""
-    from core.gait.foot_slide import foot_slide
+    from core.gait.foot_slide import foot_slide, lower_foot_slide, weight_bearing
     from sample_scenes.rig_footage import load_rig_footage
     from sample_scenes.rig_specs import RIG_SPECS
     spec = RIG_SPECS[kind]
@@ -316,11 +320,14 @@ def bench_gait(kind, extension, run, workdir, study=False):
         names = [str(n) for n in a["names"]]
         left, right = feet(spec, names, a["heads"])
         gait["foot_slide_cm_s"] = foot_slide(left, right, fp.fps)
+        gait["foot_slide_lower_cm_s"] = lower_foot_slide(left, right, fp.fps)
+        gait["foot_slide_carrying_frames"] = int(weight_bearing(left, right, fp.fps)[0].sum())
         cmu = np.load(cmu_arrays) if kind != "cmu" else a
         cmu_spec = RIG_SPECS["cmu"]
         cmu_names = [str(n) for n in cmu["names"]]
-        gait["cmu_foot_slide_cm_s"] = foot_slide(*feet(cmu_spec, cmu_names, cmu["heads"]),
-                                                 fp.fps)
+        cmu_feet = feet(cmu_spec, cmu_names, cmu["heads"])
+        gait["cmu_foot_slide_cm_s"] = foot_slide(*cmu_feet, fp.fps)
+        gait["cmu_foot_slide_lower_cm_s"] = lower_foot_slide(*cmu_feet, fp.fps)
         # Against the rig's own walk (the clip goes on after the reference): independent of
         # the benchmark's retargeting that ``angle_diff_deg`` carries the CMU prediction by.
         n = len(spec.deform_bones)
@@ -413,7 +420,7 @@ def table(results):
             f"| {kind} | {f(g.get('angle_diff_deg'))} ({f(g.get('angle_diff_p95_deg'), 1)}, "
             f"{f(g.get('angle_diff_max_deg'), 1)}) | {f(g.get('root_diff_cm'))} | "
             f"{f(g.get('round_trip_deg'), 3)} ({f(g.get('round_trip_max_deg'), 2)}) | "
-            f"{f(g.get('foot_slide_cm_s'), 1)} ({f(g.get('cmu_foot_slide_cm_s'), 1)}) | "
+            f"{f(g.get('foot_slide_cm_s'), 3)} ({f(g.get('cmu_foot_slide_cm_s'), 3)}) | "
             f"{'yes' if g.get('user_keys_bit_for_bit') else 'no'} | "
             f"{f(t.get('tracked_cm'), 1)} / {f(t.get('true_walk_cm'), 1)} / "
             f"{f(t.get('keys_only_cm'), 1)} ({f(t.get('tracked_pose_cm'), 1)} / "

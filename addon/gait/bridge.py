@@ -587,11 +587,20 @@ def predict_gait(context, obj, options):
     if check.refusal:
         raise GaitError(check.refusal)
     walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
+    # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU
+    # template's), carried from the reference's last cycle: the character keeps its posture.
+    omega = float(np.asarray(walker.state, dtype=float)[0])       # observed, rad per frame
+    cycle = 2.0 * np.pi / omega if np.isfinite(omega) and omega > 0 else len(dofs)
+    carried = None if residual is None else residual.carried(cycle)
+    # The skeleton the walk is planted on: a mapped rig's joints as the carried residual
+    # puts them (GaitSpace.planted_skeleton: the balls of the feet are the keyed rig's).
+    skeleton = grig.skeleton if carried is None else \
+        grig.space.planted_skeleton(carried.rotations)
     if walker.result is not None:
         check = with_fit(check, model, obs, walker.result, what)
         # The legs carry the prediction (planted root): the style's legs travel as far as the
         # reference's did (core.gait.leg_travel; issue 19, a walk tracked from footage).
-        walker.w = fit_leg_travel(model, grig.skeleton, dofs, fps, obs, walker.result,
+        walker.w = fit_leg_travel(model, skeleton, dofs, fps, obs, walker.result,
                                   walker.residual if options.mannerisms else None).w
     n = int(round(options.horizon * fps))
     length = limits.name_of("length")
@@ -607,7 +616,7 @@ def predict_gait(context, obj, options):
         _check_target(obj, grig, options, bag, frames, record, keys)
     try:
         request = walk_request(model, options, walker, fps)
-        walk = predict_walk(model, grig.skeleton, dofs, fps, walker.state, walker.w, n, request,
+        walk = predict_walk(model, skeleton, dofs, fps, walker.state, walker.w, n, request,
                             offset=walker.offset,
                             residual=walker.residual if options.mannerisms else None,
                             start=walker.last)
@@ -616,11 +625,6 @@ def predict_gait(context, obj, options):
     full = walk.dofs
     if not np.all(np.isfinite(full)):
         raise GaitError(f"The prediction for {obj.name} is not finite: nothing was keyed")
-    # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU
-    # template's), carried from the reference's last cycle: the character keeps its posture.
-    omega = float(np.asarray(walker.state, dtype=float)[0])       # observed, rad per frame
-    cycle = 2.0 * np.pi / omega if np.isfinite(omega) and omega > 0 else len(dofs)
-    carried = None if residual is None else residual.carried(cycle)
     values = channel_values(grig, bag, full, last, dofs[-1], frames=frames, residual=carried)
     # Every check has passed: change the scene.
     replaced = None

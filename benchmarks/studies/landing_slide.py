@@ -11,7 +11,12 @@ Two parts:
   (``--level-s 0``).
 * ``--arrays DIR``: the bench's kept arrays (``build/bench/rigs_gait`` of ``make bench-rigs``):
   per predicted frame, each rig's stance speed (cm/s), which foot is the lower one and its
-  height (cm), beside the CMU skeleton's.
+  height (cm), and ``*`` where it carries weight (``core.gait.foot_slide.weight_bearing``,
+  stop 41: the frames ``foot_slide`` counts), beside the CMU skeleton's.
+
+The ``--windows`` figure is the one before stop 41 (every frame's lower foot,
+``foot_slide.lower_foot_slide``); since stop 41 ``foot_slide`` counts the weight-bearing frames
+only (``docs/gait_rigs.md``, *Stop 41, foot slide*), printed beside it.
 
     .venv/bin/python benchmarks/studies/landing_slide.py --windows [--level-s 0]
     .venv/bin/python benchmarks/studies/landing_slide.py --arrays build/bench/rigs_gait
@@ -35,7 +40,7 @@ def windows(level_s=None):
     """Mean foot slide (cm/s) and joint error (cm) over the CMU windows."""
     import core.gait.walk as walk
     from core.gait import adapt, load_stock_library, observations_from_dofs
-    from core.gait.foot_slide import foot_points, stance_speeds
+    from core.gait.foot_slide import foot_points, foot_slide, stance_speeds
     from core.kinematics import forward_kinematics, local_rotations_from_dofs
     from core.mocap import asf_to_skeleton, read_asf
     from tests.data import asf_path
@@ -48,7 +53,7 @@ def windows(level_s=None):
         t, local = local_rotations_from_dofs(sk, dofs)
         return forward_kinematics(sk, local, t)[1]
 
-    slides, errors = [], []
+    slides, carrying, errors = [], [], []
     for name in TRIALS:
         values, names = trial(name, fps=FPS)
         sk = asf_to_skeleton(read_asf(asf_path(name)))
@@ -68,15 +73,18 @@ def windows(level_s=None):
                                                    axis=-1).mean())
             left, right, _ = foot_points(sk, out)
             slides.append(100 * stance_speeds(left, right, FPS)[0].mean())
-        print(f"{name}: foot slide {np.mean(slides[-STARTS:]):.3f} cm/s", flush=True)
-    print(f"{len(slides)} windows: foot slide {np.mean(slides):.4f} cm/s; joint error "
+            carrying.append(foot_slide(left, right, FPS))
+        print(f"{name}: foot slide {np.mean(slides[-STARTS:]):.3f} cm/s (weight-bearing "
+              f"{np.mean(carrying[-STARTS:]):.3f})", flush=True)
+    print(f"{len(slides)} windows: foot slide {np.mean(slides):.4f} cm/s (weight-bearing "
+          f"{np.mean(carrying):.4f}); joint error "
           f"{np.mean(errors):.3f} cm over the {len(errors)} the capture goes on 2 s after")
 
 
 def arrays(folder):
     """Per-frame stance speeds of the bench's predictions (``<rig>_true.npz``)."""
     from benchmarks.rig_gait import feet
-    from core.gait.foot_slide import stance_speeds
+    from core.gait.foot_slide import foot_slide, stance_speeds, weight_bearing
     from sample_scenes.rig_specs import RIG_SPECS
     rows = {}
     for kind in RIGS:
@@ -87,13 +95,15 @@ def arrays(folder):
         left, right = feet(RIG_SPECS[kind], [str(n) for n in a["names"]], a["heads"])
         speeds, stance = stance_speeds(left, right, FPS)
         low = np.minimum(left[1:, 2], right[1:, 2])
-        rows[kind] = (100 * speeds, stance, 100 * low, a["frames"][1:])
-        print(f"{kind}: {100 * speeds.mean():.3f} cm/s")
+        carrying, _ = weight_bearing(left, right, FPS)
+        rows[kind] = (100 * speeds, stance, 100 * low, a["frames"][1:], carrying)
+        print(f"{kind}: every frame's lower foot {100 * speeds.mean():.3f} cm/s, weight-bearing "
+              f"{foot_slide(left, right, FPS):.4f} cm/s ({carrying.sum()} frames)")
     print("frame  " + " | ".join(f"{k:>16s}" for k in rows))
     frames = next(iter(rows.values()))[3]
     for t, f in enumerate(frames):
-        print(f"{f:5d}  " + " | ".join(f"{r[0][t]:6.2f} {'LR'[r[1][t]]} {r[2][t]:5.1f}cm"
-                                       for r in rows.values()))
+        print(f"{f:5d}  " + " | ".join(f"{r[0][t]:6.2f}{'*' if r[4][t] else ' '}{'LR'[r[1][t]]} "
+                                       f"{r[2][t]:5.1f}cm" for r in rows.values()))
 
 
 if __name__ == "__main__":

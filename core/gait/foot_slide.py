@@ -1,9 +1,21 @@
 """Foot slide: how much a walker's supporting foot skates over the ground.
 
 For every frame t ≥ 1 the *stance foot* is the lower of the two feet at frame t (world Z,
-``docs/conventions.md``); its horizontal speed is ``‖xy_t − xy_{t−1}‖ · fps``. The metric is the
-mean of that speed over the frames, in **cm/s**. A planted foot scores 0; mocap of a real walk
-scores a few cm/s (heel strike and toe-off roll the foot point while it is the lower one).
+``docs/conventions.md``); its horizontal speed is ``‖xy_t − xy_{t−1}‖ · fps``.
+
+:func:`foot_slide` (since stop 41, ``docs/gait_rigs.md``, *Stop 41, foot slide*) is the mean of
+that speed over the frames where the stance foot **carries weight**, in **cm/s**: it is within
+``walk_figures.CONTACT_BAND`` (2.5 cm) of the floor (the 20th percentile of the lower foot's
+height over the frames, ``walk_figures.contact_height``'s) and its own height changes by less
+than ``walk_figures.CONTACT_VZ`` (0.15 m/s) from frame t−1 to t -- the contact rule of issue 25's
+skate (``walk_figures``), the vertical speed taken of the stance foot itself, never of the
+other foot's height at t−1. A planted foot scores 0; a ball rising off the floor at toe-off,
+or coming down onto it, while it is still the lower one is not sliding and is not counted.
+
+:func:`lower_foot_slide` is the figure before stop 41: the mean over *every* frame t ≥ 1 of
+the lower foot's speed, weight-bearing or not. At a change of foot it counts a ball that is
+rising or landing 2-4 cm above the floor at 0.3-0.7 m/s (the stance balls of issue 19's bench
+move < 0.15 cm/s, its changes of foot 5-15 cm/s): kept to compare with the figures before.
 
 The walk Predict Gait keys plants its feet by solving the root from the legs
 (:mod:`.planting`); :mod:`.walk_figures` holds the finer figures of issue 25 (contact frames,
@@ -14,7 +26,7 @@ import numpy as np
 
 from ..kinematics import forward_kinematics, local_rotations_from_dofs
 
-__all__ = ["foot_points", "foot_slide", "stance_speeds"]
+__all__ = ["foot_points", "foot_slide", "lower_foot_slide", "stance_speeds", "weight_bearing"]
 
 # Ball of the foot of CMU/Acclaim skeletons (the toe joints' origins).
 CMU_FEET = ("ltoes", "rtoes")
@@ -57,8 +69,55 @@ def stance_speeds(left, right, fps):
     return step[stance, np.arange(len(stance))], stance
 
 
-def foot_slide(left, right, fps):
-    """Mean horizontal speed of the stance foot, cm/s (module docstring)."""
+def weight_bearing(left, right, fps, floor=None):
+    """Frames where the stance (lower) foot carries weight: low and vertically slow.
+
+    Parameters
+    ----------
+    left, right : array_like, shape (N >= 2, 3), metres, Z-up world
+    fps : float
+    floor : float, optional
+        Floor height (m); default: the 20th percentile of the lower foot's height over the N
+        frames (``walk_figures.contact_height``'s rule).
+
+    Returns
+    -------
+    carrying : ndarray, shape (N - 1,), bool
+        Frame t = 1 … N-1: the stance foot at t is within ``CONTACT_BAND`` of the floor and its
+        own height moved less than ``CONTACT_VZ`` · (1 / fps) since t−1.
+    floor : float, metres
+    """
+    from .walk_figures import CONTACT_BAND, CONTACT_VZ, FLOOR_PERCENTILE
+    _, stance = stance_speeds(left, right, fps)
+    z = np.stack([_check(left, "left")[:, 2], _check(right, "right")[:, 2]])   # (2, N)
+    lower = z.min(axis=0)
+    if floor is None:
+        floor = float(np.percentile(lower, FLOOR_PERCENTILE))
+    frames = np.arange(len(stance))
+    vz = np.abs(z[stance, frames + 1] - z[stance, frames]) * fps   # the stance foot's own
+    return (z[stance, frames + 1] < floor + CONTACT_BAND) & (vz < CONTACT_VZ), float(floor)
+
+
+def foot_slide(left, right, fps, floor=None):
+    """Mean horizontal speed of the stance foot while it carries weight, cm/s (module
+    docstring; ``floor`` as in :func:`weight_bearing`).
+
+    Raises
+    ------
+    ValueError
+        When no frame has a foot carrying weight (nothing stands on the floor).
+    """
+    speeds, _ = stance_speeds(left, right, fps)
+    carrying, floor = weight_bearing(left, right, fps, floor)
+    if not carrying.any():
+        raise ValueError(f"no frame has a foot carrying weight (within 2.5 cm of the floor at "
+                         f"{floor:.3f} m and vertically slow): nothing to measure a slide on")
+    return float(100.0 * speeds[carrying].mean())
+
+
+def lower_foot_slide(left, right, fps):
+    """The figure before stop 41: mean horizontal speed of the lower foot over every frame,
+    weight-bearing or not, cm/s (module docstring)."""
     speeds, _ = stance_speeds(left, right, fps)
     return float(100.0 * speeds.mean())
 

@@ -36,7 +36,9 @@ The gait model (``core.gait``) reads and predicts the DOF rows of a CMU Acclaim 
   model sees the character's metres, as it sees any captured walker; a character whose legs
   (thigh + shin) are outside :data:`LEG_RANGE` is seen at the nearest length inside it
   (:attr:`GaitSpace.scale`, model metres per rig metre), and its predicted travel is scaled
-  back.
+  back. :meth:`GaitSpace.planted_skeleton` is that skeleton with the rig's bones turned by
+  the residual a predicted frame carries (stop 41): its joints are the keyed rig's (the balls
+  of the feet the rig's toe heads), so the feet Predict plants are the character's.
 
 Rig poses are the model skeleton's (root translation and local rotations, metres of the
 armature's space, :func:`.retarget.skeleton_pose`); ``armature2world`` (rigid, metres) puts
@@ -231,6 +233,47 @@ class GaitSpace:
                 base = (rot[:, p] if p >= 0 else np.eye(3)) @ rig.rest_rotations[j]
             out[:, j] = np.swapaxes(base, -1, -2) @ rot[:, j]
         return orthonormal(out)
+
+    def planted_skeleton(self, residual):
+        """:attr:`skeleton` whose joints are where the rig puts them when it is posed with
+        ``residual`` (:meth:`rig_pose`): the skeleton Predict Gait plants on (stop 41,
+        ``docs/gait_rigs.md``).
+
+        :meth:`rig_pose` turns each rig joint's frame by its residual, ``W_j = W'_j D_j``, so a
+        child bone hanging on joint ``j`` starts at ``W'_j D_j b`` from it (``b`` its rest
+        offset in ``j``'s frame), where the CMU child joint is at ``F_p o = W'_j X_j o`` (``F_p
+        = W'_j X_j``, :attr:`alignment`; at rest ``o = X_jᵀ b``). So a CMU joint whose rig bone
+        hangs directly on its CMU parent's rig bone gets the offset ``X_jᵀ D_j X_j o``: with
+        the DOFs, forward kinematics then gives the rig's joints (a foot's roll about its bone
+        moves the ball of the foot 0.1-0.3 mm on the test rigs, and a planted model ball left
+        the rig's drifting with the foot's pitch). Joints without a rig bone, or reached
+        through more than one rig bone (a segmented chain), keep their offsets.
+
+        Parameters
+        ----------
+        residual : array_like, shape (J, 3, 3)
+            Per rig joint (:attr:`rig_skeleton`'s order), as :meth:`rig_pose` takes it (one
+            rotation per joint: ``core.rigs.gait_space.carried_residual``).
+
+        Returns
+        -------
+        Skeleton
+            :attr:`skeleton` with new ``offsets`` (model metres); names, parents, rest
+            rotations, DOFs, limits and tails unchanged.
+        """
+        from dataclasses import replace
+        res = np.asarray(residual, dtype=float)
+        rig, sk = self.rig_skeleton, self.skeleton
+        if res.shape != (rig.n_joints, 3, 3) or not np.all(np.isfinite(res)):
+            raise ValueError(f"residual must be finite of shape ({rig.n_joints}, 3, 3), got "
+                             f"{res.shape}")
+        offsets = np.array(sk.offsets, dtype=float)
+        for i in range(1, sk.n_joints):
+            j, k = self.joint_of_cmu[sk.parents[i]], self.joint_of_cmu[i]
+            if j >= 0 and k >= 0 and rig.parents[k] == j:
+                x = self.alignment[j]
+                offsets[i] = x.T @ res[j] @ x @ offsets[i]
+        return replace(sk, offsets=offsets)
 
     def _chain_frames(self, dofs):
         """CMU root translation, CMU joint frames and origins (world) of DOF rows, and the

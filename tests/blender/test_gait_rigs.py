@@ -155,7 +155,8 @@ N_LANDING = 23                   # reference frames after which the right foot l
 
 def predicted_foot_slide(kind):
     """Foot slide (cm/s, ``core.gait.foot_slide`` of the balls of the feet: the heads of the
-    toe bones) of Predict Gait's 1 s after :data:`N_LANDING` reference frames on ``kind``."""
+    toe bones, on the frames a foot carries weight) of Predict Gait's 1 s after
+    :data:`N_LANDING` reference frames on ``kind``."""
     from core.gait.foot_slide import foot_slide
     spec = RIG_SPECS[kind]
     obj, fp = open_rig_scene(rig_footage(kind), keys=range(1, N_LANDING + 1))
@@ -170,19 +171,42 @@ def predicted_foot_slide(kind):
 @pytest.mark.parametrize("kind", ["metarig", "ik_legs"])
 def test_a_foot_landing_at_the_join_stays_planted_on_the_rig(kind):
     """Issue 19: the stance foot slides no more on a rig than on the CMU skeleton. Here the
-    rig's right foot lands a frame after the join (the metarig's ball of the foot comes down a
-    frame later than the CMU's): it used to be pulled onto its stance in one frame, 30-47 cm/s
-    at the first predicted frames (2.0 against the CMU skeleton's 0.4 cm/s over the second),
-    now it is held where the walk's continuation puts it and lowered onto the floor. The
-    margin: the rig's own later landing of the ball of the foot (12 cm/s for a frame at the
-    next landing against the CMU's 8, 0.14 cm/s over the second). Since stop 40 the test rigs
-    are fitted to subject 35's skeleton, feet included, so their balls land when the CMU's
-    does; the held late landing itself is tested in the core
-    (``tests/core/test_gait_planting.py``), this stays the check on the rig through the
-    operator."""
+    rig's right foot lands a frame after the join (the metarig's ball of the foot came down a
+    frame later than the CMU's before stop 40's fitted rigs): it used to be pulled onto its
+    stance in one frame, 30-47 cm/s at the first predicted frames (+1.4 cm/s on this
+    figure), now it is held where the walk's continuation puts it and lowered onto the floor
+    (the held late landing itself is tested in the core, ``tests/core/test_gait_planting.py``).
+    The margin: the join's first frame, where the held ball still eases out of the
+    reference's motion (4.3 cm/s for a frame on the metarig against the CMU skeleton's 4.2;
+    0.16 against 0.16 cm/s over the second). Since stop 41 the figure counts the frames a
+    foot carries weight; the strict comparison is the next test."""
     cmu = predicted_foot_slide("cmu")
     rig = predicted_foot_slide(kind)
     assert rig <= cmu + 0.25, (rig, cmu)
+
+
+@pytest.mark.parametrize("kind", ["mixamo_fbx", "ik_legs"])
+def test_the_rigs_stance_balls_stand_as_still_as_the_cmu_skeletons(kind):
+    """Issue 19's foot slide goal through the operator (stop 41): 1.5 s of the walk keyed,
+    Predict Gait for 2 s; ``core.gait.foot_slide`` of the balls of the feet (the frames a foot
+    carries weight) on the rig no more than on the CMU skeleton, no margin. Predict plants
+    the rig's own balls of the feet (``GaitSpace.planted_skeleton``): before, it planted the
+    model skeleton's, and the rig's, keyed with the foot's carried roll, stood 0.1-0.3 mm
+    off them and drifted with the foot's pitch (here Mixamo 0.060 and the IK legs 0.057
+    against the CMU skeleton's 0.058 cm/s; the figure before stop 41, every frame's lower
+    foot, 2.24 and 2.30 against 2.20)."""
+    def slide(kind):
+        from core.gait.foot_slide import foot_slide
+        spec = RIG_SPECS[kind]
+        obj, fp = open_rig_scene(rig_footage(kind, frames=61), keys=range(1, 47))
+        bpy.context.scene.frame_set(46)
+        assert bpy.ops.track_and_stride.predict_gait(horizon=2.0) == {"FINISHED"}
+        toes = [spec.parts[f"toe.{s}"][0] for s in "LR"]
+        _, heads = evaluated(obj, toes, np.arange(47, 107))
+        return foot_slide(heads[:, 0], heads[:, 1], 30.0)
+
+    cmu, rig = slide("cmu"), slide(kind)
+    assert rig <= cmu, (rig, cmu)
 
 
 @pytest.mark.parametrize("kind", RIGS)

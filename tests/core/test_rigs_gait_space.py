@@ -424,3 +424,44 @@ def _descends(sk, j, ancestor):
             return True
         j = sk.parents[j]
     return False
+
+
+def test_the_planted_skeleton_has_its_joints_where_the_rig_keyed_with_the_residual_has_them():
+    """Stop 41: Predict plants the model skeleton's balls of the feet; the rig is keyed with
+    the residual a predicted frame carries, which turns its feet (a foot's roll about its
+    bone), so the rig's balls were not the planted ones. :meth:`GaitSpace.planted_skeleton`
+    turns each bone's offset as the residual turns the rig's bone: with the same DOFs its
+    limbs are the keyed rig's to rounding (here subject 35's walk read through the template,
+    whose feet are 7° from 35's), where the plain skeleton's balls are off by what the foot's
+    roll does to the ball (0.03-0.1 mm here, 0.1-0.3 mm on the test rigs)."""
+    rig = SyntheticRig(asf="35", trial="35_01", frames=40)
+    space = rig.space()
+    dofs = space.dofs(rig.root_translation, rig.local)
+    carried = carried_residual(space.residuals(rig.root_translation, rig.local, dofs))
+    translation, local = space.rig_pose(dofs, carried)
+    _, keyed = forward_kinematics(rig.model.skeleton, local, translation)   # the keyed rig
+    planted = space.planted_skeleton(carried)
+    _, got = cmu_world(planted, dofs)
+    _, plain = cmu_world(space.skeleton, dofs)
+    names, rig_names = space.skeleton.names, list(rig.model.bones)
+    for side, s in (("l", "L"), ("r", "R")):
+        # thigh → knee → ankle → ball: each bone as the keyed rig holds it
+        chain = [(f"{side}femur", f"thigh.{s}"), (f"{side}tibia", f"shin.{s}"),
+                 (f"{side}foot", f"foot.{s}"), (f"{side}toes", f"toe.{s}")]
+        for (cp, rp), (ci, ri) in zip(chain, chain[1:]):
+            i, p = names.index(ci), names.index(cp)
+            k, j = rig_names.index(ri), rig_names.index(rp)
+            want = keyed[:, k] - keyed[:, j]
+            np.testing.assert_allclose(got[:, i] - got[:, p], want, atol=1e-12)
+        ball, ankle = names.index(f"{side}toes"), names.index(f"{side}foot")
+        off = (plain[:, ball] - plain[:, ankle]) - (keyed[:, rig_names.index(f"toe.{s}")]
+                                                    - keyed[:, rig_names.index(f"foot.{s}")])
+        assert np.linalg.norm(off, axis=-1).min() > 1e-5       # the plain skeleton's ball
+    # Only the offsets change; no residual, no change (to rounding).
+    for field in ("names", "parents", "rest_rotations", "tails", "dof_axes", "limits"):
+        a, b = getattr(planted, field), getattr(space.skeleton, field)
+        assert a == b if isinstance(a, tuple) else np.array_equal(a, b), field
+    same = space.planted_skeleton(np.broadcast_to(np.eye(3), carried.shape))
+    np.testing.assert_allclose(same.offsets, space.skeleton.offsets, atol=1e-15)
+    with pytest.raises(ValueError, match="residual"):
+        space.planted_skeleton(carried[:-1])
