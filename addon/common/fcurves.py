@@ -244,6 +244,64 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
         raise ValueError(f"frames and values must be 1-D of equal length, got {frames.shape}, {values.shape}")
     if not (np.all(np.isfinite(values)) and np.all(np.isfinite(frames))):
         raise ValueError(f"refusing to write non-finite keyframe values to {data_path}[{index}]")
+    new_co = np.stack([frames, values], axis=1).astype(np.float32)
+    return _insert_checked(bag, data_path, index, group_name, frames, new_co, {})[0]
+
+
+def insert_keys_preserving_many(bag, channels, frames, values):
+    """:func:`insert_keys_preserving` of every channel at the same frames, each curve keyed
+    exactly as that function keys it alone; the checks and conversions are done once for all
+    channels, and curves whose keys sit at the same frames share the search for the frames
+    already keyed (issue 21: the keying of Predict Gait, 66 curves).
+
+    Parameters
+    ----------
+    bag : bpy.types.ActionChannelbag
+    channels : sequence of (data_path, index, group_name)
+    frames : array_like, shape (N,)
+    values : array_like, shape (N, C)
+        Column ``c`` keys ``channels[c]``.
+
+    Returns
+    -------
+    written : int
+        Number of keys added, all channels together.
+    keys : list of ndarray or None
+        Per channel, the (K, 2) float32 frames and values of the curve's keys after the call,
+        known without reading the curve back where the new keys followed the old ones in order
+        (Blender's sort then moves nothing): what :func:`key_coordinates` would read; None
+        where the curve must be read.
+    """
+    frames = np.asarray(frames, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    if frames.ndim != 1 or values.shape != (len(frames), len(channels)):
+        raise ValueError(f"Expected frames (N,) and values (N, {len(channels)}), got "
+                         f"{frames.shape}, {values.shape}")
+    if not np.all(np.isfinite(frames)):
+        raise ValueError(f"refusing to write non-finite keyframe frames to {len(channels)} "
+                         "F-curves")
+    bad = np.flatnonzero(~np.all(np.isfinite(values), axis=0))
+    if len(bad):
+        path, index = channels[int(bad[0])][:2]
+        raise ValueError(f"refusing to write non-finite keyframe values to {path}[{index}]")
+    # The (frame, value) pairs of every channel, as insert_keys_preserving converts them.
+    new_co = np.empty((len(channels), len(frames), 2), dtype=np.float32)
+    new_co[:, :, 0] = frames
+    new_co[:, :, 1] = values.T
+    shared = {}
+    written, keys = 0, []
+    for c, (path, index, group_name) in enumerate(channels):
+        n, co = _insert_checked(bag, path, index, group_name, frames, new_co[c], shared)
+        written += n
+        keys.append(co)
+    return written, keys
+
+
+def _insert_checked(bag, data_path, index, group_name, frames, new_co, shared):
+    """:func:`insert_keys_preserving` after its checks: ``new_co`` (N, 2) float32 the keys'
+    frames and values; ``shared`` a dict of the new keys kept per old keys' frames (bytes),
+    filled here. Returns (keys added, the curve's (K, 2) keys when known without reading them
+    back (the new keys after the old ones, all in order), else None)."""
     fcurve = bag.fcurves.find(data_path, index=index)
     if fcurve is None:
         fcurve = bag.fcurves.new(data_path, index=index)
@@ -255,26 +313,30 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
     # nothing else of an existing key (interpolation, handle types and easing move with it).
     geometry = ("co", "handle_left", "handle_right")
     old = _keyframe_state(points, only=geometry)
-    old_frames = old["co"][:, 0].astype(np.float64)
-    keep = np.ones(len(frames), dtype=bool)
-    if len(old_frames):
-        keep = _nearest_distance(frames, np.sort(old_frames)) > 1e-4
-    frames, values = frames[keep], values[keep]
-    if len(frames) == 0:
-        return 0
-    n_old = len(old_frames)
-    points.add(len(frames))
-    new_co = np.stack([frames, values], axis=1).astype(np.float32)
+    n_old = len(old["co"])
+    if n_old:
+        old_frames = old["co"][:, 0]
+        where = old_frames.tobytes()
+        keep = shared.get(where)
+        if keep is None:
+            keep = shared[where] = \
+                _nearest_distance(frames, np.sort(old_frames.astype(np.float64))) > 1e-4
+        if not keep.all():
+            new_co = new_co[keep]
+    if len(new_co) == 0:
+        return 0, None
+    points.add(len(new_co))
     co = np.concatenate([old["co"], new_co])
     points.foreach_set("co", co.reshape(-1))
     fcurve.update()  # sorts keys, computes handles of the new ones
+    kept = co[:, 0]
+    in_order = bool(np.all(kept[1:] > kept[:-1]))
     if n_old:
         # Where the old keys are after the sort. Old keys in order and new ones after the last
         # of them, in order (a prediction after the observed range): Blender's sort, which
         # swaps only keys out of order, leaves every key where it is, so the old keys are the
         # first n_old and their frames need not be read again.
-        kept = co[:, 0]
-        if np.all(kept[1:] > kept[:-1]):
+        if in_order:
             positions = np.arange(n_old)
             new_state = _keyframe_state(points, only=geometry[1:])
         else:
@@ -284,7 +346,7 @@ def insert_keys_preserving(bag, data_path, index, group_name, frames, values):
             array = new_state[prop]
             array[positions] = old[prop]
             points.foreach_set(prop, array.reshape(-1))
-    return int(len(frames))
+    return int(len(new_co)), co if in_order else None
 
 
 def _nearest_distance(frames, sorted_frames):

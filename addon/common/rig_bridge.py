@@ -30,7 +30,8 @@ from ...core.pose_channels import channel_property, channels_from_rotations, rot
 from ...core.rigs import (LIMBS, RIGID, ROTATE, TRANSLATE, BodyMapError, BoneConstraint,
                           RigBones, axis_rotation, bend_angle_error, joint_stretch,
                           joint_world_poses, model_skeleton, orthonormal, pose_error, rigid,
-                          recognise_body_map, skeleton_pose, world_change, world_poses)
+                          recognise_body_map, rigid_limbs, skeleton_pose, world_change,
+                          world_poses)
 from ...core.rigs.parts import PARENT
 from ..mocap.acclaim_bridge import PROP_ASF
 from .fcurves import channelbag, ensure_action, evaluate_fcurves, insert_keys_preserving, pose_bone_path
@@ -437,27 +438,47 @@ class MappedRig:
 
     # Reading --------------------------------------------------------------------------------
 
-    def read_pose(self, frames, stretch=False):
+    @property
+    def ik_limbs(self):
+        """(root, middle, end) model joints of every limb the plan keys in IK."""
+        out = []
+        for limb, chain in LIMBS.items():
+            if self.modes.get(limb) != "IK":
+                continue
+            try:
+                out.append(tuple(self.model.joint_of_part(p) for p in chain))
+            except KeyError:
+                continue
+        return tuple(out)
+
+    def read_pose(self, frames, stretch=False, rigid_ik=False):
         """The model skeleton's pose at ``frames`` as the rig evaluates it: root translation
         (N, 3) and local rotations (N, J, 3, 3), metres, armature space; with ``stretch``
         also how far its joints are from the rigid skeleton's (N, J, 3):
         ``core.rigs.joint_stretch`` (a stretchy IK limb), which :meth:`control_values` takes
-        back."""
+        back. ``rigid_ik``: the limbs in IK (:attr:`ik_limbs`) read as the rigid limb that
+        reaches the same end in the same bend plane (``core.rigs.rigid_limbs``; what the IK
+        controls key is the end's place and the bend's plane, the rig's IK stretch then bends
+        the limb its own way: the gait, ``docs/gait_rigs.md``, stop 41)."""
         scene = bpy.context.scene
         matrices = evaluated_matrices(scene, self.obj, self.model.pose_bones, frames)
         rot, pos = joint_world_poses(self.model, matrices)
+        if rigid_ik and self.ik_limbs:
+            rot = rigid_limbs(self.skeleton, rot, pos, self.ik_limbs)
         pose = skeleton_pose(self.skeleton, rot, pos)
         if stretch:
             return pose + (joint_stretch(self.skeleton, rot, pos),)
         return pose
 
-    def current_pose(self):
+    def current_pose(self, rigid_ik=False):
         """The model skeleton's pose as the rig is evaluated now (the frame shown, no frame
         change: a frame handler may call it): root translation (1, 3) and local rotations
-        (1, J, 3, 3), metres, armature space."""
+        (1, J, 3, 3), metres, armature space (``rigid_ik``: :meth:`read_pose`)."""
         pb = self.obj.pose.bones
         idx = [pb.find(n) for n in self.model.pose_bones]
         rot, pos = joint_world_poses(self.model, current_matrices(self.obj)[idx][None])
+        if rigid_ik and self.ik_limbs:
+            rot = rigid_limbs(self.skeleton, rot, pos, self.ik_limbs)
         return skeleton_pose(self.skeleton, rot, pos)
 
     # Writing --------------------------------------------------------------------------------

@@ -383,11 +383,19 @@ def _co(fcurve):
 class _KeyReads:
     """The (K, 2) float32 keys (frame, value) of a bag's F-curves, each curve read once
     (``_co``) and kept: one call's checks read the same curves before it writes anything
-    (issue 21). Not for after a write: build a new one, or call ``_co`` directly."""
+    (issue 21). Not for after a write: build a new one (whose ``known`` a writer may fill),
+    or call ``_co`` directly."""
 
     def __init__(self, bag):
         self.bag = bag
         self._read = {}
+
+    @property
+    def known(self):
+        """The dict ``{(path, index): (K, 2) keys}`` behind the reader: a writer that knows a
+        curve's keys after its write exactly (``rigs.key_values``'s ``known``) puts them here
+        instead of having them read back."""
+        return self._read
 
     def __call__(self, path, index):
         """The F-curve's keys, shape (K, 2), or None when the bag has no such curve."""
@@ -635,10 +643,13 @@ def predict_gait(context, obj, options):
         target_bag = bag
     else:
         target_bag = _new_action_from_range(obj, bag, first, last)
-    written = key_values(grig, target_bag, frames, values)
+    # The digest of what was written: the keys the writes know (new keys after the old ones,
+    # in order: what a read would give, bit for bit), the other curves read afresh.
+    written_keys = _KeyReads(target_bag)
+    written = key_values(grig, target_bag, frames, values, known=written_keys.known)
     new_action = obj.animation_data.action
     _store_record(new_action, obj, (first, last), (frames[0], frames[-1]),
-                  _keys_digest(target_bag, grig.targets(), frames[0], frames[-1]))
+                  _keys_digest(target_bag, grig.targets(), frames[0], frames[-1], written_keys))
     hz = fps * walk.omega / (2.0 * np.pi)
     warnings = [check.warning] if check.warning else []
     warnings += _control_warnings(grig)

@@ -36,8 +36,8 @@ from ...core.mocap import (CMU_BVH_NAMES, MocapParseError, asf_dofs_from_world_d
                            asf_to_skeleton, cmu_template_asf, fill_unmapped,
                            world_deltas_from_asf_dofs)
 from ..mocap.acclaim_bridge import PROP_ASF, AcclaimError, armature_asf
-from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving, key_coordinates,
-                              pose_bone_path)
+from ..common.fcurves import (channelbag, evaluate_fcurves, insert_keys_preserving_many,
+                              key_coordinates, pose_bone_path)
 from ..common.pose_bridge import RigError, read_pose, rig_from_armature, rigid_armature2world
 
 # Metres per armature unit a BVH conversion may use: metres, CMU file units (1/0.45 inch),
@@ -282,8 +282,8 @@ def read_dofs(grig, frames, hold=None, residual=False):
     bag = _action_bag(grig.obj)
     if grig.kind == "MAPPED":
         if not residual:
-            return grig.space.dofs(*grig.mapped.read_pose(frames), hold=hold)
-        translation, local, stretch = grig.mapped.read_pose(frames, stretch=True)
+            return grig.space.dofs(*grig.mapped.read_pose(frames, rigid_ik=True), hold=hold)
+        translation, local, stretch = grig.mapped.read_pose(frames, stretch=True, rigid_ik=True)
         dofs = grig.space.dofs(translation, local, hold=hold)
         rest = RigResidual(grig.space.residuals(translation, local, dofs), stretch)
         return dofs, rest
@@ -351,7 +351,7 @@ def current_values(bag, targets, frame, obj):
 def read_current(grig, hold=None):
     """A mapped rig's DOF row (n_dofs,) as it is evaluated now (the frame shown; no frame
     change, so a frame handler can call it)."""
-    return grig.space.dofs(*grig.mapped.current_pose(), hold=hold)[0]
+    return grig.space.dofs(*grig.mapped.current_pose(rigid_ik=True), hold=hold)[0]
 
 
 def keyed_range(grig, keys=None):
@@ -427,10 +427,15 @@ def channel_values(grig, bag, dofs, last_frame, last_dofs, frames=None, residual
     return values
 
 
-def key_values(grig, bag, frames, values):
+def key_values(grig, bag, frames, values, known=None):
     """Key ``values`` (from :func:`channel_values`) at ``frames`` into ``bag`` in bulk, existing
-    keys untouched. Returns the number of keys written."""
-    written = 0
-    for c, (path, index, group) in enumerate(grig.targets()):
-        written += insert_keys_preserving(bag, path, index, group, frames, values[:, c])
+    keys untouched (:func:`insert_keys_preserving_many`: each curve as
+    ``insert_keys_preserving`` keys it). Returns the number of keys written. ``known``: a dict
+    given by the caller gets ``{(path, index): (K, 2) float32 keys}`` of the curves whose keys
+    after the call are known without reading them back (``insert_keys_preserving_many``)."""
+    targets = grig.targets()
+    written, keys = insert_keys_preserving_many(bag, targets, frames, values)
+    if known is not None:
+        known.update({(path, index): co for (path, index, _), co in zip(targets, keys)
+                      if co is not None})
     return written

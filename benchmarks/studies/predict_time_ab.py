@@ -7,7 +7,8 @@ a CMU trial at the scene's rate (not timed) and calls ``track_and_stride.predict
 the operator's defaults but Length, re-importing the clip before each call; the call's CPU
 time (``time.process_time``: what a loaded machine steals from the wall clock does not count)
 and wall time are recorded, and the CPU time of ``predict_walk`` inside it (a timing wrapper
-around the add-on's reference to it). Round r runs A then B when r is even, B then A when
+around the add-on's reference to it), and likewise of each part of the call (``PARTS``: the
+bridge's references to its checks, the adaptation, the legs' travel, the keying …). Round r runs A then B when r is even, B then A when
 odd. Reported: each side's median and least over all calls, the median of the per-round
 ratios B / A (each round's median B over its median A: two processes close in time share the
 machine's load), ``predict_walk``'s median, and whether both sides keyed the same curves (a
@@ -94,6 +95,21 @@ def child(args):
             inner.append(time.process_time() - c0)
 
     bridge.predict_walk = timed_walk
+    # Each part of the call (the bridge's own references to them), CPU time per call.
+    parts = {}
+    for name in PARTS:
+        real = getattr(bridge, name, None)
+        if real is None:
+            continue
+
+        def timed(*a, _real=real, _name=name, **k):
+            c0 = time.process_time()
+            try:
+                return _real(*a, **k)
+            finally:
+                parts.setdefault(_name, []).append(time.process_time() - c0)
+
+        setattr(bridge, name, timed)
     folder = Path(tempfile.mkdtemp(prefix="ts-ab-clip-"))
     subject = args.trial.split("_")[0]
     asf = read_asf(CMU / f"{subject}.asf")
@@ -131,9 +147,23 @@ def child(args):
         stats.sort_stats("tottime").print_stats(25)
         return
     del inner[:]
+    parts.clear()
     times = [call() for _ in range(args.calls)]
+    per_call = {}                      # a part called m times a call: the m calls' sum
+    for name, v in parts.items():
+        m = len(v) // args.calls
+        per_call[name] = [sum(v[i * m:(i + 1) * m]) for i in range(args.calls)] \
+            if m and len(v) % args.calls == 0 else v
     print(json.dumps({"cpu_s": [t[0] for t in times], "wall_s": [t[1] for t in times],
-                      "predict_walk_cpu_s": inner, "keys_sha1": keys_digest(bpy)}))
+                      "predict_walk_cpu_s": inner, "parts_cpu_s": per_call,
+                      "keys_sha1": keys_digest(bpy)}))
+
+
+# The parts of Predict Gait timed in each call (names in ``addon/gait/bridge.py``; one missing
+# from a build is left out).
+PARTS = ("intact_prediction", "_observed_range", "read_dofs", "check_gait", "_adapt",
+         "with_fit", "fit_leg_travel", "_check_target", "predict_walk", "channel_values",
+         "key_values", "_keys_digest")
 
 
 def keys_digest(bpy):
@@ -198,6 +228,7 @@ def main():
     wall = {"a": [], "b": []}
     ratios = []
     digests = {"a": set(), "b": set()}
+    parts = {"a": {}, "b": {}}
     for r in range(args.rounds):
         order = ("a", "b") if r % 2 == 0 else ("b", "a")
         med = {}
@@ -207,6 +238,8 @@ def main():
             wall[side] += t["wall_s"]
             inner[side] += t["predict_walk_cpu_s"]
             digests[side].add(t["keys_sha1"])
+            for name, v in t.get("parts_cpu_s", {}).items():
+                parts[side].setdefault(name, []).extend(v)
             med[side] = statistics.median(t["cpu_s"])
         ratios.append(med["b"] / med["a"])
         print(f"round {r + 1}: A {med['a']:.3f} s, B {med['b']:.3f} s CPU (B/A "
@@ -220,6 +253,8 @@ def main():
               "predict_walk_cpu_median_s": {s: statistics.median(inner[s]) for s in inner},
               "ratio_b_over_a_median": statistics.median(ratios), "round_ratios": ratios,
               "keys_sha1": {s: sorted(digests[s]) for s in digests},
+              "parts_cpu_median_s": {s: {k: statistics.median(v) for k, v in parts[s].items()}
+                                     for s in parts},
               "same_keys": digests["a"] == digests["b"] and len(digests["a"]) == 1}
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     Path(args.output).write_text(json.dumps(result, indent=1))
@@ -233,6 +268,11 @@ def main():
           f"{result['predict_walk_cpu_median_s']['a'] * 1e3:.0f} ms, B "
           f"{result['predict_walk_cpu_median_s']['b'] * 1e3:.0f} ms (CPU medians); keys "
           f"{'identical' if result['same_keys'] else 'DIFFERENT'} (SHA-1 of every key)")
+    print("parts, CPU medians (ms): " + "; ".join(
+        f"{name} {result['parts_cpu_median_s']['a'].get(name, float('nan')) * 1e3:.1f} -> "
+        f"{result['parts_cpu_median_s']['b'].get(name, float('nan')) * 1e3:.1f}"
+        for name in PARTS if name in result["parts_cpu_median_s"]["a"]
+        or name in result["parts_cpu_median_s"]["b"]))
 
 
 if __name__ == "__main__":

@@ -253,12 +253,15 @@ def rhythm(model, observations, fps):
     pairs = legs.shape[1] > 0
     n = len(x)
     best = (None, None, False)
+    steps = {}           # the other leg's sums by half period: two periods share each half
     for period in range(lo, hi + 1):
         half = int(round(period / 2))
         num = e1 = e2 = 0.0
         if pairs and n - half >= overlap:                  # the other leg's step
-            a, b = legs_mirrored[:n - half], legs[half:]
-            num, e1, e2 = np.sum(a * b), np.sum(a * a), np.sum(b * b)
+            if half not in steps:
+                a, b = legs_mirrored[:n - half], legs[half:]
+                steps[half] = (np.sum(a * b), np.sum(a * a), np.sum(b * b))
+            num, e1, e2 = steps[half]
         whole = n - period >= overlap
         if whole:                                          # the same leg, a cycle later
             a, b = x[:n - period], x[period:]

@@ -23,8 +23,9 @@ from .retarget import (RIGID, ROTATE, TRANSLATE, basis_from_pose, basis_matrix,
                        control_targets, corrected_basis, joint_stretch, joint_world_poses,
                        minimal_rotation,
                        orthonormal, pose_error, pose_from_basis, rest_alignment, rigid,
-                       skeleton_pose, split_basis, to_model_frames, to_rig_frames, world_change,
-                       world_poses)
+                       rigid_limbs,
+                       skeleton_pose, split_basis, stretched_poses, to_model_frames, to_rig_frames,
+                       world_change, world_poses)
 
 __all__ = [
     "BodyMap", "BodyMapError", "BoneConstraint", "GaitSpace", "LIMBS", "LimbMap", "ModelSkeleton", "OPTIONAL",
@@ -35,7 +36,8 @@ __all__ = [
     "ik_targets_from_pose", "joint_stretch", "joint_world_poses", "limb_of_part", "minimal_rotation",
     "model_skeleton", "orthonormal", "pattern_body_map", "plain_list", 
     "pole_position", "pose_error", "pose_from_basis", "present_parent", "read_body_map",
-    "recognise_body_map", "rest_alignment", "rigid", "side_of_part", "skeleton_pose",
-    "solve_two_bone", "split_basis", "to_model_frames", "to_rig_frames", "with_ik_constraints",
+    "recognise_body_map", "rest_alignment", "rigid", "rigid_limbs", "side_of_part", "skeleton_pose",
+    "solve_two_bone", "split_basis", "stretched_poses", "to_model_frames", "to_rig_frames",
+    "with_ik_constraints",
     "world_change", "world_poses", "write_body_map",
 ]

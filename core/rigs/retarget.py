@@ -150,18 +150,119 @@ def joint_stretch(skeleton, rotations, positions):
     return out
 
 
+def rigid_limbs(skeleton, rotations, positions, limbs):
+    """Joint frames (N, J, 3, 3) of a pose with its stretchy two-bone limbs read as the rigid
+    skeleton's: per limb the rigid chain (the skeleton's offsets, the segments' rotations
+    relative to their part kept) bent at its middle joint in its own plane and turned about
+    its root so that it reaches the pose's end joint; the end and the joints below it keep
+    their frames (bit for bit). A rigid limb comes back as it is (to float rounding).
+
+    A stretchy IK limb (Rigify's, IK stretch 0.1) reaches its target with bones a few
+    millimetres longer or shorter than at rest, so its thigh and shin turn a degree or two
+    away from the rigid limb that reaches the same ankle; what the IK controls key is the
+    end's place and the bend's plane, and the rigid limb keeps both. With ``u``, ``v`` the
+    rigid chain's root → middle and middle → end vectors now, ``d`` the distance root → end
+    in the pose and ``n = u × v``: the middle joint turns about ``n`` by ``θ − θ₀``,
+    ``cos θ = (d² − |u|² − |v|²) / (2 |u| |v|)`` (law of cosines, clipped: a limb out of
+    reach is straightened), ``θ₀`` the angle between ``u`` and ``v``; then the whole chain by
+    the smallest rotation taking its new end direction onto the pose's. A straight limb
+    (``n = 0``) is only turned.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    rotations : array_like, shape (N, J, 3, 3)
+        Joint frames, armature space.
+    positions : array_like, shape (N, J, 3)
+        Joint origins, metres.
+    limbs : sequence of (int, int, int)
+        Per limb its (root, middle, end) joints (the middle below the root, the end below
+        the middle; segments between them allowed).
+
+    Returns
+    -------
+    ndarray, shape (N, J, 3, 3)
+    """
+    out = np.array(rotations, dtype=float)
+    if not len(limbs):
+        return out
+    rot = orthonormal(out)
+    pos = np.asarray(positions, dtype=float)
+    parents = np.asarray(skeleton.parents)
+    poses = np.zeros(rot.shape[:2] + (4, 4))
+    poses[..., :3, :3], poses[..., :3, 3], poses[..., 3, 3] = rot, pos, 1.0
+    chain = stretched_poses(skeleton, poses, np.zeros((skeleton.n_joints, 3)))[..., :3, 3]
+
+    def path(below, top):
+        """Joints from ``below``'s parent up to ``top`` (included)."""
+        joints, j = [], int(parents[below])
+        while j >= 0:
+            joints.append(j)
+            if j == top:
+                break
+            j = int(parents[j])
+        return joints
+
+    for a, m, e in limbs:
+        u = chain[:, m] - chain[:, a]
+        v = chain[:, e] - chain[:, m]
+        reach = pos[:, e] - pos[:, a]
+        lu, lv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+        normal = np.cross(u, v)
+        size = np.linalg.norm(normal, axis=-1)
+        bent = size > 1e-9 * np.maximum(lu * lv, 1e-300)
+        theta0 = np.arctan2(size, np.sum(u * v, axis=-1))
+        d = np.linalg.norm(reach, axis=-1)
+        cos_t = (d * d - lu * lu - lv * lv) / np.maximum(2.0 * lu * lv, 1e-300)
+        theta = np.arccos(np.clip(cos_t, -1.0, 1.0))
+        axis = normal / np.where(bent, size, 1.0)[..., None]
+        knee = exp_so3(axis * np.where(bent, theta - theta0, 0.0)[..., None])   # Q2
+        new_end = u + (knee @ v[..., None])[..., 0]
+        turn = minimal_rotation(new_end, reach)                                  # Q1
+        for j in path(m, a):                     # root … the middle's parent
+            out[:, j] = turn @ rot[:, j]
+        for j in path(e, m):                     # middle … the end's parent
+            out[:, j] = turn @ knee @ rot[:, j]
+    return out
+
+
 def world_poses(skeleton, root_translation, local_rotations, stretch=None):
     """Joint frames as 4×4 matrices (N, J, 4, 4), metres: forward kinematics; with
     ``stretch`` (N, J, 3) or (J, 3) (:func:`joint_stretch`) each joint's offset from its
     parent lengthened by it: ``p_i = p_parent + R_parent (offsets_i + s_i)``."""
     rot, pos = forward_kinematics(skeleton, local_rotations, root_translation)
-    if stretch is not None:
-        s = np.broadcast_to(np.asarray(stretch, dtype=float), pos.shape)
-        for i in range(1, skeleton.n_joints):
-            p = skeleton.parents[i]
-            pos[:, i] = pos[:, p] + (rot[:, p] @ (skeleton.offsets[i] + s[:, i])[..., None])[..., 0]
     out = np.zeros(rot.shape[:2] + (4, 4))
     out[..., :3, :3], out[..., :3, 3], out[..., 3, 3] = rot, pos, 1.0
+    if stretch is not None:
+        out = stretched_poses(skeleton, out, stretch)
+    return out
+
+
+def stretched_poses(skeleton, poses, stretch):
+    """Joint frames with their places rebuilt from the root along the frames' rotations, each
+    joint's offset from its parent lengthened by ``stretch``: ``p_i = p_parent + R_parent
+    (offsets_i + s_i)`` (the rotations and the root's place kept). With the ``stretch`` of
+    :func:`joint_stretch` of the same rotations and places it gives the places back exactly;
+    with zero stretch, forward kinematics' places.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    poses : array_like, shape (N, J, 4, 4)
+        Joint frames (rotation and place; metres).
+    stretch : array_like, shape (N, J, 3) or (J, 3)
+        Per joint, in its parent joint's frame, metres (the root's is not used).
+
+    Returns
+    -------
+    ndarray, shape (N, J, 4, 4)
+    """
+    out = np.array(poses, dtype=float)
+    rot, pos = out[..., :3, :3], out[..., :3, 3]
+    s = np.broadcast_to(np.asarray(stretch, dtype=float), pos.shape)
+    for i in range(1, skeleton.n_joints):
+        p = skeleton.parents[i]
+        pos[:, i] = pos[:, p] + (rot[:, p] @ (skeleton.offsets[i] + s[:, i])[..., None])[..., 0]
     return out
 
 

@@ -90,6 +90,24 @@ class FootLockRule:
         contact going (``keyed`` 'slow'; twice ``slow``: a tracker's slide of a standing foot
         was 0.4-0.73 m/s on bench-real, a swing is 1-4 m/s; without it the runs reached into
         a walk's early and late swing, docs/tracking.md, *Planted feet*, stop 40).
+    on_floor : bool
+        A contact that holds no key (locked at its mean) is raised onto the keys' floor where
+        the tracked foot sank under it (its lowest point, the run's mean below the ankle).
+        Off by default (stop 41, docs/tracking.md, *Planted feet*: it evens the feet's heights
+        Predict Gait reads after tracking, but alone it made the CMU skeleton's prediction
+        worse).
+    reach : bool
+        The ends of a run whose target ankle is farther from the hip than thigh and shin
+        together are not locked (the hips have left the spot; the IK would straighten the leg
+        and drag the ankle). Off by default (stop 41: with ``on_floor`` it made Predict after
+        tracking better on every fitted rig, but bench-real's foot skate at keys every 10
+        worse, 12.7 -> 14.2 cm/s: at a toe-off the tracked foot slides more than the dragged
+        one).
+    pivot : bool
+        Where the target ankle is out of the leg's reach, the foot turns about its ball until
+        the ankle is within it (:func:`_pivot_on_ball`: the heel rises, the ball stays). Off by
+        default (stop 41: Predict after tracking 13.5 -> 8.8 cm on the CMU skeleton and 14.3 ->
+        9.0 on Rigify IK, but 12.0 -> 31.8 on Mixamo, whose adapted cadence changed).
     """
 
     low: float = 0.05
@@ -100,6 +118,9 @@ class FootLockRule:
     keyed: str = "none"
     keep_low: float = 0.10
     keep_slow: float = 0.8
+    on_floor: bool = False
+    reach: bool = False
+    pivot: bool = False
 
     def __post_init__(self):
         if self.keyed not in ("slow", "none"):
@@ -332,7 +353,41 @@ def _solve_leg_masked(skeleton, roots, local, chain, axes, rows, ankle_goal, foo
     return out
 
 
-def standing(low, slow, held=None, min_frames=3, near=None):
+def _pivot_on_ball(hip, reach, ankle, foot_rot, foot_tail):
+    """Targets a leg can reach: where the ankle target (M, 3) is farther from the ``hip``
+    (M, 3) than ``reach`` (M,) (thigh and shin together), the foot turns about its ball (the
+    foot bone's tail, ``foot_tail`` (3,) in the foot's frame) until the ankle is at ``reach``
+    from the hip, on the circle where the sphere about the hip meets the sphere about the
+    ball, at its point nearest the target: the heel rises, the ball stays where it stands
+    (a stance foot rolling onto its toes while the hips move on). Where no such point
+    exists the targets are returned as they are. Returns (ankle (M, 3), foot_rot (M, 3, 3))."""
+    ankle, foot_rot = ankle.copy(), foot_rot.copy()
+    ball = ankle + np.einsum("nij,j->ni", foot_rot, foot_tail)
+    length = np.linalg.norm(foot_tail)
+    d_vec = hip - ball
+    d = np.linalg.norm(d_vec, axis=1)
+    far = np.linalg.norm(ankle - hip, axis=1) > reach
+    # Sphere |x - ball| = length meets |x - hip| = reach: circle centre ball + t n, radius rho.
+    t = (d * d + length * length - reach * reach) / (2.0 * np.maximum(d, 1e-12))
+    rho2 = length * length - t * t
+    ok = far & (rho2 > 0.0) & (d > 1e-9)
+    if not ok.any():
+        return ankle, foot_rot
+    n = d_vec[ok] / d[ok, None]
+    centre = ball[ok] + t[ok, None] * n
+    off = ankle[ok] - centre
+    off -= np.sum(off * n, axis=1)[:, None] * n
+    size = np.linalg.norm(off, axis=1)
+    good = size > 1e-12
+    rows = np.flatnonzero(ok)[good]
+    new = centre[good] + np.sqrt(rho2[ok][good])[:, None] * off[good] / size[good, None]
+    turn = _minimal_rotation(ankle[rows] - ball[rows], new - ball[rows])
+    foot_rot[rows] = turn @ foot_rot[rows]
+    ankle[rows] = new
+    return ankle, foot_rot
+
+
+def standing(low, slow, held=None, min_frames=3, near=None, keys=(), margin=0):
     """Runs ``[(start, stop), ...]`` (stop exclusive) where a foot stands.
 
     A run starts where the foot is ``low`` and ``slow`` (tracked, (N,) bool) for at least
@@ -343,15 +398,33 @@ def standing(low, slow, held=None, min_frames=3, near=None):
     (the keys hold the foot still where the tracked foot jitters or slides faster than
     ``slow``: the tracker's error, which the lock is there to remove). A foot the keys hold
     still but the tracked trajectory never sees standing is left alone (a swing between two
-    keys that put the foot in the same place)."""
+    keys that put the foot in the same place).
+
+    The extension before the first and after the last low and slow run of a contact stops
+    ``margin`` frames short of a key (``keys``, indices) it would otherwise reach: a run that
+    holds keys takes their foot poses (:func:`_anchor`), and a key the tracked foot was not
+    seen standing at (a foot still settling, or already rolling onto its toes) would carry
+    its pose over the whole contact -- the foot tilted or slid along the run, held back while
+    the hips move on (docs/tracking.md, *Planted feet*, stop 41). Keys between two low and
+    slow runs of a contact stay in it."""
     seeds = [(a, b) for a, b in runs(low & slow) if b - a >= min_frames]
     if held is None:
         return seeds
     held = np.asarray(held, dtype=bool)
+    keys = sorted(int(k) for k in keys)
     out = []
     for a, b in runs((low if near is None else near) & (slow | held)):
-        if any(a <= s and t <= b for s, t in seeds):
-            out.append((a, b))
+        inner = [(s, t) for s, t in seeds if a <= s and t <= b]
+        if not inner:
+            continue
+        first, last = min(s for s, _ in inner), max(t for _, t in inner)
+        before = [k for k in keys if a <= k < first]
+        after = [k for k in keys if last <= k < b]
+        if before:
+            a = min(first, before[-1] + 1 + margin)
+        if after:
+            b = max(last, after[0] - margin)
+        out.append((a, b))
     return out
 
 
@@ -443,13 +516,39 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
         held = ((_span_speed(keyed[side], rule.span, fps) <= rule.slow)
                 & (tracked_speed <= rule.keep_slow) if rule.keyed == "slow" else None)
         ankle, foot_rot = pos[:, foot], rot[:, foot]
+        lowest = height[side].min(axis=1)
+        leg_length = (np.linalg.norm(pos[:, shin] - pos[:, thigh], axis=1)
+                      + np.linalg.norm(pos[:, foot] - pos[:, shin], axis=1))
         goal_pos, goal_rot = ankle.copy(), foot_rot.copy()
         weight = np.zeros(n)
         found = []
         near = height[side].min(axis=1) <= floor + max(rule.keep_low, rule.low)
-        for a, b in standing(low, slow, held, rule.min_frames, near):
+        for a, b in standing(low, slow, held, rule.min_frames, near, keys, ramp):
             inside = [k for k in keys if a <= k < b]
             p, r = _anchor(ankle, foot_rot, a, b, inside)
+            # With rule.reach (off by default), not where the leg cannot reach: the ends of a
+            # run whose target is farther from the hip than thigh and shin together (the hips
+            # have left the spot: the foot is rolling onto its toes or already lifting) are
+            # left to the tracked pose; the IK would straighten the leg and drag the ankle up
+            # towards the hip.
+            far = (np.linalg.norm(p - pos[a:b, thigh], axis=1) > leg_length[a:b]) & rule.reach
+            lo_, hi_ = 0, b - a
+            while lo_ < hi_ and far[lo_] and a + lo_ not in key_set:
+                lo_ += 1
+            while hi_ > lo_ and far[hi_ - 1] and a + hi_ - 1 not in key_set:
+                hi_ -= 1
+            if (lo_, hi_) != (0, b - a):
+                if hi_ - lo_ < rule.min_frames:
+                    continue
+                a, b = a + lo_, a + hi_
+                inside = [k for k in keys if a <= k < b]
+                p, r = _anchor(ankle, foot_rot, a, b, inside)
+            if rule.on_floor and not inside:
+                # Never under the keys' floor: the run's lowest point (its mean below the
+                # ankle over the run) on the floor where the tracked foot sank through it.
+                sunk = floor - (p[0] @ up + np.mean(lowest[a:b] - ankle[a:b] @ up))
+                if sunk > 0.0:
+                    p = p + sunk * up
             goal_pos[a:b], goal_rot[a:b], weight[a:b] = p, r, 1.0
             # Ease in before the run and out after it, never across a key.
             before = [k for k in keys if k < a]
@@ -474,6 +573,9 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
         ankle_goal = ankle[rows] + w[:, None] * (goal_pos[rows] - ankle[rows])
         partial = log_so3(np.swapaxes(foot_rot[rows], -1, -2) @ goal_rot[rows])
         foot_goal = foot_rot[rows] @ exp_so3(w[:, None] * partial)
+        if rule.pivot:
+            ankle_goal, foot_goal = _pivot_on_ball(pos[rows, thigh], leg_length[rows],
+                                                   ankle_goal, foot_goal, sk.tails[foot])
         axes = (np.ones((3, 3), dtype=bool) if mask is None
                 else np.asarray(mask, dtype=bool)[[thigh, shin, foot]])
         if axes.all():

@@ -345,6 +345,11 @@ def test_a_second_predict_replaces_its_own_prediction(scene, tmp_path):
     layout = armature_layout(skeleton)
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
     first = keys_at(obj, layout, range(N_OBS + 1, N_OBS + FPS + 1))
+    # The recorded digest (of the keys the keying knows it wrote, stop 41) is the curves' own.
+    gait_bridge, rigs = bridge("gait.bridge"), bridge("gait.rigs")
+    record = gait_bridge._record(obj.animation_data.action, obj)
+    assert record["digest"] == gait_bridge._keys_digest(
+        rigs._action_bag(obj), rigs.gait_rig(obj).targets(), *record["frames"])
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.5, cadence=1.2) == {"FINISHED"}
     assert max(k["co"][:, 0].max() for k in snapshot(obj).values()) == N_OBS + 90
     assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
@@ -587,6 +592,56 @@ def test_keys_inserted_after_and_between_the_user_s_keys_as_before(scene):
             a, b = fcurves.keyframe_state(fast), fcurves.keyframe_state(plain)
             for prop in a:
                 assert a[prop].tobytes() == b[prop].tobytes(), (case, unsorted, prop)
+
+
+def test_many_curves_keyed_at_once_as_each_alone(scene):
+    """``insert_keys_preserving_many`` (Predict Gait's keying, stop 41) leaves every curve as
+    ``insert_keys_preserving`` leaves it alone, bit for bit (every key's co, handles,
+    interpolation, handle types, easing; the new curve's group): curves whose keys share their
+    frames (one search for the keys already there), curves with keys of their own, a curve it
+    creates, keys out of order, new keys after the user's or between and on them. The keys it
+    reports known are the ones a read of the curve gives, and it reports them only where the
+    keys are in order."""
+    fcurves = bridge("common.fcurves")
+    rng = np.random.default_rng(11)
+    user = {0: np.arange(1.0, 9.0), 1: np.arange(1.0, 9.0), 2: np.array([2.5, 30.0, 31.0]),
+            4: np.array([3.0, 1.0, 2.0, 7.0])}                      # 3: no curve; 4: unsorted
+    user_values = {c: rng.normal(size=len(f)) for c, f in user.items()}
+    channels = [(f'["c{c}"]', 0, "Group" if c == 3 else None) for c in range(5)]
+    for case, frames in enumerate((np.arange(22.0, 60.0), np.arange(0.0, 40.0, 0.5))):
+        values = rng.normal(size=(len(frames), len(channels)))
+        bags = []
+        for name in ("alone", "many"):
+            obj = bpy.data.objects.new(f"{name}{case}", None)
+            scene.collection.objects.link(obj)
+            action, slot = fcurves.ensure_action(obj, f"{name}{case}")
+            bag = fcurves.channelbag(action, slot, ensure=True)
+            for c, f in user.items():
+                fcurves.write_new_fcurves(bag, [channels[c]], np.sort(f), user_values[c][:, None],
+                                          "BEZIER")
+                fc = bag.fcurves.find(channels[c][0], index=0)
+                if c == 4:                                          # out of order, as a
+                    co = np.stack([f, user_values[c]], axis=1).astype(np.float32)  # script can
+                    fc.keyframe_points.foreach_set("co", co.reshape(-1))           # leave them
+            bags.append(bag)
+        n_alone = sum(fcurves.insert_keys_preserving(bags[0], path, index, group, frames,
+                                                     values[:, c])
+                      for c, (path, index, group) in enumerate(channels))
+        n_many, known = fcurves.insert_keys_preserving_many(bags[1], channels, frames, values)
+        assert n_many == n_alone
+        for c, (path, index, group) in enumerate(channels):
+            a, b = (bag.fcurves.find(path, index=index) for bag in bags)
+            assert (a.group and a.group.name) == (b.group and b.group.name) == group
+            sa, sb = fcurves.keyframe_state(a), fcurves.keyframe_state(b)
+            for prop in sa:
+                assert sa[prop].tobytes() == sb[prop].tobytes(), (case, c, prop)
+            in_order = c == 3 or (case == 0 and c in (0, 1))   # c2: keys at 30, 31
+            assert (known[c] is not None) == in_order, (case, c)
+            if known[c] is not None:
+                assert known[c].tobytes() == fcurves.key_coordinates(b).tobytes()
+    with pytest.raises(ValueError, match=r'non-finite keyframe values to \["c2"\]\[0\]'):
+        values[3, 2] = np.nan
+        fcurves.insert_keys_preserving_many(bags[1], channels, frames, values)
 
 
 def test_new_action_copies_the_observed_keys_with_their_types_and_easing(scene, tmp_path):

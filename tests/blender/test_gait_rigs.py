@@ -13,7 +13,7 @@ import pytest
 
 from blender_support import MODULE, bpy, datablock_counts
 from rig_fixtures import RIG_SPECS, open_rig_scene, rig_footage
-from sample_scenes.rig_walk import Walk, read_truth, rig_targets, rest_frames
+from sample_scenes.rig_walk import Walk, drive_walk, read_truth, rig_targets, rest_frames
 
 RIGS = ("metarig", "rigify_fk", "rigify_ik", "mixamo_fbx", "ik_legs")
 HORIZON_S = 1.0
@@ -121,7 +121,9 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
     # 35's, the walk's, by up to 17° at the clavicles and 7° at the feet: the posture offset
     # takes it, not exactly); the first steps are the same walk.
     start = slice(0, 5)
-    # (Rigify's IK stretches: its knees bend a few degrees off the captured walk.)
+    # (Rigify's IK stretches: its knees bend a few degrees off the captured walk. Rigify IK
+    # 1.43° on main after stop 41's coarser batch-EM start grid, 1.31 with the rigid reading
+    # of IK limbs; 1.70 and 0.89 before that grid.)
     first = 2.5 if kind == "rigify_ik" else 1.0
     assert angle[start][:, legs].mean() < first, angle[start][:, legs].mean()
     assert angle[:, legs].mean() < 4.0 and angle[:, legs].max() < 20.0, angle[:, legs].max()
@@ -138,6 +140,43 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
     assert cmu_speed > 0.8
     start_gap = np.linalg.norm(mid[0] - hip_mid(spec, fp_truth(fp, [N_REF - 1]))[0])
     assert start_gap < 0.06                             # it carries on from where it was
+
+
+#: Mean angle (degrees) between the predicted legs' deforming bones on an IK rig and the CMU
+#: skeleton's prediction keyed on the same rig by the test rigs' own retargeting. Rigify's IK
+#: (stretch 0.1) read as it bends made its prediction ask for knees its own IK then bent
+#: again: 1.55° on the test clip before stop 41's rigid reading (1.68 before the batch EM's
+#: coarser start grid), 0.87 since (0.50 before that grid); the IK legs 0.48.
+IK_LEGS_DEG = 1.0
+
+
+@pytest.mark.parametrize("kind", ["rigify_ik", "ik_legs"])
+def test_predicted_ik_legs_bend_as_the_cmu_skeletons_prediction_keyed_on_the_rig(
+        kind, cmu_prediction):
+    """Issue 19's angle goal on the legs of a rig in IK, through the operator: Predict Gait
+    keys the IK feet and poles, the rig's own IK bends thighs and shins; the CMU skeleton's
+    prediction keyed on the same rig by the test rigs' retargeting (``rig_walk.drive_walk``:
+    IK feet on the CMU feet, poles in the CMU knees' plane) goes through the same IK. The
+    legs' deforming bones (thigh, shin, foot, toe and their segments) agree within
+    :data:`IK_LEGS_DEG` on average over the predicted second: the walk read from the IK
+    rig is the rigid leg that reaches the IK's ankle (``core.rigs.rigid_limbs``), so the
+    model sees the CMU walk's knees and the IK bends them as it bent the reference."""
+    spec = RIG_SPECS[kind]
+    obj, fp = open_rig_scene(rig_footage(kind), keys=range(1, N_REF + 1))
+    assert bpy.ops.track_and_stride.predict_gait(horizon=HORIZON_S) == {"FINISHED"}
+    frames = predicted_frames()
+    legs = [b for part in ("thigh", "shin", "foot", "toe") for s in "LR"
+            for b in spec.parts[f"{part}.{s}"]]
+    got, _ = evaluated(obj, legs, frames)
+    obj.animation_data.action = None
+    for pb in obj.pose.bones:
+        pb.matrix_basis.identity()
+    bpy.context.view_layer.update()
+    drive_walk(obj, spec, cmu_prediction, first_frame=int(frames[0]))
+    want, _ = evaluated(obj, legs, frames)
+    diff = np.linalg.norm(got - want, axis=(-2, -1))
+    angle = np.degrees(2 * np.arcsin(np.clip(diff / np.sqrt(8), 0, 1)))
+    assert angle.mean() < IK_LEGS_DEG, (angle.mean(), angle.mean(axis=0))
 
 
 def fp_truth(fp, rows):
@@ -229,13 +268,15 @@ def test_the_walk_read_from_a_rig_is_the_cmu_skeletons(kind):
     legs = [names.index(f"{j}.{a}") for j in ("lfemur", "rfemur") for a in ("rx", "ry", "rz")]
     legs += [names.index(n) for n in ("ltibia.rx", "rtibia.rx", "root.rx", "root.ry", "root.rz")]
     # Legs in IK follow their IK solution, not the captured walk exactly: Rigify's IK stretches
-    # (a few millimetres of chain length are a few degrees of knee near a straight leg); the
-    # metarig's IK legs keep their knees within half a degree of the walk's plane.
-    tolerance = {"rigify_ik": 6.0, "ik_legs": 1.0}.get(kind, 0.05)
+    # (a few millimetres of chain length are a few degrees of knee near a straight leg: 5.3°
+    # before stop 41), read as the rigid leg that reaches the same ankle in the same plane
+    # (``core.rigs.rigid_limbs``) it is the walk's to 0.05°; the metarig's IK legs keep their
+    # knees within half a degree of the walk's plane.
+    tolerance = {"rigify_ik": 0.3, "ik_legs": 1.0}.get(kind, 0.05)
     assert np.abs(diff[:, legs]).max() < tolerance, np.abs(diff[:, legs]).max(axis=0)
     feet = [names.index(n) for n in ("lfoot.rx", "rfoot.rx")]
     spread = diff[:, feet] - diff[:, feet].mean(axis=0)
-    assert np.abs(spread).max() < (3.0 if kind in ("rigify_ik", "ik_legs") else 0.3)
+    assert np.abs(spread).max() < (3.0 if kind == "ik_legs" else 0.3)
     # The root: the CMU pelvis centre is placed by the hip joints (the rigs' own pelvis bones
     # sit elsewhere), within a few centimetres of subject 35's.
     assert grig.space.scale == 1.0

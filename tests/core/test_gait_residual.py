@@ -137,7 +137,8 @@ def test_refinement_pass_is_the_ekf_with_the_corrected_template(monkeypatch):
     one = adapt(model, obs)
     ctx = make_context(model)
     ys = obs / ctx.scale
-    grid = grid_search(ctx, ys, refine=True)         # adapt's start: the refined grid
+    grid = grid_search(ctx, ys, n_omega=em.BATCH_GRID[0], n_phi=em.BATCH_GRID[1],
+                       refine=True)                  # adapt's start: the refined grid
     ys = ys - plain.offset                           # the E-step filters y - b
     x0 = np.array([grid.omega, grid.phi0])
     p0 = np.diag([(em.INIT_OMEGA_REL_SD * grid.omega) ** 2, em.INIT_PHI_SD**2])

@@ -22,13 +22,18 @@ FPS = 60.0
 N_REF, N = 100, 240
 
 
-@pytest.fixture(scope="module")
-def walker():
-    """The issue's case: CMU 35_01, 1.67 s observed, the stock library, batch EM."""
-    model, skeleton, values, _, _, res = adapted_walk("35_01", N_REF, FPS)
+def _adapted_walker(trial):
+    """(model, skeleton, reference rows, adapt result, floor) of ``trial``, 1.67 s observed."""
+    model, skeleton, values, _, _, res = adapted_walk(trial, N_REF, FPS)
     ref = values[:N_REF]
     floor = contact_height(foot_tracks(skeleton, ref, FPS, root_frame=model.root_frame))
     return model, skeleton, ref, res, floor
+
+
+@pytest.fixture(scope="module")
+def walker():
+    """The issue's case: CMU 35_01, 1.67 s observed, the stock library, batch EM."""
+    return _adapted_walker("35_01")
 
 
 def walk(walker, style=None, **request):
@@ -80,10 +85,7 @@ def test_a_restyled_run_does_not_moonwalk(walker):
 @pytest.fixture(scope="module")
 def walker_08():
     """CMU 08_04 (a slow walker), as :func:`walker`."""
-    model, skeleton, values, _, _, res = adapted_walk("08_04", N_REF, FPS)
-    ref = values[:N_REF]
-    floor = contact_height(foot_tracks(skeleton, ref, FPS, root_frame=model.root_frame))
-    return model, skeleton, ref, res, floor
+    return _adapted_walker("08_04")
 
 
 def forward_speed(rows):

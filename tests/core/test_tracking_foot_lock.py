@@ -369,3 +369,173 @@ def test_standing_starts_on_the_tracked_foot_and_goes_on_on_weaker_evidence():
 def test_an_unknown_keyed_rule_is_refused():
     with pytest.raises(ValueError, match="keyed must be 'slow' or 'none'"):
         foot_lock.FootLockRule(keyed="both")
+
+
+def test_a_contact_does_not_reach_a_key_it_was_not_seen_standing_at():
+    """``standing`` with ``keys``: the extension of a contact (hysteresis) before its first and
+    after its last low-and-slow run stops ``margin`` frames short of a key it would reach (a
+    run that holds a key takes its foot pose: the metarig's left contact reached the key where
+    the heel was already rising and carried that pose over the stance, stop 41); keys inside
+    or between the runs that started it stay in it."""
+    low = np.array([0, 1, 1, 1, 1, 0, 1, 1, 0, 0, 0, 1, 1, 1, 0, 0], bool)
+    slow = np.array([1, 1, 1, 1, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1], bool)
+    near = low.copy()
+    near[5] = True
+    held = np.ones(16, bool)
+    assert foot_lock.standing(low, slow, held, 3, near) == [(1, 8), (11, 14)]
+    # A key at 6 (after the run 1-3 that started the contact) ends it 1 frame before.
+    assert foot_lock.standing(low, slow, held, 3, near, keys=[6], margin=1) == [(1, 5), (11, 14)]
+    assert foot_lock.standing(low, slow, held, 3, near, keys=[6], margin=3) == [(1, 4), (11, 14)]
+    # Keys inside the starting run change nothing; nor do keys outside every run.
+    assert foot_lock.standing(low, slow, held, 3, near, keys=[2, 9], margin=1) == \
+        [(1, 8), (11, 14)]
+    # Before the first run: a contact started at 6-8 reaches back over 1-5; a key at 2 stops
+    # it at 4 (margin 1), a key at 5 at the run that started it.
+    low2 = np.array([0, 1, 1, 1, 1, 1, 1, 1, 1, 0], bool)
+    slow2 = np.array([0, 0, 0, 0, 0, 0, 1, 1, 1, 0], bool)
+    held2 = np.ones(10, bool)
+    assert foot_lock.standing(low2, slow2, held2, 3) == [(1, 9)]
+    assert foot_lock.standing(low2, slow2, held2, 3, keys=[2], margin=1) == [(4, 9)]
+    assert foot_lock.standing(low2, slow2, held2, 3, keys=[5], margin=1) == [(6, 9)]
+    assert foot_lock.standing(low2, slow2, held2, 3, keys=[5, 7], margin=1) == [(6, 9)]
+
+
+def _sunk(sk, depth, n=31):
+    """Keys at both ends with the right foot standing and the left leg lifted; in the middle
+    (frames 11-19) the left foot stands and the right leg is lifted, the whole body ``depth``
+    metres lower (a tracker that pushed the standing foot through the floor: negative depth
+    lifts it). Returns roots, local rotations."""
+    f = np.arange(n)
+    w = np.clip((np.minimum(f, n - 1 - f) - 5) / 5.0, 0.0, 1.0)      # 0 at the ends, 1 mid
+    stand = np.array([-0.15, 0.3, -0.15])
+    up = np.array([-0.9, 1.08, 0.0])
+    local = np.broadcast_to(np.eye(3), (n, sk.n_joints, 3, 3)).copy()
+    for side, lifted in (("l", 1.0 - w), ("r", w)):
+        pose = stand[None] + lifted[:, None] * (up - stand)[None]
+        for b, name in enumerate(("femur", "tibia", "foot")):
+            axis = np.zeros((n, 3))
+            axis[:, 0] = pose[:, b]
+            local[:, sk.index(side + name)] = exp_so3(axis)
+    roots = np.zeros((n, 3))
+    roots[:, 2] = -depth * (w == 1.0)
+    return roots, local
+
+
+def test_a_locked_foot_without_keys_stands_on_the_keys_floor_not_under_it(skeleton):
+    """``FootLockRule.on_floor`` (stop 41, off by default): a contact holding no key is locked
+    at its mean -- but never under the keys' floor (the lowest foot point over the keys): a
+    tracked foot pushed through the floor is raised onto it (on the rigs' tracked walk the
+    keyless stance of one foot 1.5-3 cm under the floor put the other foot's stance above
+    Predict Gait's contact band, stop 41); a foot above the floor stays where it was
+    tracked."""
+    sk = skeleton
+    foot = sk.index("lfoot")
+    left_points = [foot, sk.index("ltoes")]
+    right_points = [sk.index("rfoot"), sk.index("rtoes")]
+    mid = slice(12, 19)
+    for depth in (0.05, -0.01):
+        roots, local = _sunk(sk, depth)
+        keys = [0, len(roots) - 1]
+        rot, pos = forward_kinematics(sk, local, roots)
+        floor = foot_lock._foot_points(sk, rot, pos, right_points)[keys][..., 2].min()
+        lowest = foot_lock._foot_points(sk, rot, pos, left_points)[mid][..., 2].min(axis=1)
+        np.testing.assert_allclose(lowest, lowest[0])              # standing still
+        under = floor - lowest[0]                                  # > 0: through the floor
+        assert (under > 0.02) if depth > 0 else (-0.05 < under < -0.01)
+        # Off by default: the foot is locked at the tracked height.
+        _, plain, _, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+        _, pos1 = forward_kinematics(sk, plain, roots)
+        np.testing.assert_allclose(pos1[mid, foot], pos[mid, foot], atol=1e-6)
+        _, out, locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS,
+                                     rule=foot_lock.FootLockRule(on_floor=True))
+        left = [lk for lk in locks if lk[0] == "left"]
+        assert len(left) == 1 and left[0][3] == () and left[0][1] <= 12 and left[0][2] >= 18
+        rot2, pos2 = forward_kinematics(sk, out, roots)
+        np.testing.assert_allclose(pos2[mid, foot, 2], pos[mid, foot, 2] + max(under, 0.0),
+                                   atol=1e-6)
+        np.testing.assert_allclose(pos2[mid, foot, :2], pos[mid, foot, :2], atol=1e-6)
+        now = foot_lock._foot_points(sk, rot2, pos2, left_points)[mid][..., 2].min(axis=1)
+        np.testing.assert_allclose(now, max(floor, lowest[0]), atol=1e-6)
+        np.testing.assert_array_equal(out[keys], local[keys])
+
+
+def test_a_target_out_of_reach_turns_the_foot_about_its_ball():
+    """``_pivot_on_ball`` (``FootLockRule.pivot``): an ankle target farther from the hip than
+    the leg reaches is moved onto the leg's reach by turning the foot about its ball -- the
+    ball stays where it was, the ankle ends at ``reach`` from the hip at the point of that
+    circle nearest the target; a target within reach is left bit for bit."""
+    rng = np.random.default_rng(41)
+    m = 200
+    hip = rng.normal(size=(m, 3)) * 0.05 + [0.0, 0.0, 0.9]
+    foot_rot = exp_so3(rng.normal(size=(m, 3)) * 0.3)
+    tail = np.array([0.0, 0.14, -0.02])                     # the ball, in the foot's frame
+    ankle = hip + rng.normal(size=(m, 3)) * 0.15 + [0.0, -0.2, -0.82]
+    reach = np.linalg.norm(ankle - hip, axis=1) * rng.uniform(0.9, 1.1, m)
+    new_ankle, new_rot = foot_lock._pivot_on_ball(hip, reach, ankle, foot_rot, tail)
+    ball = ankle + np.einsum("nij,j->ni", foot_rot, tail)
+    # Out of reach, and a turn about the ball can bring the ankle within it (the spheres
+    # about the hip and the ball meet); otherwise nothing is changed.
+    d_ball = np.linalg.norm(hip - ball, axis=1)
+    turnable = np.abs(d_ball - np.linalg.norm(tail)) < reach
+    far = (np.linalg.norm(ankle - hip, axis=1) > reach) & turnable
+    assert 50 < far.sum() < 150 and (~turnable).sum() > 0
+    np.testing.assert_array_equal(new_ankle[~far], ankle[~far])
+    np.testing.assert_array_equal(new_rot[~far], foot_rot[~far])
+    new_ball = new_ankle + np.einsum("nij,j->ni", new_rot, tail)
+    np.testing.assert_allclose(new_ball, ball, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(new_ankle[far] - hip[far], axis=1), reach[far],
+                               atol=1e-12)
+    np.testing.assert_allclose(new_rot @ np.swapaxes(new_rot, -1, -2),
+                               np.broadcast_to(np.eye(3), (m, 3, 3)), atol=1e-12)
+    # Nearest on the circle: no point of it (sampled) is nearer the target.
+    length = np.linalg.norm(tail)
+    for i in np.flatnonzero(far)[:20]:
+        n = (hip[i] - ball[i]) / np.linalg.norm(hip[i] - ball[i])
+        d = np.linalg.norm(hip[i] - ball[i])
+        t = (d * d + length ** 2 - reach[i] ** 2) / (2 * d)
+        u = np.cross(n, [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        a = np.linspace(0, 2 * np.pi, 721)[:, None]
+        circle = ball[i] + t * n + np.sqrt(length ** 2 - t * t) * (np.cos(a) * u + np.sin(a) * v)
+        assert np.linalg.norm(new_ankle[i] - ankle[i]) <= \
+            np.linalg.norm(circle - ankle[i], axis=1).min() + 1e-9
+
+
+def test_with_reach_the_ends_of_a_run_the_leg_cannot_reach_are_not_locked(skeleton):
+    """``FootLockRule.reach`` (stop 41, off by default): the whole body drifts forwards at
+    0.35 m/s (under ``slow``) with a nearly straight left leg standing, no key inside the
+    contact: the lock holds the foot at the run's mean, which the hip has left at the run's
+    ends (farther than thigh and shin reach). With ``reach`` those ends are not locked, and on
+    every frame still locked the ankle is on its target; without it the run is whole."""
+    sk = skeleton
+    n = 41
+    roots, local = _sunk(sk, 0.0, n)
+    f = np.arange(n)
+    mid = (f >= 10) & (f <= n - 11)
+    roots[:, 1] = 0.35 / FPS * np.clip(f - 10, 0, n - 21)       # forwards along +Y
+    straight = np.array([-0.05, 0.1, -0.05])
+    for b, name in enumerate(("lfemur", "ltibia", "lfoot")):
+        axis = np.zeros((n, 3))
+        axis[mid, 0] = straight[b]
+        local[mid, sk.index(name)] = exp_so3(axis[mid])
+    keys = [0, n - 1]
+    thigh, shin, foot = (sk.index(x) for x in ("lfemur", "ltibia", "lfoot"))
+    rot, pos = forward_kinematics(sk, local, roots)
+    length = (np.linalg.norm(pos[:, shin] - pos[:, thigh], axis=1)
+              + np.linalg.norm(pos[:, foot] - pos[:, shin], axis=1))
+    _, _, whole, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+    _, out, cut, _ = lock_feet(_problem(sk), keys, roots, local, FPS,
+                               rule=foot_lock.FootLockRule(reach=True))
+    (_, a0, b0, in0, _), = [lk for lk in whole if lk[0] == "left"]
+    (_, a1, b1, in1, _), = [lk for lk in cut if lk[0] == "left"]
+    assert in0 == in1 == ()
+    target = pos[a0:b0 + 1, foot].mean(axis=0)
+    far = np.linalg.norm(target - pos[a0:b0 + 1, thigh], axis=1) > length[a0:b0 + 1]
+    assert far[0] or far[-1]                             # the mean is out of reach at an end
+    assert a0 <= a1 and b1 <= b0 and (a1, b1) != (a0, b0)
+    _, pos2 = forward_kinematics(sk, out, roots)
+    target = pos[a1:b1 + 1, foot].mean(axis=0)
+    assert np.all(np.linalg.norm(target - pos[a1:b1 + 1, thigh], axis=1) <= length[a1:b1 + 1])
+    np.testing.assert_allclose(pos2[a1:b1 + 1, foot],
+                               np.broadcast_to(target, (b1 - a1 + 1, 3)), atol=1e-6)
