@@ -386,7 +386,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     leg = float(np.mean(reference[:, tz])) - floor
     froude = np.concatenate([np.full(m, speed[0]), speed]) ** 2 / (GRAVITY * max(leg, 0.1))
     flight = smootherstep((froude - FLIGHT_FROUDE[0]) / (FLIGHT_FROUDE[1] - FLIGHT_FROUDE[0]))
-    heights, lift = grounded_heights(rel[:, :, 2], model_h, floor, flight, SMOOTH_S * fps)
+    # A ramp between a walk and a run (a share of flight that changes): the run's contact
+    # level from the run alone, and its landings measured against its own steady speed
+    # (below), so that the run after the ramp is the same whatever the ramp's length
+    # (docs/gait.md, *Stop 42, joins*). One share throughout: as before, bit for bit.
+    ramp = bool(np.ptp(flight) > FLIGHT_SAME)
+    level = flight >= flight.max() - FLIGHT_SAME if ramp else None
+    heights, lift = grounded_heights(rel[:, :, 2], model_h, floor, flight, SMOOTH_S * fps,
+                                     level)
     k = np.maximum(np.arange(len(rows)) - (m - 1), 0)          # 0 = last reference frame
     fade = 1.0 - smootherstep(k * (1.0 / (JOIN_S * fps)))
     span = m - 1
@@ -413,12 +420,13 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
     # runs*), at any change of foot, with a flight frame or not (*Stop 40, restyle*). Without a
     # flight lift (a walk below FLIGHT_FROUDE) nothing changes.
-    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
+    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True,
+                                     steady_frames=fps / cycle_hz if ramp else None)
     # (velocities and carrying of the steps into frames -(m-2) … n)
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
     sigma = SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
-    if np.ptp(flight) <= FLIGHT_SAME:
+    if not ramp:
         # One share of flight throughout (a walk, a run or a jog continued: the blend of a style
         # with itself varies it by round-off only): as before stop 41, bit for bit.
         run_share = float(np.mean(flight))
