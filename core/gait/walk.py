@@ -260,14 +260,15 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
     floor = reference_floor(skeleton, reference, fps, feet, model.root_frame) if planted \
         else None
 
-    def keyed(obs, speed, legs=True):
+    def keyed(obs, speed, weights, legs=True):
         rows = dofs_from_observations(model, obs, last[cols], fps, request.stride,
                                       request.travel)
         out = np.tile(last, (len(rows), 1))
         out[:, cols] = rows
         if planted:
             _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
-                   model.root_frame, omega_to * fps / (2.0 * np.pi), legs)
+                   model.root_frame, omega_to * fps / (2.0 * np.pi), legs,
+                   cycle_hz_from=omega * fps / (2.0 * np.pi), weights=weights)
         return out
 
     if planted and keep_path and len(JOIN_SCALES) > 1 \
@@ -278,7 +279,8 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         best = None
         for scale in JOIN_SCALES:
             trial = (obs, weights, speed) if scale == 1.0 else channels(blend * scale)
-            ratio = _join_ratio(reference, keyed(trial[0], trial[2], legs=False), names, fps,
+            ratio = _join_ratio(reference, keyed(trial[0], trial[2], trial[1], legs=False),
+                                names, fps,
                                 blend)
             if best is None or ratio < best[0]:
                 best = (ratio, scale, trial)
@@ -296,11 +298,11 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         # root's, and the legs' inverse kinematics (`pin_feet`, two thirds of a solve) never
         # moves the root: the first solve stops before it (`_plant(..., legs=False)`), and
         # the root it gives is the full solve's, bit for bit (tests/core/test_gait_walk.py).
-        drift = _travel_drift(reference, keyed(obs, speed, legs=False), names, omega,
+        drift = _travel_drift(reference, keyed(obs, speed, weights, legs=False), names, omega,
                               omega_to, blend)
         if drift:
             obs[:, yaw] -= drift * np.diff(np.concatenate(([0.0], weights))) * fps
-    out = keyed(obs, speed)
+    out = keyed(obs, speed, weights)
     return WalkResult(out[:n_keyed], floor, w_to, float(omega_to), float(blend))
 
 
@@ -371,13 +373,17 @@ def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weigh
 
 
 def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame,
-           cycle_hz=SMOOTH_CYCLE_HZ, legs=True):
+           cycle_hz=SMOOTH_CYCLE_HZ, legs=True, cycle_hz_from=None, weights=None):
     """Solve the root's height (always) and horizontal travel (``request.plant``) from the
     legs, in place on ``out``; the reference's root height and velocity fade into them.
     ``cycle_hz``: the predicted walk's cycles per second (the travel is smoothed over a fixed
     share of its cycle). ``legs``: then keep the feet on their spots (lift and inverse
     kinematics of the legs); False solves the root alone (every root DOF as with True: the
-    legs' part never changes them)."""
+    legs' part never changes them). ``cycle_hz_from`` and ``weights`` (n,): the observed
+    walk's cycles per second and each predicted frame's share of the requested walk (the
+    ramp's ``s_k``): where the cadence changes, each frame's travel is smoothed over the share
+    of its own walk's cycle, the observed one's at the ramp's start (without them, or at one
+    cadence, the requested walk's throughout, as before stop 42)."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     m = min(len(reference), VELOCITY_FRAMES + 1)
     rows = np.vstack([reference[-m:], out])                     # frames -(m-1) … n
@@ -423,14 +429,32 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True,
                                      steady_frames=fps / cycle_hz if ramp else None)
     # (velocities and carrying of the steps into frames -(m-2) … n)
+
+    def sigma_of(hz):
+        return SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / hz, SMOOTH_MAX_SCALE)
+
+    sigma = sigma_of(cycle_hz)
+    sigma_from = sigma if cycle_hz_from is None or weights is None else sigma_of(cycle_hz_from)
+    # The ramp's share of the requested walk of the steps into frames -(m-2) … n.
+    s = np.concatenate([np.zeros(m - 1), weights])[:, None] if sigma_from != sigma else None
+
+    def smoothed(vel, scale=1.0):
+        # Until stop 42 the whole prediction took the requested walk's σ: a walk retimed to
+        # 1.6 smoothed the observed walk at the ramp's start over 0.6 of its own, and on a
+        # ramp of three steps its first change of foot jolted (stiff at 1.6 on 07_04: 1.11 ×
+        # the walker's p99, its forward acceleration 5 m/s² where the style had barely begun
+        # to change; docs/gait.md, *Stop 42, joins*).
+        if s is None:
+            return smooth(vel, sigma * scale)
+        return (1.0 - s) * smooth(vel, sigma_from * scale) + s * smooth(vel, sigma * scale)
+
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
-    sigma = SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
     if not ramp:
         # One share of flight throughout (a walk, a run or a jog continued: the blend of a style
         # with itself varies it by round-off only): as before stop 41, bit for bit.
         run_share = float(np.mean(flight))
-        vel = smooth(vel, sigma * (1.0 - 0.75 * run_share))
+        vel = smoothed(vel, 1.0 - 0.75 * run_share)
         if run_share > 0.0:
             vel = smooth_sideways(vel, expected, run_share * fps / (2.0 * cycle_hz))
     else:
@@ -443,7 +467,7 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
         # lost most of its smoothing and its root jolted at the first change of foot (1.1-1.6
         # × the walker's p99 on 07_04, *Stop 41, joins*).
         f = flight[1:, None]                                    # steps into frames -(m-2) … n
-        vel = (1.0 - f) * smooth(vel, sigma) + f * smooth(vel, 0.25 * sigma)
+        vel = (1.0 - f) * smoothed(vel) + f * smoothed(vel, 0.25)
         vel = (1.0 - f) * vel + f * smooth_sideways(vel, expected, fps / (2.0 * cycle_hz))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
