@@ -24,8 +24,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
-from core.gait.checks import check_gait, rhythm_inputs  # noqa: E402
+from core.gait.checks import arm_elevation, check_gait, rhythm_inputs  # noqa: E402
+from core.gait.root_travel import _directions  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
+from core.kinematics.fk import chain_kinematics  # noqa: E402
 from core.mocap import asf_to_skeleton, read_asf  # noqa: E402
 from core.mocap.bvh import cmu_template_asf  # noqa: E402
 
@@ -110,7 +112,94 @@ def feet_features(tracks, s, n):
                 min_speed=float(rv.min()), lower_share=float(states.mean()))
 
 
-def collect():
+BODY = ("lwrist", "rwrist", "lhumerus", "rhumerus", "lradius", "rradius", "head", "lfoot",
+        "rfoot")
+TRUNK_TWIST = ("lowerback.ry", "upperback.ry", "thorax.ry")
+TRUNK_PITCH = ("lowerback.rx", "upperback.rx", "thorax.rx")
+ARMS = tuple(f"{s}{c}" for s in "lr" for c in ("clavicle.ry", "clavicle.rz", "humerus.rx",
+                                               "humerus.ry", "humerus.rz", "radius.rx"))
+UPPER = TRUNK_TWIST + TRUNK_PITCH + tuple(f"{j}.r{a}" for j in ("lowerback", "upperback",
+                                                                "thorax") for a in "z") + ARMS
+
+
+def body_tracks(skel, values, tracks):
+    """World positions (N, 3) of ``BODY`` joints, and the heading's forward and left (N, 2)."""
+    index = [skel.index(j) for j in BODY]
+    heads, _ = chain_kinematics(skel, values, index)
+    fwd, left = _directions(tracks.heading, tracks.root_frame)
+    return {j: heads[i] for j, i in zip(BODY, index)}, fwd, left
+
+
+def pooled_corr(pairs):
+    """Pooled correlation of (a, b) signal pairs, each about its own mean."""
+    num = e1 = e2 = 0.0
+    for a, b in pairs:
+        a = a - a.mean()
+        b = b - b.mean()
+        num, e1, e2 = num + np.sum(a * b), e1 + np.sum(a * a), e2 + np.sum(b * b)
+    return float(num / np.sqrt(e1 * e2)) if e1 > 0 and e2 > 0 else 0.0
+
+
+def body_features(model, w, body, s, n):
+    """Upper-body and whole-body coordination over frames s … s+n (study of stop 42): ``w``
+    the window's observations, ``body`` :func:`body_tracks`."""
+    pos, fwd, left = body
+    sl = slice(s, s + n)
+    root = pos["lhumerus"][sl] * 0.5 + pos["rhumerus"][sl] * 0.5      # shoulders' midpoint
+    f = fwd[sl]
+
+    def ahead(j, ref):            # forward position of joint j from ref, in the heading
+        return np.sum((pos[j][sl, :2] - ref[:, :2]) * f, axis=1)
+    hip_mid = 0.5 * (pos["lfoot"][sl] + pos["rfoot"][sl])
+    hands = np.linalg.norm(pos["lwrist"][sl] - pos["rwrist"][sl], axis=1)
+    shoulders = np.linalg.norm(pos["lhumerus"][sl] - pos["rhumerus"][sl], axis=1)
+    high = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - root[:, 2]
+    # arm swing against the same-side leg: hand ahead of the shoulders vs foot ahead
+    arm_leg = pooled_corr([(ahead(h, root), ahead(ft, root))
+                           for h, ft in (("lwrist", "lfoot"), ("rwrist", "rfoot"))])
+    arm_diff = pooled_corr([(ahead("lwrist", root) - ahead("rwrist", root),
+                             ahead("lfoot", root) - ahead("rfoot", root))])
+    reach = max(float(np.max(np.abs(ahead(h, root)))) for h in ("lwrist", "rwrist"))
+    side = max(float(np.max(np.abs(np.sum((pos[h][sl, :2] - root[:, :2]) * left[sl],
+                                                  axis=1)))) for h in ("lwrist", "rwrist"))
+    elev, abd = [], []
+    for a, out in (("l", 1.0), ("r", -1.0)):                 # upper arm: shoulder → elbow
+        d = pos[f"{a}radius"][sl] - pos[f"{a}humerus"][sl]
+        elev.append(np.degrees(np.arccos(np.clip(-d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))))
+        lat = out * np.sum(d[:, :2] * left[sl], axis=1)
+        abd.append(np.degrees(np.arctan2(lat, -d[:, 2])))
+    above_head = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - pos["head"][sl, 2]
+    ch = {c: w[:, model.channel_names.index(c)] for c in model.channel_names[:model.n_angles]}
+    twist = sum(ch[c] for c in TRUNK_TWIST)
+    pitch = sum(ch[c] for c in TRUNK_PITCH)
+    legs = ch["lfemur.rx"] - ch["rfemur.rx"]
+    flex_l, flex_r = -ch["lfemur.rx"], -ch["rfemur.rx"]     # flexion positive (forward)
+    rng_l, rng_r = np.ptp(flex_l), np.ptp(flex_r)
+    deg = np.degrees
+    return dict(
+        hands_gap_min=float(np.min(hands / shoulders)),
+        hands_gap_mean=float(np.mean(hands / shoulders)),
+        hand_high=float(np.max(high)),
+        hand_above_head=float(np.max(above_head)),
+        arm_elev_max=float(max(e.max() for e in elev)),
+        arm_abd_max=float(max(e.max() for e in abd)),
+        hand_side_rel=side / float(np.mean(shoulders)),
+        arm_leg=arm_leg, arm_diff=arm_diff, hand_reach=reach, hand_side=side,
+        arm_angle_leg=pooled_corr([(ch["lhumerus.rx"], ch["lfemur.rx"]),
+                                   (ch["rhumerus.rx"], ch["rfemur.rx"])]),
+        twist_legs=pooled_corr([(twist, legs)]),
+        twist_ptp=float(deg(np.ptp(twist))), pitch_ptp=float(deg(np.ptp(pitch))),
+        pitch_max=float(deg(np.max(np.abs(pitch)))),
+        hip_flex_max=float(deg(max(flex_l.max(), flex_r.max()))),
+        hip_asym=float(abs(rng_l - rng_r) / max(rng_l + rng_r, 1e-9)),
+        hip_peak_asym=float(deg(abs(flex_l.max() - flex_r.max()))),
+        arm_ptp=float(deg(max(np.ptp(ch[c]) for c in ARMS))),
+        feet_ahead=float(np.ptp(ahead("lfoot", hip_mid))))
+
+
+def collect(poses=None):
+    """Rows of every window; ``poses`` (a dict, optional) gains {clip: (subject, gait,
+    joint angles (N, n_angles) in radians)} for :func:`pose_distances`."""
     model = load_stock_library()
     rows = []
     for kind, folder, gait in (("gaits", A.CMU, True), ("not_gaits", A.NOT_GAITS, False)):
@@ -118,8 +207,12 @@ def collect():
             values, names = A.load(path)
             skel = skeleton_of(path)
             tracks = foot_tracks(skel, values, FPS, root_frame=None)
+            body = body_tracks(skel, values, tracks)
             cols = [names.index(n) for n in model.dof_names]
             obs = observations_from_dofs(model, values[:, cols], model.dof_names, FPS)
+            elevation = arm_elevation(model, obs)       # the template's, as Predict sees it
+            if poses is not None:
+                poses[path.stem] = (path.stem.split("_")[0], gait, obs[:, :model.n_angles])
             for window in A.WINDOWS:
                 n = int(round(window * FPS))
                 starts = A.steady_windows(values, names, window) if gait else \
@@ -147,6 +240,10 @@ def collect():
                                same_leg_best=max((c for c in whole_only if c is not None),
                                                  default=None))
                     row.update(feet_features(tracks, s, n))
+                    row.update(body_features(model, w, body, s, n))
+                    e = elevation[s:s + n]
+                    row.update(elev_core=[float(v) for v in e.max(axis=0)],
+                               elev_core_ptp=[float(v) for v in np.ptp(e, axis=0)])
                     vel = np.nanmean(w[:, model.channel_index(["root.v_forward",
                                                                "root.v_left"])], axis=0)
                     row.update(v_forward=float(vel[0]), v_left=float(vel[1]))
@@ -173,6 +270,48 @@ CUES = (
      "best pooled correlation among periods whose whole cycle the window holds (-1: none)"),
     ("stride (travel x period)", lambda r: r["travel"] * r["period"],
      "the mean speed times the rhythm's best period (m)"),
+)
+# Stop 42: the upper body and whole-body coordination (``body_features``), signed so that a
+# low value is unlike a walk.
+BODY_CUES = (
+    ("hands together", lambda r: r["hands_gap_min"],
+     "the hands' closest distance over the shoulders' width"),
+    ("hands together (mean)", lambda r: r["hands_gap_mean"],
+     "the hands' mean distance over the shoulders' width"),
+    ("hands high", lambda r: -r["hand_high"],
+     "minus the higher wrist's greatest height above the shoulders (m)"),
+    ("hands out to the side", lambda r: -r["hand_side"],
+     "minus the wrists' greatest sideways distance from the shoulders' midpoint (m)"),
+    ("upper arm raised (template, as checked)", lambda r: -max(r["elev_core"]),
+     "minus the upper arms' greatest elevation, core.gait.checks.arm_elevation (deg)"),
+    ("hands above the head", lambda r: -r["hand_above_head"],
+     "minus the higher wrist's greatest height above the head joint (m)"),
+    ("upper arm raised", lambda r: -r["arm_elev_max"],
+     "minus the upper arm's greatest angle from straight down (deg)"),
+    ("upper arm out to the side", lambda r: -r["arm_abd_max"],
+     "minus the upper arm's greatest sideways angle from straight down (deg)"),
+    ("hands out to the side / shoulders", lambda r: -r["hand_side_rel"],
+     "minus the wrists' greatest sideways distance over the shoulders' width"),
+    ("hands ahead or behind", lambda r: -r["hand_reach"],
+     "minus the wrists' greatest distance ahead of or behind the shoulders (m)"),
+    ("arm swings against the same-side leg", lambda r: -r["arm_leg"],
+     "minus the correlation of a wrist's and its same-side foot's forward positions"),
+    ("arms' difference against the legs'", lambda r: -r["arm_diff"],
+     "minus the correlation of the wrists' and the feet's forward difference"),
+    ("shoulder flexion with the same-side hip", lambda r: r["arm_angle_leg"],
+     "correlation of humerus.rx with the same-side femur.rx"),
+    ("trunk twist against the legs", lambda r: -r["twist_legs"],
+     "minus the correlation of the trunk's twist with the hips' flexion difference"),
+    ("trunk twist range", lambda r: -r["twist_ptp"], "minus the trunk's twist range (deg)"),
+    ("trunk pitch range", lambda r: -r["pitch_ptp"], "minus the trunk's pitch range (deg)"),
+    ("trunk pitch", lambda r: -r["pitch_max"], "minus the trunk's largest pitch (deg)"),
+    ("hip flexion", lambda r: -r["hip_flex_max"], "minus the largest hip flexion (deg)"),
+    ("hips' range asymmetry", lambda r: -r["hip_asym"],
+     "minus |range L - range R| / (range L + range R) of the hips' flexion"),
+    ("hips' peak asymmetry", lambda r: -r["hip_peak_asym"],
+     "minus the difference of the hips' largest flexions (deg)"),
+    ("arm joint range", lambda r: -r["arm_ptp"],
+     "minus the largest range of an arm joint angle (deg)"),
 )
 
 
@@ -240,9 +379,27 @@ def cross_validate_pairs(rows, min_window=0.75, cues=CUES, levels=16):
     return out
 
 
+def analyse_body(rows):
+    """Stop 42: the upper-body cues (``BODY_CUES``) cross-validated on the windows the
+    shipped checks accept, one by one and in pairs with every cue."""
+    print("\n== stop 42: leave one subject out, windows >= 0.75 s, accepted by the checks")
+    print("cue | held-out gait windows lost | held-out non-gait windows refused | lost where")
+    for name, (lost, refused, n_g, n_n, where) in cross_validate(rows, cues=BODY_CUES).items():
+        print(f"{name} | {lost} of {n_g} | {refused} of {n_n} | "
+              + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+    print("pairs (both below): cue a | cue b | gait windows lost | non-gait refused | where")
+    pairs = cross_validate_pairs(rows, cues=BODY_CUES + CUES)
+    for a, b, lost, refused, where in sorted(pairs, key=lambda p: (p[2] - p[3]))[:15]:
+        print(f"{a} | {b} | {lost} | {refused} | "
+              + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+
+
 def analyse(rows):
     """Print the false accepts' features, and the cross-validated cues before and after the
     forward check (which the rows may predate: they record the velocity)."""
+    if "hands_gap_min" in rows[0]:
+        analyse_body(rows)
+        return
     for label, subset in (("every accepted window", rows),
                           ("accepted, travelling forwards (after the forward check)",
                            [r for r in rows if not (r["accepted"] and r["v_forward"] < 0)])):
@@ -263,13 +420,15 @@ def main(argv=None):
     ap.add_argument("--analyse")
     args = ap.parse_args(argv)
     if args.out:
-        rows = collect()
+        poses = {}
+        rows = collect(poses)
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         with open(args.out, "wb") as f:
-            pickle.dump(rows, f)
+            pickle.dump({"rows": rows, "poses": poses}, f)
     if args.analyse:
         with open(args.analyse, "rb") as f:
-            analyse(pickle.load(f))
+            data = pickle.load(f)
+        analyse(data["rows"] if isinstance(data, dict) else data)
 
 
 if __name__ == "__main__":
