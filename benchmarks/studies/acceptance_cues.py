@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
-from core.gait.checks import arm_elevation, check_gait, rhythm_inputs  # noqa: E402
+from core.gait.checks import arm_elevation, arm_side_reach, check_gait, rhythm_inputs  # noqa: E402,E501
 from core.gait.root_travel import _directions  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
 from core.kinematics.fk import chain_kinematics  # noqa: E402
@@ -168,6 +168,12 @@ def body_features(model, w, body, s, n):
         elev.append(np.degrees(np.arccos(np.clip(-d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))))
         lat = out * np.sum(d[:, :2] * left[sl], axis=1)
         abd.append(np.degrees(np.arctan2(lat, -d[:, 2])))
+    reach = []                       # the wrist's outward reach from its shoulder / arm length
+    for a, out in (("l", 1.0), ("r", -1.0)):
+        d = pos[f"{a}wrist"][sl] - pos[f"{a}humerus"][sl]
+        length = np.linalg.norm(pos[f"{a}radius"][sl] - pos[f"{a}humerus"][sl], axis=1) + \
+            np.linalg.norm(pos[f"{a}wrist"][sl] - pos[f"{a}radius"][sl], axis=1)
+        reach.append(out * np.sum(d[:, :2] * left[sl], axis=1) / length)
     above_head = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - pos["head"][sl, 2]
     ch = {c: w[:, model.channel_names.index(c)] for c in model.channel_names[:model.n_angles]}
     twist = sum(ch[c] for c in TRUNK_TWIST)
@@ -183,6 +189,9 @@ def body_features(model, w, body, s, n):
         hand_above_head=float(np.max(above_head)),
         arm_elev_max=float(max(e.max() for e in elev)),
         arm_abd_max=float(max(e.max() for e in abd)),
+        side_reach=float(max(e.max() for e in reach)),
+        side_reach_abd=float(max(np.max(np.minimum(r / 0.5, e / 40.0))
+                                 for r, e in zip(reach, abd))),
         hand_side_rel=side / float(np.mean(shoulders)),
         arm_leg=arm_leg, arm_diff=arm_diff, hand_reach=reach, hand_side=side,
         arm_angle_leg=pooled_corr([(ch["lhumerus.rx"], ch["lfemur.rx"]),
@@ -211,6 +220,7 @@ def collect(poses=None):
             cols = [names.index(n) for n in model.dof_names]
             obs = observations_from_dofs(model, values[:, cols], model.dof_names, FPS)
             elevation = arm_elevation(model, obs)       # the template's, as Predict sees it
+            side_reach = arm_side_reach(model, obs)
             if poses is not None:
                 poses[path.stem] = (path.stem.split("_")[0], gait, obs[:, :model.n_angles])
             for window in A.WINDOWS:
@@ -243,7 +253,8 @@ def collect(poses=None):
                     row.update(body_features(model, w, body, s, n))
                     e = elevation[s:s + n]
                     row.update(elev_core=[float(v) for v in e.max(axis=0)],
-                               elev_core_ptp=[float(v) for v in np.ptp(e, axis=0)])
+                               elev_core_ptp=[float(v) for v in np.ptp(e, axis=0)],
+                               reach_core=[float(v) for v in side_reach[s:s + n].max(axis=0)])
                     vel = np.nanmean(w[:, model.channel_index(["root.v_forward",
                                                                "root.v_left"])], axis=0)
                     row.update(v_forward=float(vel[0]), v_left=float(vel[1]))
@@ -284,6 +295,8 @@ BODY_CUES = (
      "minus the wrists' greatest sideways distance from the shoulders' midpoint (m)"),
     ("upper arm raised (template, as checked)", lambda r: -max(r["elev_core"]),
      "minus the upper arms' greatest elevation, core.gait.checks.arm_elevation (deg)"),
+    ("arm out to the side (template, as checked)", lambda r: -max(r["reach_core"]),
+     "minus the arms' greatest sideways reach, core.gait.checks.arm_side_reach (deg)"),
     ("hands above the head", lambda r: -r["hand_above_head"],
      "minus the higher wrist's greatest height above the head joint (m)"),
     ("upper arm raised", lambda r: -r["arm_elev_max"],
