@@ -24,6 +24,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
+from core.gait import checks  # noqa: E402
 from core.gait.checks import arm_elevation, arm_side_reach, check_gait, rhythm_inputs  # noqa: E402,E501
 from core.gait.root_travel import _directions  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
@@ -168,12 +169,12 @@ def body_features(model, w, body, s, n):
         elev.append(np.degrees(np.arccos(np.clip(-d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))))
         lat = out * np.sum(d[:, :2] * left[sl], axis=1)
         abd.append(np.degrees(np.arctan2(lat, -d[:, 2])))
-    reach = []                       # the wrist's outward reach from its shoulder / arm length
+    outreach = []                    # the wrist's outward reach from its shoulder / arm length
     for a, out in (("l", 1.0), ("r", -1.0)):
         d = pos[f"{a}wrist"][sl] - pos[f"{a}humerus"][sl]
         length = np.linalg.norm(pos[f"{a}radius"][sl] - pos[f"{a}humerus"][sl], axis=1) + \
             np.linalg.norm(pos[f"{a}wrist"][sl] - pos[f"{a}radius"][sl], axis=1)
-        reach.append(out * np.sum(d[:, :2] * left[sl], axis=1) / length)
+        outreach.append(out * np.sum(d[:, :2] * left[sl], axis=1) / length)
     above_head = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - pos["head"][sl, 2]
     ch = {c: w[:, model.channel_names.index(c)] for c in model.channel_names[:model.n_angles]}
     twist = sum(ch[c] for c in TRUNK_TWIST)
@@ -189,9 +190,7 @@ def body_features(model, w, body, s, n):
         hand_above_head=float(np.max(above_head)),
         arm_elev_max=float(max(e.max() for e in elev)),
         arm_abd_max=float(max(e.max() for e in abd)),
-        side_reach=float(max(e.max() for e in reach)),
-        side_reach_abd=float(max(np.max(np.minimum(r / 0.5, e / 40.0))
-                                 for r, e in zip(reach, abd))),
+        side_reach=float(max(e.max() for e in outreach)),
         hand_side_rel=side / float(np.mean(shoulders)),
         arm_leg=arm_leg, arm_diff=arm_diff, hand_reach=reach, hand_side=side,
         arm_angle_leg=pooled_corr([(ch["lhumerus.rx"], ch["lfemur.rx"]),
@@ -204,6 +203,17 @@ def body_features(model, w, body, s, n):
         hip_peak_asym=float(deg(abs(flex_l.max() - flex_r.max()))),
         arm_ptp=float(deg(max(np.ptp(ch[c]) for c in ARMS))),
         feet_ahead=float(np.ptp(ahead("lfoot", hip_mid))))
+
+
+def check_gait_before(model, w):
+    """``check_gait`` without the arm checks of stop 42 (checks 1-5: what the cues are
+    cross-validated against)."""
+    saved = checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG
+    checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG = np.inf, 90.0
+    try:
+        return check_gait(model, w, FPS)
+    finally:
+        checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG = saved
 
 
 def collect(poses=None):
@@ -229,7 +239,7 @@ def collect(poses=None):
                     list(range(0, len(values) - n + 1, int(round(A.STEP_S * FPS))))
                 for s in starts:
                     w = obs[s:s + n]
-                    check = check_gait(model, w, FPS)
+                    check = check_gait_before(model, w)
                     table = rhythm_table(model, w, FPS)
                     whole_best = max((c for c in (corr([h, wh]) for h, wh in table.values()
                                                   if wh is not None) if c is not None),
@@ -239,6 +249,7 @@ def collect(poses=None):
                     row = dict(kind=kind, clip=path.stem, subject=path.stem.split("_")[0],
                                window=window, start=s / FPS,
                                accepted=check.refusal is None,
+                               accepted_arms=check_gait(model, w, FPS).refusal is None,
                                reason=None if check.refusal is None
                                else check.refusal.split(" in ")[0],
                                strength=check.strength, period=check.period_s,
@@ -303,6 +314,8 @@ BODY_CUES = (
      "minus the upper arm's greatest angle from straight down (deg)"),
     ("upper arm out to the side", lambda r: -r["arm_abd_max"],
      "minus the upper arm's greatest sideways angle from straight down (deg)"),
+    ("arm out to the side", lambda r: -r["side_reach"],
+     "minus the wrists' greatest outward reach from their shoulder over the arm's length"),
     ("hands out to the side / shoulders", lambda r: -r["hand_side_rel"],
      "minus the wrists' greatest sideways distance over the shoulders' width"),
     ("hands ahead or behind", lambda r: -r["hand_reach"],
@@ -393,18 +406,42 @@ def cross_validate_pairs(rows, min_window=0.75, cues=CUES, levels=16):
 
 
 def analyse_body(rows):
-    """Stop 42: the upper-body cues (``BODY_CUES``) cross-validated on the windows the
-    shipped checks accept, one by one and in pairs with every cue."""
-    print("\n== stop 42: leave one subject out, windows >= 0.75 s, accepted by the checks")
-    print("cue | held-out gait windows lost | held-out non-gait windows refused | lost where")
-    for name, (lost, refused, n_g, n_n, where) in cross_validate(rows, cues=BODY_CUES).items():
-        print(f"{name} | {lost} of {n_g} | {refused} of {n_n} | "
-              + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
-    print("pairs (both below): cue a | cue b | gait windows lost | non-gait refused | where")
-    pairs = cross_validate_pairs(rows, cues=BODY_CUES + CUES)
-    for a, b, lost, refused, where in sorted(pairs, key=lambda p: (p[2] - p[3]))[:15]:
-        print(f"{a} | {b} | {lost} | {refused} | "
-              + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+    """Stop 42: the upper-body cues (``BODY_CUES``) cross-validated on the windows checks 1-5
+    accept (``accepted``), one by one and in pairs with every cue; the shipped arm checks'
+    geometric thresholds on the same windows; the cues again on what the arm checks leave."""
+    def table(subset, title):
+        print(f"\n== {title}")
+        print("cue | held-out gait windows lost | held-out non-gait windows refused | lost where")
+        for name, (lost, refused, n_g, n_n, where) in cross_validate(
+                subset, cues=BODY_CUES + CUES).items():
+            print(f"{name} | {lost} of {n_g} | {refused} of {n_n} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+        print("best pairs (both below): cue a | cue b | gait windows lost | non-gait refused")
+        pairs = cross_validate_pairs(subset, cues=BODY_CUES + CUES)
+        for a, b, lost, refused, where in sorted(pairs, key=lambda p: (p[2] - p[3]))[:10]:
+            print(f"{a} | {b} | {lost} | {refused} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+
+    table(rows, "stop 42: leave one subject out, windows >= 0.75 s accepted by checks 1-5")
+    print("\n== the shipped arm checks (geometric thresholds), windows checks 1-5 accept")
+    for window in sorted({r["window"] for r in rows}):
+        taken = [r for r in rows if r["accepted"] and r["window"] == window]
+        cut = [r for r in taken if not r["accepted_arms"]]
+        clips = {}
+        for r in cut:
+            clips[r["clip"]] = clips.get(r["clip"], 0) + 1
+        print(f"{window:g} s: gait windows refused {sum(r['kind'] == 'gaits' for r in cut)} of "
+              f"{sum(r['kind'] == 'gaits' for r in taken)}, non-gait "
+              f"{sum(r['kind'] != 'gaits' for r in cut)} of "
+              f"{sum(r['kind'] != 'gaits' for r in taken)}: "
+              + ", ".join(f"{k} {v}" for k, v in sorted(clips.items())))
+    gaits = [r for r in rows if r["kind"] == "gaits"]
+    for key, what in (("elev_core", "upper arm's elevation"), ("reach_core", "side reach")):
+        top = max(gaits, key=lambda r: max(r[key]))
+        print(f"highest {what} over every gait window: {max(top[key]):.1f} deg "
+              f"({top['clip']}, {top['window']:g} s from {top['start']:.2f} s)")
+    table([dict(r, accepted=r["accepted_arms"]) for r in rows],
+          "after the arm checks: leave one subject out on what they leave")
 
 
 def analyse(rows):
