@@ -9,6 +9,11 @@ periods whose whole cycle the window holds). Writes a pickle of rows for the ana
 
     nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --out build/cues.pkl
     .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse build/cues.pkl
+    .venv/bin/python benchmarks/studies/acceptance_cues.py --lowo
+
+Stop 42 adds the upper body and whole-body coordination (:func:`body_features`), the arms as
+``core.gait.checks`` poses them, and each window's outcome without the arm checks
+(``accepted``, checks 1-5) and with them (``accepted_arms``).
 """
 
 import argparse
@@ -464,11 +469,42 @@ def analyse(rows):
                   + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
 
 
+def lowo_arms():
+    """Stop 42: whether any window of the leave-one-walker-out benchmark
+    (``benchmarks/gait_lowo.py``: every held-out subject's cases, windows 0.5 / 1 / 1.67 s)
+    trips an arm check. The arm checks read the observed angles only (not the fold model's
+    styles), so the stock model's observations serve; none tripped means LOWO is unchanged by
+    them (they come after checks 1-5 and only refuse)."""
+    import gait_lowo as L
+    from core.gait.checks import arm_out_to_the_side, raised_arm
+
+    model = load_stock_library()
+    count, tripped, top_e, top_r = 0, [], -np.inf, -np.inf
+    for subject in L.SUBJECTS:
+        cache = {}
+        for trial, t0, _ in L.test_cases(subject):
+            if trial not in cache:
+                cache[trial] = observations_from_dofs(model, *L.load(trial), L.FPS)
+            for w in L.WINDOWS:
+                win = cache[trial][t0 - round(w * L.FPS):t0]
+                count += 1
+                top_e = max(top_e, float(arm_elevation(model, win).max()))
+                top_r = max(top_r, float(arm_side_reach(model, win).max()))
+                if raised_arm(model, win) or arm_out_to_the_side(model, win):
+                    tripped.append((trial, t0, w))
+    print(f"{count} leave-one-walker-out windows, {len(tripped)} trip an arm check {tripped}; "
+          f"highest upper arm {top_e:.1f} deg, farthest side reach {top_r:.1f} deg")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out")
     ap.add_argument("--analyse")
+    ap.add_argument("--lowo", action="store_true",
+                    help="whether a leave-one-walker-out window trips an arm check (stop 42)")
     args = ap.parse_args(argv)
+    if args.lowo:
+        lowo_arms()
     if args.out:
         poses = {}
         rows = collect(poses)
