@@ -30,7 +30,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
 from core.gait import checks  # noqa: E402
-from core.gait.checks import arm_elevation, arm_side_reach, check_gait, rhythm_inputs  # noqa: E402,E501
+from core.gait.checks import (arm_elevation, arm_side_reach, check_gait,  # noqa: E402
+                              rhythm_inputs)
 from core.gait.root_travel import _directions  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
 from core.kinematics.fk import chain_kinematics  # noqa: E402

@@ -87,10 +87,10 @@ from ..kinematics import chain_kinematics, exp_so3
 from ..mocap import asf_to_skeleton, cmu_template_asf
 from .segments import MIN_STRENGTH
 
-__all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
-           "MAX_ARM_ELEVATION_DEG", "MAX_SIDE_REACH_DEG", "MIN_ARM_MOTION_DEG",
-           "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S",
-           "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
+__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_SIDE_REACH_DEG",
+           "MAX_TILT_DEG", "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE",
+           "MIN_MOTION_DEG", "MIN_OVERLAP_S", "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT",
+           "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
            "check_gait", "fit_score", "gait_channels", "legs_together", "raised_arm",
            "regularity", "rhythm", "rhythm_inputs", "with_fit"]
 
