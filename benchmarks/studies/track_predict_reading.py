@@ -3,7 +3,8 @@ with a given foot-lock rule. One fresh ``bpy`` process per call: the bench-rigs 
 (CMU 35_08 on ``KIND``, 640x360, keys every 15 frames: 1, 16, 31, 46) is tracked by the
 installed Track Keyframes with ``FootLockRule(**SET)`` in place of the default, then Predict
 Gait continues it for 2 s (``benchmarks/rig_gait.py``'s ``track_then_predict``, tracked mode).
-``MODE`` 'true' keys every reference frame and does not track (the true walk).
+``MODE`` 'true' keys every reference frame and does not track (the true walk); 'keys' keys
+the four frames and does not track (bench-rigs' keys only).
 
     .venv/bin/python benchmarks/studies/track_predict_reading.py metarig slow out.npz \
         [on_floor=1 reach=1]
@@ -14,8 +15,8 @@ the cycle windows') and ``RESULT``: the prediction's error against the render's 
 arrays (the reference DOF rows, the feet relative to the root, per leg the hip/knee/ankle
 before and after the lock) for ``--frames OUT.npz [OTHER.npz ...]``, which prints per frame
 the legs' velocity Predict reads (``planting.legs_velocities``), the root's, the left foot's
-weight share and both feet's heights above the floor. Conclusion: ``docs/tracking.md``,
-*Planted feet*, *Stop 41*.
+weight share and both feet's heights above their floors (each foot's own since stop 42).
+Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41* and *Stop 42*.
 """
 
 import dataclasses, os, sys, tempfile, json
@@ -35,11 +36,12 @@ def show_frames(paths):
     for path in paths:
         d = np.load(path)
         rel, root = d["rel_feet"], d["root"]
-        floor = np.percentile(np.min(rel[..., 2], axis=-1) + root[:, 2], FLOOR_PERCENTILE)
+        floor = planting.foot_floors(rel[..., 2], root[:, 2], FLOOR_PERCENTILE)  # stop 42
         v = np.diff(root[:, :2], axis=0) * 30.0
         ahead = v.mean(0) / np.linalg.norm(v.mean(0))
         vel, share, above = planting.legs_velocities(rel, root[:, 2], floor, 30.0,
-                                                     np.repeat(ahead[None], len(v), 0))
+                                                     np.repeat(ahead[None], len(v), 0),
+                                                     per_foot=True, root_velocity=v)
         out.append((vel @ ahead, v @ ahead, share[:, 0], above))
         print(path, "legs", round(float((vel @ ahead).mean()), 3), "root",
               round(float((v @ ahead).mean()), 3), "windows", np.round(d["win_speeds"], 3))
@@ -105,7 +107,11 @@ def fit_wrap(model, skeleton, dofs, fps, obs, result, residual=None, **kw):
     rel = lt.relative_feet(skeleton, np.asarray(dofs), lt.CMU_FEET)
     k = n + 1
     win = np.arange(len(dofs) - k + 1)[:, None] + np.arange(k)
-    cap["win_speeds"] = lt._legs_speeds(rel[win], root[win], fps, model.root_frame)
+    try:                                       # stop 42: the reference is read as observed
+        cap["win_speeds"] = lt._legs_speeds(rel[win], root[win], fps, model.root_frame,
+                                            observed=True)
+    except TypeError:                          # an extension from before stop 42
+        cap["win_speeds"] = lt._legs_speeds(rel[win], root[win], fps, model.root_frame)
     cap["rel_feet"] = rel; cap["root"] = root; cap["cycle_n"] = n
     cap["dof_names"] = np.array(names)
     print("FIT", cap["fit"], "omega", result.state, "n", n, "win", np.round(cap["win_speeds"], 3))
@@ -134,7 +140,7 @@ def tj(frames):
     rows = np.asarray(frames) - 1
     return part_joints(fp.heads[rows], fp.tails[rows], fp.names, fp.parts)
 ref = np.arange(1, REF + 1)
-if mode != "true":
+if mode not in ("true", "keys"):
     s = scene.track_and_stride_track
     s.armature, s.processes = obj, 1
     s.range_mode, s.frame_start, s.frame_end = "CUSTOM", 1, REF

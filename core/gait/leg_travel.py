@@ -44,7 +44,7 @@ import numpy as np
 
 from .em import offset_statistics, scaled_observations
 from .ekf import make_context
-from .planting import MIN_EXPECTED, legs_velocities, relative_feet
+from .planting import MIN_EXPECTED, foot_floors, legs_velocities, relative_feet
 from .prediction import dofs_from_observations, predict_styles
 from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
 from .root_travel import _directions as heading_directions
@@ -54,6 +54,7 @@ __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed
            "robust_spread", "style_legs_speed", "style_precision", "styles_legs_speeds"]
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
+                             # (of each foot's own, for an observed walk: stop 42)
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
 SECANT_STEPS = 6
 SPEED_TOLERANCE = 1e-4       # m/s
@@ -83,13 +84,14 @@ class LegTravelFit:
     changed: bool = False
 
 
-def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
+def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None, observed=False):
     """Speed (m/s) at which the legs of DOF rows carry the root over their last ``n_steps``
     frame steps: the norm of the mean of ``planting.travel_from_legs``'s velocities on the floor
-    of those frames, the walk expected to go along the root's heading (forwards, or backwards
-    where the root went backwards) as Predict Gait's planting expects it (a swing foot that
-    skims the floor is not taken for the stance foot: on the slow CMU walk 08_04 the lower foot
-    alone gave 0.66-1.04 m/s for a root at 1.04-1.08).
+    of those frames (the ``FLOOR_PERCENTILE``-th percentile of the lower foot), the walk
+    expected to go along the root's heading (forwards, or backwards where the root went backwards) as
+    Predict Gait's planting expects it (a swing foot that skims the floor is not taken for the
+    stance foot: on the slow CMU walk 08_04 the lower foot alone gave 0.66-1.04 m/s for a root
+    at 1.04-1.08).
 
     Parameters
     ----------
@@ -103,15 +105,26 @@ def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None):
     root_frame : RootFrame, optional
         The root's rest frame and forward axis (``GaitModel.root_frame``; default: the
         skeleton's root rest rotation, forward axis as :class:`.root_travel.RootFrame`'s).
+    observed : bool
+        The rows are an observed walk (the reference: tracked or captured; stop 42,
+        ``docs/gait.md``, *contact per foot*): each foot is read against its own floor
+        (``planting.foot_floors``, its ``FLOOR_PERCENTILE``-th percentile height: a tracked
+        walk's two stances never stand at one height, and with one floor a stance a
+        centimetre or two above the other read as flight), and a foot moving over the ground
+        faster than ``planting.SWING_SPEED`` with the root at its own velocity (a landing
+        foot still swinging forward, a tracked foot slipping) does not carry. False (a
+        style's predicted cycle): the reading ``walk.predict_walk``'s planting makes of it,
+        one floor, no root velocity.
     """
     rows = np.asarray(rows, dtype=float)[-(int(n_steps) + 1):]
     names = list(skeleton.dof_names())
     root = rows[:, [names.index(n) for n in ROOT_DOF_NAMES]]
     return float(_legs_speeds(relative_feet(skeleton, rows, feet)[None], root[None], fps,
-                              root_frame or RootFrame(rest=skeleton.rest_rotations[0]))[0])
+                              root_frame or RootFrame(rest=skeleton.rest_rotations[0]),
+                              observed)[0])
 
 
-def _legs_speeds(rel, root, fps, frame):
+def _legs_speeds(rel, root, fps, frame, observed=False):
     """:func:`legs_speed` of B windows whose feet relative to the root (``relative_feet``,
     (B, M, F, 3)) and root DOFs (B, M, 6) are known, (B,) m/s: the forward kinematics done
     once for every window (each row's feet are the row's alone); every window's speed is the
@@ -119,20 +132,27 @@ def _legs_speeds(rel, root, fps, frame):
     window's own frames)."""
     n_windows, m = root.shape[:2]
     heights = root[..., 2]
-    floor = np.percentile(np.min(rel[..., 2], axis=-1) + heights, FLOOR_PERCENTILE, axis=-1)
     heading = heading_angles(root_rotations(root.reshape(-1, 6), frame).reshape(
         n_windows, m, 3, 3), frame)                                # unwrapped along each window
     ahead = heading_directions(0.5 * (heading[:, 1:] + heading[:, :-1]), frame)[0]
     along = np.mean(np.sum(np.diff(root[..., :2], axis=-2) * fps * ahead, axis=-1), axis=-1)
     sense = np.where(along <= -MIN_EXPECTED, -1.0, 1.0)
-    vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead)
+    if observed:                                            # stop 42: each foot's own floor
+        floor = foot_floors(rel[..., 2], heights, FLOOR_PERCENTILE)             # (B, F)
+        vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead,
+                                    per_foot=True,
+                                    root_velocity=np.diff(root[..., :2], axis=-2) * fps)
+    else:
+        floor = np.percentile(np.min(rel[..., 2], axis=-1) + heights, FLOOR_PERCENTILE,
+                              axis=-1)
+        vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead)
     return np.array([np.linalg.norm(v.mean(axis=0)) for v in vel])
 
 
 def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):
     """The reference's legs' speed and its spread (m/s): the mean and :func:`robust_spread`
-    of :func:`legs_speed` over every window of ``n_steps`` steps (a cycle) the reference holds
-    (a spread of 0 for a single window)."""
+    of :func:`legs_speed` (``observed=True``: an observed walk's reading) over every window of
+    ``n_steps`` steps (a cycle) the reference holds (a spread of 0 for a single window)."""
     reference = np.asarray(reference, dtype=float)
     names = list(skeleton.dof_names())
     root = reference[:, [names.index(n) for n in ROOT_DOF_NAMES]]
@@ -140,7 +160,7 @@ def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_
     frame = root_frame or RootFrame(rest=skeleton.rest_rotations[0])
     k = int(n_steps) + 1
     windows = np.arange(len(reference) - k + 1)[:, None] + np.arange(k)   # (W, k) rows
-    speeds = _legs_speeds(rel[windows], root[windows], fps, frame)
+    speeds = _legs_speeds(rel[windows], root[windows], fps, frame, observed=True)
     return float(np.mean(speeds)), robust_spread(speeds)
 
 

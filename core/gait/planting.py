@@ -43,8 +43,8 @@ from ..kinematics.contacts import runs as _runs, smootherstep as smootherstep_we
 from ..kinematics.fk import chain_frames, chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
-__all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "grounded_heights",
-           "legs_velocities", "reference_floor", "relative_feet", "smooth_sideways",
+__all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "foot_floors",
+           "grounded_heights", "legs_velocities", "reference_floor", "relative_feet", "smooth_sideways",
            "travel_from_legs"]
 
 CONTACT_BAND = 0.025        # m: a foot this close to the floor can carry the walker
@@ -268,12 +268,50 @@ def smooth_sideways(velocities, ahead, sigma_frames):
     return vel + (smooth(lateral, sigma_frames) - lateral)[:, None] * side
 
 
-def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
+def foot_floors(relative_z, heights, percentile):
+    """Each foot's own floor (m, world Z): the ``percentile``-th percentile of that foot's
+    height over the frames (stop 42, *contact per foot*, ``docs/gait.md``).
+
+    One floor for both feet (the lower foot's percentile) reads a walk whose two stances stand
+    at different heights wrongly: a tracked walk's feet never stand at exactly one height (a
+    stance without a key locked 1-3 cm under the keys' floor, the other at its key's), the
+    floor follows the lower one, and the other foot's whole stance leaves ``CONTACT_BAND`` and
+    is read as flight (its velocity interpolated at one value: the metarig's tracked walk read
+    at 1.006 m/s for a root at 1.195). A foot is on the floor about 60 % of a walk's cycle
+    (35-40 % of a run's), so its low percentile over a cycle lies in its own stance: each
+    stance is judged against the height that foot stood at.
+
+    Parameters
+    ----------
+    relative_z : array_like, shape (B…, N, F)
+        Heights of the F contact points relative to the root, metres.
+    heights : array_like, shape (B…, N)
+        Root heights (m).
+    percentile : float
+        0 … 100.
+
+    Returns
+    -------
+    ndarray, shape (B…, F)
+    """
+    z = np.asarray(relative_z, dtype=float) + np.asarray(heights, dtype=float)[..., None]
+    return np.percentile(z, percentile, axis=-2)
+
+
+def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False,
+                    root_velocity=None):
     """:func:`travel_from_legs`'s velocities of one or many sequences at once: every array may
     carry leading batch axes ``B…`` (``relative`` (B…, N + 1, F, 3), ``heights`` and ``lift``
     (B…, N + 1), ``floor`` a float or (B…), ``expected`` (B…, N, 2)); each sequence's
     velocities are those :func:`travel_from_legs` gives it alone, bit for bit (the same
     element-wise operations, reductions over the feet and coordinates only).
+    ``per_foot``: ``floor`` is each foot's own, (B…, F) (:func:`foot_floors`): a foot's
+    height, its contact and its weight are read against its own floor.
+    ``root_velocity`` (B…, N, 2), m/s, optional: the root's own velocity. A foot that moves
+    over the ground faster than ``SWING_SPEED`` with the root at it (a landing foot still
+    swinging forward, a swing foot skimming the floor) neither carries nor makes a frame a
+    contact frame, whatever its height: only the choice of the carrying foot and of the
+    contact frames use it, the velocities are still the feet's.
 
     Returns
     -------
@@ -284,32 +322,39 @@ def legs_velocities(relative, heights, floor, fps, expected=None, lift=None):
         Each foot's height above the floor (m, ≥ 0, the step's mean, lift removed).
     """
     vel, share, above, contact = _raw_velocities(relative, heights, floor, fps, expected,
-                                                 lift)
+                                                 lift, per_foot, root_velocity)
     return _interpolate_flight(vel, contact), share, above
 
 
-def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None):
+def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False,
+                    root_velocity=None):
     """:func:`legs_velocities`'s (velocities, share, above) before the frames without
     contact are interpolated, and the contact (B…, N) bool."""
     rel = np.asarray(relative, dtype=float)
     heights = np.asarray(heights, dtype=float)
     lift = np.zeros(heights.shape) if lift is None else np.asarray(lift, dtype=float)
     grounded = heights - lift
-    floor = np.asarray(floor, dtype=float)[..., None, None]
+    floor = np.asarray(floor, dtype=float)
+    floor = floor[..., None, :] if per_foot else floor[..., None, None]
     above = rel[..., 2] + grounded[..., None] - floor
     above = np.maximum(0.5 * (above[..., 1:, :] + above[..., :-1, :]), 0.0)   # (B…, N, F)
     airborne = 0.5 * (lift[..., 1:] + lift[..., :-1]) > CONTACT_BAND
     step = np.diff(rel[..., :2], axis=-3) * fps                              # (B…, N, F, 2)
     low = above.min(axis=-1, keepdims=True)
+    if root_velocity is None:
+        swinging = np.zeros(above.shape, dtype=bool)
+    else:                               # over the ground with the root at its own velocity
+        ground = step + np.asarray(root_velocity, dtype=float)[..., None, :]
+        swinging = np.sum(ground ** 2, axis=-1) > SWING_SPEED ** 2             # (B…, N, F)
     if expected is None:
-        lower = np.argmin(above, axis=-1)
+        lower = np.argmin(above + swinging, axis=-1)          # (a metre: a swinging foot last)
     else:
         exp = np.asarray(expected, dtype=float)
         norm = np.linalg.norm(exp, axis=-1, keepdims=True)
         ahead = np.where(norm > MIN_EXPECTED, exp / np.maximum(norm, 1e-12), 0.0)
         backwards = np.maximum(np.einsum("...fc,...c->...f", step, ahead), 0.0)  # root back
         miss = (backwards / BACKWARD_TOLERANCE) ** 2
-        lower = np.argmin((above - low) / WEIGHT_SCALE + miss, axis=-1)
+        lower = np.argmin((above - low) / WEIGHT_SCALE + miss + 1e3 * swinging, axis=-1)
     first = -np.take_along_axis(step, lower[..., None, None], axis=-2)[..., 0, :]  # still
     # A foot carries the walker when it is near the floor and (nearly) still with the root at
     # the first guess: the swing foot skims the floor at walking speed and does not count.
@@ -317,7 +362,7 @@ def _raw_velocities(relative, heights, floor, fps, expected=None, lift=None):
     weight = np.exp(-(above - low) / WEIGHT_SCALE - still / SPEED_SCALE**2)
     share = weight / weight.sum(axis=-1)[..., None]
     vel = -np.einsum("...f,...fc->...c", share, step)
-    contact = (above.min(axis=-1) < CONTACT_BAND) & ~airborne
+    contact = ((above < CONTACT_BAND) & ~swinging).any(axis=-1) & ~airborne
     return vel, share, above, contact
 
 

@@ -7,9 +7,11 @@ import pytest
 from core.gait import adapt, observations_from_dofs
 from core.gait.ekf import make_context
 from core.gait.em import scaled_observations
-from core.gait.leg_travel import (fit_leg_travel, legs_speed, reference_legs_speed,
-                                  robust_spread, style_legs_speed, style_precision,
-                                  styles_legs_speeds)
+from core.gait.leg_travel import (FLOOR_PERCENTILE, _legs_speeds, fit_leg_travel, legs_speed,
+                                  reference_legs_speed, robust_spread, style_legs_speed,
+                                  style_precision, styles_legs_speeds)
+from core.gait.planting import CONTACT_BAND, foot_floors, legs_velocities
+from core.gait.root_travel import RootFrame
 from core.gait.prediction import dofs_from_observations, predict, predict_styles
 from core.gait.walk import WalkRequest, predict_walk
 from tests.gait_data import adapted_walk
@@ -33,7 +35,9 @@ def test_the_legs_speed_of_a_captured_walk_is_its_root_speed(walker):
     for end in (N_REF, N_REF + 37, len(values)):
         rows = values[end - n - 1:end]
         root = np.hypot(*(rows[-1, [tx, ty]] - rows[0, [tx, ty]])) * FPS / n
-        assert legs_speed(skeleton, rows, FPS, n) == pytest.approx(root, rel=0.08)
+        for observed in (False, True):
+            assert legs_speed(skeleton, rows, FPS, n, observed=observed) == pytest.approx(
+                root, rel=0.08)
 
 
 def test_style_precision_is_the_hessian_of_the_m_step_objective_with_the_offset_minimised(
@@ -77,7 +81,8 @@ def test_the_fitted_style_s_legs_travel_as_far_as_the_reference_s_by_the_smalles
     fit = fit_leg_travel(model, skeleton, ref, FPS, obs, res, res.residual, speed_sd=0.0)
     n = int(round(2 * np.pi / res.state[0]))
     assert fit.changed
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert fit.reference_speed == np.mean(speeds)
 
@@ -140,7 +145,8 @@ def test_by_default_the_style_moves_by_the_kalman_gain_of_the_reference_s_own_sp
     ref = values[:N_REF]
     n = int(round(2 * np.pi / res.state[0]))
     mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) == N_REF - n and spread == robust_spread(speeds) and 0 < spread < 0.05
     assert mean == np.mean(speeds)
@@ -187,7 +193,8 @@ def test_the_reference_s_windows_are_each_window_s_legs_speed(walker):
     model, skeleton, values, _, _, res = walker
     n = int(round(2 * np.pi / res.state[0]))
     ref = values[:N_REF]
-    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame)
+    speeds = [legs_speed(skeleton, ref[:end], FPS, n, root_frame=model.root_frame,
+                         observed=True)
               for end in range(n + 1, N_REF + 1)]
     assert len(speeds) > 10
     mean, spread = reference_legs_speed(skeleton, ref, FPS, n, root_frame=model.root_frame)
@@ -217,3 +224,90 @@ def test_many_styles_at_once_are_each_style_alone_and_the_plain_prediction_s(wal
             rows = np.tile(ref[-1], (n + 1, 1))
             rows[:, cols] = dofs_from_observations(model, plain, ref[-1, cols], FPS)
             assert speed == legs_speed(skeleton, rows, FPS, n, root_frame=model.root_frame)
+
+
+def _tracked_walk(right_lower, cycle=36, cycles=3, fps=30.0, skim=0.0):
+    """A synthetic walk as tracking leaves it: the root at 0.95-1.45 m/s along +X (the speed
+    oscillating twice a cycle), each ball (contact point) still in the world over its stance
+    (60 % of the cycle, the feet half a cycle apart), swinging to its next spot 0.3 m ahead
+    of the root's landing position over a 6 cm arc; the right foot's whole track stands
+    ``right_lower`` metres under the left's. ``skim``: the last share of each swing goes on at
+    the stance's height (a tracked foot down before it has stopped). Returns the feet relative to the root (N, 2, 3),
+    the root DOFs (N, 6), the stance masks (N, 2) and the root's X."""
+    n = cycle * cycles + 1
+    t = np.arange(n, dtype=float)
+    speed = 1.2 + 0.25 * np.cos(4 * np.pi * t / cycle)
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) / fps)])
+
+    def x_at(frame):                       # before frame 0 the root went at 1.2 m/s
+        return float(np.interp(frame, t, x)) if frame >= 0 else x[0] + 1.2 * frame / fps
+
+    feet, stances = np.zeros((n, 2, 3)), np.zeros((n, 2), dtype=bool)
+    for f, (offset, side, base) in enumerate(((0.0, 0.1, 0.0), (0.5, -0.1, -right_lower))):
+        for i in range(n):
+            k = np.floor(t[i] / cycle + offset)
+            p = t[i] / cycle + offset - k
+            land = (k - offset) * cycle
+            spot = x_at(land) + 0.3
+            if p < 0.6:
+                feet[i, f] = spot, side, base
+                stances[i, f] = True
+            else:
+                s = (p - 0.6) / 0.4
+                ease = s ** 3 * (10 - 15 * s + 6 * s * s)
+                nxt = x_at(land + cycle) + 0.3
+                arc = 0.06 * np.sin(np.pi * min(s / (1.0 - skim), 1.0))
+                feet[i, f] = spot + (nxt - spot) * ease, side, base + arc
+    root = np.zeros((n, 6))
+    root[:, 0], root[:, 2] = x, 0.9
+    return feet - root[:, None, :3], root, stances, x
+
+
+def test_a_centimetre_between_the_two_feet_s_stances_does_not_change_the_legs_speed():
+    """Stop 42 (docs/gait.md, *contact per foot*): a tracked walk's two stances never stand at
+    one height (a keyless stance locked under the keys' floor: lock41 measured the metarig's
+    legs' speed 1.074 -> 1.006 m/s from that alone). Each foot is read against its own floor
+    (its ``FLOOR_PERCENTILE``-th percentile over the cycle window): the reading of a walk
+    whose right foot stands 1.5 cm under the left is the level walk's, and both are the
+    root's own travel (the stance ball is still in the world). One floor for both feet (the
+    lower foot's percentile, main before stop 42) read the 1.5 cm walk 0.8 % slower."""
+    fps, cycle = 30.0, 36
+    frame = RootFrame(rest=np.eye(3), forward_axis=0)
+    windows = np.arange(2 * cycle + 1)[:, None] + np.arange(cycle + 1)    # one cycle each
+    level, lowered = (_tracked_walk(d, cycle, fps=fps) for d in (0.0, 0.015))
+    rel, root, stances, x = lowered
+    true = (x[windows[:, -1]] - x[windows[:, 0]]) * fps / cycle
+    speeds = [_legs_speeds(r[windows], q[windows], fps, frame, observed=True)
+              for r, q, _, _ in (level, lowered)]
+    np.testing.assert_allclose(speeds[1], speeds[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(speeds[1], true, rtol=0.005)
+    # Each stance frame is read on the floor (its own), the swing's high frames are not.
+    w = windows[0]
+    floors = foot_floors(rel[w][..., 2], root[w, 2], FLOOR_PERCENTILE)
+    assert floors[0] - floors[1] == pytest.approx(0.015, abs=1e-9)
+    _, _, above = legs_velocities(rel[w], root[w, 2], floors, fps, per_foot=True,
+                                  root_velocity=np.diff(root[w, :2], axis=0) * fps)
+    both = stances[w][1:] & stances[w][:-1]
+    assert (above[both] < 1e-9).all()
+    assert (above[~(stances[w][1:] | stances[w][:-1])] > CONTACT_BAND).any()
+
+
+def test_a_foot_down_before_it_has_stopped_does_not_carry_an_observed_walk():
+    """Stop 42: the tracked Rigify FK walk's left foot came down to its floor while still
+    moving forward at about 1 m/s; read against its own floor it took the weight a frame early
+    and the legs' speed fell 1.104 -> 1.055 m/s. An observed walk's foot carries only while it
+    moves over the ground (the root at its own velocity) slower than ``SWING_SPEED``: with the
+    last fifth of every swing skimming the floor the reading is still the root's travel, and
+    without the root's velocity (the feet judged by their height alone) it is not."""
+    fps, cycle = 30.0, 36
+    frame = RootFrame(rest=np.eye(3), forward_axis=0)
+    windows = np.arange(2 * cycle + 1)[:, None] + np.arange(cycle + 1)
+    rel, root, stances, x = _tracked_walk(0.015, cycle, fps=fps, skim=0.2)
+    true = (x[windows[:, -1]] - x[windows[:, 0]]) * fps / cycle
+    np.testing.assert_allclose(_legs_speeds(rel[windows], root[windows], fps, frame,
+                                            observed=True), true, rtol=0.005)
+    w = windows[0]
+    floors = foot_floors(rel[w][..., 2], root[w, 2], FLOOR_PERCENTILE)
+    ahead = np.tile([1.0, 0.0], (cycle, 1))
+    by_height, _, _ = legs_velocities(rel[w], root[w, 2], floors, fps, ahead, per_foot=True)
+    assert abs(by_height[:, 0].mean() - true[0]) > 0.01
