@@ -85,6 +85,9 @@ def scene_stamp(kind, trial, frames, start):
              "fps": FPS, "version": FOOTAGE_VERSION, "rig_version": RIG_VERSION}
     if kind != "cmu":
         stamp["rig"] = rig_stamp(kind)
+    from sample_scenes.rig_specs import DRIVE_VERSIONS
+    if kind in DRIVE_VERSIONS:              # absent: the stamps of before, caches kept
+        stamp["drive"] = DRIVE_VERSIONS[kind]
     return stamp
 
 

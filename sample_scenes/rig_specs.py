@@ -9,6 +9,11 @@ from dataclasses import dataclass, field
 
 RIG_KINDS = ("cmu", "metarig", "rigify_fk", "rigify_ik", "mixamo_fbx", "ik_legs")
 
+#: Version of a kind's keyed walk where ``rig_walk.drive_walk`` changed for that kind alone
+#: (part of the footage's cache stamp, ``rig_footage.scene_stamp``; kinds absent: 1). 2: Rigify
+#: IK's hands on the FK chain's wrists (:attr:`Drive.base`, stop 42).
+DRIVE_VERSIONS = {"rigify_ik": 2}
+
 SIDES = (("L", "l", "Left"), ("R", "r", "Right"))
 #: Body parts of the model skeleton and their parent part (the part tree).
 PART_PARENTS = {"hips": None, "spine": "hips", "chest": "spine", "neck": "chest", "head": "neck"}
@@ -37,12 +42,22 @@ class Drive:
     ``follow``: the bone whose pose measures the ``'rot'``/``'loc'`` correction (default
     ``deform[0]``), rigid with ``deform[0]`` at rest: Rigify's ``ORG-`` bones take their control's
     rotation whole, while the first ``DEF-`` segment of a limb takes only part of its twist.
+
+    ``base``: for an IK end's ``'loc_rot'`` drive, the deforming bone the IK chain hangs from
+    (Rigify IK's upper arm): the end's target head is then placed from that bone's *evaluated*
+    head by the target chain's offsets (``target(end) − target(base)``), where an FK chain's
+    rotations put it, rather than at the target's absolute place; for a ``'swing'`` drive, the
+    knee/elbow's target direction is taken from the target chain's base likewise. Rigify's spine controls
+    leave its shoulders ~2 cm from the target chain (on the FK rig too, which carries the
+    whole arm along); an absolute hand target then stretched or bent the IK arm to reach it
+    (stop 42, ``docs/gait_rigs.md``).
     """
 
     control: str
     mode: str
     deform: tuple
     follow: str = None
+    base: str = None
 
     @property
     def measured(self):
@@ -135,10 +150,10 @@ def _rigify_parts():
     return parts
 
 
-def _rigify_drive(control, mode, bone, *more):
+def _rigify_drive(control, mode, bone, *more, base=None):
     """A Rigify drive measured on the ``ORG-`` twin of the ``DEF-`` bone."""
     return Drive(control, mode, (f"DEF-{bone}",) + tuple(f"DEF-{b}" for b in more),
-                 follow=f"ORG-{bone}")
+                 follow=f"ORG-{bone}", base=base and f"DEF-{base}")
 
 
 def _rigify_spec(fk):
@@ -153,9 +168,9 @@ def _rigify_spec(fk):
             drives += [d(f"{c}_fk.{s}", "rot", f"{c}.{s}")
                        for c in ("upper_arm", "forearm", "hand", "thigh", "shin", "foot", "toe")]
         else:
-            drives += [d(f"hand_ik.{s}", "loc_rot", f"hand.{s}"),
+            drives += [d(f"hand_ik.{s}", "loc_rot", f"hand.{s}", base=f"upper_arm.{s}"),
                        d(f"upper_arm_ik.{s}", "swing", f"upper_arm.{s}", f"forearm.{s}",
-                         f"hand.{s}"),
+                         f"hand.{s}", base=f"upper_arm.{s}"),
                        d(f"foot_ik.{s}", "loc_rot", f"foot.{s}"),
                        d(f"thigh_ik.{s}", "swing", f"thigh.{s}", f"shin.{s}", f"foot.{s}"),
                        d(f"toe_ik.{s}", "rot", f"toe.{s}")]

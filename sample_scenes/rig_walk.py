@@ -22,7 +22,9 @@ the remaining error of the deforming bone it drives (rotation and/or location), 
 ordered parent-first and the depsgraph re-evaluated between them, a few passes (Rigify's
 spine and IK limbs pass through constraints); IK limbs get their IK target keyed at the
 foot/hand, and their knee/elbow direction from the IK base's rotation (Rigify, no pole) or a
-pole bone at the knee's rest offset (``ik_legs``). The controls' channels are then written as
+pole bone at the knee's rest offset (``ik_legs``). Rigify IK's hands are keyed where the FK
+chain's rotations would put them from the evaluated shoulder (``Drive.base``; since
+``rig_specs.DRIVE_VERSIONS`` 2), so its arms walk Rigify FK's. The controls' channels are then written as
 keys (Bezier, auto-clamped, as Blender keys by default) on every frame. The rig's own
 constraints produce the motion; nothing here knows the extension's rig layer.
 
@@ -212,7 +214,12 @@ def _correct(obj, drive, target_rot, target_head, frame, pole_offsets):
     d_rot, d_head = _evaluated(pbs[m])
     if drive.mode in ("rot", "loc_rot", "loc"):
         fix = target_rot[m][frame] @ d_rot.T
-        move = target_head[m][frame] - d_head
+        want = target_head[m][frame]
+        if drive.base is not None:
+            # An IK end placed as the FK chain's would be: from the chain's evaluated base by
+            # the target chain's offsets (``Drive.base``).
+            want = _evaluated(pbs[drive.base])[1] + want - target_head[drive.base][frame]
+        move = want - d_head
         rot = fix @ c_rot if drive.mode != "loc" else c_rot
         loc = c_loc + move if drive.mode != "rot" else c_loc
         _set_matrix(ctrl, rot, loc)
@@ -225,6 +232,8 @@ def _correct(obj, drive, target_rot, target_head, frame, pole_offsets):
         axis = ankle - hip
         axis /= np.linalg.norm(axis)
         want = target_head[drive.deform[1]][frame] - hip
+        if drive.base is not None:          # the target plane through the chain's base
+            want = target_head[drive.deform[1]][frame] - target_head[drive.base][frame]
         have = knee - hip
         angle = _signed_angle(have - axis * (have @ axis), want - axis * (want @ axis), axis)
         _rotate_about_own_y(ctrl, angle * np.sign(c_rot[:, 1] @ axis))

@@ -18,7 +18,7 @@
   are kept bit for bit, nothing non-finite is written.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
@@ -42,6 +42,10 @@ TWIST = "twist"
 #: Correction steps stop when every controlled part is this close to its target.
 ANGLE_TOLERANCE = 2e-4          # radians
 DISTANCE_TOLERANCE = 1e-4       # metres
+#: ... and an IK target's ball of the foot (:attr:`ControlStep.ball`) this close to its place:
+#: a planted foot's ball standing still to the micrometre (the tolerance above let it wander
+#: 0.1 mm between frames: 0.02 cm/s of slide, docs/gait_rigs.md, stop 42).
+BALL_TOLERANCE = 1e-6           # metres
 MAX_STEPS = 12
 
 
@@ -159,6 +163,13 @@ class ControlStep:
         Joint whose correction in the same step may also turn this control (the nearest model
         ancestor with a control); whether it does is measured on the rig
         (:meth:`MappedRig.measure_inheritance`). -1 when none.
+    ball : int
+        An IK target's step (``'rigid'``/``'translate'`` on a limb's end): the end's one child
+        joint (a foot's ball), whose *evaluated* place the target's translation puts on its
+        target rather than the end's own (:func:`effective_joints`); -1 when none. A rig's IK
+        may scale and shear the end's bone (Rigify's IK stretch: its foot 0.01-0.1 mm shorter
+        and its tail 0.05-0.09° off the foot's frame), so that the ball is not where the
+        end's frame and the model's offset put it; the ball is what stands on the floor.
     """
 
     control: str
@@ -166,6 +177,7 @@ class ControlStep:
     joint: int
     limb: tuple = ()
     compensate: int = -1
+    ball: int = -1
 
     @property
     def keys_rotation(self):
@@ -269,7 +281,10 @@ def control_plan(obj, body_map, model):
         lm = body_map.limbs[limb]
         joints = tuple(model.joint_of_part(p) for p in (root, middle, end))
         estimated[list(joints)] = True
-        add(ControlStep(lm.target, RIGID if lm.target_rotates_end else TRANSLATE, joints[2]))
+        children = [j for j in range(model.n_joints)
+                    if int(model.skeleton.parents[j]) == joints[2]]
+        add(ControlStep(lm.target, RIGID if lm.target_rotates_end else TRANSLATE, joints[2],
+                        ball=children[0] if len(children) == 1 else -1))
         if poles.get(limb):
             add(ControlStep(lm.pole, POLE, joints[1], limb=joints))
         elif lm.twist:
@@ -318,7 +333,7 @@ def control_plan(obj, body_map, model):
             while p >= 0 and p not in control_of:
                 p = int(model.skeleton.parents[p])
             if p >= 0:
-                s = ControlStep(s.control, s.rule, s.joint, s.limb, compensate=p)
+                s = replace(s, compensate=p)
         final.append(s)
     return final, estimated, modes
 
@@ -569,18 +584,19 @@ class MappedRig:
         """Correction steps at the current frame until the controlled parts are on ``target``
         (armature units) or no longer get closer; returns the (angle, metres) left."""
         view_layer = bpy.context.view_layer
-        tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE)
-        last, errors = np.full(2, np.inf), np.zeros(2)
+        tolerance = (ANGLE_TOLERANCE, DISTANCE_TOLERANCE, BALL_TOLERANCE)
+        last, errors = np.full(3, np.inf), np.zeros(3)
         secant, extra_step = {}, False
         for _ in range(MAX_STEPS + 1):
             m = current_matrices(self.obj)
             joints = m[pose_idx] @ offsets
-            errors = np.array(step_errors(steps, joints, target))
-            errors[1] *= self.metres_per_unit
-            if errors[0] < tolerance[0] and errors[1] < tolerance[1]:
+            errors = np.array(step_errors(steps, joints, target) + (ball_error(steps, joints,
+                                                                               target),))
+            errors[1:] *= self.metres_per_unit
+            if all(errors[i] < tolerance[i] for i in (0, 1, 2)):
                 break
             if np.all(np.isfinite(last)) and not any(
-                    last[i] > tolerance[i] and errors[i] < 0.8 * last[i] for i in (0, 1)):
+                    last[i] > tolerance[i] and errors[i] < 0.8 * last[i] for i in (0, 1, 2)):
                 # No more progress: what the rig can do -- unless an IK base's secant
                 # (:func:`_twist_secant`) is converging: its first step, with the slope measured
                 # over a large turn, can gain less than the factor and the next converges (a
@@ -593,7 +609,7 @@ class MappedRig:
             self._correct(steps, names, modes, m, cidx, joints, target, secant)
             self.obj.update_tag()
             view_layer.update()
-        return errors
+        return errors[:2]
 
     def measure_inheritance(self, steps):
         """Steps whose control really turns with the control of its ``compensate`` joint,
@@ -635,7 +651,7 @@ class MappedRig:
         if children:
             view_layer.update()
         return [st if st.compensate < 0 or st.control in keep
-                else ControlStep(st.control, st.rule, st.joint, st.limb, compensate=-1)
+                else replace(st, compensate=-1)
                 for st in steps]
 
     def prepare_keys(self, frames, root_translation, local_rotations, bones=None,
@@ -1057,6 +1073,7 @@ def wanted_controls(steps, controls, joints, target):
                                  target[mid, :3, 3])
         changes[limb] = axis_rotation(joints[a, :3, 3], joints[e, :3, 3] - joints[a, :3, 3],
                                       angle)
+    joints = effective_joints(steps, joints, target)     # an IK end carries its ball
     for rule in (ROTATE, TRANSLATE, RIGID):
         sel = [c for c, st in enumerate(steps) if st.rule == rule]
         if not sel:
@@ -1081,11 +1098,50 @@ def wanted_controls(steps, controls, joints, target):
     return changes @ controls
 
 
+def effective_joints(steps, joints, target):
+    """``joints`` with the place of each IK end that has a ball (:attr:`ControlStep.ball`)
+    replaced by where the end would be for its ball to be on target with the end turned as
+    it is: ``p' = b − R R_tᵀ (b_t − p_t)`` (``b``, ``R``: the ball's evaluated place and the
+    end's rotation; ``b_t``, ``p_t``, ``R_t``: their targets). The end's correction
+    (``T A'⁻¹``) then carries the evaluated ball onto ``b_t``; ``p' = p`` where the ball sits
+    at the model's offset (a rigid foot). The same array when no step has a ball.
+
+    Parameters
+    ----------
+    steps : list of ControlStep
+    joints, target : ndarray, shape (J, 4, 4)
+
+    Returns
+    -------
+    ndarray, shape (J, 4, 4)
+    """
+    balls = [(st.joint, st.ball) for st in steps if st.ball >= 0]
+    if not balls:
+        return joints
+    out = np.array(joints, dtype=float)
+    for j, b in balls:
+        rot = rigid(out[j])[:3, :3] @ target[j, :3, :3].T    # as the correction turns it
+        out[j, :3, 3] = joints[b, :3, 3] - rot @ (target[b, :3, 3] - target[j, :3, 3])
+    return out
+
+
+def ball_error(steps, joints, target):
+    """Largest distance (the unit of ``joints``) between an IK end's effective place
+    (:func:`effective_joints`) and its target, over the steps with a ball (0 when none):
+    how far the end's correction still has to carry its ball."""
+    balls = [st.joint for st in steps if st.ball >= 0]
+    if not balls:
+        return 0.0
+    eff = effective_joints(steps, joints, target)
+    return float(np.max(np.linalg.norm(eff[balls, :3, 3] - target[balls, :3, 3], axis=-1)))
+
+
 def step_errors(steps, joints, target):
     """What the controls of ``steps`` are to fix and have not yet, at one frame: the largest
     angle (radians) between a rotated joint and its target (rotating and rigid steps; a pole's
     turn of its limb's bend) and the largest distance (the unit of ``joints``) of a moved
-    joint (translating and rigid steps). Joints only carried along are not counted: where a
+    joint (translating and rigid steps; an IK end with a ball: its effective place,
+    :func:`effective_joints`). Joints only carried along are not counted: where a
     rig is not the rigid chain of the model skeleton (Rigify's chest turns about its own
     pivot), their small differences are the model's, not the keys'."""
     angle, dist = 0.0, 0.0
@@ -1097,6 +1153,7 @@ def step_errors(steps, joints, target):
         angle = float(np.fmax.reduce(np.abs(bend), initial=0.0))    # a NaN bend is skipped
     plain = [st for st in steps if not st.turns_limb]
     if plain:
+        joints = effective_joints(steps, joints, target)     # an IK end: its ball's error
         # Every step's joint in one call (this runs after every correction step at every
         # frame written: one call per step was most of Track Keyframes' write-back).
         index = np.array([st.joint for st in plain], dtype=np.intp)

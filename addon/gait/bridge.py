@@ -591,7 +591,7 @@ def predict_gait(context, obj, options):
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
     what = f"frames {first}–{last} of {obj.name}"
-    check = check_gait(model, obs, fps, what=what)
+    check = check_gait(model, obs, fps, what=what, first_frame=first)
     if check.refusal:
         raise GaitError(check.refusal)
     walker = _adapt(model, obs, fps, options.adaptation, model_dofs)

@@ -215,7 +215,7 @@ def start_preview(context, obj):
     if len(dofs) >= 2:
         what = f"the keyed frames {first_checked}–{last} of {obj.name}"
         obs = observations_from_dofs(model, dofs, model.dof_names, fps)
-        check = check_gait(model, obs, fps, what=what)
+        check = check_gait(model, obs, fps, what=what, first_frame=first_checked)
         if check.refusal:
             raise GaitError(check.refusal)
         if len(dofs) >= round(0.5 * fps):

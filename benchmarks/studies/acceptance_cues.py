@@ -9,6 +9,11 @@ periods whose whole cycle the window holds). Writes a pickle of rows for the ana
 
     nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --out build/cues.pkl
     .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse build/cues.pkl
+    .venv/bin/python benchmarks/studies/acceptance_cues.py --lowo
+
+Stop 42 adds the upper body and whole-body coordination (:func:`body_features`), the arms as
+``core.gait.checks`` poses them, and each window's outcome without the arm checks
+(``accepted``, checks 1-5) and with them (``accepted_arms``).
 """
 
 import argparse
@@ -24,8 +29,12 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import gait_acceptance as A  # noqa: E402
 from core.gait import load_stock_library, observations_from_dofs  # noqa: E402
-from core.gait.checks import check_gait, rhythm_inputs  # noqa: E402
+from core.gait import checks  # noqa: E402
+from core.gait.checks import (arm_elevation, arm_side_reach, check_gait,  # noqa: E402
+                              rhythm_inputs)
+from core.gait.root_travel import _directions  # noqa: E402
 from core.gait.walk_figures import foot_tracks  # noqa: E402
+from core.kinematics.fk import chain_kinematics  # noqa: E402
 from core.mocap import asf_to_skeleton, read_asf  # noqa: E402
 from core.mocap.bvh import cmu_template_asf  # noqa: E402
 
@@ -110,7 +119,112 @@ def feet_features(tracks, s, n):
                 min_speed=float(rv.min()), lower_share=float(states.mean()))
 
 
-def collect():
+BODY = ("lwrist", "rwrist", "lhumerus", "rhumerus", "lradius", "rradius", "head", "lfoot",
+        "rfoot")
+TRUNK_TWIST = ("lowerback.ry", "upperback.ry", "thorax.ry")
+TRUNK_PITCH = ("lowerback.rx", "upperback.rx", "thorax.rx")
+ARMS = tuple(f"{s}{c}" for s in "lr" for c in ("clavicle.ry", "clavicle.rz", "humerus.rx",
+                                               "humerus.ry", "humerus.rz", "radius.rx"))
+UPPER = TRUNK_TWIST + TRUNK_PITCH + tuple(f"{j}.r{a}" for j in ("lowerback", "upperback",
+                                                                "thorax") for a in "z") + ARMS
+
+
+def body_tracks(skel, values, tracks):
+    """World positions (N, 3) of ``BODY`` joints, and the heading's forward and left (N, 2)."""
+    index = [skel.index(j) for j in BODY]
+    heads, _ = chain_kinematics(skel, values, index)
+    fwd, left = _directions(tracks.heading, tracks.root_frame)
+    return {j: heads[i] for j, i in zip(BODY, index)}, fwd, left
+
+
+def pooled_corr(pairs):
+    """Pooled correlation of (a, b) signal pairs, each about its own mean."""
+    num = e1 = e2 = 0.0
+    for a, b in pairs:
+        a = a - a.mean()
+        b = b - b.mean()
+        num, e1, e2 = num + np.sum(a * b), e1 + np.sum(a * a), e2 + np.sum(b * b)
+    return float(num / np.sqrt(e1 * e2)) if e1 > 0 and e2 > 0 else 0.0
+
+
+def body_features(model, w, body, s, n):
+    """Upper-body and whole-body coordination over frames s … s+n (study of stop 42): ``w``
+    the window's observations, ``body`` :func:`body_tracks`."""
+    pos, fwd, left = body
+    sl = slice(s, s + n)
+    root = pos["lhumerus"][sl] * 0.5 + pos["rhumerus"][sl] * 0.5      # shoulders' midpoint
+    f = fwd[sl]
+
+    def ahead(j, ref):            # forward position of joint j from ref, in the heading
+        return np.sum((pos[j][sl, :2] - ref[:, :2]) * f, axis=1)
+    hip_mid = 0.5 * (pos["lfoot"][sl] + pos["rfoot"][sl])
+    hands = np.linalg.norm(pos["lwrist"][sl] - pos["rwrist"][sl], axis=1)
+    shoulders = np.linalg.norm(pos["lhumerus"][sl] - pos["rhumerus"][sl], axis=1)
+    high = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - root[:, 2]
+    # arm swing against the same-side leg: hand ahead of the shoulders vs foot ahead
+    arm_leg = pooled_corr([(ahead(h, root), ahead(ft, root))
+                           for h, ft in (("lwrist", "lfoot"), ("rwrist", "rfoot"))])
+    arm_diff = pooled_corr([(ahead("lwrist", root) - ahead("rwrist", root),
+                             ahead("lfoot", root) - ahead("rfoot", root))])
+    reach = max(float(np.max(np.abs(ahead(h, root)))) for h in ("lwrist", "rwrist"))
+    side = max(float(np.max(np.abs(np.sum((pos[h][sl, :2] - root[:, :2]) * left[sl],
+                                                  axis=1)))) for h in ("lwrist", "rwrist"))
+    elev, abd = [], []
+    for a, out in (("l", 1.0), ("r", -1.0)):                 # upper arm: shoulder → elbow
+        d = pos[f"{a}radius"][sl] - pos[f"{a}humerus"][sl]
+        elev.append(np.degrees(np.arccos(np.clip(-d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))))
+        lat = out * np.sum(d[:, :2] * left[sl], axis=1)
+        abd.append(np.degrees(np.arctan2(lat, -d[:, 2])))
+    outreach = []                    # the wrist's outward reach from its shoulder / arm length
+    for a, out in (("l", 1.0), ("r", -1.0)):
+        d = pos[f"{a}wrist"][sl] - pos[f"{a}humerus"][sl]
+        length = np.linalg.norm(pos[f"{a}radius"][sl] - pos[f"{a}humerus"][sl], axis=1) + \
+            np.linalg.norm(pos[f"{a}wrist"][sl] - pos[f"{a}radius"][sl], axis=1)
+        outreach.append(out * np.sum(d[:, :2] * left[sl], axis=1) / length)
+    above_head = np.maximum(pos["lwrist"][sl, 2], pos["rwrist"][sl, 2]) - pos["head"][sl, 2]
+    ch = {c: w[:, model.channel_names.index(c)] for c in model.channel_names[:model.n_angles]}
+    twist = sum(ch[c] for c in TRUNK_TWIST)
+    pitch = sum(ch[c] for c in TRUNK_PITCH)
+    legs = ch["lfemur.rx"] - ch["rfemur.rx"]
+    flex_l, flex_r = -ch["lfemur.rx"], -ch["rfemur.rx"]     # flexion positive (forward)
+    rng_l, rng_r = np.ptp(flex_l), np.ptp(flex_r)
+    deg = np.degrees
+    return dict(
+        hands_gap_min=float(np.min(hands / shoulders)),
+        hands_gap_mean=float(np.mean(hands / shoulders)),
+        hand_high=float(np.max(high)),
+        hand_above_head=float(np.max(above_head)),
+        arm_elev_max=float(max(e.max() for e in elev)),
+        arm_abd_max=float(max(e.max() for e in abd)),
+        side_reach=float(max(e.max() for e in outreach)),
+        hand_side_rel=side / float(np.mean(shoulders)),
+        arm_leg=arm_leg, arm_diff=arm_diff, hand_reach=reach, hand_side=side,
+        arm_angle_leg=pooled_corr([(ch["lhumerus.rx"], ch["lfemur.rx"]),
+                                   (ch["rhumerus.rx"], ch["rfemur.rx"])]),
+        twist_legs=pooled_corr([(twist, legs)]),
+        twist_ptp=float(deg(np.ptp(twist))), pitch_ptp=float(deg(np.ptp(pitch))),
+        pitch_max=float(deg(np.max(np.abs(pitch)))),
+        hip_flex_max=float(deg(max(flex_l.max(), flex_r.max()))),
+        hip_asym=float(abs(rng_l - rng_r) / max(rng_l + rng_r, 1e-9)),
+        hip_peak_asym=float(deg(abs(flex_l.max() - flex_r.max()))),
+        arm_ptp=float(deg(max(np.ptp(ch[c]) for c in ARMS))),
+        feet_ahead=float(np.ptp(ahead("lfoot", hip_mid))))
+
+
+def check_gait_before(model, w):
+    """``check_gait`` without the arm checks of stop 42 (checks 1-5: what the cues are
+    cross-validated against)."""
+    saved = checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG
+    checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG = np.inf, 90.0
+    try:
+        return check_gait(model, w, FPS)
+    finally:
+        checks.MAX_ARM_ELEVATION_DEG, checks.MAX_SIDE_REACH_DEG = saved
+
+
+def collect(poses=None):
+    """Rows of every window; ``poses`` (a dict, optional) gains {clip: (subject, gait,
+    joint angles (N, n_angles) in radians)} for :func:`pose_distances`."""
     model = load_stock_library()
     rows = []
     for kind, folder, gait in (("gaits", A.CMU, True), ("not_gaits", A.NOT_GAITS, False)):
@@ -118,15 +232,20 @@ def collect():
             values, names = A.load(path)
             skel = skeleton_of(path)
             tracks = foot_tracks(skel, values, FPS, root_frame=None)
+            body = body_tracks(skel, values, tracks)
             cols = [names.index(n) for n in model.dof_names]
             obs = observations_from_dofs(model, values[:, cols], model.dof_names, FPS)
+            elevation = arm_elevation(model, obs)       # the template's, as Predict sees it
+            side_reach = arm_side_reach(model, obs)
+            if poses is not None:
+                poses[path.stem] = (path.stem.split("_")[0], gait, obs[:, :model.n_angles])
             for window in A.WINDOWS:
                 n = int(round(window * FPS))
                 starts = A.steady_windows(values, names, window) if gait else \
                     list(range(0, len(values) - n + 1, int(round(A.STEP_S * FPS))))
                 for s in starts:
                     w = obs[s:s + n]
-                    check = check_gait(model, w, FPS)
+                    check = check_gait_before(model, w)
                     table = rhythm_table(model, w, FPS)
                     whole_best = max((c for c in (corr([h, wh]) for h, wh in table.values()
                                                   if wh is not None) if c is not None),
@@ -136,6 +255,7 @@ def collect():
                     row = dict(kind=kind, clip=path.stem, subject=path.stem.split("_")[0],
                                window=window, start=s / FPS,
                                accepted=check.refusal is None,
+                               accepted_arms=check_gait(model, w, FPS).refusal is None,
                                reason=None if check.refusal is None
                                else check.refusal.split(" in ")[0],
                                strength=check.strength, period=check.period_s,
@@ -147,6 +267,11 @@ def collect():
                                same_leg_best=max((c for c in whole_only if c is not None),
                                                  default=None))
                     row.update(feet_features(tracks, s, n))
+                    row.update(body_features(model, w, body, s, n))
+                    e = elevation[s:s + n]
+                    row.update(elev_core=[float(v) for v in e.max(axis=0)],
+                               elev_core_ptp=[float(v) for v in np.ptp(e, axis=0)],
+                               reach_core=[float(v) for v in side_reach[s:s + n].max(axis=0)])
                     vel = np.nanmean(w[:, model.channel_index(["root.v_forward",
                                                                "root.v_left"])], axis=0)
                     row.update(v_forward=float(vel[0]), v_left=float(vel[1]))
@@ -173,6 +298,52 @@ CUES = (
      "best pooled correlation among periods whose whole cycle the window holds (-1: none)"),
     ("stride (travel x period)", lambda r: r["travel"] * r["period"],
      "the mean speed times the rhythm's best period (m)"),
+)
+# Stop 42: the upper body and whole-body coordination (``body_features``), signed so that a
+# low value is unlike a walk.
+BODY_CUES = (
+    ("hands together", lambda r: r["hands_gap_min"],
+     "the hands' closest distance over the shoulders' width"),
+    ("hands together (mean)", lambda r: r["hands_gap_mean"],
+     "the hands' mean distance over the shoulders' width"),
+    ("hands high", lambda r: -r["hand_high"],
+     "minus the higher wrist's greatest height above the shoulders (m)"),
+    ("hands out to the side", lambda r: -r["hand_side"],
+     "minus the wrists' greatest sideways distance from the shoulders' midpoint (m)"),
+    ("upper arm raised (template, as checked)", lambda r: -max(r["elev_core"]),
+     "minus the upper arms' greatest elevation, core.gait.checks.arm_elevation (deg)"),
+    ("arm out to the side (template, as checked)", lambda r: -max(r["reach_core"]),
+     "minus the arms' greatest sideways reach, core.gait.checks.arm_side_reach (deg)"),
+    ("hands above the head", lambda r: -r["hand_above_head"],
+     "minus the higher wrist's greatest height above the head joint (m)"),
+    ("upper arm raised", lambda r: -r["arm_elev_max"],
+     "minus the upper arm's greatest angle from straight down (deg)"),
+    ("upper arm out to the side", lambda r: -r["arm_abd_max"],
+     "minus the upper arm's greatest sideways angle from straight down (deg)"),
+    ("arm out to the side", lambda r: -r["side_reach"],
+     "minus the wrists' greatest outward reach from their shoulder over the arm's length"),
+    ("hands out to the side / shoulders", lambda r: -r["hand_side_rel"],
+     "minus the wrists' greatest sideways distance over the shoulders' width"),
+    ("hands ahead or behind", lambda r: -r["hand_reach"],
+     "minus the wrists' greatest distance ahead of or behind the shoulders (m)"),
+    ("arm swings against the same-side leg", lambda r: -r["arm_leg"],
+     "minus the correlation of a wrist's and its same-side foot's forward positions"),
+    ("arms' difference against the legs'", lambda r: -r["arm_diff"],
+     "minus the correlation of the wrists' and the feet's forward difference"),
+    ("shoulder flexion with the same-side hip", lambda r: r["arm_angle_leg"],
+     "correlation of humerus.rx with the same-side femur.rx"),
+    ("trunk twist against the legs", lambda r: -r["twist_legs"],
+     "minus the correlation of the trunk's twist with the hips' flexion difference"),
+    ("trunk twist range", lambda r: -r["twist_ptp"], "minus the trunk's twist range (deg)"),
+    ("trunk pitch range", lambda r: -r["pitch_ptp"], "minus the trunk's pitch range (deg)"),
+    ("trunk pitch", lambda r: -r["pitch_max"], "minus the trunk's largest pitch (deg)"),
+    ("hip flexion", lambda r: -r["hip_flex_max"], "minus the largest hip flexion (deg)"),
+    ("hips' range asymmetry", lambda r: -r["hip_asym"],
+     "minus |range L - range R| / (range L + range R) of the hips' flexion"),
+    ("hips' peak asymmetry", lambda r: -r["hip_peak_asym"],
+     "minus the difference of the hips' largest flexions (deg)"),
+    ("arm joint range", lambda r: -r["arm_ptp"],
+     "minus the largest range of an arm joint angle (deg)"),
 )
 
 
@@ -240,9 +411,51 @@ def cross_validate_pairs(rows, min_window=0.75, cues=CUES, levels=16):
     return out
 
 
+def analyse_body(rows):
+    """Stop 42: the upper-body cues (``BODY_CUES``) cross-validated on the windows checks 1-5
+    accept (``accepted``), one by one and in pairs with every cue; the shipped arm checks'
+    geometric thresholds on the same windows; the cues again on what the arm checks leave."""
+    def table(subset, title):
+        print(f"\n== {title}")
+        print("cue | held-out gait windows lost | held-out non-gait windows refused | lost where")
+        for name, (lost, refused, n_g, n_n, where) in cross_validate(
+                subset, cues=BODY_CUES + CUES).items():
+            print(f"{name} | {lost} of {n_g} | {refused} of {n_n} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+        print("best pairs (both below): cue a | cue b | gait windows lost | non-gait refused")
+        pairs = cross_validate_pairs(subset, cues=BODY_CUES + CUES)
+        for a, b, lost, refused, where in sorted(pairs, key=lambda p: (p[2] - p[3]))[:10]:
+            print(f"{a} | {b} | {lost} | {refused} | "
+                  + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
+
+    table(rows, "stop 42: leave one subject out, windows >= 0.75 s accepted by checks 1-5")
+    print("\n== the shipped arm checks (geometric thresholds), windows checks 1-5 accept")
+    for window in sorted({r["window"] for r in rows}):
+        taken = [r for r in rows if r["accepted"] and r["window"] == window]
+        cut = [r for r in taken if not r["accepted_arms"]]
+        clips = {}
+        for r in cut:
+            clips[r["clip"]] = clips.get(r["clip"], 0) + 1
+        print(f"{window:g} s: gait windows refused {sum(r['kind'] == 'gaits' for r in cut)} of "
+              f"{sum(r['kind'] == 'gaits' for r in taken)}, non-gait "
+              f"{sum(r['kind'] != 'gaits' for r in cut)} of "
+              f"{sum(r['kind'] != 'gaits' for r in taken)}: "
+              + ", ".join(f"{k} {v}" for k, v in sorted(clips.items())))
+    gaits = [r for r in rows if r["kind"] == "gaits"]
+    for key, what in (("elev_core", "upper arm's elevation"), ("reach_core", "side reach")):
+        top = max(gaits, key=lambda r: max(r[key]))
+        print(f"highest {what} over every gait window: {max(top[key]):.1f} deg "
+              f"({top['clip']}, {top['window']:g} s from {top['start']:.2f} s)")
+    table([dict(r, accepted=r["accepted_arms"]) for r in rows],
+          "after the arm checks: leave one subject out on what they leave")
+
+
 def analyse(rows):
     """Print the false accepts' features, and the cross-validated cues before and after the
     forward check (which the rows may predate: they record the velocity)."""
+    if "hands_gap_min" in rows[0]:
+        analyse_body(rows)
+        return
     for label, subset in (("every accepted window", rows),
                           ("accepted, travelling forwards (after the forward check)",
                            [r for r in rows if not (r["accepted"] and r["v_forward"] < 0)])):
@@ -257,19 +470,52 @@ def analyse(rows):
                   + ", ".join(f"{k} {v}" for k, v in sorted(where.items())))
 
 
+def lowo_arms():
+    """Stop 42: whether any window of the leave-one-walker-out benchmark
+    (``benchmarks/gait_lowo.py``: every held-out subject's cases, windows 0.5 / 1 / 1.67 s)
+    trips an arm check. The arm checks read the observed angles only (not the fold model's
+    styles), so the stock model's observations serve; none tripped means LOWO is unchanged by
+    them (they come after checks 1-5 and only refuse)."""
+    import gait_lowo as L
+    from core.gait.checks import arm_out_to_the_side, raised_arm
+
+    model = load_stock_library()
+    count, tripped, top_e, top_r = 0, [], -np.inf, -np.inf
+    for subject in L.SUBJECTS:
+        cache = {}
+        for trial, t0, _ in L.test_cases(subject):
+            if trial not in cache:
+                cache[trial] = observations_from_dofs(model, *L.load(trial), L.FPS)
+            for w in L.WINDOWS:
+                win = cache[trial][t0 - round(w * L.FPS):t0]
+                count += 1
+                top_e = max(top_e, float(arm_elevation(model, win).max()))
+                top_r = max(top_r, float(arm_side_reach(model, win).max()))
+                if raised_arm(model, win) or arm_out_to_the_side(model, win):
+                    tripped.append((trial, t0, w))
+    print(f"{count} leave-one-walker-out windows, {len(tripped)} trip an arm check {tripped}; "
+          f"highest upper arm {top_e:.1f} deg, farthest side reach {top_r:.1f} deg")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out")
     ap.add_argument("--analyse")
+    ap.add_argument("--lowo", action="store_true",
+                    help="whether a leave-one-walker-out window trips an arm check (stop 42)")
     args = ap.parse_args(argv)
+    if args.lowo:
+        lowo_arms()
     if args.out:
-        rows = collect()
+        poses = {}
+        rows = collect(poses)
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         with open(args.out, "wb") as f:
-            pickle.dump(rows, f)
+            pickle.dump({"rows": rows, "poses": poses}, f)
     if args.analyse:
         with open(args.analyse, "rb") as f:
-            analyse(pickle.load(f))
+            data = pickle.load(f)
+        analyse(data["rows"] if isinstance(data, dict) else data)
 
 
 if __name__ == "__main__":

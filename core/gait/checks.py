@@ -40,10 +40,29 @@ after adapting, on the model's fit (issue 21):
    (less than a cycle) already shows one leg repeating the other's step. The best pooled
    correlation must reach ``MIN_STRENGTH`` (0.3). A range too short for even the half-cycle
    comparison is predicted with a warning (its rhythm is not tested) when its legs alternate.
-6. **Fit score** (after adapting): `1 − SSE/SST` of the style and offset on the gait channels.
+6. **Arms by the body** (stop 42): the arms' pose by forward kinematics of the observed trunk,
+   clavicle and arm angles on the CMU template skeleton, the root tilted as observed. An
+   upper arm that goes above the horizontal (:func:`raised_arm`: :func:`arm_elevation` over
+   ``MAX_ARM_ELEVATION_DEG``, 90° from hanging) is a throw's wind-up, a golf swing or a
+   dance's arms; an arm held out to the side (:func:`arm_out_to_the_side`: the wrist out from
+   its shoulder, across the heading, farther than a straight arm at ``MAX_SIDE_REACH_DEG``,
+   45°, would reach: :func:`arm_side_reach`) is a kicker's or thrower's balance. Either is
+   refused, naming the arm and its frames, when that upper arm moves by ``MIN_ARM_MOTION_DEG``
+   (20°) or more within the range: an arm held still (a rig's arms left in a T-pose while
+   only the legs are keyed: raised to 90° and straight out to the side) is not counted. No
+   walker the model learned from does either: over every steady window of the shipped gaits
+   the highest upper arm is 84° (a sneaking walk, CMU 120_11; walks and runs 15-75°) and the
+   farthest sideways reach 30° (a walk dribbling a basketball, 06_03), while the steps into
+   the baseball pitch CMU 124_01, the golf set-up 64_01/64_06, the dance 05_10 and the soccer
+   kick 10_01 passed checks 1-5 with an arm at 90-160° or out at 45-70° (``docs/gait.md``,
+   *Stop 42*). The thresholds are geometric (the horizontal; halfway from hanging to it), not
+   learned: learned on the other subjects' gaits they refuse the held-out sneak or dribbler.
+   A walk that raises an arm or holds one out (waving, balancing on a beam) is refused too:
+   the model has no such walker to continue it from.
+7. **Fit score** (after adapting): `1 − SSE/SST` of the style and offset on the gait channels.
    Below ``WARN_FIT`` (0.5) the prediction is made with a warning that quotes it.
-7. **A start from standing**: a range that travels too little (check 4) while its last third
-   alone is a gait (checks 1-5) travelling at ``MIN_TRAVEL`` or more may start from standing:
+8. **A start from standing**: a range that travels too little (check 4) while its last third
+   alone is a gait (checks 1-6) travelling at ``MIN_TRAVEL`` or more may start from standing:
    check 4's refusal (boxing, stepping on the spot: it misled on CMU 120_09 frames 1-150,
    which stands for 0.8 s and then walks) says so and where to start the range. (Not said
    outright: 278 windows of the non-gait clips, swimming and cartwheels among them, meet the
@@ -60,16 +79,20 @@ every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``doc
 """
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
+from ..kinematics import chain_kinematics, exp_so3
+from ..mocap import asf_to_skeleton, cmu_template_asf
 from .segments import MIN_STRENGTH
 
-__all__ = ["GaitCheck", "MAX_LEGS_TOGETHER", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
-           "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S",
-           "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg", "check_gait",
-           "fit_score", "gait_channels", "legs_together", "regularity", "rhythm", "rhythm_inputs",
-           "with_fit"]
+__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_SIDE_REACH_DEG",
+           "MAX_TILT_DEG", "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE",
+           "MIN_MOTION_DEG", "MIN_OVERLAP_S", "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT",
+           "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
+           "check_gait", "fit_score", "gait_channels", "legs_together", "raised_arm",
+           "regularity", "rhythm", "rhythm_inputs", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -84,10 +107,14 @@ CADENCE_SPREAD = 1.25       # periods searched: the training walkers' × 1/1.25 
 WARN_FIT = 0.5
 START_SHARE = 1.0 / 3.0     # the first and last share of the range compared for a start
 MAX_START_RATIO = 0.5       # a range whose first third travels slower than this share of its
-#                             last third starts from standing (check 7)
+#                             last third starts from standing (check 8)
 N_GAIT_CHANNELS = 8
 LEG_FLEXION = ("lfemur.rx", "rfemur.rx", "ltibia.rx", "rtibia.rx")
 HIP_FLEXION = ("lfemur.rx", "rfemur.rx")
+MAX_ARM_ELEVATION_DEG = 90.0   # an upper arm above the horizontal: raised above the shoulder
+MAX_SIDE_REACH_DEG = 45.0      # an arm out to the side, halfway from hanging to horizontal
+MIN_ARM_MOTION_DEG = 20.0      # … while the upper arm moves this much (an arm held still: not)
+ARMS = (("left", "lhumerus", "lradius", "lwrist"), ("right", "rhumerus", "rradius", "rwrist"))
 
 
 @dataclass(frozen=True)
@@ -115,6 +142,9 @@ class GaitCheck:
     forward : float or None
         Forward share of the mean horizontal root velocity: its component along the heading
         over its norm, -1 … 1 (None without root channels or without travel).
+    arm_deg : float or None
+        Highest elevation of an upper arm from hanging (:func:`arm_elevation`), degrees, when
+        checks 1-5 passed (None before, or without both humeri).
     """
 
     motion_deg: float
@@ -127,6 +157,7 @@ class GaitCheck:
     tilt_deg: float = None
     travel: float = None
     forward: float = None
+    arm_deg: float = None
 
 
 def gait_channels(model, count=N_GAIT_CHANNELS):
@@ -274,6 +305,140 @@ def rhythm(model, observations, fps):
     return best
 
 
+@lru_cache(maxsize=1)
+def _template_skeleton():
+    """The CMU template skeleton (subject 08, ``core.mocap.cmu_template_asf``): the frames the
+    gait model's joint angles are defined in."""
+    return asf_to_skeleton(cmu_template_asf())
+
+
+def _arm_points(model, obs):
+    """World positions of each arm's shoulder, elbow and wrist, {joint: (N, 3)}, by forward
+    kinematics of the observed trunk, clavicle and arm angles on the CMU template skeleton,
+    the root at the origin tilted as observed (``root.tilt_*``) and turned to the rest's
+    heading (``G = Rz(ψ) T rest`` with ψ left out, ``root_travel.py``); None when the model
+    does not observe both humeri."""
+    skel = _template_skeleton()
+    names = list(skel.dof_names())
+    angles = [c for c in model.channel_names[:model.n_angles] if c in names]
+    if not {"lhumerus.rx", "rhumerus.rx"} <= set(angles):
+        return None
+    dofs = np.zeros((len(obs), len(names)))
+    dofs[:, [names.index(c) for c in angles]] = obs[:, model.channel_index(angles)]
+    root = np.broadcast_to(skel.rest_rotations[0], (len(obs), 3, 3))
+    if model.root_travel:
+        root = exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
+                                                   "root.tilt_z"])]) @ root
+    joints = [skel.index(j) for arm in ARMS for j in arm[1:]]
+    heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
+    return {j: heads[skel.index(j)] for arm in ARMS for j in arm[1:]}
+
+
+def _elevation(points):
+    """(N, 2) upper arms' angles from straight down, degrees (:func:`arm_elevation`)."""
+    out = []
+    for _, shoulder, elbow, _ in ARMS:
+        arm = points[elbow] - points[shoulder]
+        cos = -arm[:, 2] / np.maximum(np.linalg.norm(arm, axis=1), 1e-12)
+        out.append(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    return np.stack(out, axis=1)
+
+
+def _side_reach(points):
+    """(N, 2) arms' sideways reach, degrees (:func:`arm_side_reach`)."""
+    rest = _template_skeleton().rest_rotations[0]
+    forward = rest[:2, 2] / np.linalg.norm(rest[:2, 2])       # CMU: the root's +z walks
+    left = np.array([-forward[1], forward[0]])                  # Z × forward
+    out = []
+    for k, (_, shoulder, elbow, wrist) in enumerate(ARMS):
+        length = (np.linalg.norm(points[elbow] - points[shoulder], axis=1)
+                  + np.linalg.norm(points[wrist] - points[elbow], axis=1))
+        outward = (1.0 if k == 0 else -1.0) * left
+        reach = (points[wrist][:, :2] - points[shoulder][:, :2]) @ outward / length
+        out.append(np.degrees(np.arcsin(np.clip(reach, -1.0, 1.0))))
+    return np.stack(out, axis=1)
+
+
+def arm_elevation(model, observations):
+    """Angle of each upper arm (shoulder → elbow) from straight down, degrees: 0 hanging, 90
+    horizontal, 180 straight up; by forward kinematics of the observed trunk, clavicle and
+    humerus angles on the CMU template skeleton, the root tilted as observed
+    (``root.tilt_*``; its heading does not change the angle).
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        All model channels, physical units.
+
+    Returns
+    -------
+    ndarray, shape (N, 2) or None
+        Left and right; None when the model does not observe both humeri.
+    """
+    points = _arm_points(model, np.asarray(observations, dtype=float))
+    return None if points is None else _elevation(points)
+
+
+def arm_side_reach(model, observations):
+    """How far each arm reaches out to the side, as the angle from hanging of a straight arm
+    that reaches as far, degrees: ``asin(d / L)`` with ``d`` the wrist's horizontal distance
+    outwards from its shoulder (perpendicular to the heading; inwards negative) and ``L`` the
+    arm's length (upper arm + forearm); 0 for an arm hanging or swinging fore and aft, 90 for
+    an arm held straight out to the side. Forward kinematics as :func:`arm_elevation`.
+
+    Returns
+    -------
+    ndarray, shape (N, 2) or None
+        Left and right; None when the model does not observe both humeri.
+    """
+    points = _arm_points(model, np.asarray(observations, dtype=float))
+    return None if points is None else _side_reach(points)
+
+
+def _moving(angle):
+    """Whether an arm's angle over the range moves by at least ``MIN_ARM_MOTION_DEG``."""
+    return np.ptp(angle) >= MIN_ARM_MOTION_DEG
+
+
+def raised_arm(model, observations, elevation=None):
+    """The first arm raised above the shoulder in the range, or None: ``(side, first frame,
+    last frame, highest elevation in degrees)`` for an upper arm that goes above the horizontal
+    (:func:`arm_elevation` over ``MAX_ARM_ELEVATION_DEG``) and moves by at least
+    ``MIN_ARM_MOTION_DEG`` within the range (frames are indices into the range): a throw's
+    wind-up, a swing, a dance's arms. An arm held still (a rig's arms left in its T-pose while
+    the legs are keyed) is not counted. ``elevation``: :func:`arm_elevation` of the range when
+    already computed."""
+    if elevation is None:
+        elevation = arm_elevation(model, observations)
+    if elevation is None:
+        return None
+    for k, (side, *_) in enumerate(ARMS):
+        e = elevation[:, k]
+        high = np.flatnonzero(e > MAX_ARM_ELEVATION_DEG)
+        if high.size and _moving(e):
+            return side, int(high[0]), int(high[-1]), float(e.max())
+    return None
+
+
+def arm_out_to_the_side(model, observations, elevation=None, reach=None):
+    """The first arm held out to the side in the range, or None: ``(side, first frame, last
+    frame, largest reach in degrees)`` for an arm whose :func:`arm_side_reach` goes over
+    ``MAX_SIDE_REACH_DEG`` while the upper arm moves by at least ``MIN_ARM_MOTION_DEG``
+    (:func:`arm_elevation`; an arm held still is not counted): a kicker's or thrower's arms
+    out for balance. ``elevation``, ``reach``: already computed, optional."""
+    if elevation is None or reach is None:
+        points = _arm_points(model, np.asarray(observations, dtype=float))
+        if points is None:
+            return None
+        elevation, reach = _elevation(points), _side_reach(points)
+    for k, (side, *_) in enumerate(ARMS):
+        out = np.flatnonzero(reach[:, k] > MAX_SIDE_REACH_DEG)
+        if out.size and _moving(elevation[:, k]):
+            return side, int(out[0]), int(out[-1]), float(reach[:, k].max())
+    return None
+
+
 def _root_figures(model, obs):
     """(largest tilt from upright in degrees, mean horizontal speed in m/s, forward share of
     the mean horizontal velocity), or (None, None, None) for a model without root travel (the
@@ -290,7 +455,7 @@ def _root_figures(model, obs):
 
 def _start_and_end_speeds(model, obs):
     """Mean horizontal root speed (m/s) over the range's first and last ``START_SHARE``
-    (check 7), or (None, None) for a model without root travel or a range under 6 frames."""
+    (check 8), or (None, None) for a model without root travel or a range under 6 frames."""
     if not model.root_travel or len(obs) < 6:
         return None, None
     speed = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
@@ -300,7 +465,7 @@ def _start_and_end_speeds(model, obs):
 
 
 def _walks_at_end(model, obs, fps):
-    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-5 take it)."""
+    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 take it)."""
     k = max(2, int(round(START_SHARE * len(obs))))
     return check_gait(model, obs[-k:], fps).refusal is None
 
@@ -321,8 +486,9 @@ def _level_travel(model, obs, fps, travel):
                 and np.nanmax(height) - np.nanmin(height) <= MAX_LEVEL_RANGE)
 
 
-def check_gait(model, observations, fps, result=None, what="the observed frames"):
-    """Checks 1-5 of the module docstring, and the fit score when ``result`` is given.
+def check_gait(model, observations, fps, result=None, what="the observed frames",
+               first_frame=None):
+    """Checks 1-6 of the module docstring, and the fit score when ``result`` is given.
 
     Parameters
     ----------
@@ -333,6 +499,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     result : AdaptResult, optional
     what : str
         How messages name the range (e.g. ``"frames 1–100 of Walker"``).
+    first_frame : int, optional
+        The scene frame of the range's first row: messages that point at frames inside the
+        range number them so (else they count the range's rows from 1).
 
     Returns
     -------
@@ -397,6 +566,34 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                          refusal=f"No steady rhythm in {what}: the legs repeat their steps "
                                  f"with a strength of {strength:.2f} (a walk or run reaches "
                                  f"{MIN_STRENGTH:g} or more)")
+    points = _arm_points(model, obs)
+    elevation = None if points is None else _elevation(points)
+    reach = None if points is None else _side_reach(points)
+    arm_deg = None if elevation is None else float(elevation.max())
+
+    def frames(a, b):
+        return (f"frames {first_frame + a}–{first_frame + b}" if first_frame is not None
+                else f"frames {a + 1}–{b + 1} of the range")
+    arm = None if points is None else raised_arm(model, obs, elevation)
+    if arm is not None:
+        side, a, b, top = arm
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward, arm_deg=arm_deg,
+                         refusal=f"An arm is raised above the shoulder in {what} (the "
+                                 f"{side} arm in {frames(a, b)}, up to {top:.0f}° from "
+                                 f"hanging): a throw, a swing or a dance move, not a walk or "
+                                 f"run the gait model can continue (no walker it learned "
+                                 f"from raises an arm above the shoulder)")
+    arm = None if points is None else arm_out_to_the_side(model, obs, elevation, reach)
+    if arm is not None:
+        side, a, b, top = arm
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward, arm_deg=arm_deg,
+                         refusal=f"An arm is held out to the side in {what} (the {side} "
+                                 f"arm in {frames(a, b)}, out as far as a straight arm "
+                                 f"{top:.0f}° from hanging): a kick's or a throw's balance, "
+                                 f"not a walk or run the gait model can continue (no walker "
+                                 f"it learned from holds an arm out to the side)")
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "
@@ -410,14 +607,14 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
     check = GaitCheck(motion, period, strength, together, None, None,
-                      "; ".join(warnings) or None, tilt, travel, forward)
+                      "; ".join(warnings) or None, tilt, travel, forward, arm_deg)
     return check if result is None else with_fit(check, model, obs, result, what)
 
 
 def with_fit(check, model, observations, result, what="the observed frames"):
-    """``check`` (an accepting :class:`GaitCheck` of the same range) with check 6, the fit
+    """``check`` (an accepting :class:`GaitCheck` of the same range) with check 7, the fit
     score of ``result``, added: what ``check_gait(..., result)`` returns, without running
-    checks 1-5 again.
+    checks 1-6 again.
 
     Parameters
     ----------

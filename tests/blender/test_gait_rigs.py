@@ -224,7 +224,7 @@ def test_a_foot_landing_at_the_join_stays_planted_on_the_rig(kind):
     assert rig <= cmu + 0.25, (rig, cmu)
 
 
-@pytest.mark.parametrize("kind", ["mixamo_fbx", "ik_legs"])
+@pytest.mark.parametrize("kind", ["mixamo_fbx", "ik_legs", "rigify_ik"])
 def test_the_rigs_stance_balls_stand_as_still_as_the_cmu_skeletons(kind):
     """Issue 19's foot slide goal through the operator (stop 41): 1.5 s of the walk keyed,
     Predict Gait for 2 s; ``core.gait.foot_slide`` of the balls of the feet (the frames a foot
@@ -233,7 +233,10 @@ def test_the_rigs_stance_balls_stand_as_still_as_the_cmu_skeletons(kind):
     model skeleton's, and the rig's, keyed with the foot's carried roll, stood 0.1-0.3 mm
     off them and drifted with the foot's pitch (here Mixamo 0.060 and the IK legs 0.057
     against the CMU skeleton's 0.058 cm/s; the figure before stop 41, every frame's lower
-    foot, 2.24 and 2.30 against 2.20)."""
+    foot, 2.24 and 2.30 against 2.20). Rigify IK since stop 42: its IK stretch scales and
+    shears the foot, so that with the ankle and the foot's frame on target its ball stood
+    0.01-0.2 mm off the planted one, moving with the leg's stretch; the IK target is now
+    keyed so that the evaluated ball is on it (``rig_bridge.effective_joints``)."""
     def slide(kind):
         from core.gait.foot_slide import foot_slide
         spec = RIG_SPECS[kind]
@@ -281,6 +284,28 @@ def test_the_walk_read_from_a_rig_is_the_cmu_skeletons(kind):
     # sit elsewhere), within a few centimetres of subject 35's.
     assert grig.space.scale == 1.0
     assert np.abs(got[:, :3] - want[:, :3]).max() < 0.05
+
+
+def test_the_rigify_ik_test_rigs_arms_walk_the_fk_rigs():
+    """The test rigs' own drive (stop 42): Rigify IK's hands and elbows are keyed where the FK
+    chain's rotations put them from the evaluated shoulder (``rig_specs.Drive.base``), so the
+    walk read from its arms is Rigify FK's (before, its hands were keyed at the target chain's
+    absolute places, ~2 cm from where the spine controls leave the shoulders: the arms read
+    4-9° from Rigify FK's and the IK rig's prediction followed other arm swings)."""
+    rigs = bridge("gait.rigs")
+    frames = np.arange(1, N_CLIP + 1, 2)
+    dofs = {}
+    for kind in ("rigify_fk", "rigify_ik"):
+        obj, fp = open_rig_scene(rig_footage(kind))
+        grig = rigs.gait_rig(obj)
+        dofs[kind] = rigs.read_dofs(grig, frames)
+    names = list(grig.dof_names)
+    arms = [i for i, n in enumerate(names)
+            if n.split(".")[0][1:] in ("clavicle", "humerus", "radius", "wrist", "hand")]
+    assert len(arms) >= 8, names
+    diff = np.degrees((dofs["rigify_ik"] - dofs["rigify_fk"] + np.pi) % (2 * np.pi) - np.pi)
+    assert np.abs(diff[:, arms]).max() < 0.5, dict(zip(np.array(names)[arms],
+                                                       np.abs(diff[:, arms]).max(axis=0)))
 
 
 #: Round trip (rig → the model's joint space → rig) tolerances, degrees (mean, max) and metres:

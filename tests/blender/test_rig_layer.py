@@ -487,3 +487,43 @@ def test_step_errors_of_all_steps_at_once_equal_one_step_at_a_time():
     assert rb.step_errors(steps[:1], joints, target) == pytest.approx((rot[0], 0.0), rel=1e-12)
     assert rb.step_errors(steps[1:2], joints, target) == pytest.approx((0.0, off[0]), rel=1e-12)
     assert rb.step_errors([], joints, target) == (0.0, 0.0)
+
+
+def test_an_ik_targets_correction_carries_its_evaluated_ball_onto_the_balls_target():
+    """An IK target's step with a ball (``ControlStep.ball``, stop 42): the end's correction
+    moves the evaluated ball, wherever the rig's IK put it off the end's frame (Rigify's
+    stretched foot), exactly onto the ball's target, turning the end as the plain step does;
+    a ball at the model's offset (a rigid foot) changes nothing; no ball, the same array."""
+    rb = addon("common.rig_bridge")
+    from core.rigs import RIGID, TRANSLATE
+    from core.rigs.retarget import rigid
+    rng = np.random.default_rng(42)
+    joints, target = random_joints_and_targets(rng, 6, scaled=True)
+    control = np.eye(4)
+    control[:3, :3] = exp_so3(rng.normal(scale=0.5, size=3))
+    control[:3, 3] = rng.normal(size=3)
+    ball_step, plain = rb.ControlStep("foot_ik", RIGID, 3, ball=4), rb.ControlStep("foot_ik",
+                                                                                   RIGID, 3)
+    w = rb.wanted_controls([ball_step], control[None], joints, target)[0] @ np.linalg.inv(control)
+    np.testing.assert_allclose(w[:3, :3] @ rigid(joints[3])[:3, :3], target[3, :3, :3],
+                               rtol=0, atol=1e-12)                      # turned as asked
+    np.testing.assert_allclose(w[:3, :3] @ joints[4, :3, 3] + w[:3, 3], target[4, :3, 3],
+                               rtol=0, atol=1e-12)                      # the ball on its place
+    assert rb.step_errors([ball_step], joints, target)[1] > 0.1
+    assert rb.ball_error([ball_step], joints, target) > 0.1
+    # Corrected (the end and its ball moved by the change), nothing is left to fix.
+    moved = joints.copy()
+    moved[[3, 4]] = w @ joints[[3, 4]]
+    assert rb.ball_error([ball_step], moved, target) < 1e-12
+    assert rb.step_errors([ball_step], moved, target)[1] < 1e-12
+    # A ball where the end's frame and the model's offset put it: the plain step's change.
+    offset = target[3, :3, :3].T @ (target[4, :3, 3] - target[3, :3, 3])
+    joints[4, :3, 3] = joints[3, :3, 3] + rigid(joints[3])[:3, :3] @ offset
+    np.testing.assert_allclose(rb.effective_joints([ball_step], joints, target), joints,
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rb.wanted_controls([ball_step], control[None], joints, target),
+                               rb.wanted_controls([plain], control[None], joints, target),
+                               rtol=0, atol=1e-12)
+    assert rb.effective_joints([plain, rb.ControlStep("b", TRANSLATE, 2)], joints,
+                               target) is joints
+    assert rb.ball_error([plain], joints, target) == 0.0

@@ -681,3 +681,226 @@ def test_fit_score_is_measured_in_the_models_scaled_units():
     result, fitted = _exact_result(scaled, 40, None, np.random.default_rng(6))
     assert fit_score(scaled, fitted * scaled.channel_scale, result) == pytest.approx(1.0,
                                                                                      abs=1e-9)
+
+
+# ------------------------------------------------------------- stop 42: an arm above the shoulder
+# Windows of non-gait clips that passed every other check (steps, travel forwards, alternating
+# legs, rhythm) with an arm raised above the shoulder (docs/gait.md, *Stop 42*): the golf
+# set-up and swing, the stride into the baseball pitch and its throw, a dance's arms.
+RAISED_ARM = [("64_06", "golf swing", 1.0, 1.75), ("64_01", "golf swing", 0.75, 2.5),
+              ("124_01", "baseball pitch", 1.67, 2.0), ("05_10", "dance", 1.0, 5.25)]
+
+
+def world_arms(path, values, a, b):
+    """Each upper arm's angle from straight down and each arm's sideways reach (degrees, (n, 2)
+    each: ``asin`` of the wrist's horizontal distance outwards from its shoulder, across the
+    pelvis' facing, over the arm's length) by forward kinematics of the clip's own skeleton
+    with its captured root (heading and travel included): the references
+    :func:`checks.arm_elevation` and :func:`checks.arm_side_reach` are measured against."""
+    from core.gait.walk_figures import _forward, foot_tracks
+    from core.kinematics import forward_kinematics, local_rotations_from_dofs
+    from core.mocap import asf_to_skeleton, read_asf
+    from core.mocap.bvh import cmu_template_asf
+
+    asf_file = path.parent / f"{path.stem.split('_')[0]}.asf"
+    skel = asf_to_skeleton(read_asf(asf_file) if asf_file.exists() else cmu_template_asf())
+    dofs = values[a:b]
+    translation, local = local_rotations_from_dofs(skel, dofs)
+    _, pos = forward_kinematics(skel, local, translation)
+    tracks = foot_tracks(skel, dofs, 60.0)
+    facing = _forward(tracks, tracks.heading)
+    left = np.stack([-facing[:, 1], facing[:, 0]], axis=1)
+    elevation, reach = [], []
+    for sign, (shoulder, elbow, wrist) in ((1.0, ("lhumerus", "lradius", "lwrist")),
+                                           (-1.0, ("rhumerus", "rradius", "rwrist"))):
+        s, e, w = (pos[:, skel.index(j)] for j in (shoulder, elbow, wrist))
+        arm = e - s
+        elevation.append(np.degrees(np.arccos(-arm[:, 2] / np.linalg.norm(arm, axis=1))))
+        length = np.linalg.norm(e - s, axis=1) + np.linalg.norm(w - e, axis=1)
+        out = sign * np.sum((w - s)[:, :2] * left, axis=1) / length
+        reach.append(np.degrees(np.arcsin(out)))
+    return np.stack(elevation, axis=1), np.stack(reach, axis=1)
+
+
+def world_arm_elevation(path, values, a, b):
+    return world_arms(path, values, a, b)[0]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", RAISED_ARM)
+def test_non_gaits_that_raise_an_arm_above_the_shoulder_are_refused(clip, kind, window, start,
+                                                                    monkeypatch):
+    """The clip's own skeleton puts an elbow above its shoulder within the window (world
+    positions, not the observation channels); every other check takes the window, and the
+    arm check refuses it, naming the arm and the frames (numbered from ``first_frame``)."""
+    path = CMU / "not_gaits" / f"{clip}.amc"
+    values, names = load_clip(path)
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    world = world_arm_elevation(path, values, a, b)
+    assert world.max() > 90.0, kind
+    model = load_stock_library()
+    obs = observe(model, values, names)[a:b]
+    check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
+    side = ("left", "right")[int(np.argmax(world.max(axis=0) > 90.0))]
+    frames = np.flatnonzero(checks.arm_elevation(model, obs)[:, int(side == "right")] > 90.0)
+    assert check.refusal.startswith(
+        f"An arm is raised above the shoulder in the range (the {side} arm in frames "
+        f"{a + 1 + frames[0]}–{a + 1 + frames[-1]}, up to "), kind
+    assert check.refusal.endswith("from hanging): a throw, a swing or a dance move, not a walk "
+                                  "or run the gait model can continue (no walker it learned "
+                                  "from raises an arm above the shoulder)")
+    assert check.arm_deg == pytest.approx(world.max(), abs=3.0)
+    monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.inf)        # the arm checks off
+    monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)
+    assert check_gait(model, obs, 60.0).refusal is None, kind
+
+
+# A window of every kind of shipped gait where its arms rise highest (their steady windows).
+ARMS_OF_GAITS = [("35_01", "walk", 1.67, 1.25), ("35_17", "run", 0.5, 0.0),
+                 ("35_20", "run", 1.25, 0.0), ("08_07", "long stride", 0.5, 0.25),
+                 ("06_03", "dribbling", 3.0, 1.38), ("120_11", "sneaking", 0.5, 2.25),
+                 ("120_10", "sneaking", 0.5, 8.0), ("139_31", "careful", 0.5, 10.92),
+                 ("91_10", "stroll", 0.5, 20.58), ("74_01", "style walk", 3.0, 0.8)]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", ARMS_OF_GAITS)
+def test_gaits_keep_their_arms_below_the_shoulder_and_are_taken(clip, kind, window, start):
+    """No walker raises an upper arm above the horizontal (the sneak's arms come closest: 84°)
+    or holds an arm out to the side (the dribbler's reaches 30°); each of these windows is
+    taken."""
+    path = CMU / f"{clip}.amc"
+    values, names = load_clip(path)
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    world, reach = world_arms(path, values, a, b)
+    assert world.max() < 85.0 and reach.max() < 31.0, kind
+    model = load_stock_library()
+    check = check_gait(model, observe(model, values, names)[a:b], 60.0)
+    assert check.refusal is None, (kind, check.refusal)
+    assert check.arm_deg == pytest.approx(world.max(), abs=3.0)
+
+
+def test_arm_elevation_on_the_template_subject_is_its_world_angle():
+    """CMU 08 is the template skeleton: the elevation from the observed trunk, arm angles and
+    root tilt (the heading left out) equals the world angle of its own forward kinematics
+    with the captured root, to rounding."""
+    path = CMU / "08_07.amc"
+    values, names = load_clip(path)
+    model = load_stock_library()
+    obs = observe(model, values, names)
+    assert np.allclose(checks.arm_elevation(model, obs),
+                       world_arm_elevation(path, values, 0, len(values)), atol=1e-7)
+
+
+def arms(model):
+    return [i for i, c in enumerate(model.channel_names[:model.n_angles])
+            if c[1:].split(".")[0] in ("clavicle", "humerus", "radius", "wrist", "hand",
+                                       "fingers", "thumb")]
+
+
+def test_an_arm_held_still_is_not_counted_a_moving_one_is():
+    """A walk whose arms are left in the T-pose (every arm angle 0: a rig keyed on its legs
+    only: raised to the horizontal and straight out to the side) or hold the golf swing's top
+    pose still is taken; the same walk with the swing's arms moving is refused."""
+    model, obs = walk_range(60)
+    cols = arms(model)
+    values, names = load_clip(CMU / "not_gaits" / "64_06.amc")
+    golf = observe(model, values, names)[105:165]                     # 1.75-2.75 s
+    tpose = obs.copy()
+    tpose[:, cols] = 0.0
+    held = obs.copy()
+    top = int(np.argmax(checks.arm_elevation(model, golf).max(axis=1)))
+    held[:, cols] = golf[top, cols]
+    swing = obs.copy()
+    swing[:, cols] = golf[:, cols]
+    assert checks.arm_side_reach(model, tpose).min() > 80.0
+    for still in (tpose, held):
+        check = check_gait(model, still, 60.0)
+        assert check.refusal is None and check.arm_deg > 89.0
+        assert np.ptp(checks.arm_elevation(model, still), axis=0).max() < \
+            checks.MIN_ARM_MOTION_DEG
+    assert check_gait(model, swing, 60.0).refusal.startswith("An arm is raised above the "
+                                                             "shoulder")
+
+
+def test_the_arm_thresholds_are_met_at_their_value(monkeypatch):
+    """An arm *above* MAX_ARM_ELEVATION_DEG that moves by *at least* MIN_ARM_MOTION_DEG: each
+    threshold set to the very value measured (the same code on the same numbers) decides as
+    the rule says, one float step beyond it decides the other way."""
+    model = load_stock_library()
+    values, names = load_clip(CMU / "not_gaits" / "64_06.amc")
+    obs = observe(model, values, names)[105:165]
+    elevation = checks.arm_elevation(model, obs)
+    top = float(elevation.max())
+    monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", top)
+    assert check_gait(model, obs, 60.0).refusal is None
+    monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.nextafter(top, -np.inf))
+    assert check_gait(model, obs, 60.0).refusal.startswith("An arm is raised")
+    monkeypatch.undo()
+    rise = max(float(np.ptp(e)) for e in elevation.T if e.max() > checks.MAX_ARM_ELEVATION_DEG)
+    monkeypatch.setattr(checks, "MIN_ARM_MOTION_DEG", rise)
+    assert check_gait(model, obs, 60.0).refusal.startswith("An arm is raised")
+    monkeypatch.setattr(checks, "MIN_ARM_MOTION_DEG", np.nextafter(rise, np.inf))
+    assert check_gait(model, obs, 60.0).refusal is None
+
+
+def test_a_model_without_both_humeri_has_no_arm_check():
+    model, obs = walk_range(60)
+    legs_only = SimpleNamespace(channel_names=model.channel_names[:14] + model.channel_names[-7:],
+                                n_angles=14, root_travel=False)
+    assert checks.arm_elevation(legs_only, obs) is None
+    assert checks.raised_arm(legs_only, obs) is None
+
+
+# Windows of the soccer kick that passed every other check, its arms out to the side for
+# balance (docs/gait.md, *Stop 42*).
+ARM_OUT = [("10_01", "soccer kick", 1.0, 4.25), ("10_01", "soccer kick", 0.75, 4.75),
+           ("10_01", "soccer kick", 1.67, 3.25)]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", ARM_OUT)
+def test_non_gaits_that_hold_an_arm_out_to_the_side_are_refused(clip, kind, window, start,
+                                                                 monkeypatch):
+    """The clip's own skeleton and facing put a wrist out to the side by more than a straight
+    arm at 45° would reach (world positions); every other check takes the window, the arm
+    check refuses it, naming the arm and the frames."""
+    path = CMU / "not_gaits" / f"{clip}.amc"
+    values, names = load_clip(path)
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    elevation, reach = world_arms(path, values, a, b)
+    assert reach.max() > 45.0 and elevation.max() < 90.0, kind
+    model = load_stock_library()
+    obs = observe(model, values, names)[a:b]
+    check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
+    k = int(np.argmax(reach.max(axis=0) > 45.0))
+    frames = np.flatnonzero(checks.arm_side_reach(model, obs)[:, k] > 45.0)
+    assert check.refusal.startswith(
+        f"An arm is held out to the side in the range (the {('left', 'right')[k]} arm in "
+        f"frames {a + 1 + frames[0]}–{a + 1 + frames[-1]}, out as far as a straight arm "), kind
+    assert check.refusal.endswith("from hanging): a kick's or a throw's balance, not a walk or "
+                                  "run the gait model can continue (no walker it learned from "
+                                  "holds an arm out to the side)")
+    assert checks.arm_side_reach(model, obs).max() == pytest.approx(reach.max(), abs=3.0)
+    monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)              # the check off
+    assert check_gait(model, obs, 60.0).refusal is None, kind
+
+
+def test_side_reach_on_the_template_subject_is_its_world_reach():
+    """CMU 08 (the template): the sideways reach from the observed angles and root tilt equals
+    the one across the pelvis' facing by its own forward kinematics, to rounding."""
+    path = CMU / "08_07.amc"
+    values, names = load_clip(path)
+    model = load_stock_library()
+    assert np.allclose(checks.arm_side_reach(model, observe(model, values, names)),
+                       world_arms(path, values, 0, len(values))[1], atol=1e-6)
+
+
+def test_the_side_reach_threshold_is_met_at_its_value(monkeypatch):
+    """An arm out *beyond* MAX_SIDE_REACH_DEG is refused; the threshold set to the very reach
+    measured passes, one float step below it refuses."""
+    model = load_stock_library()
+    values, names = load_clip(CMU / "not_gaits" / "10_01.amc")
+    obs = observe(model, values, names)[255:315]
+    top = float(checks.arm_side_reach(model, obs).max())
+    monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", top)
+    assert check_gait(model, obs, 60.0).refusal is None
+    monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", np.nextafter(top, -np.inf))
+    assert check_gait(model, obs, 60.0).refusal.startswith("An arm is held out to the side")
