@@ -60,6 +60,9 @@ GRAVITY = 9.81
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
 FLIGHT_SAME = 1e-9           # a share of flight that varies less than this is one share
+# Below this share of the requested walk a ramp into a run smooths the run's speed over a step
+# (fading out up to the ramp's end; walk._plant, docs/gait.md *Stop 42, joins*).
+RAMP_SPEED_SHARE = 0.75
 MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
 JOIN_SPACING_S = 0.05        # s: second differences over this (mocap's frame-to-frame are noise)
 # Lengths of the ramp tried against a jolt (× blend_steps). Until stop 41 a run kept one step
@@ -280,8 +283,7 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         for scale in JOIN_SCALES:
             trial = (obs, weights, speed) if scale == 1.0 else channels(blend * scale)
             ratio = _join_ratio(reference, keyed(trial[0], trial[2], trial[1], legs=False),
-                                names, fps,
-                                blend)
+                                names, fps, blend)
             if best is None or ratio < best[0]:
                 best = (ratio, scale, trial)
             if ratio <= JOIN_TOLERANCE:
@@ -469,6 +471,20 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
         f = flight[1:, None]                                    # steps into frames -(m-2) … n
         vel = (1.0 - f) * smoothed(vel) + f * smoothed(vel, 0.25)
         vel = (1.0 - f) * vel + f * smooth_sideways(vel, expected, fps / (2.0 * cycle_hz))
+        if weights is not None:
+            # While the ramp still changes a run's speed (its share of the requested walk
+            # below RAMP_SPEED_SHARE), the speed along the walk is smoothed over a step too:
+            # each stance of the ramp kept its own speed, and the speed jumped between them
+            # within the few frames of a change of foot (35_05 into a run at 1.6 over three
+            # steps: 3.7 → 5.1 m/s in four frames, 4.0 × the walker's p99 where the run's own
+            # largest after the ramp is 2.45 ×); the legs hold the stance foot (pin_feet).
+            # After the ramp nothing changes (docs/gait.md, *Stop 42, joins*).
+            share = np.concatenate([np.zeros(m - 1), weights])
+            g = f[:, 0] * np.minimum(1.0, (1.0 - share) / (1.0 - RAMP_SPEED_SHARE))
+            norm = np.linalg.norm(expected, axis=1, keepdims=True)
+            ahead = np.where(norm > 0, expected / np.maximum(norm, 1e-12), 0.0)
+            along = np.sum(vel * ahead, axis=1)
+            vel = vel + (g * (smooth(along, fps / (2.0 * cycle_hz)) - along))[:, None] * ahead
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
         vel[m - 2]

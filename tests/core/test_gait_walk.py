@@ -160,6 +160,23 @@ def acceleration(rows, spacing=3):
     return np.linalg.norm(acc[:, :3], axis=1), np.linalg.norm(acc[:, 6:], axis=1)
 
 
+@pytest.mark.parametrize("cadence", [0.7, 1.0, 1.3, 1.6])
+def test_a_ramp_into_a_run_stays_within_the_run_s_own_accelerations(walker, walker_08,
+                                                                   cadence):
+    """Issue 25 §3, stop 42: the ramp into a run raises its speed stance by stance; each stance
+    kept its own speed and the speed jumped between them within the few frames of a change of
+    foot (08_04 at 0.7: the ramp's largest root acceleration 1.06 × the run's own largest
+    after it; 35_05 at 1.6 in the sweep: 4.0 × the walker's p99 against the run's 2.45). While
+    the ramp still changes the speed, the run's speed along the walk is smoothed over a step:
+    over the whole ramp the root accelerates no more than the run does once there."""
+    for w in (walker, walker_08):
+        ref = w[2]
+        out = walk(w, "run", cadence=cadence)
+        root, _ = acceleration(np.vstack([ref, out.dofs]))
+        end = len(ref) + int(np.ceil(out.blend_frames)) - 3        # stencils centred in it
+        assert root[len(ref) - 6:end + 1].max() <= root[end + 1:].max()
+
+
 def join_over_capture_p99(ref, out, step, walker_id="35_01", angles=False):
     """The root's (or the joint angles') largest acceleration over the join (every stencil that
     reaches a predicted frame up to the one centred ``step`` frames after the last reference
