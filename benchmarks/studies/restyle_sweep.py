@@ -30,7 +30,7 @@ def main(argv=None):
     parser.add_argument("--output", default=None, help="JSON of every case's figures")
     args = parser.parse_args(argv)
     model = GaitModel.load(args.stock)
-    total, failed, beyond, by_style, either, blocks = 0, 0, 0, 0, 0, {}
+    total, failed, beyond, by_style, either, whole, blocks = 0, 0, 0, 0, 0, 0, {}
     for walker in WALKERS:
         block = R.run_restyle(model=model, walker=walker)
         blocks[walker] = block
@@ -40,6 +40,7 @@ def main(argv=None):
         beyond += s["cases"] - s["met_with_join_vs_steady"]
         by_style += s["cases"] - s["met_with_join_vs_style"]
         either += s["cases"] - s["met_with_join_vs_either"]
+        whole += s["cases"] - s["met_with_join_over_the_ramp"]
         print(f"{walker}: {s['cases'] - s['met']} of {s['cases']} failed: {s['failed']}")
         for style, by in block["cases"].items():
             for cad, r in by.items():
@@ -56,7 +57,8 @@ def main(argv=None):
     print(f"sweep: {failed} of {total} cases failed ({beyond} with the join judged against the "
           f"larger of the capture's 99th percentile and the walk's own largest after it; "
           f"{by_style} against the requested style's captured walks' 99th percentile, {either} "
-          f"against the larger of the walker's and the style's)")
+          f"against the larger of the walker's and the style's; {whole} with stop 36-40's join, "
+          f"the whole ramp against the walker's)")
     if args.output:
         Path(args.output).write_text(json.dumps(blocks, indent=1, default=float))
 

@@ -103,7 +103,8 @@ def reference_floor(skeleton, dofs, fps, feet=CMU_FEET, root_frame=None):
     return contact_height(foot_tracks(skeleton, dofs, fps, feet, root_frame))
 
 
-def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames=0.0):
+def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames=0.0,
+                     level_frames=None):
     """Root heights that keep the lower foot on the floor, flight kept (module docstring).
 
     Parameters
@@ -119,6 +120,13 @@ def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames
         σ (frames) of a Gaussian smoothing. The required height peaks where the lower foot
         changes; smoothing would lower the peaks and sink the feet, so the required height is
         first replaced by its running maximum over ±σ (the flight lift is smoothed as it is).
+    level_frames : array_like, shape (N,), bool, optional
+        The frames whose gap gives the contact level (the clearance's
+        ``CLEARANCE_PERCENTILE``-th percentile; default every frame). A walk that ramps into
+        a run takes it from the run alone (:func:`.walk._plant`): over every frame, the walk
+        at the ramp's start moved the run's contact level with the ramp's length, and the run
+        after the ramp lifted 0.3 cm higher after a two-step ramp than after one, enough to
+        change which of its frames fly (``docs/gait.md``, *Stop 42, joins*).
 
     Returns
     -------
@@ -129,7 +137,8 @@ def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames
     rel = np.asarray(relative_z, dtype=float)
     required = float(floor) - rel.min(axis=1)
     gap = np.asarray(model_heights, dtype=float) - required
-    clearance = np.maximum(gap - np.percentile(gap, CLEARANCE_PERCENTILE), 0.0)
+    level = gap if level_frames is None else gap[np.asarray(level_frames, dtype=bool)]
+    clearance = np.maximum(gap - np.percentile(level, CLEARANCE_PERCENTILE), 0.0)
     eps = CLEARANCE_SOFTNESS
     lift = np.asarray(flight, dtype=float) * (clearance - eps * (1.0 - np.exp(-clearance / eps)))
     if smooth_frames > 0:
@@ -138,7 +147,8 @@ def grounded_heights(relative_z, model_heights, floor, flight=1.0, smooth_frames
     return required + lift, lift
 
 
-def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, landing=False):
+def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, landing=False,
+                     steady_frames=None):
     """Horizontal root velocities that keep the stance foot still (module docstring).
 
     Parameters
@@ -156,6 +166,15 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, la
     lift : array_like, shape (N + 1,), optional
         The flight part of the heights (:func:`grounded_heights`): a frame lifted by more than
         ``CONTACT_BAND`` is in flight, the feet are judged without the lift otherwise.
+    steady_frames : float, optional
+        With ``landing``: a landing foot's swing over the floor is measured against the run's
+        steady speed, the median speed of the contact frames within ``steady_frames`` (one
+        cycle) centred on it, instead of the speed of the last contact frame (default).
+        (:func:`.walk._plant` over a ramp into a run: the last contact frame's is the take-off
+        foot's, slowed by its push-off, and a landing foot still swinging at 1-2 m/s read as
+        landed after some take-offs and not after others, by how the frames fell on the
+        cycle: the run after a two-step ramp slowed to 0.35 of its median where after one it
+        slowed to 0.43; ``docs/gait.md``, *Stop 42, joins*.)
     landing : bool
         A run's changes of foot (frames where ``lift`` is above 0; needs ``expected``): a foot
         that comes down after a flight, or takes over from the other foot without one, carries
@@ -192,7 +211,9 @@ def travel_from_legs(relative, heights, floor, fps, expected=None, lift=None, la
         # longer says where the root goes: those frames are flight too.
         rising = flying & (np.take_along_axis(above, foot[:, None], axis=-1)[:, 0]
                            >= CONTACT_BAND)
-        late = contact & ~_landed(along, contact & ~rising, flying, foot)
+        steady = None if steady_frames is None else \
+            _steady_speed(along, contact & ~rising, steady_frames)
+        late = contact & ~_landed(along, contact & ~rising, flying, foot, steady)
         landed = _interpolate_flight(vel.copy(), contact & ~late) if late.any() else None
         _interpolate_flight(vel, contact)
         if landed is not None:
@@ -313,7 +334,19 @@ def _interpolate_flight(vel, contact):
     return flat_vel.reshape(vel.shape)
 
 
-def _landed(along, contact, flying, foot=None):
+def _steady_speed(along, contact, frames):
+    """(N,) the median of ``along`` (N,) over the ``contact`` frames (N, bool) within
+    ``frames`` centred on each frame (the frame's own where there are none)."""
+    idx = np.flatnonzero(contact)
+    half = max(1, int(round(0.5 * float(frames))))
+    k = np.arange(len(along))
+    lo = np.searchsorted(idx, k - half)
+    hi = np.searchsorted(idx, k + half, side="right")
+    return np.array([np.median(along[idx[a:b]]) if b > a else along[i]
+                     for i, (a, b) in enumerate(zip(lo, hi))])
+
+
+def _landed(along, contact, flying, foot=None, steady=None):
     """(N,) bool: the contact frames (N,) where the foot down carries the walker, a run's
     landings moved to where the landing foot has stopped.
 
@@ -330,7 +363,9 @@ def _landed(along, contact, flying, foot=None):
     relative to the hips, and the root following it stopped dead and went on at 3 m/s within
     a few frames (54 m/s² on CMU 07_04 at cadence 1.6, docs/gait.md, *Stop 39, runs*). A
     landing foot that implies a faster root (pushing off at once), or a stance slower
-    throughout (a run slowing down), carries as before.
+    throughout (a run slowing down), carries as before. ``steady`` (N,), optional: the root
+    speed the landing foot's swing is measured against instead of ``along[last]``
+    (:func:`travel_from_legs`'s ``steady_frames``).
     """
     out = np.asarray(contact, dtype=bool).copy()
     last = None
@@ -339,7 +374,7 @@ def _landed(along, contact, flying, foot=None):
             continue
         if last is not None and flying[i] \
                 and (not out[i - 1] or (foot is not None and foot[i] != foot[last])) \
-                and along[last] - along[i] > SWING_SPEED \
+                and (along[last] if steady is None else steady[i]) - along[i] > SWING_SPEED \
                 and i + 1 < len(out) and along[i + 1] > along[i]:
             out[i] = False
             continue

@@ -5,14 +5,17 @@ way an animator would keep it (``docs/gait.md``, *Restyle and retime*).
 last observed frame) and a :class:`WalkRequest` into DOF rows of the walker's skeleton:
 
 1. **A smooth join** (:func:`.prediction.predict_transition`): the observed walk turns into the
-   requested style and cadence over one step (``blend_steps``; a smootherstep, so velocity and
-   acceleration stay continuous at the first predicted frame). Where the style or cadence
-   changes and a trial solve's root accelerates over the join beyond ``JOIN_TOLERANCE`` ×
-   the reference frames' own 90th percentile (the stand-in for the capture's 99th), a longer
-   join is tried (``JOIN_SCALES``, up to two steps; not toward or from a run) and the
-   shortest that is within it, else the mildest, kept: the stance foot's place relative to
-   the hips changes with the style under the planted root (``Δp s̈``, ``docs/gait.md``,
-   *Stop 37: the join's jolt*, *Stop 38*).
+   requested style and cadence (and, for a run, speed) over a ramp of one step or more
+   (``blend_steps``; a smootherstep, so velocity and acceleration stay continuous at the first
+   predicted frame). Where the style or cadence changes and a trial solve's root accelerates
+   over the join (the first step of the observed walk after the last reference frame) beyond
+   ``JOIN_TOLERANCE`` × the reference frames' own 90th percentile (the stand-in for the
+   capture's 99th), a longer ramp is tried (``JOIN_SCALES``, up to three steps; runs too) and
+   the shortest that is within it, else the mildest, kept: the larger the change, the longer
+   the ramp, as a person takes a few steps to walk much faster or to break into a run (the
+   stance foot's place relative to the hips changes with the style under the planted root,
+   ``Δp s̈``, and the speed with the cadence, ``Δv ṡ``: both fall with the ramp's length;
+   ``docs/gait.md``, *Stop 37: the join's jolt*, *Stop 38*, *Stop 41, joins*).
 2. **Retime as a person would**: a cadence factor moves the style along the model's
    ``cadence_style`` direction (how the training walkers' styles change with their cadence:
    longer strides and wider swings when they walk faster), ``style += log(cadence) ×
@@ -56,14 +59,14 @@ GRAVITY = 9.81
 # Froude number v² / (g × hip height) of the walk→run transition (about 0.5 in people): below
 # the first value the lower foot is always down, above the second a run's flight is kept.
 FLIGHT_FROUDE = (0.4, 0.6)
-# A join toward or from a run keeps its one step (people change into a run within a step): a
-# run is a walk above the transition's own Froude number, 0.5. Stop 37 took FLIGHT_FROUDE[0],
-# which also counted the fastest walks (long stride at 1.6: 0.41-0.44 on the sweep's walkers;
-# the runs 0.91 and above) and left them their one-step jolt (docs/gait.md, *Stop 38*).
-RUN_FROUDE = 0.5
+FLIGHT_SAME = 1e-9           # a share of flight that varies less than this is one share
 MIN_TRAVEL = 0.1             # m: a path shorter than this over a cycle has no direction to keep
 JOIN_SPACING_S = 0.05        # s: second differences over this (mocap's frame-to-frame are noise)
-JOIN_SCALES = (1.0, 1.5, 2.0)  # lengths of the join tried against a jolt (× blend_steps)
+# Lengths of the ramp tried against a jolt (× blend_steps). Until stop 41 a run kept one step
+# and the ramps were judged over their whole length, which ends in the requested walk: a walk
+# retimed to 1.6 accelerates beyond the walker's own p99 everywhere, so no ramp could meet it
+# there, and the join into a run at 1.6 needed 8 m/s² for its speed alone (*Stop 41, joins*).
+JOIN_SCALES = (1.0, 1.5, 2.0, 3.0)
 # A trial join is kept when its root's largest acceleration is within the stand-in for the
 # capture's 99th percentile: JOIN_TOLERANCE × the reference frames' JOIN_QUANTILE-th
 # percentile of their own root accelerations (same stencils). Over 50 windows of 1.67 s
@@ -257,26 +260,28 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
     floor = reference_floor(skeleton, reference, fps, feet, model.root_frame) if planted \
         else None
 
-    def keyed(obs, speed, legs=True):
+    def keyed(obs, speed, weights, legs=True):
         rows = dofs_from_observations(model, obs, last[cols], fps, request.stride,
                                       request.travel)
         out = np.tile(last, (len(rows), 1))
         out[:, cols] = rows
         if planted:
             _plant(skeleton, reference, out, fps, floor, request, speed, feet, names,
-                   model.root_frame, omega_to * fps / (2.0 * np.pi), legs)
+                   model.root_frame, omega_to * fps / (2.0 * np.pi), legs,
+                   cycle_hz_from=omega * fps / (2.0 * np.pi), weights=weights)
         return out
 
     if planted and keep_path and len(JOIN_SCALES) > 1 \
             and (request.w is not None or omega_to != omega):
-        # A jolt at the join (docs/gait.md, *Stop 37: the join's jolt*, *Stop 38*): of a few
-        # longer blends, the shortest whose join is within the stand-in for the capture's
-        # 99th percentile (JOIN_TOLERANCE), else the mildest.
+        # A jolt at the join (docs/gait.md, *Stop 37: the join's jolt*, *Stop 38*, *Stop 41*):
+        # of a few longer ramps, the shortest whose join is within the stand-in for the
+        # capture's 99th percentile (JOIN_TOLERANCE), else the mildest.
         best = None
-        for k, scale in enumerate(JOIN_SCALES):
-            trial = (obs, weights, speed) if k == 0 else channels(blend * scale)
-            ratio = _join_ratio(reference, keyed(trial[0], trial[2], legs=False), names, fps,
-                                floor, trial[2], blend * scale)
+        for scale in JOIN_SCALES:
+            trial = (obs, weights, speed) if scale == 1.0 else channels(blend * scale)
+            ratio = _join_ratio(reference, keyed(trial[0], trial[2], trial[1], legs=False),
+                                names, fps,
+                                blend)
             if best is None or ratio < best[0]:
                 best = (ratio, scale, trial)
             if ratio <= JOIN_TOLERANCE:
@@ -293,33 +298,31 @@ def predict_walk(model, skeleton, reference, fps, state, w, n_frames, request=Wa
         # root's, and the legs' inverse kinematics (`pin_feet`, two thirds of a solve) never
         # moves the root: the first solve stops before it (`_plant(..., legs=False)`), and
         # the root it gives is the full solve's, bit for bit (tests/core/test_gait_walk.py).
-        drift = _travel_drift(reference, keyed(obs, speed, legs=False), names, omega,
+        drift = _travel_drift(reference, keyed(obs, speed, weights, legs=False), names, omega,
                               omega_to, blend)
         if drift:
             obs[:, yaw] -= drift * np.diff(np.concatenate(([0.0], weights))) * fps
-    out = keyed(obs, speed)
+    out = keyed(obs, speed, weights)
     return WalkResult(out[:n_keyed], floor, w_to, float(omega_to), float(blend))
 
 
-def _join_ratio(reference, trial, names, fps, floor, speed, blend):
+def _join_ratio(reference, trial, names, fps, join):
     """The root's largest acceleration over the join of a trial solve (second differences
     over ``JOIN_SPACING_S``, every stencil that reaches a predicted frame up to the one
-    centred on the blend's end) over the reference frames' ``JOIN_QUANTILE``-th percentile
-    of their own (× ``JOIN_TOLERANCE`` that stands for the capture's 99th percentile); 0
-    where either walk runs (Froude number above ``RUN_FROUDE``: people change into a
-    run within a step) or the reference is too short to say."""
+    centred ``join`` frames after the last reference frame: the first step of the observed
+    walk, whatever the ramp's length) over the reference frames' ``JOIN_QUANTILE``-th
+    percentile of their own (× ``JOIN_TOLERANCE`` that stands for the capture's 99th
+    percentile); 0 where the reference is too short to say."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     h = max(1, int(round(JOIN_SPACING_S * fps)))
-    leg = max(float(np.mean(reference[:, tz])) - floor, 0.1)
-    if max(speed[0] ** 2, speed[-1] ** 2) / (GRAVITY * leg) > RUN_FROUDE \
-            or len(reference) < 2 * h + 1:
+    if len(reference) < 2 * h + 1:
         return 0.0
     rows = np.vstack([reference[:, [tx, ty, tz]], trial[:, [tx, ty, tz]]])
     acc = np.linalg.norm(rows[2 * h:] - 2 * rows[h:-h] + rows[:-2 * h], axis=1) * (fps / h) ** 2
     n_ref = len(reference)
     bound = np.percentile(acc[:n_ref - 2 * h], JOIN_QUANTILE)
-    join = acc[n_ref - 2 * h:n_ref + int(np.ceil(blend)) - h + 1].max()
-    return float(join / bound) if bound > 0.0 else 0.0
+    window = acc[n_ref - 2 * h:n_ref + int(np.ceil(join)) - h + 1]
+    return float(window.max() / bound) if bound > 0.0 and len(window) else 0.0
 
 
 def _travel_direction(rows, tx, ty, a, b):
@@ -370,13 +373,17 @@ def _keep_heading(model, reference, names, yaw_rate, fps, omega, omega_to, weigh
 
 
 def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, frame,
-           cycle_hz=SMOOTH_CYCLE_HZ, legs=True):
+           cycle_hz=SMOOTH_CYCLE_HZ, legs=True, cycle_hz_from=None, weights=None):
     """Solve the root's height (always) and horizontal travel (``request.plant``) from the
     legs, in place on ``out``; the reference's root height and velocity fade into them.
     ``cycle_hz``: the predicted walk's cycles per second (the travel is smoothed over a fixed
     share of its cycle). ``legs``: then keep the feet on their spots (lift and inverse
     kinematics of the legs); False solves the root alone (every root DOF as with True: the
-    legs' part never changes them)."""
+    legs' part never changes them). ``cycle_hz_from`` and ``weights`` (n,): the observed
+    walk's cycles per second and each predicted frame's share of the requested walk (the
+    ramp's ``s_k``): where the cadence changes, each frame's travel is smoothed over the share
+    of its own walk's cycle, the observed one's at the ramp's start (without them, or at one
+    cadence, the requested walk's throughout, as before stop 42)."""
     tx, ty, tz = (names.index(n) for n in ROOT_DOF_NAMES[:3])
     m = min(len(reference), VELOCITY_FRAMES + 1)
     rows = np.vstack([reference[-m:], out])                     # frames -(m-1) … n
@@ -385,7 +392,14 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     leg = float(np.mean(reference[:, tz])) - floor
     froude = np.concatenate([np.full(m, speed[0]), speed]) ** 2 / (GRAVITY * max(leg, 0.1))
     flight = smootherstep((froude - FLIGHT_FROUDE[0]) / (FLIGHT_FROUDE[1] - FLIGHT_FROUDE[0]))
-    heights, lift = grounded_heights(rel[:, :, 2], model_h, floor, flight, SMOOTH_S * fps)
+    # A ramp between a walk and a run (a share of flight that changes): the run's contact
+    # level from the run alone, and its landings measured against its own steady speed
+    # (below), so that the run after the ramp is the same whatever the ramp's length
+    # (docs/gait.md, *Stop 42, joins*). One share throughout: as before, bit for bit.
+    ramp = bool(np.ptp(flight) > FLIGHT_SAME)
+    level = flight >= flight.max() - FLIGHT_SAME if ramp else None
+    heights, lift = grounded_heights(rel[:, :, 2], model_h, floor, flight, SMOOTH_S * fps,
+                                     level)
     k = np.maximum(np.arange(len(rows)) - (m - 1), 0)          # 0 = last reference frame
     fade = 1.0 - smootherstep(k * (1.0 / (JOIN_S * fps)))
     span = m - 1
@@ -412,19 +426,49 @@ def _plant(skeleton, reference, out, fps, floor, request, speed, feet, names, fr
     # root stopped dead at every landing, 54 m/s² at cadence 1.6; docs/gait.md, *Stop 39,
     # runs*), at any change of foot, with a flight frame or not (*Stop 40, restyle*). Without a
     # flight lift (a walk below FLIGHT_FROUDE) nothing changes.
-    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True)
+    vel, carrying = travel_from_legs(rel, solved_h, floor, fps, expected, lift, landing=True,
+                                     steady_frames=fps / cycle_hz if ramp else None)
     # (velocities and carrying of the steps into frames -(m-2) … n)
+
+    def sigma_of(hz):
+        return SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / hz, SMOOTH_MAX_SCALE)
+
+    sigma = sigma_of(cycle_hz)
+    sigma_from = sigma if cycle_hz_from is None or weights is None else sigma_of(cycle_hz_from)
+    # The ramp's share of the requested walk of the steps into frames -(m-2) … n.
+    s = np.concatenate([np.zeros(m - 1), weights])[:, None] if sigma_from != sigma else None
+
+    def smoothed(vel, scale=1.0):
+        # Until stop 42 the whole prediction took the requested walk's σ: a walk retimed to
+        # 1.6 smoothed the observed walk at the ramp's start over 0.6 of its own, and on a
+        # ramp of three steps its first change of foot jolted (stiff at 1.6 on 07_04: 1.11 ×
+        # the walker's p99, its forward acceleration 5 m/s² where the style had barely begun
+        # to change; docs/gait.md, *Stop 42, joins*).
+        if s is None:
+            return smooth(vel, sigma * scale)
+        return (1.0 - s) * smooth(vel, sigma_from * scale) + s * smooth(vel, sigma * scale)
+
     # A run changes feet across a flight (its velocity interpolated there): little to smooth,
     # and smoothing would spread the flight's speed into the stance (the foot would slide).
-    vel = smooth(vel, SMOOTH_S * fps * min(SMOOTH_CYCLE_HZ / cycle_hz, SMOOTH_MAX_SCALE)
-                 * (1.0 - 0.75 * float(np.mean(flight))))
-    run_share = float(np.mean(flight))
-    if run_share > 0.0:
-        # A run's legs say next to nothing of its sideways sway (planting.smooth_sideways):
-        # the planted root weaved 11-18 cm from side to side (the captured runs 1.2-1.9 cm).
-        # Smoothed over a step (σ, scaled by the share of flight; docs/gait.md, *Stop 40,
-        # restyle*).
-        vel = smooth_sideways(vel, expected, run_share * fps / (2.0 * cycle_hz))
+    if not ramp:
+        # One share of flight throughout (a walk, a run or a jog continued: the blend of a style
+        # with itself varies it by round-off only): as before stop 41, bit for bit.
+        run_share = float(np.mean(flight))
+        vel = smoothed(vel, 1.0 - 0.75 * run_share)
+        if run_share > 0.0:
+            vel = smooth_sideways(vel, expected, run_share * fps / (2.0 * cycle_hz))
+    else:
+        # Each frame is smoothed as much as its own share of flight says: a walk's σ where the
+        # ramp is still a walk, a quarter of it where it runs (flight 1); and a run's legs say
+        # next to nothing of its sideways sway (planting.smooth_sideways: the planted root
+        # weaved 11-18 cm from side to side, the captured runs 1.2-1.9 cm), smoothed over a
+        # step where it runs (docs/gait.md, *Stop 40, restyle*). Until stop 41 the whole
+        # prediction took the mean share of flight: the walk at the start of a ramp into a run
+        # lost most of its smoothing and its root jolted at the first change of foot (1.1-1.6
+        # × the walker's p99 on 07_04, *Stop 41, joins*).
+        f = flight[1:, None]                                    # steps into frames -(m-2) … n
+        vel = (1.0 - f) * smoothed(vel) + f * smoothed(vel, 0.25)
+        vel = (1.0 - f) * vel + f * smooth_sideways(vel, expected, fps / (2.0 * cycle_hz))
     vel = vel * request.stride
     ref_v = (reference[-1, [tx, ty]] - reference[-m, [tx, ty]]) * fps / span if span else \
         vel[m - 2]
