@@ -1104,6 +1104,41 @@ def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, t
     assert join.max() <= p99, (join.max(), p99)
 
 
+def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene, tmp_path):
+    """Stop 42: frames 106-165 (1.75-2.75 s) of the golf set-up and swing CMU 64_06 pass every
+    check of the legs and the root; Predict Gait refuses them for the arm swung above the
+    shoulder, naming the arm and its frames in the scene's numbering (the core's check of the
+    same rows, counted from the range's first frame), and changes nothing."""
+    from core.gait.checks import raised_arm
+
+    asf = read_asf(cmu_path("not_gaits/64.asf"))
+    values = read_amc(cmu_path("not_gaits/64_06.amc"), asf).values
+    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
+    path = tmp_path / "64_06.amc"
+    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
+                                   bone_order=(), fps=FPS, path=str(path)))
+    (tmp_path / "64.asf").write_bytes(cmu_path("not_gaits/64.asf").read_bytes())
+    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
+    obj = bpy.context.active_object
+    counts, keys = datablock_counts(), snapshot(obj)
+    model = load_stock_library()
+    names = asf_to_skeleton(asf).dof_names()
+    cols = [list(names).index(n) for n in model.dof_names]
+    side, a, b, _ = raised_arm(model, observations_from_dofs(model, values[105:165, cols],
+                                                             model.dof_names, FPS))
+    with pytest.raises(RuntimeError) as refusal:
+        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=106,
+                                              frame_end=165, horizon=1.0)
+    found = re.search(r"An arm is raised above the shoulder in frames 106–165 of (\S+) \(the "
+                      r"(left|right) arm in frames (\d+)–(\d+), up to \d+° from hanging\): a "
+                      r"throw, a swing or a dance move", str(refusal.value))
+    assert found, str(refusal.value)
+    assert found.group(1) == obj.name and found.group(2) == side
+    assert abs(int(found.group(3)) - (106 + a)) <= 1 and abs(int(found.group(4)) - (106 + b)) <= 1
+    assert datablock_counts() == counts
+    assert_keys_unchanged(obj, keys)
+
+
 def test_a_restyle_into_a_run_ramps_in_without_a_jolt_through_the_operator(scene, tmp_path):
     """Issue 25 §3, stop 41: CMU 35_01 restyled to a run at cadence 1.3 changed into it over one
     step (a run always did): the hips jolted at about 3× the walker's capture p99 over that
