@@ -55,9 +55,10 @@ __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
                              # (of each foot's own, for an observed walk: stop 42)
-MIN_STANDING = 0.2           # an observed window with a foot standing in fewer of its steps
+MIN_STANDING = 0.15          # an observed window with a foot standing in fewer of its steps
                              # (planting.standing_share) is read with one floor (stop 42, keys
-                             # only: tracked walks 0.34 or more, four keys' interpolation 0.08-0.10)
+                             # only: four keys' interpolation 0.08-0.10, captured walks 0.19 or
+                             # more, tracked 0.32 or more)
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
 SECANT_STEPS = 6
 SPEED_TOLERANCE = 1e-4       # m/s
