@@ -44,7 +44,7 @@ import numpy as np
 
 from .em import offset_statistics, scaled_observations
 from .ekf import make_context
-from .planting import MIN_EXPECTED, foot_floors, legs_velocities, relative_feet
+from .planting import MIN_EXPECTED, foot_floors, legs_velocities, relative_feet, standing_share
 from .prediction import dofs_from_observations, predict_styles
 from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
 from .root_travel import _directions as heading_directions
@@ -55,6 +55,10 @@ __all__ = ["LegTravelFit", "fit_leg_travel", "legs_speed", "reference_legs_speed
 
 FLOOR_PERCENTILE = 20        # the floor of a cycle: this percentile of the lower foot's height
                              # (of each foot's own, for an observed walk: stop 42)
+MIN_STANDING = 0.15          # an observed window with a foot standing in fewer of its steps
+                             # (planting.standing_share) is read with one floor (stop 42, keys
+                             # only: four keys' interpolation 0.08-0.10, captured walks 0.19 or
+                             # more, tracked 0.32 or more)
 GRADIENT_STEP = 1e-2         # style units: central differences of s(w) (|w| is 12-23 in stock)
 SECANT_STEPS = 6
 SPEED_TOLERANCE = 1e-4       # m/s
@@ -112,7 +116,10 @@ def legs_speed(skeleton, rows, fps, n_steps, feet=CMU_FEET, root_frame=None, obs
         walk's two stances never stand at one height, and with one floor a stance a
         centimetre or two above the other read as flight), and a foot moving over the ground
         faster than ``planting.SWING_SPEED`` with the root at its own velocity (a landing
-        foot still swinging forward, a tracked foot slipping) does not carry. False (a
+        foot still swinging forward, a tracked foot slipping) does not carry; rows whose feet stand (near
+        their floor, slower than ``planting.STAND_SPEED`` over the ground) in fewer than
+        ``MIN_STANDING`` of their steps (an interpolation of a few keyed poses: no observed
+        stances; stop 42, *keys only*) are read as with False. False (a
         style's predicted cycle): the reading ``walk.predict_walk``'s planting makes of it,
         one floor, no root velocity.
     """
@@ -137,16 +144,26 @@ def _legs_speeds(rel, root, fps, frame, observed=False):
     ahead = heading_directions(0.5 * (heading[:, 1:] + heading[:, :-1]), frame)[0]
     along = np.mean(np.sum(np.diff(root[..., :2], axis=-2) * fps * ahead, axis=-1), axis=-1)
     sense = np.where(along <= -MIN_EXPECTED, -1.0, 1.0)
+    expected = sense[:, None, None] * ahead
+    one = np.ones(n_windows, dtype=bool)        # the windows read with one floor
+    speeds = np.empty(n_windows)
     if observed:                                            # stop 42: each foot's own floor
         floor = foot_floors(rel[..., 2], heights, FLOOR_PERCENTILE)             # (B, F)
-        vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead,
-                                    per_foot=True,
-                                    root_velocity=np.diff(root[..., :2], axis=-2) * fps)
-    else:
-        floor = np.percentile(np.min(rel[..., 2], axis=-1) + heights, FLOOR_PERCENTILE,
-                              axis=-1)
-        vel, _, _ = legs_velocities(rel, heights, floor, fps, sense[:, None, None] * ahead)
-    return np.array([np.linalg.norm(v.mean(axis=0)) for v in vel])
+        velocity = np.diff(root[..., :2], axis=-2) * fps
+        # Stop 42, keys only: a window whose feet (nearly) never stand is no observed walk's
+        # stances (an interpolation of a few keyed poses): read with one floor, as a style.
+        one = standing_share(rel, heights, floor, fps, velocity) < MIN_STANDING
+        per = ~one
+        if per.any():
+            vel, _, _ = legs_velocities(rel[per], heights[per], floor[per], fps, expected[per],
+                                        per_foot=True, root_velocity=velocity[per])
+            speeds[per] = [np.linalg.norm(v.mean(axis=0)) for v in vel]
+    if one.any():
+        floor = np.percentile(np.min(rel[one][..., 2], axis=-1) + heights[one],
+                              FLOOR_PERCENTILE, axis=-1)
+        vel, _, _ = legs_velocities(rel[one], heights[one], floor, fps, expected[one])
+        speeds[one] = [np.linalg.norm(v.mean(axis=0)) for v in vel]
+    return speeds
 
 
 def reference_legs_speed(skeleton, reference, fps, n_steps, feet=CMU_FEET, root_frame=None):

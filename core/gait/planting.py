@@ -43,7 +43,7 @@ from ..kinematics.contacts import runs as _runs, smootherstep as smootherstep_we
 from ..kinematics.fk import chain_frames, chain_kinematics, dof_columns
 from .walk_figures import CMU_FEET, contact_height, foot_tracks
 
-__all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "foot_floors",
+__all__ = ["CLEARANCE_SOFTNESS", "CONTACT_BAND", "WEIGHT_SCALE", "foot_floors", "standing_share",
            "grounded_heights", "legs_velocities", "reference_floor", "relative_feet", "smooth_sideways",
            "travel_from_legs"]
 
@@ -57,6 +57,8 @@ MIN_EXPECTED = 0.1          # m/s: slower expected travel gives no direction
 BACKWARD_TOLERANCE = 0.3    # m/s: a foot implying the root going back this fast is doubtful
 SWING_CLEARANCE = 0.03     # m: a swinging foot passes at least this high above the floor
 SWING_SPEED = 0.5           # m/s: a foot near the floor moving faster than this swings
+STAND_SPEED = 0.1           # m/s: a foot near its floor moving slower than this over the
+                            # ground stands (stop 42, keys only)
 PIN_RAMP_S = 0.05           # s: a planted foot is pinned fully after this, released before
 HOLD_LEVEL_S = 0.05         # s: a landing foot is held level (x, y) this much earlier
 
@@ -296,6 +298,43 @@ def foot_floors(relative_z, heights, percentile):
     """
     z = np.asarray(relative_z, dtype=float) + np.asarray(heights, dtype=float)[..., None]
     return np.percentile(z, percentile, axis=-2)
+
+
+def standing_share(relative, heights, floor, fps, root_velocity):
+    """The share of a sequence's steps in which some foot stands (stop 42, *keys only*,
+    ``docs/gait.md``): within ``CONTACT_BAND`` of its own floor (the step's mean height) and
+    moving over the ground, the root at its own velocity, slower than ``STAND_SPEED``.
+
+    An observed walk's stance foot stands still on the floor (a captured foot, a tracked foot
+    the foot lock pins): some foot stands in a third of a tracked walk's steps or more. The
+    feet of a walk interpolated between a few keyed poses slide through every stance: on the
+    bench clip's four keys a foot stood in 8-10 % of the steps.
+
+    Parameters
+    ----------
+    relative : array_like, shape (B…, N + 1, F, 3)
+        Contact points relative to the root, metres.
+    heights : array_like, shape (B…, N + 1)
+        Root heights (m).
+    floor : array_like, shape (B…, F)
+        Each foot's own floor (:func:`foot_floors`).
+    fps : float
+    root_velocity : array_like, shape (B…, N, 2)
+        The root's horizontal velocity (m/s).
+
+    Returns
+    -------
+    ndarray, shape (B…,)
+        0 … 1.
+    """
+    rel = np.asarray(relative, dtype=float)
+    z = rel[..., 2] + np.asarray(heights, dtype=float)[..., None] - np.asarray(
+        floor, dtype=float)[..., None, :]
+    above = np.maximum(0.5 * (z[..., 1:, :] + z[..., :-1, :]), 0.0)            # (B…, N, F)
+    ground = (np.diff(rel[..., :2], axis=-3) * fps
+              + np.asarray(root_velocity, dtype=float)[..., None, :])        # (B…, N, F, 2)
+    stands = (above < CONTACT_BAND) & (np.sum(ground ** 2, axis=-1) < STAND_SPEED ** 2)
+    return stands.any(axis=-1).mean(axis=-1)
 
 
 def legs_velocities(relative, heights, floor, fps, expected=None, lift=None, per_foot=False,

@@ -7,10 +7,12 @@ import pytest
 from core.gait import adapt, observations_from_dofs
 from core.gait.ekf import make_context
 from core.gait.em import scaled_observations
-from core.gait.leg_travel import (FLOOR_PERCENTILE, _legs_speeds, fit_leg_travel, legs_speed,
+from core.gait import leg_travel
+from core.gait.leg_travel import (FLOOR_PERCENTILE, MIN_STANDING, _legs_speeds, fit_leg_travel, legs_speed,
                                   reference_legs_speed, robust_spread, style_legs_speed,
                                   style_precision, styles_legs_speeds)
-from core.gait.planting import CONTACT_BAND, foot_floors, legs_velocities
+from core.gait.planting import (CONTACT_BAND, foot_floors, legs_velocities, relative_feet,
+                                standing_share)
 from core.gait.root_travel import RootFrame
 from core.gait.prediction import dofs_from_observations, predict, predict_styles
 from core.gait.walk import WalkRequest, predict_walk
@@ -311,3 +313,51 @@ def test_a_foot_down_before_it_has_stopped_does_not_carry_an_observed_walk():
     ahead = np.tile([1.0, 0.0], (cycle, 1))
     by_height, _, _ = legs_velocities(rel[w], root[w, 2], floors, fps, ahead, per_foot=True)
     assert abs(by_height[:, 0].mean() - true[0]) > 0.01
+
+
+def _keyed(rows, step):
+    """``rows`` keyed every ``step`` rows and interpolated between the keys by cubic Hermite
+    curves with Catmull-Rom tangents (the keys' central differences, one-sided at the ends):
+    like Blender's Bézier keys with automatic handles, a smooth curve through the keys."""
+    keys = np.asarray(rows)[::step]
+    tangents = np.gradient(keys, axis=0)
+    s = (np.arange(step) / step)[:, None]
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, 3 * s**2 - 2 * s**3, s**3 - s**2
+    pieces = [h00 * keys[i] + h10 * tangents[i] + h01 * keys[i + 1] + h11 * tangents[i + 1]
+              for i in range(len(keys) - 1)]
+    return np.concatenate(pieces + [keys[-1:]])
+
+
+def test_a_walk_whose_feet_never_stand_is_read_with_one_floor(walker, monkeypatch):
+    """Stop 42, *keys only* (docs/gait.md): Predict from a walk's four keys with Blender's
+    interpolation between them has feet that slide through every stance; read per foot (a
+    foot moving over the ground does not carry) the bench's keys-only metarig read 1.366 m/s
+    for a root at 1.19 and predicted 36.4 cm (21.1 with one floor). The captured walk's feet
+    stand (within ``CONTACT_BAND`` of their floor, slower than ``STAND_SPEED`` over the
+    ground) in about half its steps, its interpolation from keys every 0.5 s (the bench's
+    spacing) in almost none: the interpolation is read with one floor, as a style's cycle,
+    the capture per foot."""
+    model, skeleton, values, names, _, res = walker
+    n = int(round(2 * np.pi / res.state[0]))
+    root = [names.index(c) for c in ("root.tx", "root.ty", "root.tz")]
+    step = int(FPS / 2)
+
+    def share(rows):
+        rel, z = relative_feet(skeleton, rows), rows[:, root[2]]
+        return standing_share(rel, z, foot_floors(rel[..., 2], z, FLOOR_PERCENTILE), FPS,
+                              np.diff(rows[:, root[:2]], axis=0) * FPS)
+
+    for start in (0, 10, 37):
+        captured = values[start:start + 3 * step + 1]
+        keyed = _keyed(captured, step)
+        assert keyed.shape == captured.shape
+        np.testing.assert_array_equal(keyed[::step], captured[::step])
+        assert share(keyed[-(n + 1):]) < MIN_STANDING / 2
+        assert share(captured[-(n + 1):]) > 2 * MIN_STANDING
+        one = legs_speed(skeleton, keyed, FPS, n)
+        assert legs_speed(skeleton, keyed, FPS, n, observed=True) == one
+        per_foot = legs_speed(skeleton, captured, FPS, n, observed=True)
+        monkeypatch.setattr(leg_travel, "MIN_STANDING", 0.0)    # every window per foot
+        assert legs_speed(skeleton, captured, FPS, n, observed=True) == per_foot
+        assert legs_speed(skeleton, keyed, FPS, n, observed=True) != one
+        monkeypatch.undo()
