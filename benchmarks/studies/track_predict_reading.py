@@ -17,6 +17,12 @@ before and after the lock) for ``--frames OUT.npz [OTHER.npz ...]``, which print
 the legs' velocity Predict reads (``planting.legs_velocities``), the root's, the left foot's
 weight share and both feet's heights above their floors (each foot's own since stop 42).
 Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41* and *Stop 42*.
+
+Stop 43 (``docs/gait.md``, *Stop 43, Predict from a few keys*): ``TS_KEYS_EVERY=N`` keys every
+N frames in 'keys' mode, ``TS_SPARSE_GAP=S`` sets ``core.gait.keyed.SPARSE_KEY_GAP_S`` (inf:
+every frame observed, main's reading before stop 43), ``TS_SWAP=omega,phase,style,more`` with
+``TS_SWAP_FROM=<a 'true' capture>`` puts the true walk's cadence, phase, fitted style, offset
+and residual table into the run; ``RESULT`` also gives ``pose_cm`` (joints relative to the hips).
 """
 
 import dataclasses, os, sys, tempfile, json
