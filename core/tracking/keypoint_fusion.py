@@ -67,7 +67,7 @@ import warnings
 import numpy as np
 
 from .body_model import joint_frames_in_camera
-from .jacobians import apply_motion, motion_between, root_world_rotation
+from .jacobians import apply_motion, motion_between
 from .robust import robust_scale, robust_weights
 
 #: A root translation of this many metres off the tracked pose costs as much as one radian.
@@ -616,8 +616,7 @@ class _Frames:
     ``targets``: per camera ``(target (n, J, 2), confidence (n, J), joints (J,), points
     (J, 3))``; ``roots`` (n, 3), ``local`` (n, B, 3, 3): the prior poses."""
 
-    def __init__(self, problem, cams, targets, roots, local, weight, huber_px, sight=None,
-                 depth_weight=0.0):
+    def __init__(self, problem, cams, targets, roots, local, weight, huber_px):
         self.problem, self.cams, self.targets = problem, cams, targets
         self.prior = (roots, local)
         self.weight = np.broadcast_to(np.asarray(weight, dtype=float), (len(roots),))
@@ -626,14 +625,6 @@ class _Frames:
         self.prior_scale = np.concatenate([np.full(len(layout.translation_axes),
                                                    1.0 / ROOT_SCALE),
                                            np.ones(len(layout.rotation_joints))])
-        # The root's motion along the line of sight (``sight`` (n, P): the unit ray in the
-        # layout's components, 0 for the rotations), its prior ``depth_weight`` times heavier.
-        self.sight = None if sight is None or depth_weight <= 0 else sight
-        self.depth_weight = depth_weight
-
-    def depth_residual(self, prior_residual):
-        """(n,) the prior residual's component along the line of sight (scaled units)."""
-        return np.sum(prior_residual * self.sight, axis=1)
 
     def prior_residual(self, roots, local):
         """Prior residuals (n, P) in the layout's components, without ``sqrt(weight)``."""
@@ -672,10 +663,7 @@ class _Frames:
                                 - self.huber_px ** 2)
             total = total + np.sum(conf * loss, axis=1)
         p = self.prior_residual(roots, local)
-        total = total + self.weight * np.sum(p * p, axis=1)
-        if self.sight is not None:
-            total = total + self.weight * self.depth_weight * self.depth_residual(p) ** 2
-        return total
+        return total + self.weight * np.sum(p * p, axis=1)
 
     def jacobian(self, roots, local):
         """Per camera: d(pixels)/dx (n, J, 2, P) at the poses, x the motion from each
@@ -714,31 +702,10 @@ class _Frames:
             g += np.einsum("njap,nj,nja->np", jac, wv, r)
         scale = self.prior_scale
         h += self.weight[:, None, None] * np.diag(scale * scale)
-        p = self.prior_residual(roots, local)
-        g += self.weight[:, None] * scale * p
-        if self.sight is not None:
-            u = self.sight * scale                                           # (n, P)
-            w = self.weight * self.depth_weight
-            h += w[:, None, None] * (u[:, :, None] * u[:, None, :])
-            g += w[:, None] * u * self.depth_residual(p)[:, None]
+        g += self.weight[:, None] * scale * self.prior_residual(roots, local)
         diag = np.maximum(np.einsum("npp->np", h), 1e-12)
         h += damping[:, None, None] * (diag[:, :, None] * np.eye(n_p))
         return -np.linalg.solve(h, g[..., None])[..., 0]
-
-
-def sight_rows(problem, camera, roots, local):
-    """The unit line of sight from ``camera``'s centre to the root at each pose, in the
-    layout's components of the root's motion (:func:`.jacobians.motion_between`'s root frame;
-    0 in the rotations' components), (n, P)."""
-    pose = np.asarray(camera.world2camera, dtype=float)
-    centre = -pose[:3, :3].T @ pose[:3, 3]
-    ray = np.asarray(roots, dtype=float) - centre
-    ray = ray / np.linalg.norm(ray, axis=1, keepdims=True)
-    in_root = np.einsum("nji,nj->ni", root_world_rotation(problem.skeleton, local), ray)
-    layout = problem.layout
-    out = np.zeros((len(roots), layout.n_params))
-    out[:, :len(layout.translation_axes)] = in_root[:, layout.translation_axes]
-    return out
 
 
 def moved(problem, roots, local, x):
@@ -756,7 +723,7 @@ def moved(problem, roots, local, x):
 
 def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5,
                    huber_px=20.0, threshold=None, keep=(), iterations=15,
-                   drift_frames=None, measured_scale=None, depth_weight=0.0):
+                   drift_frames=None, measured_scale=None):
     """The tracked trajectory's in-between frames fitted to the keypoints (module docstring).
 
     Parameters
@@ -793,10 +760,6 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         :data:`DRIFT_SIGNIFICANCE` of its standard errors above 0 (not told from noise),
         fuses nothing.
         None, or a camera without ``noise_px``: ``weight`` and ``drift_frames`` as above.
-    depth_weight : float
-        With one camera's keypoints: the prior on the root's motion along that camera's line
-        of sight (from the camera's centre to the tracked root) this many times heavier than
-        on the rest of the root's motion (:func:`sight_rows`); 0: as heavy.
 
     Returns
     -------
@@ -845,11 +808,8 @@ def fuse_keypoints(problem, roots, local, keys, keypoints, weight, half_window=5
         prior_weight = weight
     else:
         prior_weight = drift_prior_weights(len(roots), keys, weight, drift_frames)[rows]
-    sight = None
-    if depth_weight > 0 and len(cams) == 1:
-        sight = sight_rows(problem, cams[0], roots[rows], local[rows])
     frames = _Frames(problem, cams, [(t[rows], c[rows], j, p) for t, c, j, p in targets],
-                     roots[rows], local[rows], prior_weight, huber_px, sight, depth_weight)
+                     roots[rows], local[rows], prior_weight, huber_px)
     r0, l0 = roots[rows].copy(), local[rows].copy()
     current = frames.cost(r0, l0)
     damping = np.full(len(rows), 1e-3)

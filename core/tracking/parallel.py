@@ -450,8 +450,7 @@ def fuse_sequence(problem, options, index, roots, local, keypoints):
     padded_l = np.concatenate([np.repeat(local[:1], h, 0), local, np.repeat(local[-1:], h, 0)])
     r, lo, fused = fuse_keypoints(problem, padded_r, padded_l, np.asarray(index) + h, cut,
                                   options.keypoint_fusion_weight, h,
-                                  measured_scale=options.keypoint_drift_scale,
-                                  depth_weight=options.keypoint_depth_weight)
+                                  measured_scale=options.keypoint_drift_scale)
     return r[h:n + h + 1], lo[h:n + h + 1], fused[h:n + h + 1]
 
 

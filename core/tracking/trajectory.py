@@ -864,8 +864,7 @@ def _fuse(problem, options, views, keypoints, scores):
                             np.repeat(traj.local[-1:], h, 0)])
     roots, local, fused = fuse_keypoints(problem, roots, local, [h, n + h], cut,
                                          options.keypoint_fusion_weight, h,
-                                         drift_frames=DRIFT_REFERENCE_S * options.frame_rate,
-                                         depth_weight=options.keypoint_depth_weight)
+                                         drift_frames=DRIFT_REFERENCE_S * options.frame_rate)
     if not fused.any():
         return None
     candidate = _Trajectory(problem, options, views, roots[h:n + h + 1], local[h:n + h + 1])
