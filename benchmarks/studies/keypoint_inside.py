@@ -8,9 +8,10 @@ foot-locked).
         --detections-cache build/bench/detections.npz --cameras cam01 --spacings 20 \
         --set keypoint_guide_weight=1000
 
-Prints per camera and spacing the held-out MPJPE (cm, in-between frames) of the dumped
-operator runs (tracker, tracker + keypoints) and of the re-tracked tracker + keypoints, and
-the re-tracked run's seconds. Conclusion: ``docs/tracking.md`` *Stop 43, keypoints*.
+Prints per camera and spacing the held-out MPJPE (cm, in-between frames) and foot skate (cm/s,
+``benchmarks/real/feet.py``) of the dumped operator runs (tracker, tracker + keypoints) and of
+the re-tracked tracker + keypoints, the frames fused after tracking and the re-tracked run's
+seconds. Conclusion: ``docs/tracking.md`` *Stop 43, keypoints*.
 """
 import argparse
 import json
@@ -24,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import bench_real as br  # noqa: E402
+from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
 from benchmarks.real.core_replay import Reference, load_case  # noqa: E402
 from benchmarks.real.reference import View  # noqa: E402
@@ -72,7 +74,8 @@ def main(argv=None):
     cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
     views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
     det, _ = br.run_detection(list(br.CAMERAS), a.detections_cache)
-    _, _, heldout = br.build_reference(det, views)
+    ref, _, heldout = br.build_reference(det, views)
+    contact = feet.contact_frames(ref.points[:, rigmod.JOINT_LANDMARKS], br.FPS)
     reference = Reference(a.dump)
     for cam in a.cameras:
         truth = heldout[cam][:, rigmod.JOINT_LANDMARKS]
@@ -82,19 +85,20 @@ def main(argv=None):
             first = int(case["first"])
             inside = br.interior_frames([int(k) for k in case["key_frames"]], n)
 
-            def score(roots, local):
+            def score(roots, local, name):
                 est = np.full(truth.shape, np.nan)
                 est[first - 1 + np.arange(len(roots))] = reference.pose_joints(case, roots,
                                                                                local)
-                return float(100 * np.nanmean(np.linalg.norm(est[inside] - truth[inside],
-                                                             axis=-1)))
+                res[name] = float(100 * np.nanmean(np.linalg.norm(est[inside] - truth[inside],
+                                                                  axis=-1)))
+                res[name + "_skate"] = feet.foot_skate(est, contact, br.FPS)
             res = {}
             for k, suffix in (("operator_tracker", ""), ("operator_kp", "_keypoints")):
                 r = load_result(a.dump, cam, every, suffix)
-                res[k] = score(r.root_translations, r.local_rotations)
+                score(r.root_translations, r.local_rotations, k)
             tic = time.perf_counter()
             r, lo, seq = track(case, parse_set(case["options"], a.set), a.processes)
-            res["retracked_kp"] = score(r, lo)
+            score(r, lo, "retracked_kp")
             res["fused_frames"] = float(0 if seq.keypoints_fused is None
                                         else seq.keypoints_fused.sum())
             res["seconds"] = time.perf_counter() - tic
