@@ -281,11 +281,6 @@ class TrackingOptions:
         Seconds on each side of the keypoints' smoothing over time before the fusion: the
         most whole frames at ``frame_rate`` within it (default 1/12 s: 5 frames at 60 fps,
         the window chosen on the real footage; 2 at 24 or 30 fps). 0: none.
-    keypoint_guide_weight : float
-        Cameras with 2D keypoints, experimental (stop 43): every pass of the tracker's loop
-        tracks along its last trajectory fused with the keypoints (this the prior's weight, as
-        ``keypoint_fusion_weight`` with two keys) instead of the trajectory itself; the scored
-        trajectories stay the image's. 0 (the default): off.
     depth_from_views : bool
         Several cameras: estimate the root's motion along every axis in frames that two or
         more views measure (their lines of sight differ, so together they measure depth);
@@ -360,7 +355,6 @@ class TrackingOptions:
     keypoint_fusion_weight: float = 1000.0
     keypoint_drift_scale: float = 0.1
     keypoint_smoothing: float = 5.0 / 60.0
-    keypoint_guide_weight: float = 0.0
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
     frame_rate: float = 24.0
@@ -402,9 +396,6 @@ class TrackingOptions:
         if not (np.isfinite(self.keypoint_drift_scale) and self.keypoint_drift_scale >= 0.0):
             raise ValueError(f"keypoint_drift_scale must be >= 0, got "
                              f"{self.keypoint_drift_scale}")
-        if not (np.isfinite(self.keypoint_guide_weight) and self.keypoint_guide_weight >= 0.0):
-            raise ValueError(f"keypoint_guide_weight must be >= 0, got "
-                             f"{self.keypoint_guide_weight}")
         if not (np.isfinite(self.keypoint_smoothing) and self.keypoint_smoothing >= 0.0):
             raise ValueError(f"keypoint_smoothing must be >= 0 seconds, got "
                              f"{self.keypoint_smoothing}")

@@ -801,11 +801,8 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     if options.seed != "interpolation" and initial is None:
         traj = _add_seed(problem, options, views, start, end, scores, timings) or traj
     report(_PROGRESS_SEED)
-    guide = None
-    if keypoints is not None and options.keypoint_guide_weight > 0:
-        guide = lambda t: _guided(problem, options, views, keypoints, t)  # noqa: E731
     reason, diverged = _iterate(problem, options, views, start, end, traj, scores, timings,
-                                report, guide)
+                                report)
     verdicts = _accept_parts(problem, options, views, start, end, scores)
     fusion = None
     if keypoints is not None and options.keypoint_fusion_weight > 0:
@@ -1132,31 +1129,8 @@ def _add_seed(problem, options, views, start, end, scores, timings):
     return seed
 
 
-def _guided(problem, options, views, keypoints, traj):
-    """``traj`` fused with the keypoints (:func:`.keypoint_fusion.fuse_keypoints`, the drift
-    law's prior at ``keypoint_guide_weight``): the trajectory the next pass tracks along (its
-    model placed and its unmeasured motion predicted where the keypoints say), not a scored
-    one."""
-    n = len(traj.roots) - 1
-    h = keypoint_half_window(options)
-    cut = [None if kp is None else kp.cut(-h, n + h)
-           for kp in per_camera(keypoints, problem.n_views)]
-    roots = np.concatenate([np.repeat(traj.roots[:1], h, 0), traj.roots,
-                            np.repeat(traj.roots[-1:], h, 0)])
-    local = np.concatenate([np.repeat(traj.local[:1], h, 0), traj.local,
-                            np.repeat(traj.local[-1:], h, 0)])
-    roots, local, fused = fuse_keypoints(problem, roots, local, [h, n + h], cut,
-                                         options.keypoint_guide_weight, h,
-                                         drift_frames=DRIFT_REFERENCE_S * options.frame_rate)
-    if not fused.any():
-        return traj
-    return _Trajectory(problem, options, views, roots[h:n + h + 1], local[h:n + h + 1])
-
-
-def _iterate(problem, options, views, start, end, traj, scores, timings, report, guide=None):
+def _iterate(problem, options, views, start, end, traj, scores, timings, report):
     """Steps 2-5, repeated: track along ``traj``, correct the drift, score, keep the minimum.
-    ``guide``: a function of the trajectory giving the one to track along instead
-    (:func:`_guided`).
 
     Returns
     -------
@@ -1171,8 +1145,6 @@ def _iterate(problem, options, views, start, end, traj, scores, timings, report,
             report(_PROGRESS_SEED + (1.0 - _PROGRESS_SEED) * (iteration - first_iteration)
                    / options.max_iterations)
         tic = time.perf_counter()
-        if guide is not None:
-            traj = guide(traj)
         new, motions, found = _track_and_correct(problem, options, views, start, end, traj,
                                                  scores.initial_counts)
         if scores.first_pass is None and motions is not None:

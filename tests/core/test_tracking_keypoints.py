@@ -218,39 +218,6 @@ def test_keyframes_with_keypoints_in_processes_are_identical(footage, monkeypatc
                         keypoints=CameraKeypoints(uv, conf, JOINTS + 10))
 
 
-def test_tracking_along_the_fused_trajectory_removes_drift_the_fusion_leaves(footage):
-    """Stop 43 (``keypoint_guide_weight``): every pass of the loop tracks along its last
-    trajectory fused with the keypoints. The fusion after tracking corrects the kept
-    trajectory's pose frame by frame; tracking along the fused one also measures the next
-    pass's motion with the model where the keypoints put it. Measured: 5.95 cm fused after
-    tracking only, 3.64 with the guide (the tracker alone 7.57)."""
-    f = footage
-    kp = CameraKeypoints(f["clean"], f["conf"], JOINTS, _points(f["sk"]), mirror=SWAPPED)
-    base = TrackingOptions(max_iterations=3)        # the fusion after tracking on (two keys)
-    fused = track_interval(f["problem"], f["frames"], f["start"], f["end"],
-                           base.replace(keypoint_guide_weight=0.0), keypoints=kp)
-    guided = track_interval(f["problem"], f["frames"], f["start"], f["end"],
-                            base.replace(keypoint_guide_weight=100.0), keypoints=kp)
-    alone = _error(f, f["alone"])
-    assert _error(f, fused) < alone
-    assert _error(f, guided) < 0.8 * _error(f, fused), (_error(f, guided), _error(f, fused))
-
-
-def test_the_guide_without_keypoints_changes_nothing(footage):
-    f = footage
-    args = (f["problem"], f["frames"], f["start"], f["end"])
-    off = TrackingOptions(max_iterations=3, keypoint_guide_weight=0.0)
-    on = off.replace(keypoint_guide_weight=100.0)
-    unusable = CameraKeypoints(f["clean"], np.zeros_like(f["conf"]), JOINTS, _points(f["sk"]))
-    base = track_interval(*args, off)
-    for result in (track_interval(*args, on), track_interval(*args, on, keypoints=unusable)):
-        np.testing.assert_array_equal(result.local_rotations, base.local_rotations)
-        np.testing.assert_array_equal(result.root_translations, base.root_translations)
-        np.testing.assert_array_equal(result.errors, base.errors)
-    with pytest.raises(ValueError, match="keypoint_guide_weight"):
-        TrackingOptions(keypoint_guide_weight=-1.0)
-
-
 def test_targets_remove_the_offsets_at_the_keys_and_telescope(footage):
     """The pair targets accumulated from the start key reach each frame's keypoint minus its
     interpolated offset; at the keys the offset is exactly the keypoint's bias."""
