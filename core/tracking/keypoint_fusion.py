@@ -368,68 +368,6 @@ def key_noise(skeleton, camera, key_roots, key_local, keypoints, key_frames, hal
     return np.maximum(np.sqrt(s2), JITTER_FLOOR_PX)
 
 
-#: :func:`fit_points`: the prior on a keypoint's body point, pixels of its detections per
-#: metre off the joint (5 px against 5 cm: a point moves as far as the keys' detections ask
-#: only where they ask for it clearly).
-POINT_PRIOR_PX_PER_M = 100.0
-
-
-def fit_points(skeleton, camera, key_roots, key_local, keypoints, key_frames, half_window,
-               iterations=3):
-    """Where on its joint each keypoint sits, fitted at the keys: the body point ``p`` (joint
-    frame, metres) whose projections at the keyed poses lie closest to the keypoints smoothed
-    there (as :func:`key_noise` smooths them; a swapped pair left out), with a prior towards
-    ``keypoints.points``:
-
-        min_p  sum_k |pi(R_jk p + o_jk) - t_k|^2 + POINT_PRIOR_PX_PER_M^2 |p - p_0|^2
-
-    (Gauss-Newton, the projection's Jacobian ``G R_jk``). A detector's mark that sits off the
-    joint in 3-D (a kneecap, a hip landmark) then moves with the limb instead of being one
-    2-D offset interpolated between the keys.
-
-    Returns
-    -------
-    ndarray, shape (J, 3)
-    """
-    frames = np.asarray(key_frames, dtype=int)
-    joints = keypoints.joints
-    n_kp = len(joints)
-    targets = np.full((len(frames), n_kp, 2), np.nan)
-    for k, f in enumerate(frames):
-        window = keypoints.cut(f - half_window, f + half_window)
-        if window is None:
-            continue
-        m = len(window.uv)
-        q, p = project_points(skeleton, camera, np.repeat(key_roots[k:k + 1], m, 0),
-                              np.repeat(key_local[k:k + 1], m, 0), joints, keypoints.points)
-        conf = np.where((p[..., 2] > 0) & ~swapped_pairs(window.uv, q, keypoints.mirror),
-                        window.confidence, 0.0)
-        smooth, _ = smooth_keypoints(np.where(conf[..., None] > 0, window.uv, np.nan), conf,
-                                     half_window)
-        targets[k] = smooth[half_window]
-    rot, org = joint_frames_in_camera(skeleton, camera.world2camera, np.asarray(key_roots),
-                                      np.asarray(key_local))
-    rot, org = rot[:, joints], org[:, joints]                          # (K, J, 3, 3), (K, J, 3)
-    ok = np.all(np.isfinite(targets), axis=-1)                          # (K, J)
-    p0 = np.asarray(keypoints.points, dtype=float)
-    pts = p0.copy()
-    prior = POINT_PRIOR_PX_PER_M ** 2
-    for _ in range(iterations):
-        x = np.einsum("kjab,jb->kja", rot, pts) + org
-        x = np.where(x[..., 2:] > 0, x, np.array([0.0, 0.0, 1.0]))
-        q = camera.project(x)
-        ones, zeros = np.ones(x.shape[:2]), np.zeros(x.shape[:2])
-        g = np.stack([camera.gradient_rows(x, ones, zeros), camera.gradient_rows(x, zeros, ones)],
-                     axis=2)                                            # (K, J, 2, 3)
-        jac = g @ rot                                                   # (K, J, 2, 3)
-        r = np.where(ok[..., None], np.nan_to_num(targets) - q, 0.0)
-        w = ok.astype(float)
-        h = np.einsum("kjai,kj,kjaq->jiq", jac, w, jac) + prior * np.eye(3)
-        b = np.einsum("kjai,kj,kja->ji", jac, w, r) - prior * (pts - p0)
-        pts = pts + np.linalg.solve(h, b[..., None])[..., 0]
-    return pts
-
-
 def drift_prior_weights(n, keys, weight, reference_frames):
     """The fusion prior's weight per row: the tracker's expected drift grows with the
     distance ``d`` (frames) to the nearest key as ``d^DRIFT_EXPONENT`` (0 at a key, largest

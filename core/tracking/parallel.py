@@ -59,7 +59,7 @@ import numpy as np
 
 from .foot_lock import FootLock, lock_feet
 from .keypoint_cue import per_camera
-from .keypoint_fusion import fit_points, fuse_keypoints, key_noise
+from .keypoint_fusion import fuse_keypoints, key_noise
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
 from .trajectory import Pose, interpolated_interval, keypoint_half_window, track_interval
 
@@ -193,9 +193,6 @@ def _with_key_noise(problem, options, keypoints, keys, roots, local):
     half_window = keypoint_half_window(options)
     out = []
     for cam, kp in zip(problem.cameras, keypoints):
-        if kp is not None and options.keypoint_fit_points:
-            kp = replace(kp, points=fit_points(problem.skeleton, cam, roots, local, kp, keys,
-                                               half_window))
         noise = None if kp is None else key_noise(problem.skeleton, cam, roots, local, kp,
                                                   keys, half_window)
         out.append(kp if noise is None else replace(kp, noise_px=noise))

@@ -355,7 +355,6 @@ class TrackingOptions:
     keypoint_fusion_weight: float = 1000.0
     keypoint_drift_scale: float = 0.1
     keypoint_smoothing: float = 5.0 / 60.0
-    keypoint_fit_points: bool = False
     acceptance: AcceptanceRule = AcceptanceRule()
     foot_lock: bool = True
     frame_rate: float = 24.0
