@@ -6,7 +6,11 @@ foot-locked).
 
     .venv-bench/bin/python benchmarks/studies/keypoint_inside.py --dump build/dump \
         --detections-cache build/bench/detections.npz --cameras cam01 --spacings 20 \
-        --set keypoint_guide_weight=1000
+        --set keypoint_guide_weight=100
+
+(``keypoint_guide_weight``, the loop tracking along its trajectory fused with the keypoints,
+exists on branch ``kp43-guide-tried`` only: stop 43 did not ship it. Without ``--set`` the
+re-tracked run reproduces the operator's.)
 
 Prints per camera and spacing the held-out MPJPE (cm, in-between frames) and foot skate (cm/s,
 ``benchmarks/real/feet.py``) of the dumped operator runs (tracker, tracker + keypoints) and of
