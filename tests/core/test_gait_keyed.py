@@ -162,3 +162,21 @@ def test_an_unobserved_frame_is_the_time_update_alone():
                                rtol=1e-12)
     one = ekf_filter(ctx, holed[:6], w, x0, p0)
     assert one.loglik == cut.loglik
+
+
+def test_a_reference_speed_given_is_the_one_the_style_s_legs_are_fitted_to(walker):
+    """``fit_leg_travel(..., reference_speed=(speed, spread))`` uses the speed given instead of
+    the legs' travel of the reference: with a spread of 0 (a constraint) the fitted style's
+    legs travel at it, 10 % faster or slower than the capture's own reading."""
+    from core.gait.leg_travel import SPEED_TOLERANCE, fit_leg_travel, style_legs_speed
+    model, skeleton, values, names, obs, res = walker
+    reference = values[:len(obs)]
+    plain = fit_leg_travel(model, skeleton, reference, FPS, obs, res)
+    for factor in (0.9, 1.1):
+        goal = factor * plain.reference_speed
+        fit = fit_leg_travel(model, skeleton, reference, FPS, obs, res,
+                             reference_speed=(goal, 0.0))
+        assert fit.reference_speed == goal and fit.changed
+        legs = style_legs_speed(model, skeleton, reference[-1], FPS, float(res.state[0]),
+                                fit.w, offset=res.offset)
+        assert abs(legs - goal) < 10 * SPEED_TOLERANCE, (legs, goal)
