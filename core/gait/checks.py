@@ -89,7 +89,7 @@ Refusals say why in plain words; nothing is changed by the caller then. Measured
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -163,6 +163,9 @@ class GaitCheck:
     misfit : float or None
         The pose misfit of check 9 (:func:`pose_misfit`), when the rhythm was weak or not
         tested and checks 1-6 passed (None otherwise).
+    adapted : AdaptResult or None
+        The adaptation check 9 made (``adapt(model, observations, fps=fps)``), when it made
+        one: the caller that adapts the same way reuses it (not compared, not shown).
     """
 
     motion_deg: float
@@ -177,6 +180,7 @@ class GaitCheck:
     forward: float = None
     arm_deg: float = None
     misfit: float = None
+    adapted: object = field(default=None, compare=False, repr=False)
 
 
 def gait_channels(model, count=N_GAIT_CHANNELS):
@@ -553,9 +557,10 @@ def _start_and_end_speeds(model, obs):
 
 
 def _walks_at_end(model, obs, fps):
-    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 and 9 take it)."""
+    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 take it; not
+    check 9, which would adapt the model to it: a hint and a warning depend on it)."""
     k = max(2, int(round(START_SHARE * len(obs))))
-    return check_gait(model, obs[-k:], fps).refusal is None
+    return check_gait(model, obs[-k:], fps, poses=False).refusal is None
 
 
 def _level_travel(model, obs, fps, travel):
@@ -575,7 +580,7 @@ def _level_travel(model, obs, fps, travel):
 
 
 def check_gait(model, observations, fps, result=None, what="the observed frames",
-               first_frame=None):
+               first_frame=None, poses=True):
     """Checks 1-6 and 9 of the module docstring, and the fit score when ``result`` is given
     (check 9 adapts the model to the range itself when the rhythm is weak or untested).
 
@@ -591,6 +596,8 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     first_frame : int, optional
         The scene frame of the range's first row: messages that point at frames inside the
         range number them so (else they count the range's rows from 1).
+    poses : bool
+        Whether to run check 9 (False: checks 1-6 only, no adaptation).
 
     Returns
     -------
@@ -683,9 +690,10 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"{top:.0f}° from hanging): a kick's or a throw's balance, "
                                  f"not a walk or run the gait model can continue (no walker "
                                  f"it learned from holds an arm out to the side)")
-    misfit = None
-    if strength is None or strength < MIN_STRENGTH:
-        misfit, per_frame, per_channel = pose_misfit(model, obs, adapt(model, obs, fps=fps))
+    misfit = adapted = None
+    if poses and (strength is None or strength < MIN_STRENGTH):
+        adapted = adapt(model, obs, fps=fps)
+        misfit, per_frame, per_channel = pose_misfit(model, obs, adapted)
         if misfit > MAX_MISFIT:
             off = np.flatnonzero(per_frame > MAX_MISFIT)
             if not off.size:                           # the fit misses no frame by that much
@@ -719,7 +727,8 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
     check = GaitCheck(motion, period, strength, together, None, None,
-                      "; ".join(warnings) or None, tilt, travel, forward, arm_deg, misfit)
+                      "; ".join(warnings) or None, tilt, travel, forward, arm_deg, misfit,
+                      adapted)
     return check if result is None else with_fit(check, model, obs, result, what)
 
 

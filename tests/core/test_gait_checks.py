@@ -1007,9 +1007,16 @@ def test_the_misfit_threshold_is_met_at_its_value(monkeypatch):
     assert check_gait(model, obs, 60.0).refusal is None
     monkeypatch.setattr(checks, "MAX_MISFIT", np.nextafter(misfit, -np.inf))
     assert check_gait(model, obs, 60.0).refusal.startswith("No walk or run moves like")
+    # The adaptation check 9 made is kept for the caller (Predict reuses it): the very one
+    # adapt() makes of the range.
+    monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
+    made = check_gait(model, obs, 60.0).adapted
+    again = adapt(model, obs, fps=60.0)
+    assert np.array_equal(made.states, again.states) and np.array_equal(made.w, again.w)
     model, walk = walk_range()
     steady = check_gait(model, walk, 60.0)
     assert steady.strength >= checks.MIN_STRENGTH and steady.misfit is None
+    assert steady.adapted is None
     monkeypatch.setattr(checks, "MAX_MISFIT", -1.0)
     assert check_gait(model, walk, 60.0).refusal is None
 
