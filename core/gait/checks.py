@@ -82,7 +82,7 @@ after adapting, on the model's fit (issue 21):
    refused, naming the frames and the body parts the model misses most. Walkers the model did
    not learn from (every steady window of the shipped gaits, its subject left out of the
    library) reach 2.06 at most where their rhythm is weak, 2.15 anywhere; the kick of CMU 74_03,
-   the arabesque of 05_10 and the throw of 124_01 2.9-18 (``docs/gait.md``, *Stop 43*). A
+   the arabesque of 05_10 and the throw of 124_01 2.8-18 (``docs/gait.md``, *Stop 43*). A
    range whose rhythm reaches ``MIN_STRENGTH`` is not measured (no extra adaptation).
 
 Refusals say why in plain words; nothing is changed by the caller then. Measured acceptance of
@@ -492,7 +492,7 @@ def pose_misfit(model, observations, result):
     ``r`` (exactly, for a prediction whose phase is certain; its phase uncertainty adds a
     little). About 0.2 on the walks the model learned from, 0.6 on average on walkers it did
     not (1.75 at most over every steady window of the shipped gaits from 0.75 s with a weak
-    rhythm, its subject left out of the library); a kick, a throw or a dance step 2.9-24
+    rhythm, its subject left out of the library); a kick, a throw or a dance step 2.8-18
     (``docs/gait.md``, *Stop 43*).
 
     Where: the squared difference of the observed channels from the model's fit (the adapted

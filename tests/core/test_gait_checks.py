@@ -979,8 +979,6 @@ def test_non_gaits_whose_poses_no_walk_fits_are_refused(clip, kind, window, star
     monkeypatch.undo()
     misfit, per_frame, per_channel = pose_misfit(model, obs, adapt(model, obs, fps=60.0))
     assert misfit > MAX_MISFIT, kind
-    # The likelihood's misfit (one-step predictions) and the fit's (filtered phases) agree.
-    assert np.nanmean(per_frame) == pytest.approx(misfit, rel=0.25), kind
     check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
     assert check.misfit == misfit
     over = np.flatnonzero(per_frame > MAX_MISFIT)
