@@ -1161,7 +1161,7 @@ def test_a_kick_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):
     cols = [list(names).index(n) for n in model.dof_names]
     core = check_gait(model, observations_from_dofs(model, values[90:135, cols],
                                                     model.dof_names, FPS), FPS,
-                      first_frame=91)
+                      what=f"frames 91–135 of {obj.name}", first_frame=91)
     assert core.refusal.startswith("No walk or run moves like this")
     with pytest.raises(RuntimeError) as refusal:
         bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=91,
