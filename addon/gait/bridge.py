@@ -288,9 +288,10 @@ class Adapted:
     result: object = None
 
 
-def _adapt(model, obs, fps, mode, dofs):
+def _adapt(model, obs, fps, mode, dofs, known=None):
     """The observed walker (:class:`Adapted`); only batch EM estimates the residual table
-    (``core.gait.residual``)."""
+    (``core.gait.residual``). ``known``: the batch adaptation already made by the same call
+    (``check_gait``'s check 9, ``GaitCheck.adapted``), reused."""
     if mode == "ONLINE":
         stream = ObservationStream(model, model.dof_names, fps)
         online = OnlineEM(model, fps=fps)
@@ -299,7 +300,7 @@ def _adapt(model, obs, fps, mode, dofs):
             online.step(last)
         return Adapted(np.array([online.omega, online.phase]), online.w, online.state.b, None,
                        last)
-    res = adapt(model, obs, fps=fps)
+    res = known if known is not None else adapt(model, obs, fps=fps)
     return Adapted(res.state, res.w, res.offset, res.residual, res.last_observation, res)
 
 
@@ -594,7 +595,7 @@ def predict_gait(context, obj, options):
     check = check_gait(model, obs, fps, what=what, first_frame=first)
     if check.refusal:
         raise GaitError(check.refusal)
-    walker = _adapt(model, obs, fps, options.adaptation, model_dofs)
+    walker = _adapt(model, obs, fps, options.adaptation, model_dofs, check.adapted)
     # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU
     # template's), carried from the reference's last cycle: the character keeps its posture.
     omega = float(np.asarray(walker.state, dtype=float)[0])       # observed, rad per frame
