@@ -113,8 +113,9 @@ class FootLockRule:
         9.0 on Rigify IK, but 12.0 -> 31.8 on Mixamo, whose adapted cadence changed).
     anchor : str
         Where a run that holds no key stands: ``'seen'`` (default, stop 43) -- the mean of
-        the frames the tracked foot itself was low and slow at (the run before the
-        hysteresis extended it); ``'run'`` -- the mean over the whole run (stop 40-42: the
+        the frames the tracked foot itself was seen standing at (its low and slow runs of
+        ``min_frames`` or more: the runs that started the contact, before the hysteresis
+        extended it); ``'run'`` -- the mean over the whole run (stop 40-42: the
         frames the hysteresis added are those where the tracked foot slides, and their mean
         carried the slide into the whole stance; docs/tracking.md, *Stop 43*). The same with
         ``keyed`` 'none' (the run is its seen frames).
@@ -549,8 +550,13 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
         found = []
         near = height[side].min(axis=1) <= floor + max(rule.keep_low, rule.low)
         def seen(a, b):
-            # The frames of [a, b) the tracked foot was low and slow at (stop 43).
-            return None if rule.anchor == "run" else np.flatnonzero(low[a:b] & slow[a:b]) + a
+            # The frames of [a, b) the tracked foot was seen standing at: its low and slow
+            # runs of min_frames or more, those that started the contact (stop 43).
+            if rule.anchor == "run":
+                return None
+            return np.concatenate([np.arange(s_, t) for s_, t in runs(low & slow)
+                                   if a <= s_ and t <= b and t - s_ >= rule.min_frames]
+                                  or [np.arange(a, b)])
 
         for a, b in standing(low, slow, held, rule.min_frames, near, keys, ramp):
             inside = [k for k in keys if a <= k < b]
