@@ -289,9 +289,10 @@ class Adapted:
     result: object = None
 
 
-def _adapt(model, obs, fps, mode, dofs):
+def _adapt(model, obs, fps, mode, dofs, known=None):
     """The observed walker (:class:`Adapted`); only batch EM estimates the residual table
-    (``core.gait.residual``)."""
+    (``core.gait.residual``). ``known``: the batch adaptation already made by the same call
+    (``check_gait``'s check 9, ``GaitCheck.adapted``), reused."""
     if mode == "ONLINE":
         stream = ObservationStream(model, model.dof_names, fps)
         online = OnlineEM(model, fps=fps)
@@ -300,7 +301,7 @@ def _adapt(model, obs, fps, mode, dofs):
             online.step(last)
         return Adapted(np.array([online.omega, online.phase]), online.w, online.state.b, None,
                        last)
-    res = adapt(model, obs, fps=fps)
+    res = known if known is not None else adapt(model, obs, fps=fps)
     return Adapted(res.state, res.w, res.offset, res.residual, res.last_observation, res)
 
 
@@ -618,7 +619,8 @@ def predict_gait(context, obj, options):
     keyed = keyed_frames(grig, first, last, keys)
     sparse = options.adaptation != "ONLINE" and keyed_reading.sparsely_keyed(keyed, fps)
     seen = keyed_reading.keyed_observations(obs, keyed) if sparse else obs
-    walker = _adapt(model, seen, fps, options.adaptation, model_dofs)
+    walker = _adapt(model, seen, fps, options.adaptation, model_dofs,
+                    None if sparse else check.adapted)
     if sparse and not keyed[-1]:  # the continuation starts from the last frame Blender shows
         walker.last = np.array(obs[-1], dtype=float)
     # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU

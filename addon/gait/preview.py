@@ -219,7 +219,8 @@ def start_preview(context, obj):
         if check.refusal:
             raise GaitError(check.refusal)
         if len(dofs) >= round(0.5 * fps):
-            warning = with_fit(check, model, obs, adapt(model, obs, fps=fps), what).warning
+            fitted = check.adapted if check.adapted is not None else adapt(model, obs, fps=fps)
+            warning = with_fit(check, model, obs, fitted, what).warning
     stop_preview()
     _remove_stale_ghosts(obj.name)
     settings = gait_settings(scene)

@@ -90,9 +90,10 @@ class TS_TrackSettings(bpy.types.PropertyGroup):
                     "interval; 1 = all in Blender's process)")
     keep_feet_planted: BoolProperty(
         name="Keep Feet Planted", default=True,
-        description="Where a tracked foot stands on the floor (low and slow), solve the leg so "
-                    "that it does not slide; keyed frames are never changed (the tracker's "
-                    "foot lock; the report names the contacts locked)")
+        description="Where a tracked foot stands on the floor (low and slow; the contact goes "
+                    "on while your keys hold the foot still), solve the leg so that it does not "
+                    "slide, the heel rising about the ball as it leaves; keyed frames are never "
+                    "changed (the tracker's foot lock; the report names the contacts locked)")
     estimate_depth: BoolProperty(
         name="Estimate Depth", default=False,
         description="Also estimate motion along the camera's axis (rigid objects, whose size "

@@ -11,6 +11,15 @@ periods whose whole cycle the window holds). Writes a pickle of rows for the ana
     .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse build/cues.pkl
     .venv/bin/python benchmarks/studies/acceptance_cues.py --lowo
 
+Stop 43 adds the model's own likelihood of a window's poses (:func:`misfit_rows`,
+``--misfit``: ``core.gait.checks.pose_misfit`` under a library learned without the window's
+subject, every window checks 1-6 take and the leave-one-walker-out windows; ``--analyse-misfit``
+cross-validates it, leave one subject out)::
+
+    nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --misfit build/cues.pkl \
+        --out-misfit build/misfit.pkl                                          # ~6 min
+    .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse-misfit build/misfit.pkl
+
 Stop 42 adds the upper body and whole-body coordination (:func:`body_features`), the arms as
 ``core.gait.checks`` poses them, and each window's outcome without the arm checks
 (``accepted``, checks 1-5) and with them (``accepted_arms``).
@@ -497,13 +506,140 @@ def lowo_arms():
           f"highest upper arm {top_e:.1f} deg, farthest side reach {top_r:.1f} deg")
 
 
+FOLDS = ROOT / "build" / "folds"
+
+
+def fold_library(subject):
+    """The stock library learned without ``subject`` (``tools/build_stock_gaits.py``'s recipe,
+    as ``benchmarks/gait_lowo.py``'s folds; about 20 s each, cached in ``build/folds``), or the
+    stock library itself for a subject none of whose trials it learned from."""
+    from core.gait.model import GaitModel
+    from core.gait.stock import STOCK_RECIPE
+    sys.path.insert(0, str(ROOT / "tools"))
+    from build_stock_gaits import build_stock
+    if not any(trial.split("_")[0] == subject for trials in STOCK_RECIPE.values()
+               for trial in trials):
+        return load_stock_library()
+    path = FOLDS / f"{subject}.npz"
+    if not path.exists():
+        FOLDS.mkdir(parents=True, exist_ok=True)
+        build_stock(exclude_subjects=[subject]).save(path)
+    return GaitModel.load(path)
+
+
+def _misfit(model, w):
+    from core.gait import adapt
+    return checks.pose_misfit(model, w, adapt(model, w, fps=FPS))[0]
+
+
+def misfit_rows(rows):
+    """Stop 43: ``core.gait.checks.pose_misfit`` of every window checks 1-6 take
+    (``accepted_arms``) with a weak or untested rhythm (check 9's domain; every non-gait window
+    checks 1-6 take, whatever its rhythm), under the library learned without the window's subject (a gait
+    window's subject is always left out; a non-gait clip's too where the library learned from
+    that subject's walks, 74 and 91) and under the stock library; and of every window of the
+    leave-one-walker-out benchmark (``benchmarks/gait_lowo.py``) its checks take, under that
+    fold's library. Returns (acceptance rows, lowo rows), each a list of dicts."""
+    import gait_lowo as L
+    out = []
+    stock = load_stock_library()
+    by_clip = {}
+    for r in rows:
+        weak = r["strength"] is None or r["strength"] < checks.MIN_STRENGTH
+        if r["accepted_arms"] and (weak or r["kind"] != "gaits"):
+            by_clip.setdefault(r["clip"], []).append(r)
+    for clip, rs in by_clip.items():
+        gait = rs[0]["kind"] == "gaits"
+        values, names = A.load((A.CMU if gait else A.NOT_GAITS) / f"{clip}.amc")
+        models = {"stock": stock, "held_out": fold_library(rs[0]["subject"])}
+        obs = {k: observations_from_dofs(m, values[:, [names.index(n) for n in m.dof_names]],
+                                         m.dof_names, FPS) for k, m in models.items()}
+        for r in rs:
+            s, n = int(round(r["start"] * FPS)), int(round(r["window"] * FPS))
+            row = {k: r[k] for k in ("kind", "clip", "subject", "window", "start", "strength",
+                                     "warning")}
+            row.update({k: _misfit(m, obs[k][s:s + n]) for k, m in models.items()})
+            out.append(row)
+        print(clip, len(out), flush=True)
+    lowo = []
+    for subject in L.SUBJECTS:
+        model = fold_library(subject)
+        cache = {}
+        for trial, t0, _ in L.test_cases(subject):
+            if trial not in cache:
+                cache[trial] = observations_from_dofs(model, *L.load(trial), L.FPS)
+            for window in L.WINDOWS:
+                w = cache[trial][t0 - round(window * L.FPS):t0]
+                c = checks.check_gait(model, w, L.FPS)
+                lowo.append(dict(subject=subject, trial=trial, t0=t0, window=window,
+                                 refusal=c.refusal, strength=c.strength,
+                                 held_out=_misfit(model, w)))
+        print("lowo", subject, len(lowo), flush=True)
+    return out, lowo
+
+
+def analyse_misfit(data):
+    """Stop 43: the pose misfit where the rhythm does not vouch for a walk (weak or not
+    tested), leave one subject out (threshold: the largest held-out value of the other
+    subjects' gait windows), and the shipped ``MAX_MISFIT``; the same on every window."""
+    rows, lowo = data
+    weak = [r for r in rows if r["strength"] is None or r["strength"] < checks.MIN_STRENGTH]
+    for label, subset in (("weak or untested rhythm (check 9's domain)", weak),):
+        for lo, hi, wl in ((0.75, 9.0, ">= 0.75 s"), (0.5, 0.5, "0.5 s")):
+            rs = [r for r in subset if lo <= r["window"] <= hi]
+            subjects = sorted({r["subject"] for r in rs})
+            lost, refused, where, cut = 0, 0, {}, {}
+            for s in subjects:
+                th = max(r["held_out"] for r in rs if r["subject"] != s and r["kind"] == "gaits")
+                for r in rs:
+                    if r["subject"] == s and r["held_out"] > th:
+                        if r["kind"] == "gaits":
+                            lost += 1
+                            where[r["clip"]] = where.get(r["clip"], 0) + 1
+                        else:
+                            refused += 1
+            for r in rs:
+                if r["held_out"] > checks.MAX_MISFIT:
+                    cut[(r["kind"], r["clip"])] = cut.get((r["kind"], r["clip"]), 0) + 1
+            g = [r for r in rs if r["kind"] == "gaits"]
+            top = max(g, key=lambda r: r["held_out"])
+            print(f"{label}, {wl}: {len(g)} gait and {len(rs) - len(g)} non-gait windows; "
+                  f"leave one subject out (threshold the others' largest): gait lost {lost} "
+                  f"{where}, non-gait refused {refused}; largest held-out gait "
+                  f"{top['held_out']:.2f} ({top['clip']} {top['window']:g} s from "
+                  f"{top['start']:.2f} s); MAX_MISFIT {checks.MAX_MISFIT:g} refuses {cut}")
+            ng = sorted((r for r in rs if r["kind"] != "gaits"), key=lambda r: -r["held_out"])
+            print("   non-gait: " + ", ".join(f"{r['clip']} {r['window']:g}@{r['start']:.2f} "
+                                              f"{r['held_out']:.2f}" for r in ng))
+    taken = [r for r in lowo if r["refusal"] is None]
+    w = [r for r in taken if r["strength"] is None or r["strength"] < checks.MIN_STRENGTH]
+    top = max(taken, key=lambda r: r["held_out"])
+    print(f"leave-one-walker-out: {len(lowo)} windows, {len(taken)} taken, {len(w)} with a weak "
+          f"or untested rhythm, of which {sum(r['held_out'] > checks.MAX_MISFIT for r in w)} "
+          f"over MAX_MISFIT (largest {max(r['held_out'] for r in w):.2f}); largest of all "
+          f"{top['held_out']:.2f} ({top['trial']} at {top['t0']}, {top['window']:g} s)")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out")
     ap.add_argument("--analyse")
     ap.add_argument("--lowo", action="store_true",
                     help="whether a leave-one-walker-out window trips an arm check (stop 42)")
+    ap.add_argument("--misfit", help="stop 43: the pose misfit of the windows of this pickle")
+    ap.add_argument("--out-misfit", default="build/misfit.pkl")
+    ap.add_argument("--analyse-misfit")
     args = ap.parse_args(argv)
+    if args.misfit:
+        with open(args.misfit, "rb") as f:
+            data = pickle.load(f)
+        result = misfit_rows(data["rows"] if isinstance(data, dict) else data)
+        with open(args.out_misfit, "wb") as f:
+            pickle.dump(result, f)
+        analyse_misfit(result)
+    if args.analyse_misfit:
+        with open(args.analyse_misfit, "rb") as f:
+            analyse_misfit(pickle.load(f))
     if args.lowo:
         lowo_arms()
     if args.out:

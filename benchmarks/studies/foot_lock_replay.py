@@ -17,7 +17,8 @@ tracker as replayed, of the tracked poses without the lock and of the keys' sler
 held-out MPJPE (cm), and with ``--explain`` per foot the reference's contact frames that the
 lock did not lock (and the skate there) against the slerp's. ``--set NAME=VALUE`` overrides
 the ``FootLockRule`` of the replay (``low``, ``slow``, ``span``, ``min_frames``, ``ramp``,
-``keyed``, ``keep_low``; stop 40's hysteresis: ``--set keyed=slow``).
+``keyed``, ``keep_low``, ``anchor``, ``roll`` …; stop 40's hysteresis, the default since stop
+43: ``keyed`` 'slow'; stop 42's default: ``--set keyed=none``).
 Conclusion: ``docs/tracking.md`` *Planted feet in tracking*.
 """
 import argparse

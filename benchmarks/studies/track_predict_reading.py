@@ -16,7 +16,10 @@ arrays (the reference DOF rows, the feet relative to the root, per leg the hip/k
 before and after the lock) for ``--frames OUT.npz [OTHER.npz ...]``, which prints per frame
 the legs' velocity Predict reads (``planting.legs_velocities``), the root's, the left foot's
 weight share and both feet's heights above their floors (each foot's own since stop 42).
-Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41* and *Stop 42*.
+``MODE`` 'none' is stop 42's default rule (``keyed`` 'none'), 'slow' the hysteresis (the
+default since stop 43, with ``anchor`` 'seen' and ``roll``; ``anchor=run roll=0`` for stop
+42's option). Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41*, *Stop 42* and
+*Stop 43*.
 
 Stop 43 (``docs/gait.md``, *Stop 43, Predict from a few keys*): ``TS_KEYS_EVERY=N`` keys every
 N frames in 'keys' mode, ``TS_SPARSE_GAP=S`` sets ``core.gait.keyed.SPARSE_KEY_GAP_S`` (inf:

@@ -74,25 +74,38 @@ after adapting, on the model's fit (issue 21):
    give 125 steps/min at 0.75 m/s; restyled to a run 0.56 m/s). Of the shipped gaits' 2687
    steady windows 41 are warned, 29 of them of the sneaking walks, which pause between steps.
 
+9. **Poses like a walk's, where the rhythm does not vouch for one** (stop 43;
+   :func:`pose_misfit`): a range that passes checks 1-6 with a weak rhythm (strength below
+   ``MIN_STRENGTH``) or one too short to test is adapted (:func:`core.gait.adapt`) and its
+   misfit measured: the squared difference of the observed channels from the model's best fit,
+   in units of the model's observation noise, averaged. Over ``MAX_MISFIT`` (2.5) it is
+   refused, naming the frames and the body parts the model misses most. Walkers the model did
+   not learn from (every steady window of the shipped gaits, its subject left out of the
+   library) reach 2.06 at most where their rhythm is weak, 2.15 anywhere; the kick of CMU 74_03,
+   the arabesque of 05_10 and the throw of 124_01 2.8-18 (``docs/gait.md``, *Stop 43*). A
+   range whose rhythm reaches ``MIN_STRENGTH`` is not measured (no extra adaptation).
+
 Refusals say why in plain words; nothing is changed by the caller then. Measured acceptance of
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
 
 from ..kinematics import chain_kinematics, exp_so3
 from ..mocap import asf_to_skeleton, cmu_template_asf
+from .em import adapt
 from .segments import MIN_STRENGTH
 
-__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_SIDE_REACH_DEG",
-           "MAX_TILT_DEG", "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE",
-           "MIN_MOTION_DEG", "MIN_OVERLAP_S", "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT",
-           "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
-           "check_gait", "fit_score", "gait_channels", "legs_together", "raised_arm",
-           "regularity", "rhythm", "rhythm_inputs", "with_fit"]
+__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_MISFIT",
+           "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG",
+           "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S", "MIN_STRENGTH", "MIN_TRAVEL",
+           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
+           "arm_side_reach", "body_part", "check_gait", "fit_score", "gait_channels",
+           "legs_together", "pose_misfit", "raised_arm", "regularity", "rhythm",
+           "rhythm_inputs", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -114,6 +127,8 @@ HIP_FLEXION = ("lfemur.rx", "rfemur.rx")
 MAX_ARM_ELEVATION_DEG = 90.0   # an upper arm above the horizontal: raised above the shoulder
 MAX_SIDE_REACH_DEG = 45.0      # an arm out to the side, halfway from hanging to horizontal
 MIN_ARM_MOTION_DEG = 20.0      # … while the upper arm moves this much (an arm held still: not)
+MAX_MISFIT = 2.5               # pose misfit (× the model's observation noise) where the rhythm
+#                                does not vouch for a walk (check 9; docs/gait.md, *Stop 43*)
 ARMS = (("left", "lhumerus", "lradius", "lwrist"), ("right", "rhumerus", "rradius", "rwrist"))
 
 
@@ -145,6 +160,12 @@ class GaitCheck:
     arm_deg : float or None
         Highest elevation of an upper arm from hanging (:func:`arm_elevation`), degrees, when
         checks 1-5 passed (None before, or without both humeri).
+    misfit : float or None
+        The pose misfit of check 9 (:func:`pose_misfit`), when the rhythm was weak or not
+        tested and checks 1-6 passed (None otherwise).
+    adapted : AdaptResult or None
+        The adaptation check 9 made (``adapt(model, observations, fps=fps)``), when it made
+        one: the caller that adapts the same way reuses it (not compared, not shown).
     """
 
     motion_deg: float
@@ -158,6 +179,8 @@ class GaitCheck:
     travel: float = None
     forward: float = None
     arm_deg: float = None
+    misfit: float = None
+    adapted: object = field(default=None, compare=False, repr=False)
 
 
 def gait_channels(model, count=N_GAIT_CHANNELS):
@@ -439,6 +462,75 @@ def arm_out_to_the_side(model, observations, elevation=None, reach=None):
     return None
 
 
+PARTS = {"femur": "hip", "tibia": "knee", "foot": "foot", "toes": "toes",
+         "clavicle": "shoulder", "humerus": "upper arm", "radius": "forearm", "wrist": "wrist",
+         "hand": "hand", "fingers": "fingers", "thumb": "thumb"}
+TRUNK = {"lowerback": "lower back", "upperback": "upper back", "thorax": "chest",
+         "lowerneck": "neck", "upperneck": "neck", "head": "head"}
+
+
+def body_part(channel):
+    """An animator's name for a model channel's body part: ``'rfemur.rx'`` → ``'right hip'``,
+    ``'thorax.ry'`` → ``'chest'``, ``'root.v_forward'`` → ``'travel'``."""
+    joint = channel.split(".")[0]
+    if joint == "root":
+        return "travel" if channel.split(".")[1].startswith(("v_", "yaw")) else "hips' tilt"
+    if joint in TRUNK:
+        return TRUNK[joint]
+    if joint[:1] in "lr" and joint[1:] in PARTS:
+        return f"{'left' if joint[0] == 'l' else 'right'} {PARTS[joint[1:]]}"
+    return joint
+
+
+def pose_misfit(model, observations, result):
+    """How far the range's poses lie from every walk the model knows (check 9), from the
+    model's own likelihood of them: with ``L`` the innovation likelihood of the adapted
+    walker (``result.loglik``: the EKF's ``log N(y_t; ŷ_t, S_t)`` summed over the frames, eq.
+    19-22 of ``core/gait/ekf.py``), ``n`` the number of observed values and ``r`` the model's
+    observation noise variance (scaled units²), ``misfit = −2 L / n − log(2π r)``: the mean
+    squared difference of each observed value from the model's prediction of it, in units of
+    ``r`` (exactly, for a prediction whose phase is certain; its phase uncertainty adds a
+    little). About 0.2 on the walks the model learned from, 0.6 on average on walkers it did
+    not (1.75 at most over every steady window of the shipped gaits from 0.75 s with a weak
+    rhythm, its subject left out of the library); a kick, a throw or a dance step 2.8-18
+    (``docs/gait.md``, *Stop 43*).
+
+    Where: the squared difference of the observed channels from the model's fit (the adapted
+    style, phases and offset; without the walker's residual table), over ``r``, per frame and
+    per channel: what the refusal points at.
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        All model channels, physical units; NaN for an unobserved value.
+    result : AdaptResult
+        ``adapt(model, observations, fps=...)``.
+
+    Returns
+    -------
+    misfit : float
+        Dimensionless (units of ``r``).
+    per_frame : ndarray, shape (N,)
+        The fit's mean squared difference over each frame's observed channels, units of ``r``
+        (NaN for a frame with none).
+    per_channel : ndarray, shape (D,)
+        The same over each channel's observed frames (NaN for a channel never observed).
+    """
+    obs = np.asarray(observations, dtype=float)
+    seen = np.isfinite(obs)
+    n = max(int(seen.sum()), 1)
+    misfit = -2.0 * float(result.loglik) / n - float(np.log(2.0 * np.pi * model.r))
+    fitted = model.gp.observation_mean(result.states[:, 1], result.w)
+    if result.offset is not None:
+        fitted = fitted + result.offset
+    e2 = np.where(seen, (obs / model.channel_scale - fitted) ** 2 / model.r, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_frame = e2.sum(axis=1) / seen.sum(axis=1)
+        per_channel = e2.sum(axis=0) / seen.sum(axis=0)
+    return misfit, per_frame, per_channel
+
+
 def _root_figures(model, obs):
     """(largest tilt from upright in degrees, mean horizontal speed in m/s, forward share of
     the mean horizontal velocity), or (None, None, None) for a model without root travel (the
@@ -465,9 +557,10 @@ def _start_and_end_speeds(model, obs):
 
 
 def _walks_at_end(model, obs, fps):
-    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 take it)."""
+    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 take it; not
+    check 9, which would adapt the model to it: a hint and a warning depend on it)."""
     k = max(2, int(round(START_SHARE * len(obs))))
-    return check_gait(model, obs[-k:], fps).refusal is None
+    return check_gait(model, obs[-k:], fps, poses=False).refusal is None
 
 
 def _level_travel(model, obs, fps, travel):
@@ -487,8 +580,9 @@ def _level_travel(model, obs, fps, travel):
 
 
 def check_gait(model, observations, fps, result=None, what="the observed frames",
-               first_frame=None):
-    """Checks 1-6 of the module docstring, and the fit score when ``result`` is given.
+               first_frame=None, poses=True):
+    """Checks 1-6 and 9 of the module docstring, and the fit score when ``result`` is given
+    (check 9 adapts the model to the range itself when the rhythm is weak or untested).
 
     Parameters
     ----------
@@ -502,6 +596,8 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     first_frame : int, optional
         The scene frame of the range's first row: messages that point at frames inside the
         range number them so (else they count the range's rows from 1).
+    poses : bool
+        Whether to run check 9 (False: checks 1-6 only, no adaptation).
 
     Returns
     -------
@@ -594,6 +690,30 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"{top:.0f}° from hanging): a kick's or a throw's balance, "
                                  f"not a walk or run the gait model can continue (no walker "
                                  f"it learned from holds an arm out to the side)")
+    misfit = adapted = None
+    if poses and (strength is None or strength < MIN_STRENGTH):
+        adapted = adapt(model, obs, fps=fps)
+        misfit, per_frame, per_channel = pose_misfit(model, obs, adapted)
+        if misfit > MAX_MISFIT:
+            off = np.flatnonzero(per_frame > MAX_MISFIT)
+            if not off.size:                           # the fit misses no frame by that much
+                off = np.array([int(np.nanargmax(per_frame))])
+            worst = [body_part(model.channel_names[i])
+                     for i in np.argsort(-np.nan_to_num(per_channel, nan=-1.0))]
+            parts = list(dict.fromkeys(worst))[:2]
+            return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                             forward=forward, arm_deg=arm_deg, misfit=misfit,
+                             refusal=f"No walk or run moves like this in {what} (most "
+                                     f"in {frames(int(off[0]), int(off[-1]))}, at the "
+                                     f"{' and the '.join(parts)}): the gait model's closest "
+                                     f"walk misses its poses by {misfit:.1f} times the error "
+                                     f"it allows ({MAX_MISFIT:g} at most for a walker it did "
+                                     f"not learn from), and the steps do not repeat as a "
+                                     f"walk's do (" + (
+                                         f"strength {strength:.2f}" if strength is not None
+                                         else "too short to test") + "): a kick, a throw or "
+                                     f"a dance step is not a walk or run the gait model can "
+                                     f"continue")
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "
@@ -607,7 +727,8 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
     check = GaitCheck(motion, period, strength, together, None, None,
-                      "; ".join(warnings) or None, tilt, travel, forward, arm_deg)
+                      "; ".join(warnings) or None, tilt, travel, forward, arm_deg, misfit,
+                      adapted)
     return check if result is None else with_fit(check, model, obs, result, what)
 
 

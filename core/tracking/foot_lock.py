@@ -12,15 +12,18 @@ is locked and the leg chain solved to keep it there:
   (the animator's poses say where the ground is; heights along the world's up, Blender's Z,
   in the armature's space: ``up``), and its tracked speed over ``span`` frames centred on f
   is under ``slow`` (a sliding stance foot is much slower than a swinging one). Runs shorter
-  than ``min_frames`` are left alone. With ``FootLockRule.keyed`` 'slow' (stop 40; not the
-  default, see the class) a contact, once started, goes on while the foot stays within
+  than ``min_frames`` are left alone. With ``FootLockRule.keyed`` 'slow' (stop 40; the
+  default since stop 43, see the class) a contact, once started, goes on while the foot stays within
   ``keep_low`` of the floor and the tracked foot *or the keys' in-between* is slow, the
   tracked foot under ``keep_slow`` (:func:`standing`: a tracked foot that slides or drifts up
   a little while the keys hold it still no longer breaks a contact into short runs whose ease
   in and out snapped the foot).
 * **Where it stands** — the foot's world pose (ankle position and foot orientation) over a
   run: where a run holds keys, the keys' own foot poses (linear / slerp between two keys of
-  the run, held beyond them), so a lock never moves a key; without a key, the run's mean.
+  the run, held beyond them), so a lock never moves a key; without a key, the mean of the
+  frames the tracked foot was seen standing at (low and slow). After the last of those frames
+  (a take-off the contact went on into) the ball stays and the foot keeps its tracked turn
+  (``FootLockRule.roll``: the heel rises).
 * **Lock** — the leg chain (thigh, shin, foot: the two longest consecutive segments of the
   leg and the one after them, :func:`leg_chain`) is solved for it: two-bone IK puts the ankle
   on the target with the knee in its tracked bending plane (:func:`core.rigs.ik.
@@ -74,14 +77,14 @@ class FootLockRule:
     ramp : float
         Seconds over which the lock eases in before a run and out after it.
     keyed : str
-        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (stop 40;
-        **off by default**: on the fitted test rigs it made Predict after tracking worse, CMU
-        13.5 -> 16.1 cm, metarig 17.0 -> 26.5, and the tracked walk's prediction 0.79 of the
-        walker's speed, docs/tracking.md, *Planted feet*, stop 40) -- while the foot stays
-        within ``keep_low`` of the floor and either the
-        tracked foot or the keys' in-between (per bone slerp of the keys, as the tracker
-        starts from) moves it slower than ``slow``, the tracked foot slower than
-        ``keep_slow``; ``'none'`` (default) -- only while the tracked foot is low and slow.
+        How a contact goes on once it has started (:func:`standing`): ``'slow'`` (default
+        since stop 43, with ``anchor`` 'seen' and ``roll``; stop 40 brought it in, the end of
+        stop 40 switched it off: on the fitted test rigs it made Predict after tracking worse,
+        docs/tracking.md, *Planted feet*, stops 40-43) -- while the foot stays within
+        ``keep_low`` of the floor and either the tracked foot or the keys' in-between (per
+        bone slerp of the keys, as the tracker starts from) moves it slower than ``slow``,
+        the tracked foot slower than ``keep_slow``; ``'none'`` (the default until stop 43)
+        -- only while the tracked foot is low and slow.
     keep_low : float
         Metres above the keys' floor within which a standing foot stays standing
         (``keyed`` 'slow'; twice ``low``: hysteresis).
@@ -108,6 +111,21 @@ class FootLockRule:
         the ankle is within it (:func:`_pivot_on_ball`: the heel rises, the ball stays). Off by
         default (stop 41: Predict after tracking 13.5 -> 8.8 cm on the CMU skeleton and 14.3 ->
         9.0 on Rigify IK, but 12.0 -> 31.8 on Mixamo, whose adapted cadence changed).
+    anchor : str
+        Where a run that holds no key stands: ``'seen'`` (default, stop 43) -- the mean of
+        the frames the tracked foot itself was seen standing at (its low and slow runs of
+        ``min_frames`` or more: the runs that started the contact, before the hysteresis
+        extended it); ``'run'`` -- the mean over the whole run (stop 40-42: the
+        frames the hysteresis added are those where the tracked foot slides, and their mean
+        carried the slide into the whole stance; docs/tracking.md, *Stop 43*). The same with
+        ``keyed`` 'none' (the run is its seen frames).
+    roll : bool
+        With ``keyed`` 'slow': over the frames a contact goes on after the last frame the
+        tracked foot was seen standing at (low and slow) -- a take-off, where the heel rises
+        -- the **ball** (the foot bone's tail) stays where the contact stands and the foot
+        keeps its tracked turn, instead of the whole foot held flat at the contact's pose
+        (stop 43, default: held flat, the heel-off read late and Predict after tracking
+        read a slower cadence, docs/tracking.md, *Stop 43*).
     """
 
     low: float = 0.05
@@ -115,16 +133,20 @@ class FootLockRule:
     span: int = 5
     min_frames: int = 3
     ramp: float = 0.05
-    keyed: str = "none"
+    keyed: str = "slow"
     keep_low: float = 0.10
     keep_slow: float = 0.8
     on_floor: bool = False
     reach: bool = False
     pivot: bool = False
+    anchor: str = "seen"
+    roll: bool = True
 
     def __post_init__(self):
         if self.keyed not in ("slow", "none"):
             raise ValueError(f"keyed must be 'slow' or 'none', got {self.keyed!r}")
+        if self.anchor not in ("seen", "run"):
+            raise ValueError(f"anchor must be 'seen' or 'run', got {self.anchor!r}")
 
 
 @dataclass(frozen=True)
@@ -218,12 +240,16 @@ def _mean_rotation(rotations):
     return u @ np.diag([1.0, 1.0, d]) @ vt
 
 
-def _anchor(ankle, foot_rot, a, b, inside_keys):
-    """Target ankle positions (b - a, 3) and foot rotations (b - a, 3, 3) of run [a, b)."""
+def _anchor(ankle, foot_rot, a, b, inside_keys, seen=None):
+    """Target ankle positions (b - a, 3) and foot rotations (b - a, 3, 3) of run [a, b):
+    between and at its keys the keys' own poses (held beyond them); a run without keys
+    stands at the mean pose of the frames ``seen`` (indices in [a, b); None or empty: the
+    whole run)."""
     n = b - a
     if not inside_keys:
-        return (np.repeat(ankle[a:b].mean(axis=0)[None], n, axis=0),
-                np.repeat(_mean_rotation(foot_rot[a:b])[None], n, axis=0))
+        rows = np.arange(a, b) if seen is None or not len(seen) else np.asarray(seen)
+        return (np.repeat(ankle[rows].mean(axis=0)[None], n, axis=0),
+                np.repeat(_mean_rotation(foot_rot[rows])[None], n, axis=0))
     frames = np.arange(a, b)
     ks = np.array(inside_keys)
     pos = np.stack([np.interp(frames, ks, ankle[ks, c]) for c in range(3)], axis=1)
@@ -523,9 +549,18 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
         weight = np.zeros(n)
         found = []
         near = height[side].min(axis=1) <= floor + max(rule.keep_low, rule.low)
+        def seen(a, b):
+            # The frames of [a, b) the tracked foot was seen standing at: its low and slow
+            # runs of min_frames or more, those that started the contact (stop 43).
+            if rule.anchor == "run":
+                return None
+            return np.concatenate([np.arange(s_, t) for s_, t in runs(low & slow)
+                                   if a <= s_ and t <= b and t - s_ >= rule.min_frames]
+                                  or [np.arange(a, b)])
+
         for a, b in standing(low, slow, held, rule.min_frames, near, keys, ramp):
             inside = [k for k in keys if a <= k < b]
-            p, r = _anchor(ankle, foot_rot, a, b, inside)
+            p, r = _anchor(ankle, foot_rot, a, b, inside, seen(a, b))
             # With rule.reach (off by default), not where the leg cannot reach: the ends of a
             # run whose target is farther from the hip than thigh and shin together (the hips
             # have left the spot: the foot is rolling onto its toes or already lifting) are
@@ -542,13 +577,28 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
                     continue
                 a, b = a + lo_, a + hi_
                 inside = [k for k in keys if a <= k < b]
-                p, r = _anchor(ankle, foot_rot, a, b, inside)
+                p, r = _anchor(ankle, foot_rot, a, b, inside, seen(a, b))
             if rule.on_floor and not inside:
                 # Never under the keys' floor: the run's lowest point (its mean below the
                 # ankle over the run) on the floor where the tracked foot sank through it.
                 sunk = floor - (p[0] @ up + np.mean(lowest[a:b] - ankle[a:b] @ up))
                 if sunk > 0.0:
                     p = p + sunk * up
+            if rule.roll and held is not None:
+                # After the last frame the tracked foot was seen standing at (the hysteresis's
+                # extension into a take-off), the ball stays where it stands and the foot keeps
+                # its tracked turn: the heel rises as tracked (stop 43).
+                seen_runs = [(s_, t) for s_, t in runs(low & slow)
+                             if a <= s_ and t <= b and t - s_ >= rule.min_frames]
+                seen_end = max((t for _, t in seen_runs), default=b)
+                if seen_end < b:
+                    tail = sk.tails[foot]
+                    ball = p + np.einsum("nij,j->ni", r, tail)
+                    rr = slice(seen_end - a, b - a)
+                    r = r.copy()
+                    p = p.copy()
+                    r[rr] = foot_rot[seen_end:b]
+                    p[rr] = ball[rr] - np.einsum("nij,j->ni", r[rr], tail)
             goal_pos[a:b], goal_rot[a:b], weight[a:b] = p, r, 1.0
             # Ease in before the run and out after it, never across a key.
             before = [k for k in keys if k < a]

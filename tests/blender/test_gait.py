@@ -1139,6 +1139,47 @@ def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene
     assert_keys_unchanged(obj, keys)
 
 
+def test_a_kick_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):
+    """Stop 43: frames 91-135 (1.5-2.25 s) of the kick CMU 74_03 pass every check of the legs,
+    the root and the arms with a weak rhythm; Predict Gait refuses them because no walk fits
+    their poses (check 9), naming the frames in the scene's numbering and the body parts as
+    the core's check of the same rows does, and changes nothing."""
+    from core.gait.checks import check_gait
+
+    asf = read_asf(cmu_path("not_gaits/74.asf"))
+    values = read_amc(cmu_path("not_gaits/74_03.amc"), asf).values
+    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
+    path = tmp_path / "74_03.amc"
+    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
+                                   bone_order=(), fps=FPS, path=str(path)))
+    (tmp_path / "74.asf").write_bytes(cmu_path("not_gaits/74.asf").read_bytes())
+    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
+    obj = bpy.context.active_object
+    counts, keys = datablock_counts(), snapshot(obj)
+    model = load_stock_library()
+    names = asf_to_skeleton(asf).dof_names()
+    cols = [list(names).index(n) for n in model.dof_names]
+    core = check_gait(model, observations_from_dofs(model, values[90:135, cols],
+                                                    model.dof_names, FPS), FPS,
+                      what=f"frames 91–135 of {obj.name}", first_frame=91)
+    assert core.refusal.startswith("No walk or run moves like this")
+    with pytest.raises(RuntimeError) as refusal:
+        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=91,
+                                              frame_end=135, horizon=1.0)
+    pattern = (r"No walk or run moves like this in frames 91–135 of (\S+) \(most in frames "
+               r"(\d+)–(\d+), at the (.+?) and the (.+?)\): the gait model's closest walk "
+               r"misses its poses by ([\d.]+) times the error it allows")
+    found, expected = re.search(pattern, str(refusal.value)), re.search(pattern, core.refusal)
+    assert found, str(refusal.value)
+    assert found.group(1) == obj.name
+    assert abs(int(found.group(2)) - int(expected.group(2))) <= 1
+    assert abs(int(found.group(3)) - int(expected.group(3))) <= 1
+    assert found.group(4, 5) == expected.group(4, 5)
+    assert float(found.group(6)) == pytest.approx(core.misfit, abs=0.15)
+    assert datablock_counts() == counts
+    assert_keys_unchanged(obj, keys)
+
+
 def test_a_restyle_into_a_run_ramps_in_without_a_jolt_through_the_operator(scene, tmp_path):
     """Issue 25 §3, stop 41: CMU 35_01 restyled to a run at cadence 1.3 changed into it over one
     step (a run always did): the hips jolted at about 3× the walker's capture p99 over that

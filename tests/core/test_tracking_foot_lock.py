@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from core.kinematics import Skeleton, exp_so3, forward_kinematics
+from core.kinematics import Skeleton, exp_so3, forward_kinematics, log_so3
 from core.mocap import asf_to_skeleton
 from core.mocap.bvh import cmu_template_asf
 from core.tracking import foot_lock
@@ -344,7 +344,8 @@ def test_a_contact_goes_on_where_the_keys_hold_the_foot_still(skeleton):
     # The rule before, or a slide faster than keep_slow (its 5-frame speed is 0.56 m/s at
     # frames 13 and 17): the tracked speed alone cuts the contact at the slide.
     assert 0.5 < speed[13] < foot_lock.FootLockRule().keep_slow
-    for rule in (foot_lock.FootLockRule(), foot_lock.FootLockRule(keyed="slow", keep_slow=0.5)):
+    for rule in (foot_lock.FootLockRule(keyed="none"),
+                 foot_lock.FootLockRule(keyed="slow", keep_slow=0.5)):
         _, _, old, _ = lock_feet(_problem(sk), keys, tracked, local, FPS, rule=rule)
         old_left = [lk[:3] for lk in old if lk[0] == "left"]
         assert len(old_left) >= 2 and old_left[0] == ("left", 0, 12)
@@ -539,3 +540,69 @@ def test_with_reach_the_ends_of_a_run_the_leg_cannot_reach_are_not_locked(skelet
     assert np.all(np.linalg.norm(target - pos[a1:b1 + 1, thigh], axis=1) <= length[a1:b1 + 1])
     np.testing.assert_allclose(pos2[a1:b1 + 1, foot],
                                np.broadcast_to(target, (b1 - a1 + 1, 3)), atol=1e-6)
+
+
+def _take_off(sk, n=31):
+    """The left foot stands over frames 0-15 (the keys at 0 and 30 hold it there and the
+    body still), then the tracked foot turns toes down about its ankle (3.4° a frame, a heel
+    rising) while the tracked body slides 1.6 cm a frame forward (frames 16-21, 0.35-0.46 m/s:
+    the tracker's slide of a foot rolling onto its ball), and the body rises out of reach
+    of the floor from frame 22 (the swing). The right leg is held up throughout."""
+    f = np.arange(n)
+    local = np.broadcast_to(np.eye(3), (n, sk.n_joints, 3, 3)).copy()
+    local[:, sk.index("rfemur")] = exp_so3(np.tile([-0.9, 0.0, 0.0], (n, 1)))
+    local[:, sk.index("rtibia")] = exp_so3(np.tile([1.2, 0.0, 0.0], (n, 1)))
+    local[:, sk.index("lfemur")] = exp_so3(np.tile([-0.15, 0.0, 0.0], (n, 1)))
+    local[:, sk.index("ltibia")] = exp_so3(np.tile([0.3, 0.0, 0.0], (n, 1)))
+    roll = np.clip(f - 15, 0, 6)
+    local[:, sk.index("lfoot")] = exp_so3(np.stack([-0.15 + 0.06 * roll, 0 * f, 0 * f], 1))
+    roots = np.zeros((n, 3))
+    roots[:, 1] = -0.016 * roll
+    roots[:, 2] = 0.03 * np.clip(f - 21, 0, None)
+    return roots, local
+
+
+def test_a_contact_going_on_into_a_take_off_keeps_the_ball_and_lets_the_heel_rise(skeleton):
+    """The default rule (stop 43: ``keyed`` 'slow', ``roll``): a contact the tracked foot
+    started goes on into the take-off, where the tracked foot turns and slides; there the
+    ball stays where the foot stood (to 1e-6 m) and the foot keeps its tracked turn (the
+    heel rises as tracked). Stop 42's default (``keyed`` 'none') let the ball slide up to 9
+    cm there; its hysteresis without ``roll`` held the whole foot flat at the stance's pose
+    (up to 21° from the tracked turn): the heel-off read late, and Predict after tracking
+    read a slower cadence from it (docs/tracking.md, *Stop 43*)."""
+    sk = skeleton
+    roots, local = _take_off(sk)
+    keys = [0, 30]
+    foot = sk.index("lfoot")
+    rot, pos = forward_kinematics(sk, local, roots)
+
+    def ball_of(rot, pos):
+        return pos[:, foot] + np.einsum("nij,j->ni", rot[:, foot], sk.tails[foot])
+
+    def turn_deg(a, b):
+        return np.degrees(np.linalg.norm(log_so3(np.swapaxes(a, -1, -2) @ b), axis=1))
+
+    assert foot_lock.FootLockRule() == foot_lock.FootLockRule(keyed="slow", roll=True)
+    _, out, locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS)
+    assert [lk[:3] for lk in locks if lk[0] == "left"] == [("left", 0, 22)]
+    rot2, pos2 = forward_kinematics(sk, out, roots)
+    ball = ball_of(rot2, pos2)
+    stood = ball_of(rot, pos)[0]
+    np.testing.assert_allclose(ball[:23], np.broadcast_to(stood, (23, 3)), atol=1e-6)
+    # The seen frames (low and slow: 0-16) stand at the key's pose; after them the foot
+    # turns as tracked.
+    assert turn_deg(rot2[17:23, foot], rot[17:23, foot]).max() < 1e-6
+    assert turn_deg(rot2[:17, foot], rot[:1, foot]).max() < 1e-6
+    np.testing.assert_array_equal(out[keys], local[keys])
+    # Stop 42's default: the contact ends where the tracked foot gets faster than slow and
+    # the ball slides with the tracker.
+    _, old, old_locks, _ = lock_feet(_problem(sk), keys, roots, local, FPS,
+                                     rule=foot_lock.FootLockRule(keyed="none"))
+    assert [lk[:3] for lk in old_locks if lk[0] == "left"] == [("left", 0, 16)]
+    old_ball = ball_of(*forward_kinematics(sk, old, roots))
+    assert np.linalg.norm(old_ball[18:23] - stood, axis=1).min() > 0.03
+    # The hysteresis without roll: the ball stays, but the foot is held flat.
+    _, flat, _, _ = lock_feet(_problem(sk), keys, roots, local, FPS,
+                              rule=foot_lock.FootLockRule(roll=False))
+    rot3, _ = forward_kinematics(sk, flat, roots)
+    assert turn_deg(rot3[17:23, foot], rot[17:23, foot]).max() > 15.0
