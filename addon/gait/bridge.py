@@ -23,6 +23,7 @@ from ...core import limits
 from ...core.gait import (ObservationStream, OnlineEM, adapt, learn_model,
                           observations_from_dofs, restyle)
 from ...core.gait.checks import check_gait, with_fit
+from ...core.gait import keyed as keyed_reading
 from ...core.gait.leg_travel import fit_leg_travel
 from ...core.gait.walk import WalkRequest, predict_walk
 from ...core.rigs import plain_list
@@ -495,6 +496,21 @@ def _count_keys(bag, targets, first, last, keys=None):
 
 
 # ------------------------------------------------------------------------------ predict
+def keyed_frames(grig, first, last, keys=None):
+    """(N,) bool over frames ``first … last``: the frames holding a key on any F-curve the
+    rig reads (a key off the frame grid marks its nearest frame; ``keys`` as in
+    ``_keys_digest``)."""
+    keys = _KeyReads(_action_bag(grig.obj)) if keys is None else keys
+    hit = np.zeros(last - first + 1, dtype=bool)
+    for path, index, _ in grig.reads():
+        co = keys(path, index)
+        if co is None or not len(co):
+            continue
+        at = np.rint(co[:, 0].astype(float)).astype(int) - first
+        hit[at[(at >= 0) & (at < len(hit))]] = True
+    return hit
+
+
 def _observed_range(grig, scene, options, bag, record, keys=None):
     """(first, last) frames to observe: the keyed range up to an intact earlier prediction
     (which is replaced, not observed), the scene's, or the custom one (``keys`` as in
@@ -566,8 +582,10 @@ def predict_gait(context, obj, options):
     dict
         ``status`` ('ok' or 'warning'), ``object``, ``action``, ``model``, ``observed`` and
         ``predicted`` frame ranges, ``keys`` written, ``strides_per_s``, ``fit`` (fit score),
-        ``period_s`` (observed, None when too short to test), ``replaced`` (an earlier
-        prediction's frames or None), ``warnings`` and ``message`` (the report line).
+        ``period_s`` (observed, None when too short to test), ``keyed_poses`` (the keyed
+        frames observed when the range is sparsely keyed, ``core.gait.keyed``; None when every
+        frame was observed), ``replaced`` (an earlier prediction's frames or None),
+        ``warnings`` and ``message`` (the report line).
     """
     scene = context.scene
     fps = scene_fps(scene)
@@ -595,7 +613,16 @@ def predict_gait(context, obj, options):
     check = check_gait(model, obs, fps, what=what, first_frame=first)
     if check.refusal:
         raise GaitError(check.refusal)
-    walker = _adapt(model, obs, fps, options.adaptation, model_dofs, check.adapted)
+    # A sparsely keyed range (a few poses the animator keyed): the batch adaptation observes
+    # the keyed frames only, the phase dynamics carry the walker across the frames between,
+    # and the walker's travel is the keyed root's (docs/gait.md, *Stop 43*).
+    keyed = keyed_frames(grig, first, last, keys)
+    sparse = options.adaptation != "ONLINE" and keyed_reading.sparsely_keyed(keyed, fps)
+    seen = keyed_reading.keyed_observations(obs, keyed) if sparse else obs
+    walker = _adapt(model, seen, fps, options.adaptation, model_dofs,
+                    None if sparse else check.adapted)
+    if sparse and not keyed[-1]:  # the continuation starts from the last frame Blender shows
+        walker.last = np.array(obs[-1], dtype=float)
     # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU
     # template's), carried from the reference's last cycle: the character keeps its posture.
     omega = float(np.asarray(walker.state, dtype=float)[0])       # observed, rad per frame
@@ -606,11 +633,19 @@ def predict_gait(context, obj, options):
     skeleton = grig.skeleton if carried is None else \
         grig.space.planted_skeleton(carried.rotations)
     if walker.result is not None:
-        check = with_fit(check, model, obs, walker.result, what)
+        root_xy = [list(grig.dof_names).index(n) for n in ("root.tx", "root.ty")]
+        if sparse:                                        # the fit of the keyed poses
+            check = with_fit(check, model, obs[keyed],
+                             replace(walker.result, states=walker.result.states[keyed]), what)
+        else:
+            check = with_fit(check, model, obs, walker.result, what)
         # The legs carry the prediction (planted root): the style's legs travel as far as the
-        # reference's did (core.gait.leg_travel; issue 19, a walk tracked from footage).
-        walker.w = fit_leg_travel(model, skeleton, dofs, fps, obs, walker.result,
-                                  walker.residual if options.mannerisms else None).w
+        # reference's did (core.gait.leg_travel; issue 19, a walk tracked from footage) -- a
+        # sparsely keyed reference's as far as its keyed root did.
+        walker.w = fit_leg_travel(model, skeleton, dofs, fps, seen, walker.result,
+                                  walker.residual if options.mannerisms else None,
+                                  reference_speed=keyed_reading.keyed_root_speed(
+                                      dofs[:, root_xy], keyed, fps) if sparse else None).w
     n = int(round(options.horizon * fps))
     length = limits.name_of("length")
     if n < 1:
@@ -668,7 +703,9 @@ def predict_gait(context, obj, options):
               f"{speed:.2f} m/s" + (" with the feet planted" if options.plant_feet else ""))
     text = (f"Predicted {n} frames ({n / fps:.2f} s) after frame {last} with {model_name}: "
             f"{hz:.2f} strides/s, {style}, {travel}"
-            f"; {written} keys in {new_action.name}{_controls_said(grig)}"
+            + (f"; read from your {int(keyed.sum())} keyed poses (Blender's in-betweens "
+               "are not a walk)" if sparse else "")
+            + f"; {written} keys in {new_action.name}{_controls_said(grig)}"
             + (f", replacing the earlier prediction of frames {replaced[0]}–{replaced[1]}"
                if replaced else "")
             + (f"; fit score {check.fit:.2f}" if check.fit is not None else ""))
@@ -677,6 +714,7 @@ def predict_gait(context, obj, options):
             "predicted": [int(frames[0]), int(frames[-1])], "keys": int(written),
             "strides_per_s": float(hz), "speed_m_s": float(speed), "floor_m": walk.floor,
             "fit": check.fit, "period_s": check.period_s,
+            "keyed_poses": int(keyed.sum()) if sparse else None,
             "replaced": list(replaced) if replaced else None, "warnings": warnings,
             "message": text}
 

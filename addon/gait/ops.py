@@ -186,7 +186,9 @@ class TS_OT_predict_gait(bpy.types.Operator):
 
     range_mode: EnumProperty(
         name="Reference Frames", description="The frames the model watches to pick up the "
-        "walker's rhythm and style (the observation window the model adapts to)",
+        "walker's rhythm and style (the observation window the model adapts to). Poses keyed "
+        "a few frames apart are read as the poses you keyed: Blender's in-betweens are not "
+        "taken for the walk",
         items=(("ACTION", "Keyed Range", "Every keyed frame of the action, up to an earlier "
                 "prediction (which is replaced)"),
                ("SCENE", "Scene Range", "The scene's start to end frame"),

@@ -20,6 +20,12 @@ weight share and both feet's heights above their floors (each foot's own since s
 default since stop 43, with ``anchor`` 'seen' and ``roll``; ``anchor=run roll=0`` for stop
 42's option). Conclusion: ``docs/tracking.md``, *Planted feet*, *Stop 41*, *Stop 42* and
 *Stop 43*.
+
+Stop 43 (``docs/gait.md``, *Stop 43, Predict from a few keys*): ``TS_KEYS_EVERY=N`` keys every
+N frames in 'keys' mode, ``TS_SPARSE_GAP=S`` sets ``core.gait.keyed.SPARSE_KEY_GAP_S`` (inf:
+every frame observed, main's reading before stop 43), ``TS_SWAP=omega,phase,style,more`` with
+``TS_SWAP_FROM=<a 'true' capture>`` puts the true walk's cadence, phase, fitted style, offset
+and residual table into the run; ``RESULT`` also gives ``pose_cm`` (joints relative to the hips).
 """
 
 import dataclasses, os, sys, tempfile, json
@@ -120,6 +126,31 @@ def fit_wrap(model, skeleton, dofs, fps, obs, result, residual=None, **kw):
     print("FIT", cap["fit"], "omega", result.state, "n", n, "win", np.round(cap["win_speeds"], 3))
     return fit
 bridge.fit_leg_travel = fit_wrap
+# Stop 43's diagnosis: TS_SWAP=omega,phase,style takes those from TS_SWAP_FROM (a capture of
+# this script, e.g. the true walk's): the adapted cadence ω, the last frame's phase φ, the
+# style after the legs' travel fit.
+# 'more': the posture offset and the residual table too.
+swap = [w for w in os.environ.get("TS_SWAP", "").split(",") if w]
+src = np.load(os.environ["TS_SWAP_FROM"]) if swap else None
+orig_adapt = bridge._adapt
+def adapt_wrap(*a, **kw):
+    walker = orig_adapt(*a, **kw)
+    cap["offset"] = np.asarray(walker.offset); cap["residual"] = np.asarray(walker.residual)
+    state = np.array(walker.state, dtype=float)
+    for i, name in enumerate(("omega", "phase")):
+        if name in swap:
+            state[i] = src["state"][i]
+    walker.state = state
+    if "more" in swap:
+        walker.offset, walker.residual = np.array(src["offset"]), np.array(src["residual"])
+    return walker
+bridge._adapt = adapt_wrap
+if swap:
+    fit_now = bridge.fit_leg_travel
+    def fit_swap(*a, **kw):
+        fit = fit_now(*a, **kw)
+        return dataclasses.replace(fit, w=np.array(src["w_fit"])) if "style" in swap else fit
+    bridge.fit_leg_travel = fit_swap
 orig_pw = bridge.predict_walk
 def pw_wrap(*a, **kw):
     walk = orig_pw(*a, **kw)
@@ -132,7 +163,14 @@ from sample_scenes.rig_specs import RIG_SPECS, PARTS
 from sample_scenes.rig_walk import read_truth
 render = rig_gait.gait_footage(kind, ext)
 REF = rig_gait.REFERENCE
-keys = list(range(1, REF + 1)) if mode == "true" else list(range(1, REF + 1, rig_gait.TRACK_EVERY))
+# Stop 43: TS_KEYS_EVERY keys every N frames (default rig_gait.TRACK_EVERY, 15) and
+# TS_SPARSE_GAP sets core.gait.keyed.SPARSE_KEY_GAP_S (inf: every frame observed, as
+# before stop 43).
+every = int(os.environ.get("TS_KEYS_EVERY", rig_gait.TRACK_EVERY))
+if "TS_SPARSE_GAP" in os.environ:
+    importlib.import_module(M + ".core.gait.keyed").SPARSE_KEY_GAP_S = \
+        float(os.environ["TS_SPARSE_GAP"])
+keys = list(range(1, REF + 1)) if mode == "true" else list(range(1, REF + 1, every))
 obj, fp = open_rig_scene(render, keys)
 scene = bpy.context.scene
 spec = RIG_SPECS[kind]
@@ -162,6 +200,8 @@ def speed(j):
 res = dict(kind=kind, mode=mode,
            tracking_cm=100 * np.linalg.norm(tracked - truth_ref, axis=-1).mean(),
            pred_cm=100 * np.linalg.norm(pred - truth_pred, axis=-1).mean(),
+           pose_cm=100 * np.linalg.norm((pred - hips(pred)[:, None])
+                                        - (truth_pred - hips(truth_pred)[:, None]), axis=-1).mean(),
            speed_ratio=speed(pred) / speed(truth_pred),
            ref_hips_speed=speed(tracked), true_ref_hips_speed=speed(truth_ref))
 res = {k: (v if isinstance(v, str) else float(v)) for k, v in res.items()}

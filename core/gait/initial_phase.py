@@ -196,9 +196,18 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
         raise ValueError(f"Expected observations of shape (K>=1, {ctx.n_channels}), "
                          f"got {ys.shape}")
     mu, mtm = phase_tables(ctx)
+    # Frames with no observed channel (the frames between an animator's keys, which Predict
+    # Gait leaves unobserved: docs/gait.md, *Stop 43*) are left out of the scoring; each
+    # candidate's phase still runs through them (t, the frames' indices in the window).
+    t = np.arange(len(ys))
+    seen = np.isfinite(ys).any(axis=1)
+    if not seen.any():
+        raise ValueError("no frame of the window observes any channel")
+    if not seen.all():
+        t, ys = t[seen], ys[seen]
     ok = np.all(np.isfinite(ys), axis=0)
     if not ok.any():
-        raise ValueError("no channel is observed in every frame of the window")
+        raise ValueError("no channel is observed in every observed frame of the window")
     if not ok.all():
         ys = ys[:, ok]
         mu = mu[:, :, ok]
@@ -207,7 +216,6 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
     n_bases = mu.shape[1]
     omegas = np.exp(np.linspace(np.log(ctx.omega_min), np.log(ctx.omega_max), n_omega))
     phis = 2.0 * np.pi * np.arange(n_phi) / n_phi
-    t = np.arange(k_frames)
     phase = phis[None, :, None] + omegas[:, None, None] * t[None, None, :]
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE  # (nω, nφ, K)
     proj = (ys @ mu.reshape(N_TABLE * n_bases, -1).T).reshape(k_frames * N_TABLE, n_bases)
@@ -254,26 +262,29 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
             a_sum[i, j].copy(), b_sum[i, j].copy())
     if refine:
         omega, phi0, best = _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0,
-                                    np.log(omegas[1] / omegas[0]), 2.0 * np.pi / n_phi, proj)
+                                    np.log(omegas[1] / omegas[0]), 2.0 * np.pi / n_phi, proj,
+                                    times=t)
     w_best, cost_best, resid_best, a_best, b_best = best
     return GridResult(omega=omega, phi0=phi0,
-                      phi_last=float((phi0 + omega * (k_frames - 1)) % (2.0 * np.pi)),
+                      phi_last=float((phi0 + omega * t[-1]) % (2.0 * np.pi)),
                       w=w_best, cost=cost_best, residual=resid_best, costs=cost, omegas=omegas,
                       a_sum=a_best, b_sum=b_best, n_frames=k_frames, styles=w, phis=phis)
 
 
 def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, proj=None,
-            rounds=REFINE_ROUNDS):
+            rounds=REFINE_ROUNDS, times=None):
     """Descend the continuous cost from a grid candidate, in turn along log ω (holding the
     phase at the window's middle frame: the cost's valley runs along ω there, while at fixed
     φ₀ it runs diagonally) and along the phase, each time to the vertex of the parabola through
     the cost at the point and a step either side (at most one step), halving the steps every
     round. ``proj`` (K, N_TABLE, J): the grid's projections of the frames on the table
-    (:func:`_score_one`). Returns ``(ω, φ₀, score)`` with ``score`` as :func:`_score_one`'s."""
+    (:func:`_score_one`); ``times`` (K,) the frames' indices in the window (default
+    ``0 … K-1``). Returns ``(ω, φ₀, score)`` with ``score`` as :func:`_score_one`'s."""
     lo, hi = np.log(ctx.omega_min), np.log(ctx.omega_max)
     offset_prec = None if ctx.offset_prec is None else ctx.offset_prec[ok]
     y_sum = None if offset_prec is None else ys.sum(axis=0)        # the same for every point
-    t_mid = 0.5 * (len(ys) - 1)
+    times = np.arange(len(ys)) if times is None else np.asarray(times)
+    t_mid = 0.5 * float(times[0] + times[-1])
     x = np.array([np.log(omega), phi0 + omega * t_mid])          # (log ω, φ at the middle)
 
     scored = {}
@@ -285,7 +296,7 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, proj=None
         if key not in scored:
             om = float(np.exp(p[0]))
             scored[key] = _score_one(ctx, ys, mu, mtm, om, float(p[1] - om * t_mid), yy,
-                                     offset_prec, proj, y_sum)
+                                     offset_prec, proj, y_sum, times)
         return scored[key]
 
     best = score(x)
@@ -311,7 +322,8 @@ def _refine(ctx, ys, ok, mu, mtm, yy, omega, phi0, log_step, phi_step, proj=None
     return omega, float((x[1] - omega * t_mid) % (2.0 * np.pi)), best
 
 
-def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None, proj=None, y_sum=None):
+def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None, proj=None, y_sum=None,
+               times=None):
     """(w, cost, residual, Σ μᵀμ, Σ μᵀy) of one candidate (ω, φ₀): the grid's scoring at a
     single point (``mu``, ``mtm`` the tables of the scored channels). With ``offset_prec``
     (Dc,) the walker's posture offset ``b ~ N(0, diag(1/offset_prec))`` is estimated with the
@@ -320,8 +332,8 @@ def _score_one(ctx, ys, mu, mtm, omega, phi0, yy, offset_prec=None, proj=None, y
     ``y_t · μ`` on every table phase (:func:`grid_search`'s), gives ``Σ μᵀy`` as the grid sums
     it (each frame's row at the candidate's phase, in frame order) instead of the einsum over
     the gathered rows (equal to rounding; stop 40); ``y_sum`` is ``ys.sum(axis=0)`` when the
-    caller has it."""
-    phase = phi0 + omega * np.arange(len(ys))
+    caller has it; ``times`` (K,) the frames' indices in the window (default ``0 … K-1``)."""
+    phase = phi0 + omega * (np.arange(len(ys)) if times is None else times)
     idx = np.rint(phase * (N_TABLE / (2.0 * np.pi))).astype(int) % N_TABLE
     rows = mu[idx]                                                        # (K, J, Dc), once
     a_sum = mtm[idx].sum(axis=0)

@@ -262,7 +262,7 @@ def style_precision(model, observations, result):
 
 
 def fit_leg_travel(model, skeleton, reference, fps, observations, result, residual=None,
-                   feet=CMU_FEET, speed_sd=None):
+                   feet=CMU_FEET, speed_sd=None, reference_speed=None):
     """The adapted style conditioned on the reference's legs' travel (module docstring).
 
     Parameters
@@ -285,6 +285,10 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
         the Kalman gain's share ``gᵀP⁻¹g / (gᵀP⁻¹g + speed_sd²)`` of the difference (0: a
         constraint). Default: :func:`reference_legs_speed`'s spread, how much the legs' speed
         of one cycle varies over the cycle windows the reference holds (module docstring).
+    reference_speed : (float, float), optional
+        The reference's speed and its spread (m/s) measured otherwise, in place of
+        :func:`reference_legs_speed`'s (a sparsely keyed reference: its keyed root's travel,
+        ``docs/gait.md``, *Stop 43*).
 
     Returns
     -------
@@ -297,7 +301,11 @@ def fit_leg_travel(model, skeleton, reference, fps, observations, result, residu
     if not model.root_travel or n < 2 or len(reference) < n + 1 \
             or any(f not in skeleton.names for f in feet):
         return LegTravelFit(w)
-    target, spread = reference_legs_speed(skeleton, reference, fps, n, feet, model.root_frame)
+    if reference_speed is None:
+        target, spread = reference_legs_speed(skeleton, reference, fps, n, feet,
+                                              model.root_frame)
+    else:
+        target, spread = (float(v) for v in reference_speed)
     last = reference[-1]
 
     def speeds(styles):

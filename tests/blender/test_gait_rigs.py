@@ -446,3 +446,47 @@ def test_live_preview_on_a_rig_poses_its_deforming_bones():
         assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-4
     assert bpy.ops.track_and_stride.gait_preview_stop() == {"FINISHED"}
     assert s.ghost_name not in bpy.data.objects
+
+
+#: The animator's keys of the keys-only test: four poses half a second apart (about half a
+#: gait cycle), as bench-rigs' keys only (``docs/gait.md``, *Stop 43*).
+FEW_KEYS = (1, 16, 31, 46)
+
+
+def test_predict_from_a_few_keys_walks_as_far_as_the_keyed_root():
+    """Stop 43 (issue 19 §2): a Rigify FK rig keyed at four frames of the CMU walk, Predict Gait
+    for 1 s. The four keys are sparse (0.5 s apart), so Predict observes the keyed poses only,
+    and the walker's travel is the keyed root's: the predicted hips travel at the keyed hips'
+    speed (their path from key to key over the 1.5 s), and the first half second of the
+    prediction is near the captured walk's continuation (26 joints, cm). Here 0.98 of the
+    keyed speed and 4.6 cm; main's reading of Blender's interpolation between the keys (every
+    frame of the range observed): 0.31 and 20.7 cm. The animator's keys stay bit for bit."""
+    from sample_scenes.rig_footage import part_joints
+    spec = RIG_SPECS["rigify_fk"]
+    obj, fp = open_rig_scene(rig_footage("rigify_fk", frames=61), keys=FEW_KEYS)
+    before = keys(obj)
+    bpy.context.scene.frame_set(FEW_KEYS[-1])
+    assert bpy.ops.track_and_stride.predict_gait(horizon=1.0) == {"FINISHED"}
+    assert_old_keys_kept(before, keys(obj))
+    record = bridge("gait.bridge")._record(obj.animation_data.action, obj)
+    assert record["observed"] == [FEW_KEYS[0], FEW_KEYS[-1]]
+    frames = np.arange(FEW_KEYS[-1] + 1, FEW_KEYS[-1] + 31)
+    truth = read_truth(obj, spec, frames)
+    mid = hip_mid(spec, truth)
+    speed = np.linalg.norm(np.diff(mid[:, :2], axis=0), axis=1).mean() * 30.0
+    keyed = hip_mid(spec, fp_truth(fp, np.array(FEW_KEYS) - 1))
+    keyed_speed = np.linalg.norm(np.diff(keyed[:, :2], axis=0), axis=1).sum() / \
+        ((FEW_KEYS[-1] - FEW_KEYS[0]) / 30.0)
+    shown = frames <= len(fp.heads)                    # the captured walk's frames
+    rows = frames[shown] - 1
+    want = part_joints(fp.heads[rows], fp.tails[rows], fp.names, fp.parts)
+    got = part_joints(truth.heads[shown], truth.tails[shown], truth.names, truth.parts)
+    error = 100 * np.linalg.norm(got - want, axis=-1).mean()
+    assert abs(speed / keyed_speed - 1.0) < 0.05, (speed, keyed_speed)
+    assert error < 6.0, error
+    # The report says what was read; predicting again replaces the prediction, same keys.
+    again = bridge("gait.bridge").predict(obj.name, horizon=1.0)
+    assert again["keyed_poses"] == len(FEW_KEYS), again
+    assert f"read from your {len(FEW_KEYS)} keyed poses" in again["message"], again["message"]
+    assert again["replaced"] == [int(frames[0]), int(frames[-1])]
+    assert_old_keys_kept(before, keys(obj))
