@@ -43,6 +43,26 @@ def load_case(folder, camera, every):
     return case
 
 
+def bench_references(detections_cache):
+    """The benchmark's references as ``bench_real`` builds them, from its cached MediaPipe
+    passes: ``(reference, held_out, contact)``: the full reference (``reference.points`` (N,
+    33, 3) m, every camera's landmarks triangulated), per camera the reference triangulated
+    without that camera (dict of (N, 33, 3)), and the full reference's contact frames of the
+    feet (``benchmarks.real.feet.contact_frames`` of its scored joints). For the studies that
+    replay a dump (``benchmarks/studies/*_replay.py``, ``keypoint_*.py``)."""
+    from benchmarks import bench_real as br
+    from benchmarks.real import feet
+    from benchmarks.real import rig as rigmod
+    from benchmarks.real.reference import View
+    from core.tracking.calibration import read_calibration
+    calibration = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
+    views = [View.from_calibration(calibration[c]) for c in br.CAMERAS]
+    detections, _ = br.run_detection(list(br.CAMERAS), detections_cache)
+    reference, _, held_out = br.build_reference(detections, views)
+    contact = feet.contact_frames(reference.points[:, rigmod.JOINT_LANDMARKS], br.FPS)
+    return reference, held_out, contact
+
+
 class Reference:
     """The benchmark's reference joints and how the rig places them (``reference.npz``)."""
 

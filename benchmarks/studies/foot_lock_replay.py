@@ -36,12 +36,10 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, load_case  # noqa: E402
-from benchmarks.real.reference import View  # noqa: E402
+from benchmarks.real.core_replay import Reference, bench_references, load_case  # noqa: E402
 from benchmarks.studies.fusion_sequence_replay import (keys_slerp, load_result,  # noqa: E402
                                                        replay)
 from core.tracking import foot_lock, parallel  # noqa: E402
-from core.tracking.calibration import read_calibration  # noqa: E402
 
 
 def skate_pairs(joints, contact, fps):
@@ -91,11 +89,7 @@ def main(argv=None):
     p.add_argument("--explain", action="store_true")
     p.add_argument("--output", default="")
     a = p.parse_args(argv)
-    cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
-    views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
-    det, _ = br.run_detection(list(br.CAMERAS), a.detections_cache)
-    ref, _, heldout = br.build_reference(det, views)
-    contact = feet.contact_frames(ref.points[:, rigmod.JOINT_LANDMARKS], br.FPS)
+    ref, heldout, contact = bench_references(a.detections_cache)
     reference = Reference(a.dump)
     out = {}
     for cam in a.cameras:

@@ -34,10 +34,9 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, _CoreUnpickler, load_case  # noqa: E402
-from benchmarks.real.reference import View  # noqa: E402
+from benchmarks.real.core_replay import (Reference, _CoreUnpickler, bench_references,  # noqa: E402
+                                         load_case)
 from core.tracking import parallel  # noqa: E402
-from core.tracking.calibration import read_calibration  # noqa: E402
 from core.tracking.pivot import from_moved_roots, move_root_origin, to_moved_roots  # noqa: E402
 from core.tracking.trajectory import Pose, interpolate_poses  # noqa: E402
 
@@ -124,11 +123,7 @@ def main(argv=None, hook=None):
                    help="TrackingOptions overrides NAME=VALUE for the replay")
     p.add_argument("--output", default="")
     a = p.parse_args(argv)
-    cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
-    views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
-    det, _ = br.run_detection(list(br.CAMERAS), a.detections_cache)
-    ref, _, heldout = br.build_reference(det, views)
-    contact = feet.contact_frames(ref.points[:, rigmod.JOINT_LANDMARKS], br.FPS)
+    ref, heldout, contact = bench_references(a.detections_cache)
     reference = Reference(a.dump)
     out = {}
     for cam in a.cameras:

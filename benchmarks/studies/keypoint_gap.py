@@ -38,11 +38,9 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, load_case  # noqa: E402
-from benchmarks.real.reference import View  # noqa: E402
+from benchmarks.real.core_replay import Reference, bench_references, load_case  # noqa: E402
 from benchmarks.studies.fusion_sequence_replay import (camera_centre, keys_slerp,  # noqa: E402
                                                         load_result, replay)
-from core.tracking.calibration import read_calibration  # noqa: E402
 
 BINS = ((1, 3), (4, 7), (8, 11), (12, 15))
 
@@ -88,10 +86,7 @@ def main(argv=None):
     p.add_argument("--spacings", nargs="+", type=int, default=[20, 30])
     p.add_argument("--output", default="")
     a = p.parse_args(argv)
-    cal = {c.name: c for c in read_calibration(br.DATA / "Calib.qca.txt")}
-    views = [View.from_calibration(cal[c]) for c in br.CAMERAS]
-    det, _ = br.run_detection(list(br.CAMERAS), a.detections_cache)
-    ref, _, heldout = br.build_reference(det, views)
+    ref, heldout, _ = bench_references(a.detections_cache)
     rig, _, _, _ = rigmod.fit_rig(ref.points)
     poses = np.load(a.poses)
     oracle_all = rig.pose_joints(poses["roots"], poses["locals"])

@@ -1104,6 +1104,26 @@ def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, t
     assert join.max() <= p99, (join.max(), p99)
 
 
+def _import_not_gait(tmp_path, subject, trial):
+    """The first 200 frames of the CMU non-gait clip ``<subject>_<trial>`` (120 fps resampled
+    to the scene's) imported through *Import Acclaim*: ``(obj, values (200, D) in the ASF's
+    DOF order, the stock library, its columns in that order, datablock counts, keys)``."""
+    asf = read_asf(cmu_path(f"not_gaits/{subject}.asf"))
+    values = read_amc(cmu_path(f"not_gaits/{subject}_{trial}.amc"), asf).values
+    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
+    path = tmp_path / f"{subject}_{trial}.amc"
+    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
+                                   bone_order=(), fps=FPS, path=str(path)))
+    (tmp_path / f"{subject}.asf").write_bytes(cmu_path(f"not_gaits/{subject}.asf").read_bytes())
+    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
+    obj = bpy.context.active_object
+    counts, keys = datablock_counts(), snapshot(obj)
+    model = load_stock_library()
+    names = asf_to_skeleton(asf).dof_names()
+    cols = [list(names).index(n) for n in model.dof_names]
+    return obj, values, model, cols, counts, keys
+
+
 def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene, tmp_path):
     """Stop 42: frames 106-165 (1.75-2.75 s) of the golf set-up and swing CMU 64_06 pass every
     check of the legs and the root; Predict Gait refuses them for the arm swung above the
@@ -1111,19 +1131,7 @@ def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene
     same rows, counted from the range's first frame), and changes nothing."""
     from core.gait.checks import raised_arm
 
-    asf = read_asf(cmu_path("not_gaits/64.asf"))
-    values = read_amc(cmu_path("not_gaits/64_06.amc"), asf).values
-    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
-    path = tmp_path / "64_06.amc"
-    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
-                                   bone_order=(), fps=FPS, path=str(path)))
-    (tmp_path / "64.asf").write_bytes(cmu_path("not_gaits/64.asf").read_bytes())
-    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
-    obj = bpy.context.active_object
-    counts, keys = datablock_counts(), snapshot(obj)
-    model = load_stock_library()
-    names = asf_to_skeleton(asf).dof_names()
-    cols = [list(names).index(n) for n in model.dof_names]
+    obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "64", "06")
     side, a, b, _ = raised_arm(model, observations_from_dofs(model, values[105:165, cols],
                                                              model.dof_names, FPS))
     with pytest.raises(RuntimeError) as refusal:
@@ -1146,19 +1154,7 @@ def test_a_kick_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):
     the core's check of the same rows does, and changes nothing."""
     from core.gait.checks import check_gait
 
-    asf = read_asf(cmu_path("not_gaits/74.asf"))
-    values = read_amc(cmu_path("not_gaits/74_03.amc"), asf).values
-    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
-    path = tmp_path / "74_03.amc"
-    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
-                                   bone_order=(), fps=FPS, path=str(path)))
-    (tmp_path / "74.asf").write_bytes(cmu_path("not_gaits/74.asf").read_bytes())
-    assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
-    obj = bpy.context.active_object
-    counts, keys = datablock_counts(), snapshot(obj)
-    model = load_stock_library()
-    names = asf_to_skeleton(asf).dof_names()
-    cols = [list(names).index(n) for n in model.dof_names]
+    obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "74", "03")
     core = check_gait(model, observations_from_dofs(model, values[90:135, cols],
                                                     model.dof_names, FPS), FPS,
                       what=f"frames 91–135 of {obj.name}", first_frame=91)
