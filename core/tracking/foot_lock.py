@@ -549,14 +549,16 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
         weight = np.zeros(n)
         found = []
         near = height[side].min(axis=1) <= floor + max(rule.keep_low, rule.low)
+        # Where the tracked foot was seen standing: its low and slow runs of min_frames or
+        # more, those that start a contact (stop 43).
+        seen_runs = [(s_, t) for s_, t in runs(low & slow) if t - s_ >= rule.min_frames]
+
         def seen(a, b):
-            # The frames of [a, b) the tracked foot was seen standing at: its low and slow
-            # runs of min_frames or more, those that started the contact (stop 43).
+            # The frames of [a, b) the tracked foot was seen standing at (anchor 'seen').
             if rule.anchor == "run":
                 return None
-            return np.concatenate([np.arange(s_, t) for s_, t in runs(low & slow)
-                                   if a <= s_ and t <= b and t - s_ >= rule.min_frames]
-                                  or [np.arange(a, b)])
+            return np.concatenate([np.arange(s_, t) for s_, t in seen_runs
+                                   if a <= s_ and t <= b] or [np.arange(a, b)])
 
         for a, b in standing(low, slow, held, rule.min_frames, near, keys, ramp):
             inside = [k for k in keys if a <= k < b]
@@ -588,9 +590,7 @@ def lock_feet(problem, key_index, roots, local, fps, rule=None, keep=(), up=(0.0
                 # After the last frame the tracked foot was seen standing at (the hysteresis's
                 # extension into a take-off), the ball stays where it stands and the foot keeps
                 # its tracked turn: the heel rises as tracked (stop 43).
-                seen_runs = [(s_, t) for s_, t in runs(low & slow)
-                             if a <= s_ and t <= b and t - s_ >= rule.min_frames]
-                seen_end = max((t for _, t in seen_runs), default=b)
+                seen_end = max((t for s_, t in seen_runs if a <= s_ and t <= b), default=b)
                 if seen_end < b:
                     tail = sk.tails[foot]
                     ball = p + np.einsum("nij,j->ni", r, tail)
