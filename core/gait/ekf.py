@@ -13,7 +13,10 @@ of the D × D ``H P Hᵀ + R``. The innovation log-likelihood uses the matrix de
 the rank-one ``H P Hᵀ``. The tests compare against the literal D × D form.
 
 **Safety.** After every update ω is clipped to the model's plausible range (the period search
-range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped.
+range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped; a frame with no
+channel observed (a sparsely keyed range's frames between its keys, ``core.gait.keyed``) adds
+nothing to the state (``gᵀg = gᵀe = 0``): :func:`ekf_filter` computes only the update's scalar end
+for it (the same floats, bit for bit, without the kernel's products).
 
 **Outlier channel.** A capture glitch in one channel (CMU 08_01's ``rthumb.rz`` passes through
 frames half a turn away) would otherwise pull the phase and the style and, through ``eᵀe``, make
