@@ -112,6 +112,13 @@ class Reference:
         rot, pos = rot[:, order], pos[:, order]
         return pos + np.einsum("fjab,jb->fja", rot, self.joint_offsets)
 
+    def clip_joints(self, case, n_frames, roots, local):
+        """``pose_joints`` of a result that starts at the case's first frame, placed in clip
+        rows: (n_frames, J, 3) metres, NaN on the rows the result does not cover."""
+        est = np.full((n_frames, len(self.joint_bones), 3), np.nan)
+        est[int(case["first"]) - 1 + np.arange(len(roots))] = self.pose_joints(case, roots, local)
+        return est
+
     def errors(self, case, frames, roots, local):
         """Joint distances (F, J), metres, at scene frames ``frames`` (F,)."""
         est = self.pose_joints(case, roots, local)

@@ -113,11 +113,7 @@ def main(argv=None):
         scene_keys = [int(k) for k in case["key_frames"]]
         inside = br.interior_frames(scene_keys, n)
 
-        def joints(roots, local):
-            est = np.full(truth_all.shape, np.nan)
-            rows = first - 1 + np.arange(len(roots))
-            est[rows] = reference.pose_joints(case, roots, local)
-            return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
         rows = {"operator": joints(tracker.root_translations, tracker.local_rotations),
                 "replay": joints(r, lo), "unlocked": joints(r0, lo0),

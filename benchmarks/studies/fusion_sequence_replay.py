@@ -21,6 +21,7 @@ Conclusion: ``docs/tracking.md`` *2D keypoints as a cue*.
 """
 import argparse
 import copy
+import functools
 import json
 import sys
 from pathlib import Path
@@ -130,16 +131,11 @@ def main(argv=None, hook=None):
         if hook is not None:
             hook(cam, every)
         r, lo, seq = replay(case, fused, options)
-        first = int(case["first"])
         scene_keys = [int(k) for k in case["key_frames"]]
         inside = br.interior_frames(scene_keys, n)
         centre = camera_centre(case)
 
-        def joints(roots, local):
-            est = np.full(truth_all.shape, np.nan)
-            rows = first - 1 + np.arange(len(roots))
-            est[rows] = reference.pose_joints(case, roots, local)
-            return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
         rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
                 "operator+kp": joints(fused.root_translations, fused.local_rotations),

@@ -27,6 +27,7 @@ keypoints could do on top of this trajectory (the along-sight part is invisible 
 what the articulated model ties to it). Conclusion: ``docs/tracking.md`` *Stop 43, keypoints*.
 """
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -96,17 +97,12 @@ def main(argv=None):
                                                                  heldout):
         n = len(truth_all)
         r, lo, _ = replay(case, fused)
-        first = int(case["first"])
         scene_keys = [int(k) for k in case["key_frames"]]
         inside = br.interior_frames(scene_keys, n)
         dist = np.min(np.abs(inside[:, None] + 1 - np.asarray(scene_keys)[None]), axis=1)
         centre = camera_centre(case)
 
-        def joints(roots, local):
-            est = np.full(truth_all.shape, np.nan)
-            rows = first - 1 + np.arange(len(roots))
-            est[rows] = reference.pose_joints(case, roots, local)
-            return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
         rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
                 "fused": joints(r, lo), "slerp": joints(*keys_slerp(case))}
