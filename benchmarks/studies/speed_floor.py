@@ -7,7 +7,8 @@ MediaPipe / OpenCV ones)::
         --dump /path/to/bench_real_core_inputs --out build/speed_floor.json
 
 One process per measured thing, the things interleaved round after round (same load), on
-``cam01`` of the Pose2Sim demo (100 frames, 1080x1920). Every child times only its loop over the
+``cam01`` of the Pose2Sim demo (100 frames, 1080x1920; ``--camera`` picks another camera's video
+and dumped core). Every child times only its loop over the
 frames (its interpreter's start-up and imports excluded) and reports wall seconds and *CPU
 seconds* (``time.process_time``: all its threads, user + system) over the frames, and the most
 threads its process had while it ran (``/proc/self/task``):
@@ -70,7 +71,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-VIDEO = ROOT / "sample_scenes" / "data" / "footage" / "pose2sim_single_person" / "cam01.mp4"
+DATA = ROOT / "sample_scenes" / "data" / "footage" / "pose2sim_single_person"
+VIDEO = DATA / "cam01.mp4"       # --camera sets it (in every child)
 ROI_ROWS = 1464          # the largest region of interest of cam01's intervals (rows of 1920)
 
 
@@ -242,7 +244,7 @@ def child_sequence(args):
 
 def child_core(args):
     out = subprocess.run([sys.executable, str(ROOT / "benchmarks/studies/core_phase_cpu.py"),
-                          args.dump, "--camera", "cam01", "--every", "20"],
+                          args.dump, "--camera", args.camera, "--every", "20"],
                          capture_output=True, text=True, check=True).stdout
     line = out.strip().splitlines()[-1]
     wall = float(line.split("wall ")[1].split(" s")[0])
@@ -259,12 +261,13 @@ CHILDREN = {"mediapipe": child_mediapipe, "opencv": child_opencv, "bl-decode": c
             "core": child_core}
 
 
-def _spawn(python, child, extra=(), pin=False):
+def _spawn(python, child, extra=(), pin=False, camera="cam01"):
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
     if child == "mediapipe":                       # as bench-real runs it: its own threads
         env.pop("OPENBLAS_NUM_THREADS")
     prefix = ["taskset", "-c", "0"] if pin else []
-    return subprocess.Popen([*prefix, python, str(Path(__file__).resolve()), "--child", child, *extra],
+    return subprocess.Popen([*prefix, python, str(Path(__file__).resolve()), "--child", child,
+                             "--camera", camera, *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                             cwd=ROOT)
 
@@ -296,7 +299,7 @@ def run_parent(args):
                 bounds = [round(i * args.frames / k) for i in range(k + 1)]
                 procs = [_spawn(bpy_python, "bl-luma",
                                 ("--first", str(bounds[i]), "--frames", str(bounds[i + 1] - bounds[i]),
-                                 "--start-at", repr(start_at)))
+                                 "--start-at", repr(start_at)), camera=args.camera)
                          for i in range(k)]
                 parts = [_collect(p, thing) for p in procs]
                 late = max(p["t0"] for p in parts) - start_at
@@ -311,7 +314,7 @@ def run_parent(args):
                 extra = ("--frames", str(args.frames))
                 if child == "core":
                     extra = ("--dump", args.dump)
-                res = _collect(_spawn(python, child, extra, pin), thing)
+                res = _collect(_spawn(python, child, extra, pin, args.camera), thing)
             res["load"] = (load + _loadavg()) / 2
             results[thing].append(res)
             print(f"round {r + 1} {thing:10s} {res['frames'] / res['wall']:6.1f} frames/s, "
@@ -374,6 +377,7 @@ def main():
     ap.add_argument("--first", type=int, default=0, help=argparse.SUPPRESS)
     ap.add_argument("--start-at", type=float, default=0.0, help=argparse.SUPPRESS)
     ap.add_argument("--frames", type=int, default=100)
+    ap.add_argument("--camera", default="cam01", help="the demo's camera (video and dumped core)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--dump", default="", help="bench-real --dump-core-inputs folder (core row)")
     ap.add_argument("--blender-python", default=str(ROOT / ".venv" / "bin" / "python"))
@@ -386,6 +390,8 @@ def main():
                     help="seconds between spawning the bl-xK processes and their common start")
     ap.add_argument("--out", default="")
     args = ap.parse_args()
+    global VIDEO
+    VIDEO = DATA / f"{args.camera}.mp4"
     if args.child:
         print(json.dumps(CHILDREN[args.child](args)), flush=True)
     else:
