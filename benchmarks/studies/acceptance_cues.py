@@ -20,6 +20,13 @@ cross-validates it, leave one subject out)::
         --out-misfit build/misfit.pkl                                          # ~6 min
     .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse-misfit build/misfit.pkl
 
+Stop 44 (``--short``, ``--analyse-short``, ~6 min): the windows shorter than the cadence
+prior's longest cycle whose rhythm is weak at a period they hold whole, which main refuses and
+stop 43's variant (:func:`check_variant`) leaves to check 9: the cues that tell the sneaks of
+120 from the kick 74_03 there, leave one subject out, and the shipped exception of check 5::
+
+    nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --short build/short.pkl
+
 Stop 42 adds the upper body and whole-body coordination (:func:`body_features`), the arms as
 ``core.gait.checks`` poses them, and each window's outcome without the arm checks
 (``accepted``, checks 1-5) and with them (``accepted_arms``).
@@ -646,6 +653,17 @@ def check_variant(model, w, fps=FPS):
         checks.rhythm = real
 
 
+def check_before(model, w, fps=FPS):
+    """``check_gait`` without stop 44's exception of check 5 (main before it: every weak
+    rhythm at a period the range holds whole is refused)."""
+    saved = checks.MIN_UNDER_WAY
+    checks.MIN_UNDER_WAY = np.inf
+    try:
+        return check_gait(model, w, fps)
+    finally:
+        checks.MIN_UNDER_WAY = saved
+
+
 def phase_cues(result, fps=FPS):
     """How the adapted walker's phase advances over the range: the filtered phases
     (``result.states[:, 1]``, unwrapped) and rates (``[:, 0]``, radians per frame)."""
@@ -704,8 +722,9 @@ def short_rows(min_window=0.75):
                     list(range(0, len(values) - n + 1, int(round(A.STEP_S * FPS))))
                 for s in starts:
                     w = obs[s:s + n]
-                    main_c = check_gait(stock, w, FPS)
+                    main_c = check_before(stock, w, FPS)
                     var_c = check_variant(stock, w, FPS)
+                    now = check_gait(stock, w, FPS)
                     weak = var_c.strength is None or var_c.strength < checks.MIN_STRENGTH
                     before_rhythm = main_c.refusal is None or main_c.refusal.startswith(
                         ("No steady", "An arm", "No walk"))
@@ -724,6 +743,7 @@ def short_rows(min_window=0.75):
                                var_reason=None if var_c.refusal is None
                                else var_c.refusal.split(" in ")[0],
                                var_warning=var_c.warning, misfit_stock=var_c.misfit,
+                               shipped_ok=now.refusal is None, shipped_warning=now.warning,
                                travel=var_c.travel,
                                half_best=max((c for c in halves if c is not None),
                                              default=None),
@@ -738,6 +758,15 @@ def short_rows(min_window=0.75):
                         row.update(phase_cues(var_c.adapted))
                     row.update(feet_features(tracks, s, n))
                     row.update(hip_cues(stock, w))
+                    first, end = checks._start_and_end_speeds(stock, w)
+                    freq = checks.leg_frequency(stock, w, FPS)
+                    row.update(first=first, end=end, under_way=first / end, leg_hz=freq,
+                               cycle=checks.walker_cycle(var_c.adapted if var_c.adapted
+                                                         is not None else
+                                                         adapt(stock, w, fps=FPS), FPS),
+                               cycle_held=checks.walker_cycle(res_h, FPS))
+                    row.update(harmonics=freq * row["cycle"],
+                               harmonics_held=freq * row["cycle_held"])
                     rows.append(row)
             print(path.stem, len(rows), flush=True)
     return rows
@@ -770,6 +799,32 @@ def analyse_short(rows):
         if r["kind"] != "gaits" or r["window"] >= 0.75:
             print(r["clip"], r["window"], f"{r['start']:.2f}", {k: (round(r[k], 3) if
                   isinstance(r.get(k), float) else r.get(k)) for k in keys})
+    # Leave one subject out on the variant's windows: a cue refuses a held-out window beyond
+    # the most extreme value of the other subjects' gait windows in the weak domain.
+    print("\nleave one subject out (threshold: the other subjects' extreme over the weak domain)")
+    for k, sign in (("under_way", 1), ("min_speed", 1), ("first", 1), ("misfit_held", -1),
+                    ("harmonics_held", -1), ("phase_back_held", -1), ("omega_ratio_held", 1),
+                    ("hip_vel_corr", -1), ("half_best", 1), ("switches", 1), ("carried", 1)):
+        lost = refused = 0
+        for r in gained:
+            th = min(sign * x[k] for x in dom if x["subject"] != r["subject"])
+            if sign * r[k] < th:
+                lost, refused = lost + (r["kind"] == "gaits"), refused + (r["kind"] != "gaits")
+        print(f"{k} | gait lost {lost} of {sum(r['kind'] == 'gaits' for r in gained)} | "
+              f"non-gait refused {refused} of {sum(r['kind'] != 'gaits' for r in gained)}")
+    # The shipped exception (checks._shorter_than_its_cycle) on the same windows.
+    def shipped(r, cycle):
+        return (r["window"] < cycle and r["under_way"] >= checks.MIN_UNDER_WAY
+                and r["leg_hz"] * cycle <= checks.MAX_LEG_HARMONICS)
+    for label, key in (("stock library", "cycle"), ("library without the subject", "cycle_held")):
+        took = [r for r in gained if shipped(r, r[key])]
+        print(f"shipped exception, cycle read by the {label}: takes "
+              f"{sum(r['kind'] == 'gaits' for r in took)} gait and "
+              f"{sum(r['kind'] != 'gaits' for r in took)} non-gait windows of the variant's")
+    now = [r for r in rows if r["shipped_ok"] and not r["main_ok"]]
+    print(f"check_gait as shipped takes {sum(r['kind'] == 'gaits' for r in now)} gait and "
+          f"{sum(r['kind'] != 'gaits' for r in now)} non-gait windows main refused: "
+          + ", ".join(f"{r['clip']} {r['window']:g}@{r['start']:.2f}" for r in now))
 
 
 def main(argv=None):
