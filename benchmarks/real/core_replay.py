@@ -43,6 +43,34 @@ def load_case(folder, camera, every):
     return case
 
 
+def load_result(folder, camera, every, suffix=""):
+    """The dumped core result of one camera and spacing (``suffix`` ``"_keypoints"``: the run
+    with the keypoint cue)."""
+    with open(Path(folder) / f"{camera}_{every}_result{suffix}.pkl", "rb") as f:
+        return _CoreUnpickler(f).load()
+
+
+def dump_cells(folder, cameras, spacings, held_out, keypoints=True):
+    """Every dumped run of a ``--dump-core-inputs`` folder beside its truth, camera by camera.
+
+    Yields
+    ------
+    (camera, every, truth, case, tracker, fused)
+        ``truth`` (N, 17, 3) m: the reference triangulated without ``camera`` at the scored
+        joints (``held_out[camera]``, the second item of ``bench_references``), clip rows;
+        ``case`` as ``load_case``; ``tracker`` and ``fused`` the dumped results without and with
+        keypoints (``fused`` None when ``keypoints`` is False).
+    """
+    from benchmarks.real import rig as rigmod
+    for camera in cameras:
+        truth = held_out[camera][:, rigmod.JOINT_LANDMARKS]
+        for every in spacings:
+            case = load_case(folder, camera, every)
+            tracker = load_result(folder, camera, every)
+            fused = load_result(folder, camera, every, "_keypoints") if keypoints else None
+            yield camera, every, truth, case, tracker, fused
+
+
 def bench_references(detections_cache):
     """The benchmark's references as ``bench_real`` builds them, from its cached MediaPipe
     passes: ``(reference, held_out, contact)``: the full reference (``reference.points`` (N,
@@ -83,6 +111,13 @@ class Reference:
         pos = pos @ a2w[:3, :3].T + a2w[:3, 3]
         rot, pos = rot[:, order], pos[:, order]
         return pos + np.einsum("fjab,jb->fja", rot, self.joint_offsets)
+
+    def clip_joints(self, case, n_frames, roots, local):
+        """``pose_joints`` of a result that starts at the case's first frame, placed in clip
+        rows: (n_frames, J, 3) metres, NaN on the rows the result does not cover."""
+        est = np.full((n_frames, len(self.joint_bones), 3), np.nan)
+        est[int(case["first"]) - 1 + np.arange(len(roots))] = self.pose_joints(case, roots, local)
+        return est
 
     def errors(self, case, frames, roots, local):
         """Joint distances (F, J), metres, at scene frames ``frames`` (F,)."""

@@ -36,9 +36,8 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, bench_references, load_case  # noqa: E402
-from benchmarks.studies.fusion_sequence_replay import (keys_slerp, load_result,  # noqa: E402
-                                                       replay)
+from benchmarks.real.core_replay import Reference, bench_references, dump_cells  # noqa: E402
+from benchmarks.studies.fusion_sequence_replay import keys_slerp, replay  # noqa: E402
 from core.tracking import foot_lock, parallel  # noqa: E402
 
 
@@ -92,69 +91,62 @@ def main(argv=None):
     ref, heldout, contact = bench_references(a.detections_cache)
     reference = Reference(a.dump)
     out = {}
-    for cam in a.cameras:
-        truth_all = heldout[cam][:, rigmod.JOINT_LANDMARKS]
+    for cam, every, truth_all, case, tracker, fused in dump_cells(a.dump, a.cameras, a.spacings,
+                                                                 heldout, keypoints=False):
         n = len(truth_all)
-        for every in a.spacings:
-            case = load_case(a.dump, cam, every)
-            case = dict(case, keypoints=None)           # the run without keypoints
-            tracker = load_result(a.dump, cam, every, "")
-            options = case["options"]
-            rule = foot_lock.FootLockRule()
-            for item in a.set:
-                name, value = item.split("=")
-                kind = type(getattr(rule, name))
-                rule = dataclasses.replace(rule, **{name: value if kind is str else kind(float(value))})
-            unlocked = dataclasses.replace(options, foot_lock=False)
-            saved = parallel.lock_feet
-            parallel.lock_feet = functools.partial(saved, rule=rule)
-            try:
-                r, lo, seq = replay(case, tracker, options)
-            finally:
-                parallel.lock_feet = saved
-            r0, lo0, _ = replay(case, tracker, unlocked)
-            first = int(case["first"])
-            scene_keys = [int(k) for k in case["key_frames"]]
-            inside = br.interior_frames(scene_keys, n)
+        case = dict(case, keypoints=None)           # the run without keypoints
+        options = case["options"]
+        rule = foot_lock.FootLockRule()
+        for item in a.set:
+            name, value = item.split("=")
+            kind = type(getattr(rule, name))
+            rule = dataclasses.replace(rule, **{name: value if kind is str else kind(float(value))})
+        unlocked = dataclasses.replace(options, foot_lock=False)
+        saved = parallel.lock_feet
+        parallel.lock_feet = functools.partial(saved, rule=rule)
+        try:
+            r, lo, seq = replay(case, tracker, options)
+        finally:
+            parallel.lock_feet = saved
+        r0, lo0, _ = replay(case, tracker, unlocked)
+        first = int(case["first"])
+        scene_keys = [int(k) for k in case["key_frames"]]
+        inside = br.interior_frames(scene_keys, n)
 
-            def joints(roots, local):
-                est = np.full(truth_all.shape, np.nan)
-                rows = first - 1 + np.arange(len(roots))
-                est[rows] = reference.pose_joints(case, roots, local)
-                return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
-            rows = {"operator": joints(tracker.root_translations, tracker.local_rotations),
-                    "replay": joints(r, lo), "unlocked": joints(r0, lo0),
-                    "slerp": joints(*keys_slerp(case))}
-            res = {"replay_check_m": float(np.nanmax(np.abs(rows["replay"]
-                                                             - rows["operator"])))}
-            for k in ("replay", "unlocked", "slerp"):
-                e = np.linalg.norm(rows[k][inside] - truth_all[inside], axis=-1)
-                res[k + "_cm"] = float(100 * np.nanmean(e))
-                res[k + "_skate"] = feet.foot_skate(rows[k], contact, br.FPS)
-            res["locks"] = [(lk.side, int(lk.first), int(lk.last)) for lk in seq.foot_locks]
-            out[f"{cam}/{every}"] = res
-            print(cam, every, json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
-                                          for k, v in res.items()}), flush=True)
-            if a.explain:
-                sp = {k: skate_pairs(rows[k], contact, br.FPS)
-                      for k in ("replay", "unlocked", "slerp")}
-                locked = {s: np.zeros(n, bool) for s in contact}
-                for s, f0, f1 in res["locks"]:      # sequence indices from the first key
-                    locked[s][first - 1 + f0:first + f1] = True
-                why = lock_evidence(case, r0, lo0, rule)
-                for side in contact:
-                    frames = np.flatnonzero(contact[side][:-1] & contact[side][1:])
-                    for f in frames:
-                        t = np.nanmean(sp["replay"][side][f])
-                        u = np.nanmean(sp["unlocked"][side][f])
-                        s_ = np.nanmean(sp["slerp"][side][f])
-                        flag = "L" if locked[side][f] and locked[side][f + 1] else "-"
-                        key = "K" if (f + 1) in scene_keys or (f + 2) in scene_keys else " "
-                        h, v = why[side][0][f - first + 1], why[side][1][f - first + 1]
-                        print(f"    {side:5s} {f + 1:3d}-{f + 2:3d} {flag}{key} "
-                              f"locked {t:6.1f} unlocked {u:6.1f} slerp {s_:6.1f}  "
-                              f"(tracked: {100 * h:4.1f} cm up, {100 * v:5.1f} cm/s)")
+        rows = {"operator": joints(tracker.root_translations, tracker.local_rotations),
+                "replay": joints(r, lo), "unlocked": joints(r0, lo0),
+                "slerp": joints(*keys_slerp(case))}
+        res = {"replay_check_m": float(np.nanmax(np.abs(rows["replay"]
+                                                         - rows["operator"])))}
+        for k in ("replay", "unlocked", "slerp"):
+            e = np.linalg.norm(rows[k][inside] - truth_all[inside], axis=-1)
+            res[k + "_cm"] = float(100 * np.nanmean(e))
+            res[k + "_skate"] = feet.foot_skate(rows[k], contact, br.FPS)
+        res["locks"] = [(lk.side, int(lk.first), int(lk.last)) for lk in seq.foot_locks]
+        out[f"{cam}/{every}"] = res
+        print(cam, every, json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
+                                      for k, v in res.items()}), flush=True)
+        if a.explain:
+            sp = {k: skate_pairs(rows[k], contact, br.FPS)
+                  for k in ("replay", "unlocked", "slerp")}
+            locked = {s: np.zeros(n, bool) for s in contact}
+            for s, f0, f1 in res["locks"]:      # sequence indices from the first key
+                locked[s][first - 1 + f0:first + f1] = True
+            why = lock_evidence(case, r0, lo0, rule)
+            for side in contact:
+                frames = np.flatnonzero(contact[side][:-1] & contact[side][1:])
+                for f in frames:
+                    t = np.nanmean(sp["replay"][side][f])
+                    u = np.nanmean(sp["unlocked"][side][f])
+                    s_ = np.nanmean(sp["slerp"][side][f])
+                    flag = "L" if locked[side][f] and locked[side][f + 1] else "-"
+                    key = "K" if (f + 1) in scene_keys or (f + 2) in scene_keys else " "
+                    h, v = why[side][0][f - first + 1], why[side][1][f - first + 1]
+                    print(f"    {side:5s} {f + 1:3d}-{f + 2:3d} {flag}{key} "
+                          f"locked {t:6.1f} unlocked {u:6.1f} slerp {s_:6.1f}  "
+                          f"(tracked: {100 * h:4.1f} cm up, {100 * v:5.1f} cm/s)")
     for k in ("replay", "unlocked", "slerp"):
         for e in a.spacings:
             vals = [out[f"{c}/{e}"][k + "_skate"] for c in a.cameras]

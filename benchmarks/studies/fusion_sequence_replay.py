@@ -21,8 +21,8 @@ Conclusion: ``docs/tracking.md`` *2D keypoints as a cue*.
 """
 import argparse
 import copy
+import functools
 import json
-import pickle
 import sys
 from pathlib import Path
 
@@ -34,8 +34,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import (Reference, _CoreUnpickler, bench_references,  # noqa: E402
-                                         load_case)
+from benchmarks.real.core_replay import Reference, bench_references, dump_cells  # noqa: E402
 from core.tracking import parallel  # noqa: E402
 from core.tracking.pivot import from_moved_roots, move_root_origin, to_moved_roots  # noqa: E402
 from core.tracking.trajectory import Pose, interpolate_poses  # noqa: E402
@@ -53,12 +52,6 @@ def keys_slerp(case):
                                   Pose(kr[i + 1], kl[i + 1]), keys[i + 1] - keys[i])
         roots[keys[i]:keys[i + 1] + 1], local[keys[i]:keys[i + 1] + 1] = r, lo
     return roots, local
-
-
-def load_result(folder, camera, every, suffix):
-    path = Path(folder) / f"{camera}_{every}_result{suffix}.pkl"
-    with open(path, "rb") as f:
-        return _CoreUnpickler(f).load()
 
 
 def replay(case, dumped, options=None):
@@ -126,50 +119,41 @@ def main(argv=None, hook=None):
     ref, heldout, contact = bench_references(a.detections_cache)
     reference = Reference(a.dump)
     out = {}
-    for cam in a.cameras:
-        truth_all = heldout[cam][:, rigmod.JOINT_LANDMARKS]
+    for cam, every, truth_all, case, tracker, fused in dump_cells(a.dump, a.cameras, a.spacings,
+                                                                 heldout):
         n = len(truth_all)
-        for every in a.spacings:
-            case = load_case(a.dump, cam, every)
-            tracker = load_result(a.dump, cam, every, "")
-            fused = load_result(a.dump, cam, every, "_keypoints")
-            options = case["options"]
-            for item in a.set:
-                name, value = item.split("=")
-                options = options.replace(**{name: type(getattr(options, name))(float(value))
-                                              if not isinstance(getattr(options, name), bool)
-                                              else value == "1"})
-            if hook is not None:
-                hook(cam, every)
-            r, lo, seq = replay(case, fused, options)
-            first = int(case["first"])
-            scene_keys = [int(k) for k in case["key_frames"]]
-            inside = br.interior_frames(scene_keys, n)
-            centre = camera_centre(case)
+        options = case["options"]
+        for item in a.set:
+            name, value = item.split("=")
+            options = options.replace(**{name: type(getattr(options, name))(float(value))
+                                          if not isinstance(getattr(options, name), bool)
+                                          else value == "1"})
+        if hook is not None:
+            hook(cam, every)
+        r, lo, seq = replay(case, fused, options)
+        scene_keys = [int(k) for k in case["key_frames"]]
+        inside = br.interior_frames(scene_keys, n)
+        centre = camera_centre(case)
 
-            def joints(roots, local):
-                est = np.full(truth_all.shape, np.nan)
-                rows = first - 1 + np.arange(len(roots))
-                est[rows] = reference.pose_joints(case, roots, local)
-                return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
-            rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
-                    "operator+kp": joints(fused.root_translations, fused.local_rotations),
-                    "replay+kp": joints(r, lo), "slerp": joints(*keys_slerp(case))}
-            res = {"replay_check_m": float(np.nanmax(np.abs(rows["replay+kp"]
-                                                             - rows["operator+kp"])))}
-            for k in ("tracker", "replay+kp", "slerp"):
-                est = rows[k]
-                e = np.linalg.norm(est[inside] - truth_all[inside], axis=-1)
-                res[k] = float(100 * np.nanmean(e))
-                along, across = split(est[inside], truth_all[inside], centre)
-                res[k + "_along_across"] = [round(along, 3), round(across, 3)]
-                res[k + "_skate"] = feet.foot_skate(est, contact, br.FPS)
-                if a.per_joint:
-                    res[k + "_joints"] = np.round(100 * np.nanmean(e, axis=0), 2).tolist()
-            out[f"{cam}/{every}"] = res
-            print(cam, every, json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
-                                          for k, v in res.items()}), flush=True)
+        rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
+                "operator+kp": joints(fused.root_translations, fused.local_rotations),
+                "replay+kp": joints(r, lo), "slerp": joints(*keys_slerp(case))}
+        res = {"replay_check_m": float(np.nanmax(np.abs(rows["replay+kp"]
+                                                         - rows["operator+kp"])))}
+        for k in ("tracker", "replay+kp", "slerp"):
+            est = rows[k]
+            e = np.linalg.norm(est[inside] - truth_all[inside], axis=-1)
+            res[k] = float(100 * np.nanmean(e))
+            along, across = split(est[inside], truth_all[inside], centre)
+            res[k + "_along_across"] = [round(along, 3), round(across, 3)]
+            res[k + "_skate"] = feet.foot_skate(est, contact, br.FPS)
+            if a.per_joint:
+                res[k + "_joints"] = np.round(100 * np.nanmean(e, axis=0), 2).tolist()
+        out[f"{cam}/{every}"] = res
+        print(cam, every, json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
+                                      for k, v in res.items()}), flush=True)
     for k in ("tracker", "replay+kp"):
         means = [np.mean([out[f"{c}/{e}"][k] for c in a.cameras]) for e in a.spacings]
         print("mean", k, np.round(means, 3).tolist())

@@ -27,6 +27,7 @@ keypoints could do on top of this trajectory (the along-sight part is invisible 
 what the articulated model ties to it). Conclusion: ``docs/tracking.md`` *Stop 43, keypoints*.
 """
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -38,9 +39,8 @@ sys.path.insert(0, str(ROOT))
 
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, bench_references, load_case  # noqa: E402
-from benchmarks.studies.fusion_sequence_replay import (camera_centre, keys_slerp,  # noqa: E402
-                                                        load_result, replay)
+from benchmarks.real.core_replay import Reference, bench_references, dump_cells  # noqa: E402
+from benchmarks.studies.fusion_sequence_replay import camera_centre, keys_slerp, replay  # noqa: E402
 
 BINS = ((1, 3), (4, 7), (8, 11), (12, 15))
 
@@ -93,46 +93,37 @@ def main(argv=None):
     reference = Reference(a.dump)
     names = list(rigmod.JOINT_NAMES)
     out = {}
-    for cam in a.cameras:
-        truth_all = heldout[cam][:, rigmod.JOINT_LANDMARKS]
+    for cam, every, truth_all, case, tracker, fused in dump_cells(a.dump, a.cameras, a.spacings,
+                                                                 heldout):
         n = len(truth_all)
-        for every in a.spacings:
-            case = load_case(a.dump, cam, every)
-            tracker = load_result(a.dump, cam, every, "")
-            fused = load_result(a.dump, cam, every, "_keypoints")
-            r, lo, _ = replay(case, fused)
-            first = int(case["first"])
-            scene_keys = [int(k) for k in case["key_frames"]]
-            inside = br.interior_frames(scene_keys, n)
-            dist = np.min(np.abs(inside[:, None] + 1 - np.asarray(scene_keys)[None]), axis=1)
-            centre = camera_centre(case)
+        r, lo, _ = replay(case, fused)
+        scene_keys = [int(k) for k in case["key_frames"]]
+        inside = br.interior_frames(scene_keys, n)
+        dist = np.min(np.abs(inside[:, None] + 1 - np.asarray(scene_keys)[None]), axis=1)
+        centre = camera_centre(case)
 
-            def joints(roots, local):
-                est = np.full(truth_all.shape, np.nan)
-                rows = first - 1 + np.arange(len(roots))
-                est[rows] = reference.pose_joints(case, roots, local)
-                return est
+        joints = functools.partial(reference.clip_joints, case, n)
 
-            rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
-                    "fused": joints(r, lo), "slerp": joints(*keys_slerp(case))}
-            key_rows = np.asarray(scene_keys) - 1
-            res = {"floor_cm": mpjpe(oracle_all[inside], truth_all[inside]),
-                   "oracle_check_m": float(np.nanmax(np.abs(rows["tracker"][key_rows]
-                                                             - oracle_all[key_rows])))}
-            for k, est in rows.items():
-                res[k] = analyse(est[inside], oracle_all[inside], truth_all[inside], centre,
-                                 dist)
-            out[f"{cam}/{every}"] = res
-            short = {k: (round(v, 3) if isinstance(v, float) else
-                         {kk: (round(vv, 3) if isinstance(vv, float) else vv)
-                          for kk, vv in v.items() if kk != "dev_joints_cm"})
-                     for k, v in res.items()}
-            print(cam, every, json.dumps(short), flush=True)
-            for k in ("tracker", "fused"):
-                dj = np.asarray(res[k]["dev_joints_cm"])
-                top = np.argsort(-dj)[:5]
-                print("   ", k, "largest deviations from the oracle:",
-                      ", ".join(f"{names[j]} {dj[j]:.2f}" for j in top), flush=True)
+        rows = {"tracker": joints(tracker.root_translations, tracker.local_rotations),
+                "fused": joints(r, lo), "slerp": joints(*keys_slerp(case))}
+        key_rows = np.asarray(scene_keys) - 1
+        res = {"floor_cm": mpjpe(oracle_all[inside], truth_all[inside]),
+               "oracle_check_m": float(np.nanmax(np.abs(rows["tracker"][key_rows]
+                                                         - oracle_all[key_rows])))}
+        for k, est in rows.items():
+            res[k] = analyse(est[inside], oracle_all[inside], truth_all[inside], centre,
+                             dist)
+        out[f"{cam}/{every}"] = res
+        short = {k: (round(v, 3) if isinstance(v, float) else
+                     {kk: (round(vv, 3) if isinstance(vv, float) else vv)
+                      for kk, vv in v.items() if kk != "dev_joints_cm"})
+                 for k, v in res.items()}
+        print(cam, every, json.dumps(short), flush=True)
+        for k in ("tracker", "fused"):
+            dj = np.asarray(res[k]["dev_joints_cm"])
+            top = np.argsort(-dj)[:5]
+            print("   ", k, "largest deviations from the oracle:",
+                  ", ".join(f"{names[j]} {dj[j]:.2f}" for j in top), flush=True)
     if a.output:
         Path(a.output).write_text(json.dumps(out, indent=1))
     return out

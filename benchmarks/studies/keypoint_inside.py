@@ -31,8 +31,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks import bench_real as br  # noqa: E402
 from benchmarks.real import feet  # noqa: E402
 from benchmarks.real import rig as rigmod  # noqa: E402
-from benchmarks.real.core_replay import Reference, bench_references, load_case  # noqa: E402
-from benchmarks.studies.fusion_sequence_replay import load_result  # noqa: E402
+from benchmarks.real.core_replay import Reference, bench_references, load_case, load_result  # noqa: E402
 from core.tracking import parallel  # noqa: E402
 from core.tracking.pivot import from_moved_roots, move_root_origin, to_moved_roots  # noqa: E402
 

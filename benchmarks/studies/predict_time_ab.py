@@ -25,6 +25,13 @@ Usage (from the repository root, one BLAS thread as the operator runs in Blender
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/studies/predict_time_ab.py \\
         --a main --b HEAD [--rounds 9 --calls 7 --trial 08_01 --frames 100 --length 4]
 
+``--start S`` observes the trial from S seconds in (a weak-rhythm window, e.g. 120_11 from
+0.75 s, goes through check 9's adaptation); ``--keys-every N`` keeps only the keys on frames
+1, 1 + N, … of the imported clip (an animator's poses: a sparsely keyed range, read from its
+keys, docs/gait.md *Stop 43, Predict from a few keys*). Each side's last call's summary
+(observed and predicted frames, keys, period, keyed poses, warnings, fit) and its check's
+rhythm strength and misfit are printed, so the A/B says which path the call took.
+
 ``--profile REF`` (a commit, WORKTREE or a zip) instead runs one process with it under cProfile (the calls after a
 warm-up) and prints where the time goes (the statistics also go to
 ``build/predict_time_ab/profile.pstats``).
@@ -95,6 +102,25 @@ def child(args):
             inner.append(time.process_time() - c0)
 
     bridge.predict_walk = timed_walk
+    # What the last call reported (the operator's summary: warnings, keyed poses), and the
+    # check's rhythm strength and misfit (check 9 measured the misfit where it adapted).
+    ops = importlib.import_module("bl_ext.user_default.track_and_stride.addon.gait.ops")
+    said = {}
+    real_predict, real_check = ops.predict_gait, bridge.check_gait
+
+    def said_predict(*a, **k):
+        out = real_predict(*a, **k)
+        said.update(summary={key: out.get(key) for key in
+                             ("observed", "predicted", "keys", "period_s", "keyed_poses",
+                              "warnings", "fit")})
+        return out
+
+    def said_check(*a, **k):
+        out = real_check(*a, **k)
+        said.update(strength=out.strength, misfit=getattr(out, "misfit", None))
+        return out
+
+    ops.predict_gait, bridge.check_gait = said_predict, said_check
     # Each part of the call (the bridge's own references to them), CPU time per call.
     parts = {}
     for name in PARTS:
@@ -114,7 +140,9 @@ def child(args):
     subject = args.trial.split("_")[0]
     asf = read_asf(CMU / f"{subject}.asf")
     values = read_amc(CMU / f"{args.trial}.amc", asf).values
-    values = resample(values, 120, args.fps, np.arange(3, values.shape[1]))[:args.frames]
+    first = int(round(args.start * args.fps))
+    values = resample(values, 120, args.fps,
+                      np.arange(3, values.shape[1]))[first:first + args.frames]
     amc = folder / f"{args.trial}.amc"
     write_amc(amc, asf, AmcMotion(values=values, frame_numbers=np.arange(1, len(values) + 1),
                                   bone_order=(), fps=args.fps, path=str(amc)))
@@ -125,6 +153,8 @@ def child(args):
         bpy.context.scene.render.fps = int(args.fps)
         bpy.ops.import_anim.acclaim(filepath=str(amc), source_fps=args.fps,
                                     set_frame_range=False)
+        if args.keys_every:
+            keep_keys(bpy, args.keys_every)
         c0, w0 = time.process_time(), time.perf_counter()
         result = bpy.ops.track_and_stride.predict_gait(horizon=args.length)
         c1, w1 = time.process_time(), time.perf_counter()
@@ -155,6 +185,7 @@ def child(args):
         per_call[name] = [sum(v[i * m:(i + 1) * m]) for i in range(args.calls)] \
             if m and len(v) % args.calls == 0 else v
     print(json.dumps({"cpu_s": [t[0] for t in times], "wall_s": [t[1] for t in times],
+                      "said": said,
                       "predict_walk_cpu_s": inner, "parts_cpu_s": per_call,
                       "keys_sha1": keys_digest(bpy)}))
 
@@ -164,6 +195,25 @@ def child(args):
 PARTS = ("intact_prediction", "_observed_range", "read_dofs", "check_gait", "_adapt",
          "with_fit", "fit_leg_travel", "_check_target", "predict_walk", "channel_values",
          "key_values", "_keys_digest")
+
+
+def keep_keys(bpy, every):
+    """Keep only the imported keys on frames 1, 1 + every, 1 + 2 every … (an animator's
+    poses keyed ``every`` frames apart): each curve is re-keyed with those keys' values, as
+    keying them by hand makes them (Blender's default interpolation and handles)."""
+    import numpy as np
+    anim = bpy.context.active_object.animation_data
+    bag = anim.action.layers[0].strips[0].channelbag(anim.action_slot)
+    for fc in bag.fcurves:
+        points = fc.keyframe_points
+        co = np.empty(2 * len(points), dtype=np.float32)
+        points.foreach_get("co", co)
+        co = co.reshape(-1, 2)
+        kept = co[(np.rint(co[:, 0]).astype(int) - 1) % every == 0]
+        points.clear()
+        points.add(len(kept))
+        points.foreach_set("co", kept.ravel())
+        fc.update()
 
 
 def keys_digest(bpy):
@@ -193,7 +243,8 @@ def keys_digest(bpy):
 def run_child(zip_path, args, profile=False):
     cmd = [sys.executable, __file__, "--child", str(zip_path), "--calls", str(args.calls),
            "--trial", args.trial, "--frames", str(args.frames), "--length", str(args.length),
-           "--fps", str(args.fps)] + (["--profile"] if profile else [])
+           "--fps", str(args.fps), "--start", str(args.start),
+           "--keys-every", str(args.keys_every)] + (["--profile"] if profile else [])
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
     done = subprocess.run(cmd, env=env, check=True, capture_output=not profile, text=True)
     if profile:
@@ -211,6 +262,10 @@ def main():
     parser.add_argument("--frames", type=int, default=100, help="observed frames (1.67 s)")
     parser.add_argument("--length", type=float, default=4.0, help="Length (s) predicted")
     parser.add_argument("--fps", type=float, default=60.0)
+    parser.add_argument("--start", type=float, default=0.0,
+                        help="where in the trial the observed frames start (s)")
+    parser.add_argument("--keys-every", type=int, default=0,
+                        help="keep only every Nth frame's keys from the first (0: all)")
     parser.add_argument("--output", default=str(OUT / "ab.json"))
     parser.add_argument("--profile", nargs="?", const=True, default=False,
                         help="(with a zip or ref) profile it instead of the A/B")
@@ -229,6 +284,7 @@ def main():
     ratios = []
     digests = {"a": set(), "b": set()}
     parts = {"a": {}, "b": {}}
+    said = {}
     for r in range(args.rounds):
         order = ("a", "b") if r % 2 == 0 else ("b", "a")
         med = {}
@@ -241,10 +297,12 @@ def main():
             for name, v in t.get("parts_cpu_s", {}).items():
                 parts[side].setdefault(name, []).extend(v)
             med[side] = statistics.median(t["cpu_s"])
+            said[side] = t.get("said")
         ratios.append(med["b"] / med["a"])
         print(f"round {r + 1}: A {med['a']:.3f} s, B {med['b']:.3f} s CPU (B/A "
               f"{ratios[-1]:.3f})", flush=True)
     result = {"a": zips["a"][1], "b": zips["b"][1], "trial": args.trial, "frames": args.frames,
+              "start_s": args.start, "keys_every": args.keys_every, "said": said,
               "length_s": args.length, "fps": args.fps, "rounds": args.rounds,
               "calls": args.calls, "load_before": os.getloadavg(),
               "cpu_median_s": {s: statistics.median(cpu[s]) for s in cpu},
@@ -268,6 +326,8 @@ def main():
           f"{result['predict_walk_cpu_median_s']['a'] * 1e3:.0f} ms, B "
           f"{result['predict_walk_cpu_median_s']['b'] * 1e3:.0f} ms (CPU medians); keys "
           f"{'identical' if result['same_keys'] else 'DIFFERENT'} (SHA-1 of every key)")
+    for side in ("a", "b"):
+        print(f"{side.upper()} said (last call): {json.dumps(said.get(side))}")
     print("parts, CPU medians (ms): " + "; ".join(
         f"{name} {result['parts_cpu_median_s']['a'].get(name, float('nan')) * 1e3:.1f} -> "
         f"{result['parts_cpu_median_s']['b'].get(name, float('nan')) * 1e3:.1f}"

@@ -13,7 +13,10 @@ of the D × D ``H P Hᵀ + R``. The innovation log-likelihood uses the matrix de
 the rank-one ``H P Hᵀ``. The tests compare against the literal D × D form.
 
 **Safety.** After every update ω is clipped to the model's plausible range (the period search
-range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped.
+range) and φ wrapped to [0, 2π). Missing channels (NaN in ``y``) are skipped; a frame with no
+channel observed (a sparsely keyed range's frames between its keys, ``core.gait.keyed``) adds
+nothing to the state (``gᵀg = gᵀe = 0``): :func:`ekf_filter` computes only the update's scalar end
+for it (the same floats, bit for bit, without the kernel's products).
 
 **Outlier channel.** A capture glitch in one channel (CMU 08_01's ``rthumb.rz`` passes through
 frames half a turn away) would otherwise pull the phase and the style and, through ``eᵀe``, make
@@ -402,6 +405,15 @@ def _update_in(s, ctx, w_pred, phi_pred, a, b, c, y, alpha_comb):
             both = np.delete(both, k, axis=1)
             (ee, ge), (_, gg) = (both @ both.T).tolist()
             n -= 1
+    return _posterior(ctx, w_pred, phi_pred, a, b, c, ee, ge, gg, n, outlier)
+
+
+def _posterior(ctx, w_pred, phi_pred, a, b, c, ee, ge, gg, n, outlier):
+    """The scalar end of :func:`_update_in` from the innovation's sums ``ee = eᵀe``,
+    ``ge = gᵀe``, ``gg = gᵀg`` over the ``n`` channels used (a frame with no channel observed:
+    all 0.0, ``n = 0``, as :func:`_update_in` computes them, so :func:`ekf_filter` skips that
+    frame's kernel and products and gets the same floats, bit for bit)."""
+    r = ctx.r
     # Information form of eqs. 20-22: P⁺ = (P⁻⁻¹ + diag(0, gᵀg/r))⁻¹, x⁺ = x⁻ + P⁺ [0, gᵀe/r].
     det = a * c - b * b
     ia, ib, ic = c / det, -b / det, a / det + gg / r
@@ -512,12 +524,20 @@ def ekf_filter(ctx, ys, w, x0, P0, extra_weights=None):
     rows = []                                   # per frame: ω, φ, a, b, c, squared innovation
     outliers = []
     scratch = _scratch(ctx, comb)
+    # Frames with no channel observed (a sparsely keyed range's frames between its keys,
+    # core.gait.keyed): _update_in would drop every channel (eᵀe = gᵀe = gᵀg = 0, n = 0);
+    # their update is its scalar end alone, the same floats without the kernel's products.
+    seen = np.isfinite(ys).any(axis=1).tolist() if n else []
     for t in range(n):
         if t:  # eqs. 17-18 with A = [[1, 0], [1, 1]]
             phi = phi + omega
             a, b, c = a + q00, a + b + q01, a + 2 * b + c + q11
-        omega, phi, a, b, c, loglik, ee, count, outlier = _update_in(scratch, ctx, omega, phi,
-                                                                     a, b, c, ys[t], comb)
+        if seen[t]:
+            omega, phi, a, b, c, loglik, ee, count, outlier = _update_in(
+                scratch, ctx, omega, phi, a, b, c, ys[t], comb)
+        else:
+            omega, phi, a, b, c, loglik, ee, count, outlier = _posterior(
+                ctx, omega, phi, a, b, c, 0.0, 0.0, 0.0, 0, -1)
         total += loglik
         rows.append((omega, phi, a, b, c, ee / max(count, 1)))
         outliers.append(outlier)

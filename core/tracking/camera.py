@@ -155,8 +155,8 @@ class PinholeCamera:
             raise ValueError(f"Expected shape (..., 3), got {p.shape}")
         inv_z = 1.0 / p[..., 2]
         if self.distortion is not None:
-            d = self.distortion.distort(p[..., :2] * inv_z[..., None])
-            return np.stack([self.fx * d[..., 0] + self.cx, self.fy * d[..., 1] + self.cy], axis=-1)
+            xd, yd = self.distortion.distort_xy(p[..., 0] * inv_z, p[..., 1] * inv_z)
+            return np.stack([self.fx * xd + self.cx, self.fy * yd + self.cy], axis=-1)
         return np.stack([self.fx * p[..., 0] * inv_z + self.cx,
                          self.fy * p[..., 1] * inv_z + self.cy], axis=-1)
 

@@ -94,21 +94,7 @@ def _distort(p, c, r2_limit, jacobian):
     back: ``d(p) = s d(p / s)`` with ``s = r / r_limit`` (one-to-one and monotonic outward).
     """
     k1, k2, p1, p2, k3 = c
-    x, y = p[..., 0], p[..., 1]
-    r2 = x * x + y * y
-    outside = r2 > r2_limit
-    if np.any(outside):
-        s = np.where(outside, np.sqrt(r2 / np.where(outside, r2_limit, 1.0)), 1.0)
-        x, y = x / s, y / s
-        r2 = np.where(outside, r2_limit, r2)
-    else:
-        s = None
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xy = x * y
-    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
-    if s is not None:
-        xd, yd = xd * s, yd * s
+    xd, yd, (x, y, r2, radial, s, outside) = _distort_xy(p[..., 0], p[..., 1], c, r2_limit)
     out = np.stack([xd, yd], axis=-1)
     if not jacobian:
         return out, None
@@ -136,6 +122,30 @@ def _distort(p, c, r2_limit, jacobian):
         full = jq + dq[..., :, None] * np.stack([nx, ny], axis=-1)[..., None, :] / r_lim
         jac = np.where(outside[..., None, None], full, jac)
     return out, jac
+
+
+def _distort_xy(x, y, c, r2_limit):
+    """:func:`_distort` on separate coordinate arrays ``x``, ``y`` (...): the distorted ``xd``,
+    ``yd`` (...) and the intermediate values its Jacobian needs ``(x, y, r2, radial, s,
+    outside)`` (``x``, ``y`` scaled onto the limit circle where ``outside``; ``s`` None where
+    no point is). Contiguous arrays in and out: the same operations as on (..., 2) stacks,
+    without their strided passes."""
+    k1, k2, p1, p2, k3 = c
+    r2 = x * x + y * y
+    outside = r2 > r2_limit
+    if np.any(outside):
+        s = np.where(outside, np.sqrt(r2 / np.where(outside, r2_limit, 1.0)), 1.0)
+        x, y = x / s, y / s
+        r2 = np.where(outside, r2_limit, r2)
+    else:
+        s = None
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xy = x * y
+    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
+    if s is not None:
+        xd, yd = xd * s, yd * s
+    return xd, yd, (x, y, r2, radial, s, outside)
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,6 +254,14 @@ class LensDistortion:
         out, _ = _distort(np.asarray(points, dtype=float), self.coefficients,
                           self.radius_limit ** 2, jacobian=False)
         return out
+
+    def distort_xy(self, x, y):
+        """:meth:`distort` of the points ``(x, y)`` given as two arrays (...): ``(xd, yd)``,
+        equal to :meth:`distort`'s columns bit for bit (for :meth:`.camera.PinholeCamera.
+        project`, which then skips the (..., 2) stacks)."""
+        xd, yd, _ = _distort_xy(np.asarray(x, dtype=float), np.asarray(y, dtype=float),
+                                self.coefficients, self.radius_limit ** 2)
+        return xd, yd
 
     def distort_with_jacobian(self, points):
         """Distorted points (..., 2) and the Jacobian (..., 2, 2) ``d distorted / d ideal``."""

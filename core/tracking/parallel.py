@@ -30,7 +30,10 @@ uses relative imports inside itself, so no ``bpy`` and no add-on code runs -- an
 unpickles the work. With the core imported as a top-level ``core`` (tests, benchmarks) there is
 nothing to stand in for. The frames go to a child as temporary ``.npy`` files, one per
 camera, written for each interval it takes when it takes it (only the frames that interval
-cuts, :func:`view_frames`) and memory mapped by the child. A worker whose parent dies sees its
+cuts, :func:`view_frames`, and of those only the window it tracks in,
+:func:`~.trajectory.interval_windows`) and memory mapped by the child; they go to a memory file
+system (``/dev/shm``, :data:`MEMORY_SCRATCH_PARENT`) where there is one with room, else to the
+temporary folder. A worker whose parent dies sees its
 stdin close and exits. Working in this process too saves one child's start-up (about 0.1-0.3 s) and
 its copy of the frames.
 
@@ -43,6 +46,7 @@ e.g. a ``threading.Event``) stops the job: in this process at the next progress 
 processes at once (they are killed); the call then raises :class:`~.problem.TrackingCancelled`.
 """
 
+import contextlib
 import os
 import pickle
 import queue as queue_module
@@ -61,7 +65,8 @@ from .foot_lock import FootLock, lock_feet
 from .keypoint_cue import per_camera
 from .keypoint_fusion import fuse_keypoints, key_noise
 from .problem import TrackingCancelled, TrackingError, TrackingOptions
-from .trajectory import Pose, interpolated_interval, keypoint_half_window, track_interval
+from .trajectory import (Pose, interpolated_interval, interval_windows, keypoint_half_window,
+                         track_interval)
 
 #: Full module name of the core package this module belongs to ('core', or
 #: 'bl_ext.<repo>.track_and_stride.core' inside Blender) and its folder.
@@ -283,9 +288,10 @@ def _interval(problem, options, frames, offsets, keys, roots, local, i, progress
 
 
 def _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progress=None,
-                        occluders=(), keypoints=None):
+                        occluders=(), keypoints=None, windows=None):
     """Interval ``i`` from each camera's frames ``keys[i] .. keys[i + 1]`` (:func:`view_frames`:
-    None where the camera filmed none of them)."""
+    None where the camera filmed none of them; ``windows``: the windows they were cut to,
+    :func:`~.trajectory.interval_windows`, None: whole frames)."""
     a, b = keys[i], keys[i + 1]
     start, end = Pose(roots[i], local[i]), Pose(roots[i + 1], local[i + 1])
     # Other bodies, their frames counted from this interval's start key.
@@ -296,14 +302,14 @@ def _interval_of_stacks(problem, options, stacks, keys, roots, local, i, progres
                      for kp in keypoints]
     if problem.n_views == 1:
         return track_interval(problem, stacks[0], start, end, options, progress=progress,
-                              occluders=occluders, keypoints=keypoints)
+                              occluders=occluders, keypoints=keypoints, windows=windows)
     if all(s is None for s in stacks):
         if progress is not None:
             progress(1.0)
         return interpolated_interval(problem, start, end, int(b - a),
                                      f"no camera filmed frames {a}..{b}: the interpolation is kept")
     return track_interval(problem, stacks, start, end, options, progress=progress,
-                          occluders=occluders, keypoints=keypoints)
+                          occluders=occluders, keypoints=keypoints, windows=windows)
 
 
 def track_keyframes(problem, frames, key_frames, key_roots, key_locals, options=None,
@@ -493,11 +499,13 @@ def _receive(stream):
 
 
 def serve(channel_in, channel_out):
-    """Worker main loop: set-up message, then tasks ``(i, paths)`` until ``'stop'`` or EOF.
+    """Worker main loop: set-up message, then tasks ``(i, paths, windows)`` until ``'stop'`` or
+    EOF.
 
     ``paths``: per camera, the ``.npy`` file of the interval's frames (:func:`view_frames` of
-    ``keys[i] .. keys[i + 1]``, written by the parent for this task), or None where the camera
-    filmed none of them. Sends ``('progress', i, fraction)``, ``('result', i, IntervalResult)``
+    ``keys[i] .. keys[i + 1]``, cut to the camera's entry of ``windows``
+    (:func:`~.trajectory.interval_windows`; None: whole frames), written by the parent for this
+    task), or None where the camera filmed none of them. Sends ``('progress', i, fraction)``, ``('result', i, IntervalResult)``
     or ``('error', i, exception, traceback text)`` for each interval.
     """
     setup = _receive(channel_in)
@@ -508,13 +516,13 @@ def serve(channel_in, channel_out):
         task = _receive(channel_in)
         if task is None or task == "stop":
             return
-        i, paths = task
+        i, paths, windows = task
         try:
             stacks = [None if path is None else np.load(path, mmap_mode="r") for path in paths]
             result = _interval_of_stacks(
                 problem, options, stacks, keys, roots, local, i,
                 lambda fraction, i=i: _send(channel_out, ("progress", i, fraction)), occluders,
-                keypoints)
+                keypoints, windows)
         except Exception as exc:  # reported to the parent, which re-raises it
             try:
                 pickle.dumps(exc)
@@ -589,6 +597,34 @@ SCRATCH_PREFIX = "ts-track-"
 #: A scratch folder untouched this long (seconds) belongs to a run that was killed: a live run
 #: writes into its folder at every interval it hands out.
 STALE_SCRATCH_SECONDS = 24 * 3600.0
+#: Where the frames files go first: a memory file system (Linux's ``/dev/shm``, shared memory)
+#: when there is one with room (:data:`MEMORY_SCRATCH_RESERVE`), else the temporary folder. On
+#: a busy disk a child waited 2.4-3.3 s for its interval's frames written to ``/tmp`` (page
+#: cache and write-back), 0.3-0.6 s in memory (``docs/tracking.md``, session 44).
+MEMORY_SCRATCH_PARENT = "/dev/shm"
+#: The memory file system is used only while a file leaves this share of it free (and at least
+#: 256 MiB): a small one (a container's 64 MB ``/dev/shm``) is never filled.
+MEMORY_SCRATCH_RESERVE = 0.25
+
+
+def _memory_room(folder, nbytes):
+    """Whether ``nbytes`` more fit in the memory file system of ``folder`` with its reserve."""
+    try:
+        st = os.statvfs(folder)
+    except (OSError, AttributeError):
+        return False
+    free, size = st.f_bavail * st.f_frsize, st.f_blocks * st.f_frsize
+    return free - nbytes >= max(256 * 2 ** 20, MEMORY_SCRATCH_RESERVE * size)
+
+
+def _scratch_parents():
+    """The folders the pool's scratch folders live in: the temporary folder and, where it
+    exists, the memory file system."""
+    parents = [Path(tempfile.gettempdir())]
+    memory = MEMORY_SCRATCH_PARENT
+    if memory and os.path.isdir(memory) and Path(memory) not in parents:
+        parents.append(Path(memory))
+    return parents
 
 
 def sweep_stale_scratch(parent=None, now=None):
@@ -598,7 +634,8 @@ def sweep_stale_scratch(parent=None, now=None):
     Parameters
     ----------
     parent : str or Path, optional
-        Where the folders are (default: ``tempfile.gettempdir()``).
+        Where the folders are (default: ``tempfile.gettempdir()`` and
+        :data:`MEMORY_SCRATCH_PARENT`, where the pool puts them).
     now : float, optional
         The present as ``time.time()`` (s); tests pass their own.
 
@@ -610,13 +647,15 @@ def sweep_stale_scratch(parent=None, now=None):
     """
     import shutil
     import time
-    parent = Path(parent if parent is not None else tempfile.gettempdir())
+    parents = _scratch_parents() if parent is None else [Path(parent)]
     now = time.time() if now is None else now
     removed = []
-    try:
-        candidates = list(parent.glob(SCRATCH_PREFIX + "*"))
-    except OSError:
-        return removed
+    candidates = []
+    for where in parents:
+        try:
+            candidates += list(where.glob(SCRATCH_PREFIX + "*"))
+        except OSError:
+            continue
     for folder in candidates:
         try:
             if not folder.is_dir() or folder.is_symlink():
@@ -662,29 +701,72 @@ def _run_pool(work, frames, workers, weights, report, stop_requested, feed=None)
         waiting.discard(k)
         give(k, task)
 
-    offsets = work[2]
+    problem, options, offsets, _, key_roots, key_local = work[:6]
 
     sweep_stale_scratch()
-    with tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX) as folder:
+    with contextlib.ExitStack() as scratch:
+        folder = scratch.enter_context(tempfile.TemporaryDirectory(prefix=SCRATCH_PREFIX))
+        memory = None
+        if MEMORY_SCRATCH_PARENT and os.path.isdir(MEMORY_SCRATCH_PARENT):
+            try:
+                memory = scratch.enter_context(tempfile.TemporaryDirectory(
+                    prefix=SCRATCH_PREFIX, dir=MEMORY_SCRATCH_PARENT))
+            except OSError:
+                memory = None
         written = {}                       # interval -> its frames files (one per camera)
 
+        def save(name, cut):
+            """Write one frames file, in memory where it fits (else, or if that fails, in
+            the temporary folder); its path."""
+            cut = np.ascontiguousarray(cut)
+            for where in (memory, folder):
+                if where is None or (where is memory and not _memory_room(where, cut.nbytes)):
+                    continue
+                path = os.path.join(where, name)
+                try:
+                    np.save(path, cut)
+                    return path
+                except OSError:
+                    if where is folder:
+                        raise
+                    try:
+                        os.remove(path)
+                    except OSError:
+                        pass
+            raise TrackingError("no folder to write the frames files in")     # not reached
+
         def give(k, task):
-            """Send child ``k`` its next interval, its frames written for it first; or stop."""
+            """Send child ``k`` its next interval, its frames written for it first (each
+            camera's cut to the window the interval tracks in: the child reads nothing else);
+            or stop."""
             if task is None:
                 _send(procs[k].stdin, "stop")
                 stopped.add(k)
                 return
             a, b = keys[task], keys[task + 1]
+            windows = interval_windows(problem, options,
+                                       Pose(key_roots[task], key_local[task]),
+                                       Pose(key_roots[task + 1], key_local[task + 1]),
+                                       int(b - a))
             paths = []
             for v, (stack, offset) in enumerate(zip(frames, offsets)):
                 cut = view_frames(stack, offset, a, b)
                 if cut is None:
                     paths.append(None)
+                    windows[v] = None
                     continue
-                paths.append(os.path.join(folder, f"interval_{task}_view_{v}.npy"))
-                np.save(paths[-1], np.ascontiguousarray(cut))
+                if windows[v] is not None:
+                    u0, v0, w, h = windows[v]
+                    cut = cut[:, v0:v0 + h, u0:u0 + w]
+                paths.append(save(f"interval_{task}_view_{v}.npy", cut))
+            for where in (folder, memory):          # a live run's folders stay fresh (sweep)
+                if where is not None:
+                    try:
+                        os.utime(where)
+                    except OSError:
+                        pass
             written[task] = [p for p in paths if p is not None]
-            _send(procs[k].stdin, (task, paths))
+            _send(procs[k].stdin, (task, paths, windows))
 
         def forget(task):
             """Remove an interval's frames files once its result is in (best effort: a

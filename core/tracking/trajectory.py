@@ -525,7 +525,7 @@ def _one_pyramid(pyramid):
 
 
 def prepare_views(problem, frames, start, end, options, pyramid=None, initial=None,
-                  occluders=None):
+                  occluders=None, windows=None):
     """Checked keys and every camera's :class:`ViewInterval` for one interval.
 
     Parameters
@@ -541,6 +541,10 @@ def prepare_views(problem, frames, start, end, options, pyramid=None, initial=No
         Initial trajectory (it widens the region of interest).
     occluders : sequence of Occluder, optional
         Other bodies over the interval's frames (``first`` relative to the start key).
+    windows : sequence of (u0, v0, width, height) or None, one per camera, optional
+        The window each camera's ``frames`` were already cut to (:func:`interval_windows`:
+        the parallel pool sends its children only that part of the frames); None for a camera
+        whose frames are whole. A window must be the one the interval would cut.
 
     Returns
     -------
@@ -557,14 +561,18 @@ def prepare_views(problem, frames, start, end, options, pyramid=None, initial=No
     else:
         stacks = _per_view(problem, frames, "frames", _one_stack)
         pyramids = [None] * problem.n_views
+    windows = [None] * problem.n_views if windows is None else list(windows)
+    if len(windows) != problem.n_views:
+        raise TrackingError(f"windows: expected one entry per camera ({problem.n_views}), got "
+                            f"{len(windows)}")
     views = []
     lengths = set()
-    for index, (stack, pyr) in enumerate(zip(stacks, pyramids)):
+    for index, (stack, pyr, window) in enumerate(zip(stacks, pyramids, windows)):
         if stack is None and pyr is None:
             if problem.n_views == 1:
                 raise TrackingError("no frames given")
             continue
-        view = _prepare_view(problem, index, stack, start, end, options, pyr, initial)
+        view = _prepare_view(problem, index, stack, start, end, options, pyr, initial, window)
         if occluders:
             view = replace(view, occluders=tuple(view_occluders(
                 occluders, index, 0, len(view.pyramid[0]) - 1, options.occluder_margin)))
@@ -578,9 +586,10 @@ def prepare_views(problem, frames, start, end, options, pyramid=None, initial=No
     return start, end, views
 
 
-def _prepare_view(problem, index, frames, start, end, options, pyramid, initial):
+def _prepare_view(problem, index, frames, start, end, options, pyramid, initial, window=None):
     """One camera's :class:`ViewInterval`: its window (region of interest), its pyramid (scaled by
-    ``2**-k``, :func:`intensity_exponent`) and its levels."""
+    ``2**-k``, :func:`intensity_exponent`) and its levels. ``window``: the window ``frames``
+    were already cut to (:func:`prepare_views`), or None (whole frames)."""
     cam = problem.cameras[index]
     where = f"camera {index}: " if problem.n_views > 1 else ""
     if pyramid is not None:
@@ -592,8 +601,9 @@ def _prepare_view(problem, index, frames, start, end, options, pyramid, initial)
         finest, top = choose_levels(problem, options, start, end, len(pyramid), cam)
         return ViewInterval(index, cam, pyramid, finest, top, k, _available(problem, pyramid[0]))
     frames = np.asarray(frames)
-    if frames.ndim != 3 or frames.shape[1:] != (cam.height, cam.width):
-        raise TrackingError(f"{where}Expected frames of shape (n + 1, {cam.height}, {cam.width}), "
+    height, width = (cam.height, cam.width) if window is None else (window[3], window[2])
+    if frames.ndim != 3 or frames.shape[1:] != (height, width):
+        raise TrackingError(f"{where}Expected frames of shape (n + 1, {height}, {width}), "
                             f"got {frames.shape}")
     if len(frames) < 2:
         raise TrackingError("an interval needs at least two frames")
@@ -602,10 +612,14 @@ def _prepare_view(problem, index, frames, start, end, options, pyramid, initial)
     finest, top = choose_levels(problem, options, start, end,
                                 pyramid_levels(problem, options, cam), cam)
     roi = region_of_interest(problem, options, start, end, len(frames) - 1, top, initial, cam)
+    if window is not None and (roi is None or tuple(int(x) for x in window) != tuple(roi)):
+        raise TrackingError(f"{where}frames cut to the window {tuple(window)}, but the "
+                            f"interval's window is {roi}")
     if roi is not None:
         u0, v0, w, h = roi
         cam = cam.cropped(u0, v0, w, h)
-        frames = frames[:, v0:v0 + h, u0:u0 + w]
+        if window is None:
+            frames = frames[:, v0:v0 + h, u0:u0 + w]
         if finest == 0:
             # Level 0 is sampled (flat indices): a contiguous copy. Otherwise it is only
             # reduced, which works on the strided window directly.
@@ -615,6 +629,31 @@ def _prepare_view(problem, index, frames, start, end, options, pyramid, initial)
         frames = np.ldexp(frames, -k)
     return ViewInterval(index, cam, gaussian_pyramid(frames, top + 1), finest, top, k,
                         _available(problem, frames))
+
+
+def interval_windows(problem, options, start, end, n):
+    """Per camera, the window ``(u0, v0, width, height)`` of its frames that
+    :func:`track_interval` works in for the interval ``start`` .. ``end`` of ``n`` frame steps
+    (:func:`region_of_interest` at the levels it chooses, the keys as it takes them), or None
+    where it uses the whole frame. None for every camera when the keys are malformed
+    (:func:`track_interval` reports them).
+
+    The parallel pool cuts the frames it sends a child process to these windows (the child
+    reads nothing outside them); ``prepare_views(..., windows=)`` takes frames so cut.
+    """
+    options = options or TrackingOptions()
+    b = problem.skeleton.n_joints
+    try:
+        start, end, _, _ = _untwisted(problem, start, end, None)
+        start, end = _check_pose("start", start, b), _check_pose("end", end, b)
+    except TrackingError:
+        return [None] * problem.n_views
+    out = []
+    for cam in problem.cameras:
+        top = choose_levels(problem, options, start, end, pyramid_levels(problem, options, cam),
+                            cam)[1]
+        out.append(region_of_interest(problem, options, start, end, n, top, None, cam))
+    return out
 
 
 def _available(problem, frames):
@@ -741,7 +780,7 @@ def eq4_thresholds(problem, options, views, trajectory):
 _PROGRESS_PYRAMID, _PROGRESS_SEED = 0.05, 0.35
 
 def track_interval(problem, frames, start, end, options=None, pyramid=None, keep_history=False,
-                   initial=None, progress=None, occluders=None, keypoints=None):
+                   initial=None, progress=None, occluders=None, keypoints=None, windows=None):
     """Track one interval between two keyed poses (the whole of §2.2-§3).
 
     Parameters
@@ -775,6 +814,9 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
         has none), optional
         2D keypoints of another tool (:mod:`.keypoint_cue`; ``first`` counted from the start
         key): their reprojection residuals join the motion estimate. None: nothing changes.
+    windows : sequence of (u0, v0, width, height) or None, one per camera, optional
+        The window each camera's ``frames`` were already cut to (:func:`interval_windows`,
+        without ``initial``); None: whole frames.
 
     Returns
     -------
@@ -789,7 +831,7 @@ def track_interval(problem, frames, start, end, options=None, pyramid=None, keep
     keys = (start, end)
     start, end, initial, twists = _untwisted(problem, start, end, initial)
     start, end, views = prepare_views(problem, frames, start, end, options, pyramid, initial,
-                                      occluders)
+                                      occluders, windows)
     if keypoints is not None:
         views = _with_keypoints(problem, views, keypoints, start, end)
     report(_PROGRESS_PYRAMID)

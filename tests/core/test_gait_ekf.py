@@ -115,6 +115,44 @@ def test_filter_equals_sequential_steps(ctx, full_q):
     np.testing.assert_array_equal(res.outliers, -1)
 
 
+def test_an_unobserved_frame_is_the_update_with_every_channel_dropped(ctx):
+    """A frame with no channel observed (NaN everywhere: a sparsely keyed range's
+    frames between its keys) skips the kernel's products in ``ekf_filter``; every output is
+    still the one the full update (``_update``, every channel dropped) gives, bit for bit,
+    beside observed, partly observed and outlier frames, and the loop's own time update."""
+    w = small_model().styles[3]
+    ys = observations("35_02")[:40] / ctx.scale
+    keyed = np.zeros(len(ys), dtype=bool)
+    keyed[::9] = True                                   # frames 0, 9, 18, 27, 36 observed
+    ys[~keyed] = np.nan
+    ys[18, :10] = np.nan                                # partly observed
+    ys[27, 40] += 20.0                                  # an outlier channel
+    x0, p0 = np.array([0.09, 0.5]), np.diag([1e-5, 0.05])
+    res = ekf_filter(ctx, ys, w, x0, p0)
+    comb = ctx.combine(w)
+    q00, q01, q11 = ctx.q_floats
+    omega, phi = float(x0[0]), float(x0[1])
+    a, b, c = float(p0[0, 0]), float(p0[0, 1]), float(p0[1, 1])
+    total, rows, outliers = 0.0, [], []
+    for t in range(len(ys)):
+        if t:
+            phi = phi + omega
+            a, b, c = a + q00, a + b + q01, a + 2 * b + c + q11
+        omega, phi, a, b, c, loglik, ee, count, outlier = _update(ctx, omega, phi, a, b, c,
+                                                                  ys[t], comb)
+        total += loglik
+        rows.append((omega, phi, a, b, c, ee / max(count, 1)))
+        outliers.append(outlier)
+    rows = np.array(rows)
+    np.testing.assert_array_equal(res.states, rows[:, :2])
+    np.testing.assert_array_equal(res.covariances, rows[:, [2, 3, 3, 4]].reshape(-1, 2, 2))
+    np.testing.assert_array_equal(res.innovation_sq, rows[:, 5])
+    np.testing.assert_array_equal(res.outliers, outliers)
+    assert res.loglik == total
+    assert outliers[27] == 40 and np.all(res.innovation_sq[~keyed] == 0.0)
+    assert np.all(np.diff(res.covariances[1:9, 1, 1]) > 0)  # unobserved: uncertainty grows
+
+
 def test_extra_weights_add_to_the_style_weights(ctx):
     """``extra_weights`` enter the observation mean as ``k(φ)ᵀ E``: since ``Σ_j w_j α_j`` is
     linear in w, style w with ``E = combine(w2 - w)`` is the filter of style w2."""

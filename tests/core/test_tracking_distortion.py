@@ -40,6 +40,26 @@ def test_project_equals_opencv(coefficients):
     assert np.abs(ours - ref[:, 0]).max() < 1e-8
 
 
+@pytest.mark.parametrize("coefficients", [DEMO, WIDE])
+def test_distort_xy_is_distort_on_separate_coordinates(coefficients):
+    """``distort_xy`` (two coordinate arrays, what ``project`` uses) equals ``distort`` of the
+    (..., 2) points bit for bit, inside and beyond the radius limit, for (n, S) shapes."""
+    lens = _camera(coefficients).distortion
+    r = lens.radius_limit
+    pts = RNG.normal(0.0, 0.6 * r, (30, 40, 2))
+    pts[0, :10] *= 3.0                             # beyond the limit: the radial extension
+    assert np.any(np.hypot(pts[..., 0], pts[..., 1]) > r)
+    xd, yd = lens.distort_xy(np.ascontiguousarray(pts[..., 0]), np.ascontiguousarray(pts[..., 1]))
+    np.testing.assert_array_equal(np.stack([xd, yd], axis=-1), lens.distort(pts))
+    # project: the pinhole model on distort's points, as before it used distort_xy.
+    cam = _camera(coefficients)
+    p3 = _points_in_view(cam).reshape(40, 50, 3)
+    inv_z = 1.0 / p3[..., 2]
+    d = lens.distort(p3[..., :2] * inv_z[..., None])
+    np.testing.assert_array_equal(cam.project(p3),
+                                  np.stack([FX * d[..., 0] + CX, FY * d[..., 1] + CY], axis=-1))
+
+
 @pytest.mark.parametrize("coefficients", [DEMO, RAW, WIDE])
 def test_rays_equal_opencv_undistortion(coefficients):
     cam = _camera(coefficients)

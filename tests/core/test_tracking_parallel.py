@@ -170,18 +170,74 @@ def test_sweep_removes_only_stale_pool_scratch_folders(tmp_path):
     assert not stale.exists() and live.is_dir() and other.is_dir() and plain.is_file()
 
 
-def test_pool_sweeps_a_killed_runs_folder_and_leaves_none_of_its_own(tmp_path, monkeypatch):
+def _scratch_parents(tmp_path, monkeypatch, memory_reserve=0.0):
+    """The pool's temporary folder and memory file system, both moved under ``tmp_path``
+    (``memory_reserve`` 1: the memory one never has room)."""
     import tempfile
+    from core.tracking import parallel
+    tmp, shm = tmp_path / "tmp", tmp_path / "shm"
+    tmp.mkdir()
+    shm.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    monkeypatch.setattr(parallel, "MEMORY_SCRATCH_PARENT", str(shm))
+    monkeypatch.setattr(parallel, "MEMORY_SCRATCH_RESERVE", memory_reserve)
+    return tmp, shm
+
+
+def _recorded_saves(monkeypatch):
+    from core.tracking import parallel
+    saved, save = [], np.save
+
+    def recording_save(path, array, *args, **kwargs):
+        saved.append((str(path), np.shape(array)))
+        return save(path, array, *args, **kwargs)
+
+    monkeypatch.setattr(parallel.np, "save", recording_save)
+    return saved
+
+
+def test_pool_sweeps_a_killed_runs_folder_and_leaves_none_of_its_own(tmp_path, monkeypatch):
     from core.tracking.parallel import STALE_SCRATCH_SECONDS
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    stale = tmp_path / "ts-track-killed"
-    stale.mkdir()
-    _aged(stale, 2 * STALE_SCRATCH_SECONDS, time.time())
+    tmp, shm = _scratch_parents(tmp_path, monkeypatch)
+    for parent in (tmp, shm):
+        stale = parent / "ts-track-killed"
+        stale.mkdir()
+        _aged(stale, 2 * STALE_SCRATCH_SECONDS, time.time())
+    saved = _recorded_saves(monkeypatch)
     sk, body, cam, roots, local, frames = _sequence(10)
     keys = [0, 4, 10]
     track_keyframes(TrackingProblem(sk, body, cam), frames, keys, roots[keys], local[keys],
                     TrackingOptions(max_iterations=1), processes=2)
-    assert list(tmp_path.iterdir()) == []
+    assert list(tmp.iterdir()) == [] and list(shm.iterdir()) == []
+    # The child's frames went to the memory file system (it had room).
+    assert saved and all(Path(path).parent.parent == shm for path, _ in saved)
+
+
+def test_pool_frames_go_to_the_temporary_folder_without_room_in_memory(tmp_path, monkeypatch):
+    tmp, shm = _scratch_parents(tmp_path, monkeypatch, memory_reserve=1.0)
+    saved = _recorded_saves(monkeypatch)
+    sk, body, cam, roots, local, frames = _sequence(10)
+    keys = [0, 4, 10]
+    problem, options = TrackingProblem(sk, body, cam), TrackingOptions(max_iterations=1)
+    pooled = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                             processes=2)
+    serial = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                             processes=1)
+    np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
+    assert saved and all(Path(path).parent.parent == tmp for path, _ in saved)
+    assert list(tmp.iterdir()) == [] and list(shm.iterdir()) == []
+
+
+def test_a_cancelled_pool_leaves_no_scratch_folder(tmp_path, monkeypatch):
+    tmp, shm = _scratch_parents(tmp_path, monkeypatch)
+    sk, body, cam, roots, local, frames = _sequence(10)
+    keys = [0, 3, 6, 10]
+    stop = threading.Event()
+    with pytest.raises(TrackingCancelled):
+        track_keyframes(TrackingProblem(sk, body, cam), frames, keys, roots[keys], local[keys],
+                        TrackingOptions(max_iterations=2), processes=2,
+                        progress=lambda fraction: stop.set(), cancel=stop)
+    assert list(tmp.iterdir()) == [] and list(shm.iterdir()) == []
 
 
 def _feeder(frames, stack, feed, first, progressed, log):
@@ -240,3 +296,64 @@ def test_frames_that_never_arrive_cancel_the_tracking(processes):
                             TrackingOptions(max_iterations=1), processes=processes, feed=feed)
     finally:
         timer.cancel()
+
+
+def _wide_sequence(n=10):
+    """``_sequence``'s motion filmed by a wider camera: the body fills a window of the frame
+    (the region of interest is not the whole frame)."""
+    from tests.core.tracking_fixtures import front_camera, render
+    sk, body, _, roots, local, _ = _sequence(n)
+    cam = front_camera(480, 360, f=420.0)
+    return sk, body, cam, roots, local, render(sk, body, cam, roots, local)
+
+
+def test_frames_cut_to_the_interval_window_track_as_whole_frames():
+    """``interval_windows`` is the window the interval cuts: frames cut to it beforehand
+    (what the pool sends its children) give the whole frames' result bit for bit; a window that
+    is not the interval's is refused."""
+    from core.tracking.trajectory import interval_windows
+    sk, body, cam, roots, local, frames = _wide_sequence(6)
+    problem = TrackingProblem(sk, body, cam)
+    options = TrackingOptions(max_iterations=2)
+    start, end = Pose(roots[0], local[0]), Pose(roots[6], local[6])
+    (window,) = interval_windows(problem, options, start, end, 6)
+    assert window is not None                       # the test's clip has a window to cut
+    u0, v0, w, h = window
+    assert w * h < 0.9 * cam.width * cam.height
+    cut = np.ascontiguousarray(frames[:, v0:v0 + h, u0:u0 + w])
+    whole = track_interval(problem, frames, start, end, options)
+    part = track_interval(problem, cut, start, end, options, windows=[window])
+    np.testing.assert_array_equal(whole.root_translations, part.root_translations)
+    np.testing.assert_array_equal(whole.local_rotations, part.local_rotations)
+    np.testing.assert_array_equal(whole.errors, part.errors)
+    with pytest.raises(TrackingError, match="window"):
+        track_interval(problem, cut[:, 1:], start, end, options,
+                       windows=[(u0, v0 + 1, w, h - 1)])
+    with pytest.raises(TrackingError, match="Expected frames of shape"):
+        track_interval(problem, frames, start, end, options, windows=[window])
+
+
+def test_pool_children_get_only_their_window_and_equal_serial(tmp_path, monkeypatch):
+    """The frames files written for the children hold each interval's window only (not whole
+    frames), and the pool's result equals the serial one bit for bit."""
+    from core.tracking.trajectory import interval_windows
+    _scratch_parents(tmp_path, monkeypatch)
+    sk, body, cam, roots, local, frames = _wide_sequence(10)
+    problem = TrackingProblem(sk, body, cam)
+    keys = [0, 3, 6, 10]
+    options = TrackingOptions(max_iterations=2)
+    saved = _recorded_saves(monkeypatch)
+    pooled = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                             processes=2)
+    serial = track_keyframes(problem, frames, keys, roots[keys], local[keys], options,
+                             processes=1)
+    np.testing.assert_array_equal(serial.root_translations, pooled.root_translations)
+    np.testing.assert_array_equal(serial.local_rotations, pooled.local_rotations)
+    assert saved                                     # the child took at least one interval
+    for path, shape in saved:
+        i = int(os.path.basename(path).split("_")[1])
+        (window,) = interval_windows(problem, options, Pose(roots[keys[i]], local[keys[i]]),
+                                     Pose(roots[keys[i + 1]], local[keys[i + 1]]),
+                                     keys[i + 1] - keys[i])
+        assert window is not None
+        assert shape == (keys[i + 1] - keys[i] + 1, window[3], window[2])
