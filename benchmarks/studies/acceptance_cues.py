@@ -27,6 +27,18 @@ stop 43's variant (:func:`check_variant`) leaves to check 9: the cues that tell 
 
     nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --short build/short.pkl
 
+Stop 44 (nong44) adds cues of the window's end and the legs' pose for the non-gait windows the checks
+still took (:func:`stop44_rows`: :func:`end_features`, model-free: the root's speed and
+acceleration along the walk, a foot raised, a shin swung forward, the feet turned out, the
+hips at the end; :func:`model_features`, under the fold library: check 9's misfit over every
+window and over the window's end, the fit's error at the end, the filter's outliers, the
+posture offset against its prior), the windows sneak44's rhythm variant would add included;
+``--analyse-stop44`` leaves one subject out per cue::
+
+    nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --stop44 build/cues.pkl \
+        --out-stop44 build/stop44.pkl                                          # ~7 min
+    .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse-stop44 build/stop44.pkl
+
 Stop 42 adds the upper body and whole-body coordination (:func:`body_features`), the arms as
 ``core.gait.checks`` poses them, and each window's outcome without the arm checks
 (``accepted``, checks 1-5) and with them (``accepted_arms``).
@@ -827,6 +839,259 @@ def analyse_short(rows):
           + ", ".join(f"{r['clip']} {r['window']:g}@{r['start']:.2f}" for r in now))
 
 
+# --- Stop 44: the last non-gait windows (issue 21 §1) ---------------------------------------
+
+LEGS = (("left", "lfemur", "ltibia", "lfoot", "ltoes"), ("right", "rfemur", "rtibia", "rfoot",
+                                                          "rtoes"))
+
+
+def leg_points(model, obs):
+    """World positions of each leg's hip, knee, ankle and ball {joint: (N, 3)} by forward
+    kinematics of the observed leg angles on the CMU template skeleton, the root at the origin
+    tilted as observed and turned to the rest's heading (as ``checks._arm_points`` poses the
+    arms), and the rest's forward and left (2,)."""
+    skel = checks._template_skeleton()
+    names = list(skel.dof_names())
+    angles = [c for c in model.channel_names[:model.n_angles] if c in names]
+    dofs = np.zeros((len(obs), len(names)))
+    dofs[:, [names.index(c) for c in angles]] = obs[:, model.channel_index(angles)]
+    root = np.broadcast_to(skel.rest_rotations[0], (len(obs), 3, 3))
+    root = checks.exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
+                                                      "root.tilt_z"])]) @ root
+    joints = [skel.index(j) for leg in LEGS for j in leg[1:]]
+    heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
+    rest = skel.rest_rotations[0]
+    forward = rest[:2, 2] / np.linalg.norm(rest[:2, 2])
+    left = np.array([-forward[1], forward[0]])
+    return {j: heads[skel.index(j)] for leg in LEGS for j in leg[1:]}, forward, left
+
+
+def _smooth(x, k=7):
+    """Centred moving average over ``k`` frames (shorter at the ends)."""
+    kernel = np.ones(k)
+    return np.convolve(x, kernel, "same") / np.convolve(np.ones(len(x)), kernel, "same")
+
+
+def end_features(model, w, fps=FPS):
+    """Model-free cues of a window's course and end (stop 44): the root's speed along the walk
+    (start, end, peak, acceleration), the legs' pose by the template's forward kinematics (a
+    foot raised, a shank swung forward, the feet turned out), the hips at the end."""
+    ci = model.channel_names.index
+    vf = _smooth(w[:, ci("root.v_forward")])
+    vl = _smooth(w[:, ci("root.v_left")])
+    speed = np.hypot(vf, vl)
+    q = max(2, int(round(0.25 * fps)))
+    third = max(2, int(round(len(w) / 3)))
+    mean = float(np.mean(speed))
+    acc = np.gradient(vf) * fps
+    pts, fwd, left = leg_points(model, w)
+    out = dict(mean_speed=mean, end_speed=float(np.mean(speed[-q:])),
+               start_speed=float(np.mean(speed[:q])), peak_speed=float(speed.max()),
+               end_third=float(np.mean(speed[-third:])), first_third=float(np.mean(speed[:third])),
+               peak_accel=float(acc.max()), peak_brake=float(-acc.min()),
+               end_accel=float(acc[-q:].max()), end_brake=float(-acc[-q:].min()))
+    out["end_ratio"] = out["end_speed"] / max(mean, 1e-9)
+    out["peak_ratio"] = out["peak_speed"] / max(mean, 1e-9)
+    out["speed_gain"] = (out["end_third"] - out["first_third"]) / max(mean, 1e-9)
+    out["end_over_min"] = out["end_speed"] / max(float(speed.min()), 0.05)
+    lift, shank, turn, ahead = [], [], [], []
+    for side, hip, knee, ankle, ball in LEGS:
+        other = "rfoot" if side == "left" else "lfoot"
+        lift.append(pts[ankle][:, 2] - pts[other][:, 2])
+        d = pts[ankle] - pts[knee]
+        shank.append(np.degrees(np.arctan2(d[:, :2] @ fwd, -d[:, 2])))
+        f = pts[ball][:, :2] - pts[ankle][:, :2]
+        out_dir = left if side == "left" else -left
+        turn.append(np.degrees(np.arctan2(f @ out_dir, f @ fwd)))
+        ahead.append((pts[ankle][:, :2] - pts[hip][:, :2]) @ fwd)
+    lift, shank, turn, ahead = (np.stack(x, axis=1) for x in (lift, shank, turn, ahead))
+    hipflex = -np.degrees(w[:, [ci("lfemur.rx"), ci("rfemur.rx")]])
+    stance = lift < -0.01                                  # the lower foot by 1 cm and more
+    with np.errstate(invalid="ignore"):
+        planted = np.nansum(np.where(stance, turn, 0.0), axis=0) / stance.sum(axis=0)
+    out["turnout_stance"] = float(np.nanmax(planted)) if np.isfinite(planted).any() else 0.0
+    out["turnout_both"] = float(np.nanmin(planted)) if np.isfinite(planted).all() else 0.0
+    out.update(foot_lift=float(lift.max()), shank_fwd=float(shank.max()),
+               shank_fwd_end=float(shank[-q:].max()), turnout=float(turn.max()),
+               turnout_mean=float(turn.mean(axis=0).max()),
+               foot_ahead=float(ahead.max()), foot_ahead_high=float(
+                   np.max(np.where(ahead > 0, lift, -np.inf))),
+               hip_end=float(hipflex[-1].max()), hip_end_q=float(hipflex[-q:].max()),
+               hip_max=float(hipflex.max()),
+               lift_end=float(lift[-q:].max()))
+    return out
+
+
+def innovation_misfit(model, w, result, fps=FPS):
+    """Per frame, the misfit of the adapted walker's innovation likelihood (check 9's misfit
+    frame by frame: ``−2 L_t / n_t − log(2π r)``) and the channel the filter left out as an
+    outlier (−1: none), by running the E-step of ``adapt``'s best EM iterate again (the
+    per-frame values' mean over a range observing every channel is ``pose_misfit``'s)."""
+    from core.gait.ekf import _scratch, _update_in, make_context
+    from core.gait.em import (BATCH_GRID, DEFAULT_INIT_WINDOW, INIT_OMEGA_REL_SD, INIT_PHI_SD,
+                              scaled_observations)
+    from core.gait.initial_phase import grid_search
+    ctx = make_context(model, fps)
+    ys = scaled_observations(ctx, w)
+    k = int(min(len(ys), max(1, round(DEFAULT_INIT_WINDOW * ctx.fps))))
+    grid = grid_search(ctx, ys[:k], n_phi=BATCH_GRID[1], n_omega=BATCH_GRID[0], refine=True)
+    b = result.offset[list(ctx.channels)] if result.offset is not None else 0.0
+    ys = ys - b
+    comb = ctx.combine(result.w)
+    q00, q01, q11 = ctx.q_floats
+    omega, phi = grid.omega, grid.phi0
+    a, bb, c = (INIT_OMEGA_REL_SD * omega) ** 2, 0.0, INIT_PHI_SD ** 2
+    scratch = _scratch(ctx, comb)
+    per, outl = [], []
+    for t in range(len(ys)):
+        if t:
+            phi = phi + omega
+            a, bb, c = a + q00, a + bb + q01, a + 2 * bb + c + q11
+        omega, phi, a, bb, c, ll, ee, count, outlier = _update_in(scratch, ctx, omega, phi, a,
+                                                                  bb, c, ys[t], comb)
+        per.append(-2.0 * ll / max(count, 1) - np.log(2 * np.pi * model.r))
+        outl.append(outlier)
+    return np.array(per), np.array(outl)
+
+
+def model_features(model, w, fps=FPS):
+    """Model-based cues (stop 44) under ``model``: check 9's misfit over the whole window and
+    over its end (the last third, the last half cycle at the adapted cadence, the last 0.25 s),
+    its worst 0.25 s, the fit's error at the end (``pose_misfit``'s per-frame values) and the
+    share of frames where the filter left a channel out as an outlier."""
+    from core.gait import adapt
+    result = adapt(model, w, fps=fps)
+    misfit, per_frame, _ = checks.pose_misfit(model, w, result)
+    per, outl = innovation_misfit(model, w, result, fps)
+    n = len(w)
+    q = max(2, int(round(0.25 * fps)))
+    third = max(2, int(round(n / 3)))
+    half = int(np.clip(round(np.pi / max(float(result.state[0]), 1e-3)), 2, n))
+    run = np.convolve(per, np.ones(q) / q, "valid")
+    var = model.offset_var
+    z2 = np.where(var > 0, (result.offset if result.offset is not None else 0.0) ** 2
+                  / np.where(var > 0, var, 1.0), 0.0)
+    off = dict(offset_mean=float(z2[var > 0].mean()) if np.any(var > 0) else 0.0,
+               offset_max=float(z2.max()),
+               offset_channel=model.channel_names[int(np.argmax(z2))])
+    return dict(**off,
+                misfit=misfit, misfit_check=float(np.mean(per)),
+                tail_third=float(np.mean(per[-third:])),
+                tail_half=float(np.mean(per[-half:])), tail_q=float(np.mean(per[-q:])),
+                worst_q=float(run.max()), fit_end=float(np.nanmean(per_frame[-q:])),
+                fit_third=float(np.nanmean(per_frame[-third:])),
+                outliers=float(np.mean(outl >= 0)),
+                outliers_end=float(np.mean(outl[-q:] >= 0)), half_frames=half)
+
+
+def variant_rhythm(model, observations, fps):
+    """``checks.rhythm`` with sneak44's variant (stop 43's tried one): a range shorter than the
+    cadence prior's longest cycle is never refused for its rhythm (``whole`` False)."""
+    period, strength, whole = _RHYTHM(model, observations, fps)
+    hi = rhythm_inputs(model, observations, fps)[4][1]
+    return period, strength, whole and len(observations) >= hi
+
+
+_RHYTHM = checks.rhythm
+
+
+def stop44_rows(rows, model_cues=True):
+    """Every window the shipped checks take (``accepted_arms``), and every window refused for
+    its rhythm that sneak44's variant (:func:`variant_rhythm`) takes, with
+    :func:`end_features` and (``model_cues``) :func:`model_features` under the library learned
+    without the window's subject (:func:`fold_library`)."""
+    import time
+    stock = load_stock_library()
+    out = []
+    by_clip = {}
+    for r in rows:
+        by_clip.setdefault((r["kind"], r["clip"]), []).append(r)
+    for (kind, clip), rs in by_clip.items():
+        t0 = time.time()
+        gait = kind == "gaits"
+        values, names = A.load((A.CMU if gait else A.NOT_GAITS) / f"{clip}.amc")
+        obs = observations_from_dofs(stock, values[:, [names.index(n) for n in stock.dof_names]],
+                                     stock.dof_names, FPS)
+        held = fold_library(rs[0]["subject"]) if model_cues else None
+        hobs = None if held is None else observations_from_dofs(
+            held, values[:, [names.index(n) for n in held.dof_names]], held.dof_names, FPS)
+        for r in rs:
+            s, n = int(round(r["start"] * FPS)), int(round(r["window"] * FPS))
+            w = obs[s:s + n]
+            variant = False
+            if not r["accepted_arms"]:
+                if not (r["reason"] or "").startswith("No steady rhythm"):
+                    continue
+                checks.rhythm = variant_rhythm
+                try:
+                    variant = check_gait(stock, w, FPS).refusal is None
+                finally:
+                    checks.rhythm = _RHYTHM
+                if not variant:
+                    continue
+            row = {k: r[k] for k in ("kind", "clip", "subject", "window", "start", "strength",
+                                     "period", "warning", "accepted_arms")}
+            row["variant_only"] = variant
+            row.update(end_features(stock, w))
+            if held is not None:
+                row.update(model_features(held, hobs[s:s + n]))
+            out.append(row)
+        print(clip, len(out), f"{time.time() - t0:.0f} s", flush=True)
+    return out
+
+
+
+STOP44_CUES = ("misfit", "tail_third", "tail_half", "tail_q", "worst_q", "fit_end", "fit_third",
+               "outliers", "outliers_end", "offset_mean", "end_ratio", "peak_ratio",
+               "speed_gain", "end_over_min", "peak_accel", "end_accel", "peak_brake",
+               "end_brake", "foot_lift", "lift_end", "foot_ahead_high", "shank_fwd",
+               "shank_fwd_end", "turnout", "turnout_mean", "turnout_stance", "hip_end",
+               "hip_max")
+
+
+def analyse_stop44(rows, cues=STOP44_CUES):
+    """Stop 44: each cue (high is unlike a walk) left one subject out: a held-out window is
+    refused beyond the largest value of the other subjects' gait windows of 0.75 s and more
+    that the checks take; counts of held-out gait windows lost (from 0.75 s, and at 0.5 s with
+    the same threshold), of the non-gait windows the shipped checks take (from 0.75 s; at
+    0.5 s) and of those sneak44's variant adds; then every non-gait window's value."""
+    def label(r):
+        return f"{r['clip']} {r['window']:g}@{r['start']:.2f}{'V' if r['variant_only'] else ''}"
+    every = rows
+    for key in cues:
+        rows = [r for r in every if key in r]
+        if not rows:
+            continue
+        gait = [r for r in rows if r["kind"] == "gaits"]
+        out = {"lost": [], "lost05": [], "refused": [], "variant": [], "refused05": []}
+        for s in sorted({r["subject"] for r in rows}):
+            th = max(r[key] for r in gait if r["subject"] != s and r["window"] >= 0.75)
+            for r in rows:
+                if r["subject"] != s or not r[key] > th:
+                    continue
+                if r["kind"] == "gaits":
+                    out["lost" if r["window"] >= 0.75 else "lost05"].append(label(r))
+                else:
+                    out["variant" if r["variant_only"] else
+                        "refused" if r["window"] >= 0.75 else "refused05"].append(label(r))
+        top = {}
+        for r in gait:
+            if r["window"] >= 0.75:
+                top[r["subject"]] = max(top.get(r["subject"], -np.inf), r[key])
+        n_base = sum(r["kind"] != "gaits" and not r["variant_only"] and r["window"] >= 0.75
+                     for r in rows)
+        n_var = sum(r["kind"] != "gaits" and r["variant_only"] for r in rows)
+        print(f"== {key}: largest gait values (>= 0.75 s) "
+              + ", ".join(f"{k} {v:.2f}" for k, v in sorted(top.items(), key=lambda kv: -kv[1])[:4])
+              + f"; 0.5 s {max(r[key] for r in gait if r['window'] < 0.75):.2f}")
+        print(f"   held out: gait lost {len(out['lost'])} {out['lost'][:4]} (0.5 s "
+              f"{len(out['lost05'])}); non-gait refused {len(out['refused'])} of {n_base} "
+              f"{out['refused']}, variant {len(out['variant'])} of {n_var}, 0.5 s "
+              f"{len(out['refused05'])}")
+        print("   non-gait: " + ", ".join(f"{label(r)} {r[key]:.2f}" for r in sorted(
+            (r for r in rows if r["kind"] != "gaits"), key=lambda r: -r[key])))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out")
@@ -838,7 +1103,23 @@ def main(argv=None):
     ap.add_argument("--analyse-misfit")
     ap.add_argument("--short", help="stop 44: write the short weak windows' rows here")
     ap.add_argument("--analyse-short", help="stop 44: analyse the rows of --short")
+    ap.add_argument("--stop44", help="stop 44: the end and leg cues of the windows of this "
+                                     "pickle (and the model's under fold libraries)")
+    ap.add_argument("--out-stop44", default="build/stop44.pkl")
+    ap.add_argument("--analyse-stop44")
     args = ap.parse_args(argv)
+    if args.stop44:
+        with open(args.stop44, "rb") as f:
+            data = pickle.load(f)
+        rows = data["rows"] if isinstance(data, dict) else data
+        result = stop44_rows([r for r in rows if r["kind"] != "gaits"]
+                             + [r for r in rows if r["kind"] == "gaits"])
+        with open(args.out_stop44, "wb") as f:
+            pickle.dump(result, f)
+        analyse_stop44(result)
+    if args.analyse_stop44:
+        with open(args.analyse_stop44, "rb") as f:
+            analyse_stop44(pickle.load(f))
     if args.misfit:
         with open(args.misfit, "rb") as f:
             data = pickle.load(f)

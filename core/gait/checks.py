@@ -85,16 +85,27 @@ after adapting, on the model's fit (issue 21):
    give 125 steps/min at 0.75 m/s; restyled to a run 0.56 m/s). Of the shipped gaits' 2687
    steady windows 41 are warned, 29 of them of the sneaking walks, which pause between steps.
 
-9. **Poses like a walk's, where the rhythm does not vouch for one** (stop 43;
-   :func:`pose_misfit`): a range that passes checks 1-6 with a weak rhythm (strength below
-   ``MIN_STRENGTH``) or one too short to test is adapted (:func:`core.gait.adapt`) and its
-   misfit measured: the squared difference of the observed channels from the model's best fit,
-   in units of the model's observation noise, averaged. Over ``MAX_MISFIT`` (2.5) it is
-   refused, naming the frames and the body parts the model misses most. Walkers the model did
-   not learn from (every steady window of the shipped gaits, its subject left out of the
-   library) reach 2.06 at most where their rhythm is weak, 2.15 anywhere; the kick of CMU 74_03,
-   the arabesque of 05_10 and the throw of 124_01 2.8-18 (``docs/gait.md``, *Stop 43*). A
-   range whose rhythm reaches ``MIN_STRENGTH`` is not measured (no extra adaptation).
+9. **Poses like a walk's** (stop 43; :func:`pose_misfit`): a range that passes checks 1-6 and
+   10 is adapted (:func:`core.gait.adapt`) and its misfit measured: the squared difference of
+   the observed channels from the model's best fit, in units of the model's observation
+   noise, averaged. Over ``MAX_MISFIT`` (2.5) it is refused, naming the frames and the body
+   parts the model misses most. Walkers the model did not learn from (every steady window of
+   the shipped gaits, its subject left out of the library) reach 2.06 at most where their
+   rhythm is weak, 2.15 anywhere; the kick of CMU 74_03, the arabesque of 05_10 and the throw
+   of 124_01 2.8-18 (``docs/gait.md``, *Stop 43*). Stop 43 measured only a range with a weak
+   or untested rhythm; since stop 44 every range is (a dance step of 05_10 whose movement
+   repeats, strength 0.37, misses by 8: ``docs/gait.md``, *Stop 44*). Predict and the live
+   preview reuse the adaptation (``GaitCheck.adapted``), so a batch prediction costs no more.
+10. **No shin swung up in front** (stop 44; :func:`kicking_leg`): a shin (knee → ankle)
+   swung forward of hanging by more than ``MAX_SHIN_SWING_DEG`` (45°, :func:`shin_swing`:
+   the template's forward kinematics of the observed leg angles, the root tilted as
+   observed) while it moves by ``MIN_SHIN_MOTION_DEG`` (20°) or more within the range is a
+   kick or a leg thrown out in front (a pitcher's leg lift), refused naming the leg and its
+   frames. No walker the model learned from swings a shin more than 31° forward (a sneak's
+   high step; walks 15-19°, the long stride 27°, runs 4-7°); the kick 74_03 50°, the pitch
+   124_01 96°. The threshold is geometric (halfway from hanging to horizontal, like check 6's
+   side reach), not learned: learned on the other subjects it refuses the held-out sneak.
+   Checked after check 6, before check 9 (no adaptation needed).
 
 Refusals say why in plain words; nothing is changed by the caller then. Measured acceptance of
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
@@ -111,13 +122,13 @@ from .em import adapt
 from .segments import MIN_STRENGTH
 
 __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_MISFIT",
-           "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG",
-           "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S", "MIN_STRENGTH", "MIN_TRAVEL",
-           "MIN_UNDER_WAY", "MAX_LEG_HARMONICS",
+           "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
+           "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG",
+           "MIN_OVERLAP_S", "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "MIN_UNDER_WAY",
            "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
            "arm_side_reach", "body_part", "check_gait", "fit_score", "gait_channels",
-           "leg_frequency", "legs_together", "pose_misfit", "raised_arm", "regularity", "rhythm",
-           "rhythm_inputs", "walker_cycle", "with_fit"]
+           "kicking_leg", "leg_frequency", "legs_together", "pose_misfit", "raised_arm",
+           "regularity", "rhythm", "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -146,6 +157,9 @@ MIN_ARM_MOTION_DEG = 20.0      # … while the upper arm moves this much (an arm
 MAX_MISFIT = 2.5               # pose misfit (× the model's observation noise) where the rhythm
 #                                does not vouch for a walk (check 9; docs/gait.md, *Stop 43*)
 ARMS = (("left", "lhumerus", "lradius", "lwrist"), ("right", "rhumerus", "rradius", "rwrist"))
+MAX_SHIN_SWING_DEG = 45.0      # a shin swung forward of hanging by more: a kick (check 10)
+MIN_SHIN_MOTION_DEG = 20.0     # … while that shin moves this much (a leg held still: not)
+SHINS = (("left", "ltibia", "lfoot"), ("right", "rtibia", "rfoot"))
 
 
 @dataclass(frozen=True)
@@ -177,8 +191,8 @@ class GaitCheck:
         Highest elevation of an upper arm from hanging (:func:`arm_elevation`), degrees, when
         checks 1-5 passed (None before, or without both humeri).
     misfit : float or None
-        The pose misfit of check 9 (:func:`pose_misfit`), when the rhythm was weak or not
-        tested and checks 1-6 passed (None otherwise).
+        The pose misfit of check 9 (:func:`pose_misfit`), when checks 1-6 and 10 passed
+        (None otherwise).
     adapted : AdaptResult or None
         The adaptation check 9 made (``adapt(model, observations, fps=fps)``), when it made
         one: the caller that adapts the same way reuses it (not compared, not shown).
@@ -478,6 +492,66 @@ def arm_out_to_the_side(model, observations, elevation=None, reach=None):
     return None
 
 
+def shin_swing(model, observations):
+    """How far each shin (knee → ankle) is swung forward of hanging, degrees: 0 hanging
+    straight down, 90 straight out in front, negative behind; in the vertical plane of the
+    heading (its sideways part left out), by forward kinematics of the observed leg angles on
+    the CMU template skeleton, the root tilted as observed (as :func:`arm_elevation` poses the
+    arms).
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        All model channels, physical units.
+
+    Returns
+    -------
+    ndarray, shape (N, 2) or None
+        Left and right; None when the model does not observe both femurs and tibias.
+    """
+    obs = np.asarray(observations, dtype=float)
+    skel = _template_skeleton()
+    names = list(skel.dof_names())
+    angles = [c for c in model.channel_names[:model.n_angles] if c in names]
+    if not {"lfemur.rx", "rfemur.rx", "ltibia.rx", "rtibia.rx"} <= set(angles):
+        return None
+    dofs = np.zeros((len(obs), len(names)))
+    dofs[:, [names.index(c) for c in angles]] = obs[:, model.channel_index(angles)]
+    root = np.broadcast_to(skel.rest_rotations[0], (len(obs), 3, 3))
+    if model.root_travel:
+        root = exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
+                                                   "root.tilt_z"])]) @ root
+    joints = [skel.index(j) for _, knee, ankle in SHINS for j in (knee, ankle)]
+    heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
+    rest = skel.rest_rotations[0]
+    forward = rest[:2, 2] / np.linalg.norm(rest[:2, 2])       # CMU: the root's +z walks
+    out = []
+    for _, knee, ankle in SHINS:
+        shin = heads[skel.index(ankle)] - heads[skel.index(knee)]
+        out.append(np.degrees(np.arctan2(shin[:, :2] @ forward, -shin[:, 2])))
+    return np.stack(out, axis=1)
+
+
+def kicking_leg(model, observations, swing=None):
+    """The first leg swung up in front in the range, or None: ``(side, first frame, last frame,
+    largest swing in degrees)`` for a shin swung forward of hanging by more than
+    ``MAX_SHIN_SWING_DEG`` (:func:`shin_swing`) while it moves by at least
+    ``MIN_SHIN_MOTION_DEG`` within the range (frames are indices into the range): a kick. A
+    leg held still is not counted. ``swing``: :func:`shin_swing` of the range when already
+    computed."""
+    if swing is None:
+        swing = shin_swing(model, observations)
+    if swing is None:
+        return None
+    for k, (side, *_) in enumerate(SHINS):
+        s = swing[:, k]
+        high = np.flatnonzero(s > MAX_SHIN_SWING_DEG)
+        if high.size and np.ptp(s) >= MIN_SHIN_MOTION_DEG:
+            return side, int(high[0]), int(high[-1]), float(s.max())
+    return None
+
+
 PARTS = {"femur": "hip", "tibia": "knee", "foot": "foot", "toes": "toes",
          "clavicle": "shoulder", "humerus": "upper arm", "radius": "forearm", "wrist": "wrist",
          "hand": "hand", "fingers": "fingers", "thumb": "thumb"}
@@ -573,8 +647,8 @@ def _start_and_end_speeds(model, obs):
 
 
 def _walks_at_end(model, obs, fps):
-    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 take it; not
-    check 9, which would adapt the model to it: a hint and a warning depend on it)."""
+    """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 and 10 take it;
+    not check 9, which would adapt the model to it: a hint and a warning depend on it)."""
     k = max(2, int(round(START_SHARE * len(obs))))
     return check_gait(model, obs[-k:], fps, poses=False).refusal is None
 
@@ -669,10 +743,20 @@ def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
             and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
 
 
+def _rhythm_words(strength):
+    """What check 9's refusal says of the range's rhythm: a weak or untested one does not
+    vouch for a walk; a strong one (stop 44) repeats, but not as a walk's poses do."""
+    if strength is None:
+        return ", and the steps do not repeat as a walk's do (too short to test)"
+    if strength < MIN_STRENGTH:
+        return f", and the steps do not repeat as a walk's do (strength {strength:.2f})"
+    return f", though its movement repeats (strength {strength:.2f})"
+
+
 def check_gait(model, observations, fps, result=None, what="the observed frames",
                first_frame=None, poses=True):
-    """Checks 1-6 and 9 of the module docstring, and the fit score when ``result`` is given
-    (check 9 adapts the model to the range itself when the rhythm is weak or untested).
+    """Checks 1-6, 10 and 9 of the module docstring, and the fit score when ``result`` is
+    given (check 9 adapts the model to the range itself).
 
     Parameters
     ----------
@@ -687,7 +771,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         The scene frame of the range's first row: messages that point at frames inside the
         range number them so (else they count the range's rows from 1).
     poses : bool
-        Whether to run check 9 (False: checks 1-6 only, no adaptation).
+        Whether to run check 9 (False: checks 1-6 and 10 only, no adaptation).
 
     Returns
     -------
@@ -791,9 +875,19 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"{top:.0f}° from hanging): a kick's or a throw's balance, "
                                  f"not a walk or run the gait model can continue (no walker "
                                  f"it learned from holds an arm out to the side)")
+    kick = kicking_leg(model, obs)
+    if kick is not None:
+        side, a, b, top = kick
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward, arm_deg=arm_deg,
+                         refusal=f"A leg is swung up in front in {what} (the {side} leg in "
+                                 f"{frames(a, b)}, its shin up to {top:.0f}° forward of "
+                                 f"hanging): a kick or a leg thrown out in front, not a "
+                                 f"walk or run the gait model can continue (no walker it "
+                                 f"learned from swings a shin more than about 30° forward)")
     misfit = None
-    if poses and (strength is None or strength < MIN_STRENGTH):
-        if adapted is None:
+    if poses:
+        if adapted is None:                    # check 5 adapted a short range already
             adapted = adapt(model, obs, fps=fps)
         misfit, per_frame, per_channel = pose_misfit(model, obs, adapted)
         if misfit > MAX_MISFIT:
@@ -810,12 +904,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                      f"{' and the '.join(parts)}): the gait model's closest "
                                      f"walk misses its poses by {misfit:.1f} times the error "
                                      f"it allows ({MAX_MISFIT:g} at most for a walker it did "
-                                     f"not learn from), and the steps do not repeat as a "
-                                     f"walk's do (" + (
-                                         f"strength {strength:.2f}" if strength is not None
-                                         else "too short to test") + "): a kick, a throw or "
-                                     f"a dance step is not a walk or run the gait model can "
-                                     f"continue")
+                                     f"not learn from)" + _rhythm_words(strength) + ": a "
+                                     f"kick, a throw or a dance step is not a walk or run the "
+                                     f"gait model can continue")
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "

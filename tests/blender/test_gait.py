@@ -1104,15 +1104,16 @@ def test_a_restyle_retimed_up_joins_without_a_jolt_through_the_operator(scene, t
     assert join.max() <= p99, (join.max(), p99)
 
 
-def _import_not_gait(tmp_path, subject, trial):
-    """The first 200 frames of the CMU non-gait clip ``<subject>_<trial>`` (120 fps resampled
-    to the scene's) imported through *Import Acclaim*: ``(obj, values (200, D) in the ASF's
-    DOF order, the stock library, its columns in that order, datablock counts, keys)``."""
+def _import_not_gait(tmp_path, subject, trial, frames=200):
+    """The first ``frames`` frames of the CMU non-gait clip ``<subject>_<trial>`` (120 fps
+    resampled to the scene's) imported through *Import Acclaim*: ``(obj, values (frames, D) in
+    the ASF's DOF order, the stock library, its columns in that order, datablock counts,
+    keys)``."""
     asf = read_asf(cmu_path(f"not_gaits/{subject}.asf"))
     values = read_amc(cmu_path(f"not_gaits/{subject}_{trial}.amc"), asf).values
-    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))
+    values = resample(values, 120, FPS, np.arange(3, values.shape[1]))[:frames]
     path = tmp_path / f"{subject}_{trial}.amc"
-    write_amc(path, asf, AmcMotion(values=values[:200], frame_numbers=np.arange(1, 201),
+    write_amc(path, asf, AmcMotion(values=values, frame_numbers=np.arange(1, len(values) + 1),
                                    bone_order=(), fps=FPS, path=str(path)))
     (tmp_path / f"{subject}.asf").write_bytes(cmu_path(f"not_gaits/{subject}.asf").read_bytes())
     assert bpy.ops.import_anim.acclaim(filepath=str(path), source_fps=FPS) == {"FINISHED"}
@@ -1147,22 +1148,47 @@ def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene
     assert_keys_unchanged(obj, keys)
 
 
-def test_a_kick_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):
-    """Stop 43: frames 91-135 (1.5-2.25 s) of the kick CMU 74_03 pass every check of the legs,
-    the root and the arms with a weak rhythm; Predict Gait refuses them because no walk fits
-    their poses (check 9), naming the frames in the scene's numbering and the body parts as
-    the core's check of the same rows does, and changes nothing."""
-    from core.gait.checks import check_gait
+def test_a_kick_is_refused_in_the_scene_s_frames(scene, tmp_path):
+    """Stop 44: frames 91-135 (1.5-2.25 s) of the kick CMU 74_03 pass every check of the legs,
+    the root and the arms; Predict Gait refuses them for the shin swung up in front (the kick
+    check), naming the leg and its frames in the scene's numbering as the core's check of the
+    same rows does, and changes nothing. (Stop 43's check 9 refused them before: no walk fits
+    their poses; the kick check comes first.)"""
+    from core.gait.checks import kicking_leg
 
     obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "74", "03")
-    core = check_gait(model, observations_from_dofs(model, values[90:135, cols],
-                                                    model.dof_names, FPS), FPS,
-                      what=f"frames 91–135 of {obj.name}", first_frame=91)
-    assert core.refusal.startswith("No walk or run moves like this")
+    side, a, b, _ = kicking_leg(model, observations_from_dofs(model, values[90:135, cols],
+                                                              model.dof_names, FPS))
     with pytest.raises(RuntimeError) as refusal:
         bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=91,
                                               frame_end=135, horizon=1.0)
-    pattern = (r"No walk or run moves like this in frames 91–135 of (\S+) \(most in frames "
+    found = re.search(r"A leg is swung up in front in frames 91–135 of (\S+) \(the "
+                      r"(left|right) leg in frames (\d+)–(\d+), its shin up to \d+° forward "
+                      r"of hanging\): a kick", str(refusal.value))
+    assert found, str(refusal.value)
+    assert found.group(1) == obj.name and found.group(2) == side
+    assert abs(int(found.group(3)) - (91 + a)) <= 1 and abs(int(found.group(4)) - (91 + b)) <= 1
+    assert datablock_counts() == counts
+    assert_keys_unchanged(obj, keys)
+
+
+def test_a_dance_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):
+    """Stop 43: frames 331-405 (5.5-6.75 s) of the dance CMU 05_10 pass every check of the
+    legs, the root and the arms with a weak rhythm; Predict Gait refuses them because no walk
+    fits their poses (check 9), naming the frames in the scene's numbering and the body parts
+    as the core's check of the same rows does, and changes nothing. (Stop 43 tested this on
+    the kick 74_03's frames 91-135, which the kick check of stop 44 now refuses first.)"""
+    from core.gait.checks import check_gait
+
+    obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "05", "10", 420)
+    core = check_gait(model, observations_from_dofs(model, values[330:405, cols],
+                                                    model.dof_names, FPS), FPS,
+                      what=f"frames 331–405 of {obj.name}", first_frame=331)
+    assert core.refusal.startswith("No walk or run moves like this")
+    with pytest.raises(RuntimeError) as refusal:
+        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=331,
+                                              frame_end=405, horizon=1.0)
+    pattern = (r"No walk or run moves like this in frames 331–405 of (\S+) \(most in frames "
                r"(\d+)–(\d+), at the (.+?) and the (.+?)\): the gait model's closest walk "
                r"misses its poses by ([\d.]+) times the error it allows")
     found, expected = re.search(pattern, str(refusal.value)), re.search(pattern, core.refusal)

@@ -752,6 +752,7 @@ def test_non_gaits_that_raise_an_arm_above_the_shoulder_are_refused(clip, kind, 
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.inf)        # the arm checks off
     monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)   # the pitch's leg (stop 44) too
     assert check_gait(model, obs, 60.0).refusal is None, kind
 
 
@@ -974,9 +975,11 @@ def test_non_gaits_whose_poses_no_walk_fits_are_refused(clip, kind, window, star
     model = load_stock_library()
     obs = observe(model, values, names)[a:b]
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)                   # check 9 off
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check (stop 44) too
     other = check_gait(model, obs, 60.0)
     assert other.refusal is None and (other.strength is None or other.strength < 0.3), kind
     monkeypatch.undo()
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # it refuses the kick first
     misfit, per_frame, per_channel = pose_misfit(model, obs, adapt(model, obs, fps=60.0))
     assert misfit > MAX_MISFIT, kind
     check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
@@ -995,11 +998,13 @@ def test_non_gaits_whose_poses_no_walk_fits_are_refused(clip, kind, window, star
 
 def test_the_misfit_threshold_is_met_at_its_value(monkeypatch):
     """A weak-rhythm window whose misfit equals MAX_MISFIT is taken; one float step lower
-    refuses it (the same code on the same numbers: exact). A window whose rhythm vouches for a
-    walk (strength 0.3 or more) is never measured."""
+    refuses it (the same code on the same numbers: exact). Since stop 44 a window whose rhythm
+    reaches 0.3 is measured too (a steady walk: taken, its adaptation kept; refused with the
+    threshold below its misfit, the refusal saying that its movement repeats)."""
     model = load_stock_library()
     values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
     obs = observe(model, values, names)[90:135]
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check refuses it first
     misfit = check_gait(model, obs, 60.0).misfit
     monkeypatch.setattr(checks, "MAX_MISFIT", misfit)
     assert check_gait(model, obs, 60.0).refusal is None
@@ -1012,11 +1017,16 @@ def test_the_misfit_threshold_is_met_at_its_value(monkeypatch):
     again = adapt(model, obs, fps=60.0)
     assert np.array_equal(made.states, again.states) and np.array_equal(made.w, again.w)
     model, walk = walk_range()
+    monkeypatch.setattr(checks, "MAX_MISFIT", MAX_MISFIT)
     steady = check_gait(model, walk, 60.0)
-    assert steady.strength >= checks.MIN_STRENGTH and steady.misfit is None
-    assert steady.adapted is None
-    monkeypatch.setattr(checks, "MAX_MISFIT", -1.0)
-    assert check_gait(model, walk, 60.0).refusal is None
+    assert steady.refusal is None and steady.strength >= checks.MIN_STRENGTH
+    assert steady.misfit == pose_misfit(model, walk, adapt(model, walk, fps=60.0))[0]
+    assert steady.misfit < MAX_MISFIT and np.array_equal(steady.adapted.w,
+                                                         adapt(model, walk, fps=60.0).w)
+    monkeypatch.setattr(checks, "MAX_MISFIT", np.nextafter(steady.misfit, -np.inf))
+    refusal = check_gait(model, walk, 60.0).refusal
+    assert refusal.startswith("No walk or run moves like this")
+    assert f"though its movement repeats (strength {steady.strength:.2f})" in refusal
 
 
 # The window of every shipped gait subject with a weak rhythm whose poses the model fits worst
@@ -1085,7 +1095,7 @@ def test_a_kicks_run_up_from_standing_stays_refused(window, start, monkeypatch):
     walker): the first third of the range travels at less than a tenth of its last third's
     speed (measured here on the clip's own root translation), so it is refused for its rhythm
     with a hint to start where the walk has begun; with the exception's two guards off it
-    would be taken (check 9 does not refuse it)."""
+    would pass check 5 (and three of the five every later check)."""
     values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
     model = load_stock_library()
     a, n = int(round(start * 60)), int(round(window * 60))
@@ -1102,7 +1112,10 @@ def test_a_kicks_run_up_from_standing_stays_refused(window, start, monkeypatch):
     assert check.refusal.endswith("start the range where the walk has begun")
     monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
     monkeypatch.setattr(checks, "MAX_LEG_HARMONICS", np.inf)
-    assert check_gait(model, w, 60.0).refusal is None
+    off = check_gait(model, w, 60.0).refusal
+    # Check 5 passes it on then; checks 6, 10 and 9 take three of the five (the other two,
+    # 1.67 s from 0.25 and 0.5 s, reach the kick's shin swing: check 10, stop 44).
+    assert off is None or off.startswith("A leg is swung up in front"), off
 
 
 def test_jitter_shorter_than_the_cycle_it_reads_stays_refused_for_its_rhythm(monkeypatch):
@@ -1155,3 +1168,181 @@ def test_the_walker_cycle_is_two_pi_over_the_median_phase_rate():
     assert checks.walker_cycle(result, 30.0) == pytest.approx(
         2 * checks.walker_cycle(result, 60.0), rel=1e-12)
     assert 0.9 < checks.walker_cycle(result, 60.0) < 1.4        # 35_07: about 1.1 s a cycle
+
+
+# ------------------------------------------------------- stop 44: a shin swung up in front (a kick)
+# Windows of the kick 74_03 that every other check took (stop 43 left them): the kicking leg's
+# shin swung 50° forward of hanging (docs/gait.md, *Stop 44*).
+KICKS = [("74_03", 0.75, 1.25), ("74_03", 1.0, 1.0), ("74_03", 1.25, 0.75), ("74_03", 1.25, 1.5)]
+
+
+def world_shins(path, values, a, b):
+    """Each shin's (knee → ankle) angle forward of hanging, degrees (n, 2), in the vertical
+    plane of the pelvis' facing, by forward kinematics of the clip's own skeleton with its
+    captured root (heading, tilt and travel): the reference :func:`checks.shin_swing` is
+    measured against."""
+    from core.gait.walk_figures import _forward, foot_tracks
+    from core.kinematics import forward_kinematics, local_rotations_from_dofs
+    from core.mocap import asf_to_skeleton, read_asf
+    from core.mocap.bvh import cmu_template_asf
+
+    asf_file = path.parent / f"{path.stem.split('_')[0]}.asf"
+    skel = asf_to_skeleton(read_asf(asf_file) if asf_file.exists() else cmu_template_asf())
+    dofs = values[a:b]
+    translation, local = local_rotations_from_dofs(skel, dofs)
+    _, pos = forward_kinematics(skel, local, translation)
+    tracks = foot_tracks(skel, dofs, 60.0)
+    facing = _forward(tracks, tracks.heading)
+    out = []
+    for knee, ankle in (("ltibia", "lfoot"), ("rtibia", "rfoot")):
+        shin = pos[:, skel.index(ankle)] - pos[:, skel.index(knee)]
+        out.append(np.degrees(np.arctan2(np.sum(shin[:, :2] * facing, axis=1), -shin[:, 2])))
+    return np.stack(out, axis=1)
+
+
+@pytest.mark.parametrize("clip, window, start", KICKS)
+def test_a_kick_that_swings_a_shin_up_in_front_is_refused(clip, window, start, monkeypatch):
+    """The clip's own skeleton swings a shin more than 45° forward of hanging within the window
+    (world positions, not the observation channels); every other check takes the window, and
+    the kick check refuses it, naming the leg and the frames (numbered from ``first_frame``)."""
+    path = CMU / "not_gaits" / f"{clip}.amc"
+    values, names = load_clip(path)
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    world = world_shins(path, values, a, b)
+    assert world.max() > 45.0
+    model = load_stock_library()
+    obs = observe(model, values, names)[a:b]
+    k = int(np.argmax(world.max(axis=0) > 45.0))
+    swing = checks.shin_swing(model, obs)
+    assert swing[:, k].max() == pytest.approx(world[:, k].max(), abs=3.0)
+    frames = np.flatnonzero(swing[:, k] > 45.0)
+    check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
+    assert check.refusal.startswith(
+        f"A leg is swung up in front in the range (the {('left', 'right')[k]} leg in frames "
+        f"{a + 1 + frames[0]}–{a + 1 + frames[-1]}, its shin up to {swing[:, k].max():.0f}° "
+        f"forward of hanging): a kick or a leg thrown out in front, not a walk or run")
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)           # the kick check off
+    monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)                   # check 9 too
+    assert check_gait(model, obs, 60.0).refusal is None
+
+
+# The window of every kind of shipped gait where a shin swings furthest forward (their steady
+# windows; benchmarks/studies/acceptance_cues.py --stop44): 31° at most (the sneak's high step).
+SHINS_OF_GAITS = [("120_11", "sneaking", 0.5, 420), ("120_10", "sneaking", 0.5, 300),
+                  ("08_07", "long stride", 0.5, 45), ("08_04", "slow", 0.5, 0),
+                  ("132_29", "bouncy", 0.5, 281), ("35_02", "walk", 0.5, 0),
+                  ("139_31", "careful", 0.5, 381), ("06_03", "dribbling", 0.5, 113),
+                  ("91_27", "stroll", 0.5, 299), ("74_01", "style walk", 0.5, 138),
+                  ("35_18", "run", 0.5, 30)]
+
+
+@pytest.mark.parametrize("clip, kind, window, a", SHINS_OF_GAITS)
+def test_gaits_keep_their_shins_within_45_degrees_and_are_taken(clip, kind, window, a):
+    path = CMU / f"{clip}.amc"
+    values, names = load_clip(path)
+    b = a + int(round(window * 60))
+    world = world_shins(path, values, a, b)
+    assert world.max() < 35.0, kind
+    model = load_stock_library()
+    obs = observe(model, values, names)[a:b]
+    assert checks.shin_swing(model, obs).max() < 35.0, kind
+    check = check_gait(model, obs, 60.0)
+    assert check.refusal is None, (kind, check.refusal)
+
+
+def test_shin_swing_on_the_template_subject_is_its_world_angle():
+    """CMU 08 is the template skeleton: the swing from the observed leg angles and root tilt
+    (the heading left out) equals the angle in the pelvis' facing by its own forward
+    kinematics with the captured root, to rounding."""
+    path = CMU / "08_07.amc"
+    values, names = load_clip(path)
+    model = load_stock_library()
+    assert np.allclose(checks.shin_swing(model, observe(model, values, names)),
+                       world_shins(path, values, 0, len(values)), atol=1e-6)
+
+
+def legs(model):
+    return [i for i, c in enumerate(model.channel_names[:model.n_angles])
+            if c[1:].split(".")[0] in ("femur", "tibia", "foot", "toes")]
+
+
+def test_a_leg_held_still_in_front_is_not_counted_a_swinging_one_is(monkeypatch):
+    """The kick's top pose held on the left leg while the right leg walks: the left shin stays
+    above 45° but moves by less than MIN_SHIN_MOTION_DEG, not a kick; the kick's leg swinging
+    (its frames) is refused."""
+    model, obs = walk_range(60)
+    values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
+    kick = observe(model, values, names)[75:135]
+    k = 1                                                               # the right leg kicks
+    swing = checks.shin_swing(model, kick)
+    assert swing[:, k].max() > 45.0
+    cols = [i for i in legs(model) if model.channel_names[i].startswith("r")]
+    held, kicked = obs.copy(), obs.copy()
+    held[:, cols] = kick[int(np.argmax(swing[:, k])), cols]
+    kicked[:, cols] = kick[:, cols]
+    still = checks.shin_swing(model, held)[:, k]
+    assert still.min() > 45.0 and np.ptp(still) < checks.MIN_SHIN_MOTION_DEG
+    assert checks.kicking_leg(model, held) is None
+    assert checks.kicking_leg(model, kicked)[0] == "right"
+
+
+def test_the_shin_thresholds_are_met_at_their_value(monkeypatch):
+    """A shin *beyond* MAX_SHIN_SWING_DEG that moves by *at least* MIN_SHIN_MOTION_DEG: each
+    threshold set to the very value measured (the same code on the same numbers) decides as
+    the rule says, one float step beyond it decides the other way."""
+    model = load_stock_library()
+    values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
+    obs = observe(model, values, names)[60:120]
+    swing = checks.shin_swing(model, obs)
+    top = float(swing.max())
+    monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", top)
+    assert checks.kicking_leg(model, obs) is None
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.nextafter(top, -np.inf))
+    assert checks.kicking_leg(model, obs) is not None
+    assert check_gait(model, obs, 60.0).refusal.startswith("A leg is swung up in front")
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", 45.0)
+    moved = max(float(np.ptp(s)) for s in swing.T if s.max() > 45.0)
+    monkeypatch.setattr(checks, "MIN_SHIN_MOTION_DEG", moved)
+    assert checks.kicking_leg(model, obs) is not None
+    monkeypatch.setattr(checks, "MIN_SHIN_MOTION_DEG", np.nextafter(moved, np.inf))
+    assert checks.kicking_leg(model, obs) is None
+
+
+def test_a_model_without_both_legs_has_no_kick_check():
+    model, obs = walk_range(60)
+    arms_only = SimpleNamespace(channel_names=model.channel_names[14:],
+                                n_angles=model.n_angles - 14, root_travel=False)
+    assert checks.shin_swing(arms_only, obs[:, 14:]) is None
+    assert checks.kicking_leg(arms_only, obs[:, 14:]) is None
+
+
+# ------------------------------------------- stop 44: check 9 over every range, rhythm or not
+# Windows of non-gait clips whose steps repeat (strength 0.3 or more, so stop 43's check 9 did
+# not measure them) and whose poses no walk fits: the dance's steps into the arabesque, the
+# kick (docs/gait.md, *Stop 44*).
+STRONG_UNLIKE = [("05_10", "dance", 1.0, 5.5), ("74_03", "kick", 1.25, 1.5)]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", STRONG_UNLIKE)
+def test_non_gaits_with_a_strong_rhythm_whose_poses_no_walk_fits_are_refused(
+        clip, kind, window, start, monkeypatch):
+    values, names = load_clip(CMU / "not_gaits" / f"{clip}.amc")
+    a, b = int(round(start * 60)), int(round((start + window) * 60))
+    model = load_stock_library()
+    obs = observe(model, values, names)[a:b]
+    monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check refuses 74_03
+    monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
+    other = check_gait(model, obs, 60.0)
+    assert other.refusal is None and other.strength >= checks.MIN_STRENGTH, kind
+    monkeypatch.setattr(checks, "MAX_MISFIT", MAX_MISFIT)
+    misfit = pose_misfit(model, obs, adapt(model, obs, fps=60.0))[0]
+    assert misfit > MAX_MISFIT, kind
+    check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
+    assert check.misfit == misfit
+    assert check.refusal.startswith("No walk or run moves like this in the range (most in "
+                                    "frames "), kind
+    assert check.refusal.endswith(
+        f"({MAX_MISFIT:g} at most for a walker it did not learn from), though its movement "
+        f"repeats (strength {other.strength:.2f}): a kick, a throw or a dance step is not a "
+        f"walk or run the gait model can continue"), kind
