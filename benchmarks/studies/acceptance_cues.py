@@ -971,9 +971,13 @@ def model_features(model, w, fps=FPS):
     var = model.offset_var
     z2 = np.where(var > 0, (result.offset if result.offset is not None else 0.0) ** 2
                   / np.where(var > 0, var, 1.0), 0.0)
+    legs = np.array([c[1:].split(".")[0] in ("femur", "tibia", "foot", "toes")
+                     for c in model.channel_names]) & (var > 0)
     off = dict(offset_mean=float(z2[var > 0].mean()) if np.any(var > 0) else 0.0,
                offset_max=float(z2.max()),
-               offset_channel=model.channel_names[int(np.argmax(z2))])
+               offset_channel=model.channel_names[int(np.argmax(z2))],
+               offset_legs=float(z2[legs].mean()) if legs.any() else 0.0,
+               offset_legs_max=float(z2[legs].max()) if legs.any() else 0.0)
     return dict(**off,
                 misfit=misfit, misfit_check=float(np.mean(per)),
                 tail_third=float(np.mean(per[-third:])),
@@ -1042,7 +1046,7 @@ def stop44_rows(rows, model_cues=True):
 
 
 STOP44_CUES = ("misfit", "tail_third", "tail_half", "tail_q", "worst_q", "fit_end", "fit_third",
-               "outliers", "outliers_end", "offset_mean", "end_ratio", "peak_ratio",
+               "outliers", "outliers_end", "offset_mean", "offset_legs", "end_ratio", "peak_ratio",
                "speed_gain", "end_over_min", "peak_accel", "end_accel", "peak_brake",
                "end_brake", "foot_lift", "lift_end", "foot_ahead_high", "shank_fwd",
                "shank_fwd_end", "turnout", "turnout_mean", "turnout_stance", "hip_end",
