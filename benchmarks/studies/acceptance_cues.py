@@ -20,7 +20,14 @@ cross-validates it, leave one subject out)::
         --out-misfit build/misfit.pkl                                          # ~6 min
     .venv/bin/python benchmarks/studies/acceptance_cues.py --analyse-misfit build/misfit.pkl
 
-Stop 44 adds cues of the window's end and the legs' pose for the non-gait windows the checks
+Stop 44 (``--short``, ``--analyse-short``, ~6 min): the windows shorter than the cadence
+prior's longest cycle whose rhythm is weak at a period they hold whole, which main refuses and
+stop 43's variant (:func:`check_variant`) leaves to check 9: the cues that tell the sneaks of
+120 from the kick 74_03 there, leave one subject out, and the shipped exception of check 5::
+
+    nice -n 5 .venv/bin/python benchmarks/studies/acceptance_cues.py --short build/short.pkl
+
+Stop 44 (nong44) adds cues of the window's end and the legs' pose for the non-gait windows the checks
 still took (:func:`stop44_rows`: :func:`end_features`, model-free: the root's speed and
 acceleration along the walk, a foot raised, a shin swung forward, the feet turned out, the
 hips at the end; :func:`model_features`, under the fold library: check 9's misfit over every
@@ -632,6 +639,205 @@ def analyse_misfit(data):
           f"{top['held_out']:.2f} ({top['trial']} at {top['t0']}, {top['window']:g} s)")
 
 
+# Stop 44 (issue 21 §1): windows shorter than the cadence prior's longest cycle whose rhythm
+# is weak at a period whose whole cycle they hold. Main refuses them ("No steady rhythm"); the
+# variant tried at stop 43 leaves them, as a weak rhythm, to check 9.
+
+
+def longest_cycle(model):
+    """The cadence prior's longest cycle, seconds (the training periods × ``CADENCE_SPREAD``)."""
+    return float(model.periods.max() / model.fps * checks.CADENCE_SPREAD)
+
+
+def check_variant(model, w, fps=FPS):
+    """``check_gait`` with stop 43's variant: a range shorter than the cadence prior's longest
+    cycle is never refused for its rhythm (``rhythm``'s ``whole`` reported False), so a weak one
+    goes on to checks 6 and 9."""
+    real = checks.rhythm
+
+    def patched(model_, obs, fps_):
+        period, strength, whole = real(model_, obs, fps_)
+        return period, strength, whole and len(obs) / fps_ >= longest_cycle(model_)
+    checks.rhythm = patched
+    try:
+        return check_gait(model, w, fps)
+    finally:
+        checks.rhythm = real
+
+
+def check_before(model, w, fps=FPS):
+    """``check_gait`` without stop 44's exception of check 5 (main before it: every weak
+    rhythm at a period the range holds whole is refused)."""
+    saved = checks.MIN_UNDER_WAY
+    checks.MIN_UNDER_WAY = np.inf
+    try:
+        return check_gait(model, w, fps)
+    finally:
+        checks.MIN_UNDER_WAY = saved
+
+
+def phase_cues(result, fps=FPS):
+    """How the adapted walker's phase advances over the range: the filtered phases
+    (``result.states[:, 1]``, unwrapped) and rates (``[:, 0]``, radians per frame)."""
+    omega = result.states[:, 0]
+    phi = np.unwrap(result.states[:, 1])
+    n = len(phi)
+    d = np.diff(phi)
+    tail = slice(n // 4, None)              # the filter's first frames settle the phase
+    cycles = (phi[-1] - phi[n // 4]) / (2 * np.pi)
+    return dict(phase_cycles=float(cycles),
+                phase_back=float(np.mean(d[n // 4:] <= 0)),
+                omega_cv=float(np.std(omega[tail]) / max(np.mean(omega[tail]), 1e-9)),
+                omega_ratio=float(np.min(omega[tail]) / max(np.max(omega[tail]), 1e-9)),
+                phase_period=float(2 * np.pi / max(np.mean(omega[tail]), 1e-9) / fps))
+
+
+def hip_cues(model, w):
+    """The hips' alternation over the range: one flexing while the other extends."""
+    lh, rh = (w[:, model.channel_names.index(c)] for c in checks.HIP_FLEXION)
+    dl, dr = np.gradient(lh), np.gradient(rh)
+    vel = float(np.sum(dl * dr) / np.sqrt(np.sum(dl * dl) * np.sum(dr * dr)))
+    opposite = float(np.mean(np.sign(dl) != np.sign(dr)))
+    return dict(hip_vel_corr=vel, hip_opposite=opposite,
+                hip_alt=checks.alternation_deg(w, [(model.channel_names.index("lfemur.rx"),
+                                                    model.channel_names.index("rfemur.rx"))]))
+
+
+def short_rows(min_window=0.75):
+    """Stop 44: every window (gaits from steady starts, non-gaits everywhere) that passes
+    checks 1-4 with a weak or untested rhythm and is shorter than the cadence prior's longest
+    cycle, with main's outcome, the variant's (:func:`check_variant`) and the cues: the pose
+    misfit and the phase's advance under the stock library and under the library without the
+    window's subject (:func:`fold_library`), the half-cycle (other leg) and whole-cycle (same
+    leg) comparisons, the hips' and feet's alternation, the root's travel."""
+    stock = load_stock_library()
+    longest = longest_cycle(stock)
+    rows = []
+    for kind, folder, gait in (("gaits", A.CMU, True), ("not_gaits", A.NOT_GAITS, False)):
+        for path in sorted(folder.glob("*.amc")):
+            values, names = A.load(path)
+            skel = skeleton_of(path)
+            tracks = foot_tracks(skel, values, FPS, root_frame=None)
+            subject = path.stem.split("_")[0]
+            held = fold_library(subject)
+            obs = observations_from_dofs(stock, values[:, [names.index(n)
+                                                           for n in stock.dof_names]],
+                                         stock.dof_names, FPS)
+            obs_h = observations_from_dofs(held, values[:, [names.index(n)
+                                                            for n in held.dof_names]],
+                                           held.dof_names, FPS)
+            for window in A.WINDOWS:
+                if window < min_window or window >= longest:
+                    continue
+                n = int(round(window * FPS))
+                starts = A.steady_windows(values, names, window) if gait else \
+                    list(range(0, len(values) - n + 1, int(round(A.STEP_S * FPS))))
+                for s in starts:
+                    w = obs[s:s + n]
+                    main_c = check_before(stock, w, FPS)
+                    var_c = check_variant(stock, w, FPS)
+                    now = check_gait(stock, w, FPS)
+                    weak = var_c.strength is None or var_c.strength < checks.MIN_STRENGTH
+                    before_rhythm = main_c.refusal is None or main_c.refusal.startswith(
+                        ("No steady", "An arm", "No walk"))
+                    if not (weak and before_rhythm):
+                        continue
+                    table = rhythm_table(stock, w, FPS)
+                    halves = [corr([h]) for h, _ in table.values() if h is not None]
+                    wholes = [corr([wh]) for _, wh in table.values() if wh is not None]
+                    row = dict(kind=kind, clip=path.stem, subject=subject, window=window,
+                               start=s / FPS, strength=main_c.strength,
+                               period=main_c.period_s,
+                               main_ok=main_c.refusal is None,
+                               main_reason=None if main_c.refusal is None
+                               else main_c.refusal.split(" in ")[0],
+                               var_ok=var_c.refusal is None,
+                               var_reason=None if var_c.refusal is None
+                               else var_c.refusal.split(" in ")[0],
+                               var_warning=var_c.warning, misfit_stock=var_c.misfit,
+                               shipped_ok=now.refusal is None, shipped_warning=now.warning,
+                               travel=var_c.travel,
+                               half_best=max((c for c in halves if c is not None),
+                                             default=None),
+                               same_leg_best=max((c for c in wholes if c is not None),
+                                                 default=None))
+                    from core.gait import adapt
+                    wh = obs_h[s:s + n]
+                    res_h = adapt(held, wh, fps=FPS)
+                    row["misfit_held"] = checks.pose_misfit(held, wh, res_h)[0]
+                    row.update({f"{k}_held": v for k, v in phase_cues(res_h).items()})
+                    if var_c.adapted is not None:
+                        row.update(phase_cues(var_c.adapted))
+                    row.update(feet_features(tracks, s, n))
+                    row.update(hip_cues(stock, w))
+                    first, end = checks._start_and_end_speeds(stock, w)
+                    freq = checks.leg_frequency(stock, w, FPS)
+                    row.update(first=first, end=end, under_way=first / end, leg_hz=freq,
+                               cycle=checks.walker_cycle(var_c.adapted if var_c.adapted
+                                                         is not None else
+                                                         adapt(stock, w, fps=FPS), FPS),
+                               cycle_held=checks.walker_cycle(res_h, FPS))
+                    row.update(harmonics=freq * row["cycle"],
+                               harmonics_held=freq * row["cycle_held"])
+                    rows.append(row)
+            print(path.stem, len(rows), flush=True)
+    return rows
+
+
+def analyse_short(rows):
+    """Stop 44: what the variant gains and admits; every cue's values on them; each cue leave
+    one subject out (threshold: the most extreme value of the other subjects' gait windows in
+    the same domain, windows >= 0.75 s), on the windows the variant changes."""
+    gained = [r for r in rows if r["var_ok"] and not r["main_ok"]]
+    for kind in ("gaits", "not_gaits"):
+        g = [r for r in gained if r["kind"] == kind]
+        print(f"variant takes {len(g)} {kind} windows main refuses "
+              f"({sum(r['window'] >= 0.75 for r in g)} from 0.75 s): "
+              + ", ".join(f"{r['clip']} {r['window']:g}@{r['start']:.2f}" for r in g))
+    keys = [k for k, v in rows[0].items() if isinstance(v, (float, int)) and not
+            isinstance(v, bool) and k not in ("window", "start")]
+    keys = sorted({k for r in rows for k, v in r.items() if isinstance(v, (float, int))
+                   and not isinstance(v, bool)} - {"window", "start"})
+    print("\ncue | gained gait windows (min..max) | admitted non-gait (min..max) | "
+          "all domain gait windows >= 0.75 (min..max)")
+    dom = [r for r in rows if r["kind"] == "gaits" and r["window"] >= 0.75 and r["var_ok"]]
+    for k in keys:
+        def rng(rs):
+            v = [r[k] for r in rs if r.get(k) is not None]
+            return f"{min(v):.3f}..{max(v):.3f}" if v else "-"
+        print(f"{k} | {rng([r for r in gained if r['kind'] == 'gaits'])} | "
+              f"{rng([r for r in gained if r['kind'] != 'gaits'])} | {rng(dom)}")
+    for r in gained:
+        if r["kind"] != "gaits" or r["window"] >= 0.75:
+            print(r["clip"], r["window"], f"{r['start']:.2f}", {k: (round(r[k], 3) if
+                  isinstance(r.get(k), float) else r.get(k)) for k in keys})
+    # Leave one subject out on the variant's windows: a cue refuses a held-out window beyond
+    # the most extreme value of the other subjects' gait windows in the weak domain.
+    print("\nleave one subject out (threshold: the other subjects' extreme over the weak domain)")
+    for k, sign in (("under_way", 1), ("min_speed", 1), ("first", 1), ("misfit_held", -1),
+                    ("harmonics_held", -1), ("phase_back_held", -1), ("omega_ratio_held", 1),
+                    ("hip_vel_corr", -1), ("half_best", 1), ("switches", 1), ("carried", 1)):
+        lost = refused = 0
+        for r in gained:
+            th = min(sign * x[k] for x in dom if x["subject"] != r["subject"])
+            if sign * r[k] < th:
+                lost, refused = lost + (r["kind"] == "gaits"), refused + (r["kind"] != "gaits")
+        print(f"{k} | gait lost {lost} of {sum(r['kind'] == 'gaits' for r in gained)} | "
+              f"non-gait refused {refused} of {sum(r['kind'] != 'gaits' for r in gained)}")
+    # The shipped exception (checks._shorter_than_its_cycle) on the same windows.
+    def shipped(r, cycle):
+        return (r["window"] < cycle and r["under_way"] >= checks.MIN_UNDER_WAY
+                and r["leg_hz"] * cycle <= checks.MAX_LEG_HARMONICS)
+    for label, key in (("stock library", "cycle"), ("library without the subject", "cycle_held")):
+        took = [r for r in gained if shipped(r, r[key])]
+        print(f"shipped exception, cycle read by the {label}: takes "
+              f"{sum(r['kind'] == 'gaits' for r in took)} gait and "
+              f"{sum(r['kind'] != 'gaits' for r in took)} non-gait windows of the variant's")
+    now = [r for r in rows if r["shipped_ok"] and not r["main_ok"]]
+    print(f"check_gait as shipped takes {sum(r['kind'] == 'gaits' for r in now)} gait and "
+          f"{sum(r['kind'] != 'gaits' for r in now)} non-gait windows main refused: "
+          + ", ".join(f"{r['clip']} {r['window']:g}@{r['start']:.2f}" for r in now))
+
 
 # --- Stop 44: the last non-gait windows (issue 21 §1) ---------------------------------------
 
@@ -765,9 +971,13 @@ def model_features(model, w, fps=FPS):
     var = model.offset_var
     z2 = np.where(var > 0, (result.offset if result.offset is not None else 0.0) ** 2
                   / np.where(var > 0, var, 1.0), 0.0)
+    legs = np.array([c[1:].split(".")[0] in ("femur", "tibia", "foot", "toes")
+                     for c in model.channel_names]) & (var > 0)
     off = dict(offset_mean=float(z2[var > 0].mean()) if np.any(var > 0) else 0.0,
                offset_max=float(z2.max()),
-               offset_channel=model.channel_names[int(np.argmax(z2))])
+               offset_channel=model.channel_names[int(np.argmax(z2))],
+               offset_legs=float(z2[legs].mean()) if legs.any() else 0.0,
+               offset_legs_max=float(z2[legs].max()) if legs.any() else 0.0)
     return dict(**off,
                 misfit=misfit, misfit_check=float(np.mean(per)),
                 tail_third=float(np.mean(per[-third:])),
@@ -836,7 +1046,7 @@ def stop44_rows(rows, model_cues=True):
 
 
 STOP44_CUES = ("misfit", "tail_third", "tail_half", "tail_q", "worst_q", "fit_end", "fit_third",
-               "outliers", "outliers_end", "offset_mean", "end_ratio", "peak_ratio",
+               "outliers", "outliers_end", "offset_mean", "offset_legs", "end_ratio", "peak_ratio",
                "speed_gain", "end_over_min", "peak_accel", "end_accel", "peak_brake",
                "end_brake", "foot_lift", "lift_end", "foot_ahead_high", "shank_fwd",
                "shank_fwd_end", "turnout", "turnout_mean", "turnout_stance", "hip_end",
@@ -895,6 +1105,8 @@ def main(argv=None):
     ap.add_argument("--misfit", help="stop 43: the pose misfit of the windows of this pickle")
     ap.add_argument("--out-misfit", default="build/misfit.pkl")
     ap.add_argument("--analyse-misfit")
+    ap.add_argument("--short", help="stop 44: write the short weak windows' rows here")
+    ap.add_argument("--analyse-short", help="stop 44: analyse the rows of --short")
     ap.add_argument("--stop44", help="stop 44: the end and leg cues of the windows of this "
                                      "pickle (and the model's under fold libraries)")
     ap.add_argument("--out-stop44", default="build/stop44.pkl")
@@ -922,6 +1134,15 @@ def main(argv=None):
     if args.analyse_misfit:
         with open(args.analyse_misfit, "rb") as f:
             analyse_misfit(pickle.load(f))
+    if args.short:
+        rows = short_rows()
+        Path(args.short).parent.mkdir(parents=True, exist_ok=True)
+        with open(args.short, "wb") as f:
+            pickle.dump(rows, f)
+        analyse_short(rows)
+    if args.analyse_short:
+        with open(args.analyse_short, "rb") as f:
+            analyse_short(pickle.load(f))
     if args.lowo:
         lowo_arms()
     if args.out:

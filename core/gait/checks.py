@@ -40,6 +40,17 @@ after adapting, on the model's fit (issue 21):
    (less than a cycle) already shows one leg repeating the other's step. The best pooled
    correlation must reach ``MIN_STRENGTH`` (0.3). A range too short for even the half-cycle
    comparison is predicted with a warning (its rhythm is not tested) when its legs alternate.
+   *Shorter than the walker's cycle* (stop 44): a weak rhythm at a period the range holds
+   whole is not refused when the range is shorter than the walker's own cycle as the adapted
+   model reads it (:func:`walker_cycle`; the rhythm then compared periods the walker does not
+   walk at: the sneaking walks of CMU 120 stride every 2.05-2.53 s and the best period inside
+   1-1.67 s of them is the cadence prior's shortest), its first third travels at
+   ``MIN_UNDER_WAY`` (a tenth) or more of its last third's speed (the kick 74_03's run-up from
+   standing reads as a slow walker too: 0.016-0.038, the sneaks 0.24 and more) and its legs
+   move at most ``MAX_LEG_HARMONICS`` (8) times as fast as that cycle (:func:`leg_frequency`:
+   jitter that no step repeats reads as a slow walker too, about 20 times; the sneaks 2.4-3.3).
+   It is predicted with a warning that says the range is shorter than one of the walker's
+   step cycles and how long a range gives a surer prediction (check 9 still weighs its poses).
 6. **Arms by the body** (stop 42): the arms' pose by forward kinematics of the observed trunk,
    clavicle and arm angles on the CMU template skeleton, the root tilted as observed. An
    upper arm that goes above the horizontal (:func:`raised_arm`: :func:`arm_elevation` over
@@ -111,12 +122,13 @@ from .em import adapt
 from .segments import MIN_STRENGTH
 
 __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_MISFIT",
-           "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG", "MIN_ALTERNATION_DEG",
-           "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG", "MIN_OVERLAP_S",
-           "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "WARN_FIT", "alternation_deg",
-           "arm_elevation", "arm_out_to_the_side", "arm_side_reach", "body_part", "check_gait",
-           "fit_score", "gait_channels", "kicking_leg", "legs_together", "pose_misfit",
-           "raised_arm", "regularity", "rhythm", "rhythm_inputs", "shin_swing", "with_fit"]
+           "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
+           "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG",
+           "MIN_OVERLAP_S", "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "MIN_UNDER_WAY",
+           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
+           "arm_side_reach", "body_part", "check_gait", "fit_score", "gait_channels",
+           "kicking_leg", "leg_frequency", "legs_together", "pose_misfit", "raised_arm",
+           "regularity", "rhythm", "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -127,6 +139,10 @@ MIN_FORWARD_SHARE = 0.0     # the mean velocity's forward share (cosine from the
 MAX_LEVEL_RANGE = 0.2       # m: the root's height range of a level walk (check 3's exception)
 MIN_STEADY_SPEED = 0.05     # m/s: the slowest horizontal speed of a walk that never stops
 MIN_OVERLAP_S = 0.2         # s of overlap for a rhythm comparison
+MIN_UNDER_WAY = 0.1         # a range shorter than the walker's cycle: its first third travels
+#                             at least this share of its last third's speed (check 5, stop 44)
+MAX_LEG_HARMONICS = 8.0     # … and its legs move at most this many times as fast as that cycle
+#                             (:func:`leg_frequency` × the cycle; check 5, stop 44)
 CADENCE_SPREAD = 1.25       # periods searched: the training walkers' × 1/1.25 … × 1.25
 WARN_FIT = 0.5
 START_SHARE = 1.0 / 3.0     # the first and last share of the range compared for a start
@@ -653,6 +669,80 @@ def _level_travel(model, obs, fps, travel):
                 and np.nanmax(height) - np.nanmin(height) <= MAX_LEVEL_RANGE)
 
 
+def walker_cycle(result, fps):
+    """The walker's step cycle as the adapted gait model reads it, seconds: ``2π / ω`` with
+    ``ω`` the median of the filtered phase rates (``result.states[:, 0]``, radians per frame
+    at ``fps``) over the range's last three quarters (its first frames settle the phase).
+
+    Parameters
+    ----------
+    result : AdaptResult
+        ``adapt(model, observations, fps=fps)``.
+    fps : float
+
+    Returns
+    -------
+    float
+    """
+    omega = np.asarray(result.states, dtype=float)[:, 0]
+    rate = float(np.median(omega[len(omega) // 4:]))
+    return 2.0 * np.pi / rate / fps if rate > 0 else float("inf")
+
+
+def leg_frequency(model, observations, fps):
+    """How fast the legs move over a range, Hz: the frequency of the sinusoid whose second
+    differences have the same mean square, relative to its variance, as the hip and knee
+    flexion's (``LEG_FLEXION``, pooled): with ``ρ = mean((Δ²x)²) / mean((x − x̄)²)``,
+    ``f = fps / π · asin(ρ^¼ / 2)`` (a sinusoid of frequency f sampled at ``fps`` has
+    ``Δ²x = −4 sin²(π f / fps) x``). A walker's legs: about 1-3 times its cycle's
+    frequency (the knee's double bend); noise: many times it.
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        All model channels, physical units (N >= 3).
+    fps : float
+
+    Returns
+    -------
+    float
+        Hz (0 for legs that do not move; NaN values are left out).
+    """
+    obs = np.asarray(observations, dtype=float)
+    cols = [model.channel_names.index(c) for c in LEG_FLEXION if c in model.channel_names] \
+        or list(gait_channels(model))
+    x = obs[:, cols] - np.nanmean(obs[:, cols], axis=0)
+    variance = float(np.nanmean(x ** 2))
+    if not variance > 0:
+        return 0.0
+    rho = float(np.nanmean(np.diff(x, 2, axis=0) ** 2)) / variance
+    return float(fps / np.pi * np.arcsin(min(rho ** 0.25 / 2.0, 1.0)))
+
+
+def _starts_from_standing(obs, fps, cycle, first, end):
+    """Whether a range shorter than the walker's cycle (``cycle``, seconds, or None when not
+    read) starts from standing: its first third travels at less than ``MIN_UNDER_WAY`` of its
+    last third's speed (``first``, ``end``: :func:`_start_and_end_speeds`)."""
+    return (cycle is not None and first is not None and len(obs) < cycle * fps
+            and first < MIN_UNDER_WAY * end)
+
+
+def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
+    """Check 5's exception (stop 44): a range whose rhythm is weak at a period whose whole
+    cycle it holds is not refused for it when it is shorter than the walker's own cycle
+    (``cycle``: :func:`walker_cycle`, seconds; the rhythm then compared periods the walker
+    does not walk at), it is under way from its start (its first third travels at
+    ``MIN_UNDER_WAY`` or more of its last third's speed, ``first`` and ``end`` in m/s: a run-up
+    from standing into a kick reads as a slow walker too) and its legs move no faster than
+    ``MAX_LEG_HARMONICS`` times that cycle (:func:`leg_frequency`: jittery motion that no step
+    repeats reads as a slow walker too). False without a cycle read or without root
+    travel."""
+    return (cycle is not None and first is not None and len(obs) < cycle * fps
+            and first >= MIN_UNDER_WAY * end
+            and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
+
+
 def _rhythm_words(strength):
     """What check 9's refusal says of the range's rhythm: a weak or untested one does not
     vouch for a walk; a strong one (stop 44) repeats, but not as a walk's poses do."""
@@ -740,12 +830,23 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"from where its hips face): the gait model continues walks "
                                  f"and runs that go forwards")
     period, strength, whole = rhythm(model, obs, fps)
+    adapted = cycle = None
     if whole and strength < MIN_STRENGTH:
-        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
-                         forward=forward,
-                         refusal=f"No steady rhythm in {what}: the legs repeat their steps "
-                                 f"with a strength of {strength:.2f} (a walk or run reaches "
-                                 f"{MIN_STRENGTH:g} or more)")
+        if poses:
+            adapted = adapt(model, obs, fps=fps)
+            cycle = walker_cycle(adapted, fps)
+        short = _shorter_than_its_cycle(model, obs, fps, cycle, first, end)
+        if not short:
+            return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                             forward=forward,
+                             refusal=f"No steady rhythm in {what}: the legs repeat their steps "
+                                     f"with a strength of {strength:.2f} (a walk or run reaches "
+                                     f"{MIN_STRENGTH:g} or more)" + (
+                                         f". It starts from standing ({first:.2f} m/s in its "
+                                         f"first third, {end:.2f} m/s in its last): start the "
+                                         f"range where the walk has begun"
+                                         if _starts_from_standing(obs, fps, cycle, first, end)
+                                         else ""))
     points = _arm_points(model, obs)
     elevation = None if points is None else _elevation(points)
     reach = None if points is None else _side_reach(points)
@@ -784,9 +885,10 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"hanging): a kick or a leg thrown out in front, not a "
                                  f"walk or run the gait model can continue (no walker it "
                                  f"learned from swings a shin more than about 30° forward)")
-    misfit = adapted = None
+    misfit = None
     if poses:
-        adapted = adapt(model, obs, fps=fps)
+        if adapted is None:                    # check 5 adapted a short range already
+            adapted = adapt(model, obs, fps=fps)
         misfit, per_frame, per_channel = pose_misfit(model, obs, adapted)
         if misfit > MAX_MISFIT:
             off = np.flatnonzero(per_frame > MAX_MISFIT)
@@ -814,6 +916,13 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                         f"walk is under way predicts its pace")
     if strength is None:
         warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
+    elif cycle is not None:                   # whole, weak, shorter than the walker's cycle
+        warnings.append(f"in {what} the legs step in turn, but the range "
+                        f"({len(obs) / fps:.2f} s) is shorter than one of this walker's step "
+                        f"cycles (about {cycle:.1f} s, as the gait model reads its poses), so "
+                        f"its steps could not be seen to repeat (strength {strength:.2f}): the "
+                        f"prediction follows its poses alone; a range of {cycle:.1f} s or "
+                        f"more of the walk gives a surer one")
     elif strength < MIN_STRENGTH:
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")

@@ -1049,6 +1049,127 @@ def test_gaits_with_a_weak_rhythm_are_taken_their_poses_measured(clip, kind, win
     assert check.misfit < MAX_MISFIT, kind
 
 
+# Stop 44 (issue 21 §1): windows of the sneaking walks of 120 shorter than the walker's stride
+# (2.05-2.53 s: the rhythm of 8 s of the same walk) whose rhythm is weak at a period they do
+# hold whole (the cadence prior's shortest, 0.58 s). Refused before ("No steady rhythm"); a
+# window shorter than the cycle the adapted model reads, under way from its start, is taken
+# with a warning (docs/gait.md, *Stop 44*).
+SHORT_SNEAKS = [("120_11", 1.25, 1.25), ("120_11", 1.67, 1.0), ("120_09", 1.0, 5.5),
+                ("120_10", 1.67, 8.25)]
+
+
+@pytest.mark.parametrize("clip, window, start", SHORT_SNEAKS)
+def test_a_sneak_window_shorter_than_its_stride_is_taken_with_a_warning(clip, window, start,
+                                                                      monkeypatch):
+    values, names = load_clip(CMU / f"{clip}.amc")
+    model = load_stock_library()
+    obs = observe(model, values, names)
+    stride, steady, holds = checks.rhythm(model, obs[60:540], 60.0)        # 8 s of the walk
+    assert holds and steady >= checks.MIN_STRENGTH and stride > window
+    a = int(round(start * 60))
+    w = obs[a:a + int(round(window * 60))]
+    period, strength, whole = checks.rhythm(model, w, 60.0)
+    assert whole and strength < checks.MIN_STRENGTH and period < window
+    cycle = checks.walker_cycle(adapt(model, w, fps=60.0), 60.0)
+    assert cycle > window
+    check = check_gait(model, w, 60.0, what="the range")
+    assert check.refusal is None, check.refusal
+    assert (f"in the range the legs step in turn, but the range ({window:.2f} s) is shorter "
+            f"than one of this walker's step cycles (about {cycle:.1f} s, as the gait model "
+            f"reads its poses), so its steps could not be seen to repeat (strength "
+            f"{strength:.2f}): the prediction follows its poses alone; a range of "
+            f"{cycle:.1f} s or more of the walk gives a surer one") in check.warning
+    assert check.misfit < MAX_MISFIT and check.adapted is not None
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", np.inf)                 # the exception off
+    assert check_gait(model, w, 60.0).refusal.startswith("No steady rhythm")
+
+
+# The windows of the kick 74_03 that stop 43's variant (no rhythm refusal under the cadence
+# prior's longest cycle, 2.8 s) let through: its run-up from standing into the kick.
+KICK_RUN_UPS = [(1.25, 0.25), (1.25, 0.5), (1.67, 0.0), (1.67, 0.25), (1.67, 0.5)]
+
+
+@pytest.mark.parametrize("window, start", KICK_RUN_UPS)
+def test_a_kicks_run_up_from_standing_stays_refused(window, start, monkeypatch):
+    """Weak rhythm at a period held whole, shorter than the cycle the model reads (a slow
+    walker): the first third of the range travels at less than a tenth of its last third's
+    speed (measured here on the clip's own root translation), so it is refused for its rhythm
+    with a hint to start where the walk has begun; with the exception's two guards off it
+    would pass check 5 (and three of the five every later check)."""
+    values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
+    model = load_stock_library()
+    a, n = int(round(start * 60)), int(round(window * 60))
+    w = observe(model, values, names)[a:a + n]
+    _, strength, whole = checks.rhythm(model, w, 60.0)
+    assert whole and strength < checks.MIN_STRENGTH
+    k = int(round(n / 3))
+    root = values[a:a + n, :2]                                   # metres, the AMC's ground plane
+    assert np.linalg.norm(root[k] - root[0]) < 0.1 * np.linalg.norm(root[-1] - root[-1 - k])
+    check = check_gait(model, w, 60.0, what="the range")
+    assert check.refusal.startswith("No steady rhythm in the range: the legs repeat their "
+                                    "steps with a strength of")
+    assert ". It starts from standing (" in check.refusal
+    assert check.refusal.endswith("start the range where the walk has begun")
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
+    monkeypatch.setattr(checks, "MAX_LEG_HARMONICS", np.inf)
+    off = check_gait(model, w, 60.0).refusal
+    # Check 5 passes it on then; checks 6, 10 and 9 take three of the five (the other two,
+    # 1.67 s from 0.25 and 0.5 s, reach the kick's shin swing: check 10, stop 44).
+    assert off is None or off.startswith("A leg is swung up in front"), off
+
+
+def test_jitter_shorter_than_the_cycle_it_reads_stays_refused_for_its_rhythm(monkeypatch):
+    """Random joint jitter that travels like a walk (the range of
+    ``test_a_frozen_pose_a_jump_and_a_range_without_rhythm_are_refused``, 2.5 s) reads as a
+    slow walker (a cycle over 2.5 s), but its legs move many times faster than that cycle:
+    refused for its rhythm; without that guard it would not be."""
+    model = load_stock_library()
+    values, names = trial("35_07")
+    rng = np.random.default_rng(3)
+    noise = rng.standard_normal((150, 56))
+    jitter = np.zeros_like(noise)
+    decay = np.exp(-1.0 / (0.15 * 60.0))
+    for t in range(1, 150):
+        jitter[t] = decay * jitter[t - 1] + noise[t]
+    wander = np.repeat(values[:1], 150, axis=0).copy()
+    wander[:, 6:] += np.radians(8.0) * jitter / jitter.std(axis=0)
+    ahead = values[30, :2] - values[0, :2]
+    wander[:, :2] += np.outer(np.arange(150) / 60.0 * 1.2, ahead / np.linalg.norm(ahead))
+    obs = observe(model, wander, names)
+    cycle = checks.walker_cycle(adapt(model, obs, fps=60.0), 60.0)
+    assert cycle > 2.5
+    assert checks.leg_frequency(model, obs, 60.0) * cycle > checks.MAX_LEG_HARMONICS
+    assert check_gait(model, obs, 60.0).refusal.startswith("No steady rhythm")
+    monkeypatch.setattr(checks, "MAX_LEG_HARMONICS", np.inf)
+    assert not check_gait(model, obs, 60.0).refusal.startswith("No steady rhythm")
+
+
+@pytest.mark.parametrize("hz, fps", [(1.0, 60.0), (2.5, 60.0), (4.0, 24.0)])
+def test_leg_frequency_of_a_sinusoid_is_its_frequency(hz, fps):
+    """Every hip and knee flexing as one sinusoid (amplitudes and phases differing): the
+    frequency comes back (exactly but for the two end samples the second difference drops)."""
+    model = load_stock_library()
+    n = int(round(20 * fps))
+    t = np.arange(n) / fps
+    obs = np.zeros((n, len(model.channel_names)))
+    for k, c in enumerate(checks.LEG_FLEXION):
+        obs[:, model.channel_names.index(c)] = (0.2 + 0.1 * k) * np.sin(
+            2 * np.pi * hz * t + k) + 0.05 * k
+    assert checks.leg_frequency(model, obs, fps) == pytest.approx(hz, rel=2e-3)
+    assert checks.leg_frequency(model, np.zeros_like(obs), fps) == 0.0
+
+
+def test_the_walker_cycle_is_two_pi_over_the_median_phase_rate():
+    model, walk = walk_range()
+    result = adapt(model, walk, fps=60.0)
+    rates = result.states[len(walk) // 4:, 0]
+    assert checks.walker_cycle(result, 60.0) == pytest.approx(
+        2 * np.pi / np.median(rates) / 60.0, rel=1e-12)
+    assert checks.walker_cycle(result, 30.0) == pytest.approx(
+        2 * checks.walker_cycle(result, 60.0), rel=1e-12)
+    assert 0.9 < checks.walker_cycle(result, 60.0) < 1.4        # 35_07: about 1.1 s a cycle
+
+
 # ------------------------------------------------------- stop 44: a shin swung up in front (a kick)
 # Windows of the kick 74_03 that every other check took (stop 43 left them): the kicking leg's
 # shin swung 50° forward of hanging (docs/gait.md, *Stop 44*).
