@@ -365,16 +365,16 @@ def _template_skeleton():
     return asf_to_skeleton(cmu_template_asf())
 
 
-def _arm_points(model, obs):
-    """World positions of each arm's shoulder, elbow and wrist, {joint: (N, 3)}, by forward
-    kinematics of the observed trunk, clavicle and arm angles on the CMU template skeleton,
-    the root at the origin tilted as observed (``root.tilt_*``) and turned to the rest's
-    heading (``G = Rz(ψ) T rest`` with ψ left out, ``root_travel.py``); None when the model
-    does not observe both humeri."""
+def _template_points(model, obs, required, joints):
+    """World positions of ``joints`` (template joint names), {joint: (N, 3)}, by forward
+    kinematics of the observed angles on the CMU template skeleton, the root at the origin
+    tilted as observed (``root.tilt_*``) and turned to the rest's heading (``G = Rz(ψ) T rest``
+    with ψ left out, ``root_travel.py``); None when the model does not observe every channel
+    of ``required``."""
     skel = _template_skeleton()
     names = list(skel.dof_names())
     angles = [c for c in model.channel_names[:model.n_angles] if c in names]
-    if not {"lhumerus.rx", "rhumerus.rx"} <= set(angles):
+    if not set(required) <= set(angles):
         return None
     dofs = np.zeros((len(obs), len(names)))
     dofs[:, [names.index(c) for c in angles]] = obs[:, model.channel_index(angles)]
@@ -382,9 +382,24 @@ def _arm_points(model, obs):
     if model.root_travel:
         root = exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
                                                    "root.tilt_z"])]) @ root
-    joints = [skel.index(j) for arm in ARMS for j in arm[1:]]
-    heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
-    return {j: heads[skel.index(j)] for arm in ARMS for j in arm[1:]}
+    heads, _ = chain_kinematics(skel, dofs, [skel.index(j) for j in joints],
+                                known={0: (root, np.zeros((len(obs), 3)))})
+    return {j: heads[skel.index(j)] for j in joints}
+
+
+def _template_forward():
+    """The template skeleton's walking direction in the ground plane, (2,) unit (CMU: the
+    root's +z walks)."""
+    rest = _template_skeleton().rest_rotations[0]
+    return rest[:2, 2] / np.linalg.norm(rest[:2, 2])
+
+
+def _arm_points(model, obs):
+    """World positions of each arm's shoulder, elbow and wrist, {joint: (N, 3)}, by forward
+    kinematics of the observed trunk, clavicle and arm angles (:func:`_template_points`); None
+    when the model does not observe both humeri."""
+    return _template_points(model, obs, ("lhumerus.rx", "rhumerus.rx"),
+                            [j for arm in ARMS for j in arm[1:]])
 
 
 def _elevation(points):
@@ -399,8 +414,7 @@ def _elevation(points):
 
 def _side_reach(points):
     """(N, 2) arms' sideways reach, degrees (:func:`arm_side_reach`)."""
-    rest = _template_skeleton().rest_rotations[0]
-    forward = rest[:2, 2] / np.linalg.norm(rest[:2, 2])       # CMU: the root's +z walks
+    forward = _template_forward()
     left = np.array([-forward[1], forward[0]])                  # Z × forward
     out = []
     for k, (_, shoulder, elbow, wrist) in enumerate(ARMS):
@@ -510,25 +524,15 @@ def shin_swing(model, observations):
     ndarray, shape (N, 2) or None
         Left and right; None when the model does not observe both femurs and tibias.
     """
-    obs = np.asarray(observations, dtype=float)
-    skel = _template_skeleton()
-    names = list(skel.dof_names())
-    angles = [c for c in model.channel_names[:model.n_angles] if c in names]
-    if not {"lfemur.rx", "rfemur.rx", "ltibia.rx", "rtibia.rx"} <= set(angles):
+    heads = _template_points(model, np.asarray(observations, dtype=float),
+                             ("lfemur.rx", "rfemur.rx", "ltibia.rx", "rtibia.rx"),
+                             [j for _, knee, ankle in SHINS for j in (knee, ankle)])
+    if heads is None:
         return None
-    dofs = np.zeros((len(obs), len(names)))
-    dofs[:, [names.index(c) for c in angles]] = obs[:, model.channel_index(angles)]
-    root = np.broadcast_to(skel.rest_rotations[0], (len(obs), 3, 3))
-    if model.root_travel:
-        root = exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
-                                                   "root.tilt_z"])]) @ root
-    joints = [skel.index(j) for _, knee, ankle in SHINS for j in (knee, ankle)]
-    heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
-    rest = skel.rest_rotations[0]
-    forward = rest[:2, 2] / np.linalg.norm(rest[:2, 2])       # CMU: the root's +z walks
+    forward = _template_forward()
     out = []
     for _, knee, ankle in SHINS:
-        shin = heads[skel.index(ankle)] - heads[skel.index(knee)]
+        shin = heads[ankle] - heads[knee]
         out.append(np.degrees(np.arctan2(shin[:, :2] @ forward, -shin[:, 2])))
     return np.stack(out, axis=1)
 
