@@ -724,12 +724,18 @@ def leg_frequency(model, observations, fps):
     return float(fps / np.pi * np.arcsin(min(rho ** 0.25 / 2.0, 1.0)))
 
 
+def _within_its_cycle(obs, fps, cycle, first):
+    """Whether a range is shorter than the walker's cycle (``cycle``, seconds, or None when not
+    read) and has root travel to judge its start by (``first``: its first third's speed, m/s,
+    or None: :func:`_start_and_end_speeds`)."""
+    return cycle is not None and first is not None and len(obs) < cycle * fps
+
+
 def _starts_from_standing(obs, fps, cycle, first, end):
-    """Whether a range shorter than the walker's cycle (``cycle``, seconds, or None when not
-    read) starts from standing: its first third travels at less than ``MIN_UNDER_WAY`` of its
-    last third's speed (``first``, ``end``: :func:`_start_and_end_speeds`)."""
-    return (cycle is not None and first is not None and len(obs) < cycle * fps
-            and first < MIN_UNDER_WAY * end)
+    """Whether a range shorter than the walker's cycle starts from standing: its first third
+    travels at less than ``MIN_UNDER_WAY`` of its last third's speed (``first``, ``end``:
+    :func:`_start_and_end_speeds`)."""
+    return _within_its_cycle(obs, fps, cycle, first) and first < MIN_UNDER_WAY * end
 
 
 def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
@@ -742,8 +748,7 @@ def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
     ``MAX_LEG_HARMONICS`` times that cycle (:func:`leg_frequency`: jittery motion that no step
     repeats reads as a slow walker too). False without a cycle read or without root
     travel."""
-    return (cycle is not None and first is not None and len(obs) < cycle * fps
-            and first >= MIN_UNDER_WAY * end
+    return (_within_its_cycle(obs, fps, cycle, first) and first >= MIN_UNDER_WAY * end
             and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
 
 
@@ -839,18 +844,15 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         if poses:
             adapted = adapt(model, obs, fps=fps)
             cycle = walker_cycle(adapted, fps)
-        short = _shorter_than_its_cycle(model, obs, fps, cycle, first, end)
-        if not short:
+        if not _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
+            hint = (f". It starts from standing ({first:.2f} m/s in its first third, "
+                    f"{end:.2f} m/s in its last): start the range where the walk has begun"
+                    if _starts_from_standing(obs, fps, cycle, first, end) else "")
             return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
                              forward=forward,
                              refusal=f"No steady rhythm in {what}: the legs repeat their steps "
                                      f"with a strength of {strength:.2f} (a walk or run reaches "
-                                     f"{MIN_STRENGTH:g} or more)" + (
-                                         f". It starts from standing ({first:.2f} m/s in its "
-                                         f"first third, {end:.2f} m/s in its last): start the "
-                                         f"range where the walk has begun"
-                                         if _starts_from_standing(obs, fps, cycle, first, end)
-                                         else ""))
+                                     f"{MIN_STRENGTH:g} or more)" + hint)
     points = _arm_points(model, obs)
     elevation = None if points is None else _elevation(points)
     reach = None if points is None else _side_reach(points)
