@@ -78,13 +78,18 @@ def collect():
     return rows
 
 
-def analyse(rows):
-    """Largest leg offset (degrees) of the windows the checks take, by kind and clip, and the
-    windows a bound would refuse."""
+def analyse(rows, joints=checks.POSTURE_JOINTS):
+    """Largest offset (degrees) of the legs' ``joints`` (check 11's: hips, knees, ankles) of
+    the windows the checks take, by kind and clip, and the windows a bound would refuse; the
+    largest held-out gait value with the toes too."""
     taken = [r for r in rows if r["accepted"] and "legs_deg" in r]
+    toes = max(float(np.abs(r["legs_deg"]).max()) for r in taken if r["kind"] == "gaits")
+    print(f"largest held-out gait offset with the toes: {toes:.1f}°")
     for r in taken:
-        r["legs_max"] = float(np.abs(r["legs_deg"]).max())
-        r["legs_where"] = r["leg_names"][int(np.argmax(np.abs(r["legs_deg"])))]
+        sel = [i for i, c in enumerate(r["leg_names"]) if c[1:].split(".")[0] in joints]
+        deg = np.abs(np.asarray(r["legs_deg"])[sel])
+        r["legs_max"] = float(deg.max())
+        r["legs_where"] = r["leg_names"][sel[int(np.argmax(deg))]]
     for kind in ("gaits", "not_gaits"):
         sub = [r for r in taken if r["kind"] == kind]
         print(f"\n{kind}: {len(sub)} windows taken")
@@ -107,17 +112,13 @@ def analyse(rows):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out")
-    ap.add_argument("--analyse")
+    ap.add_argument("--out", help="collect the rows into this pickle, then analyse them")
+    ap.add_argument("--analyse", help="analyse the rows of this pickle")
     args = ap.parse_args(argv)
     if args.out:
-        rows = collect()
-        with open(args.out, "wb") as f:
-            pickle.dump(rows, f)
-        analyse(rows)
-    if args.analyse:
-        with open(args.analyse, "rb") as f:
-            analyse(pickle.load(f))
+        Path(args.out).write_bytes(pickle.dumps(collect()))
+    for path in filter(None, (args.out, args.analyse)):
+        analyse(pickle.loads(Path(path).read_bytes()))
 
 
 if __name__ == "__main__":

@@ -587,6 +587,16 @@ def leg_posture(model, result):
     return legs[k], float(deg[k])
 
 
+def _posture_words(model, channel, deg, what):
+    """Check 11's refusal: the joint of ``channel`` held ``deg`` degrees from the walks."""
+    name = model.channel_names[channel]
+    return (f"A leg is held unlike any walker's in {what} (the {body_part(name)} turned "
+            f"{deg:.0f}° about its {name[-1].upper()} axis from how the walks the gait model "
+            f"knows hold it): a turned-out or raised leg, a dance position, not a walk or run "
+            f"the gait model can continue (walkers it did not learn from hold a hip, knee or "
+            f"ankle within 72° of them)")
+
+
 PARTS = {"femur": "hip", "tibia": "knee", "foot": "foot", "toes": "toes",
          "clavicle": "shoulder", "humerus": "upper arm", "radius": "forearm", "wrist": "wrist",
          "hand": "hand", "fingers": "fingers", "thumb": "thumb"}
@@ -946,18 +956,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                      f"gait model can continue")
         held = leg_posture(model, adapted)
         if held is not None and held[1] > MAX_LEG_POSTURE_DEG:
-            channel, deg = held
             return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
                              forward=forward, arm_deg=arm_deg, misfit=misfit,
-                             refusal=f"A leg is held unlike any walker's in {what} (the "
-                                     f"{body_part(model.channel_names[channel])} turned "
-                                     f"{deg:.0f}° about its "
-                                     f"{model.channel_names[channel][-1].upper()} axis from how "
-                                     f"the walks the gait model knows hold it): a turned-out "
-                                     f"or raised leg, a dance position, not a walk "
-                                     f"or run the gait model can continue (walkers it did not "
-                                     f"learn from hold a hip, knee or ankle within 72° "
-                                     f"of them)")
+                             refusal=_posture_words(model, *held, what))
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "
