@@ -56,9 +56,7 @@ def collect():
                 angles = values[:, [names.index(n) for n in model.angle_names]]
                 for window in A.WINDOWS:
                     n = int(round(window * A.FPS))
-                    starts = A.steady_windows(values, names, window) if gait else \
-                        list(range(0, len(values) - n + 1, int(round(A.STEP_S * A.FPS))))
-                    for s in starts:
+                    for s in A.window_starts(values, names, window, gait):
                         w = A.window_observations(model, obs, angles, s, n)
                         check = checks.check_gait(model, w, A.FPS)
                         row = dict(kind=kind, clip=path.stem, subject=subject, window=window,
