@@ -22,7 +22,7 @@ short-range exception reaches.
 ::
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python benchmarks/studies/gait_windows45.py \
-        --windows --rhythm --across --out build/g45/windows45.pkl              # ~3 min at load 5
+        --windows --rhythm --across --out build/g45/windows45.pkl     # ~5 min at load 5
 """
 
 import argparse
