@@ -5,11 +5,14 @@ adapting only warns), with the shipped stock library.
 
 * **Gaits**: the trials of ``sample_scenes/data/cmu`` (walks, runs, bouncy, sneaking and the
   style walks of 06, 74, 120). Steady starts: every ``STEP_S`` (0.25 s) inside the steady
-  pieces of the learning segmentation (``core.gait.segments.steady_segments``: stops, turns on
-  the spot and starts from standing left out), where the window lies in the piece and its own
-  mean speed is at least half the piece's (a pause of the sneaking walks, which stand still
-  for a second between steps, is not a steady start); a trial shorter than the window (the
-  runs, 1.4 s) counts for the windows it holds.
+  pieces of the learning segmentation (``core.gait.segments.steady_segments`` with the stock
+  library's period range ``STOCK_LAG_RANGE``, the pieces ``tools/build_stock_gaits.py`` learns
+  from: stops, turns on the spot and starts from standing left out; before stop 45 the default
+  range, 0.5-2 s, found no piece in the sneaks of 120, whose stride is 2-2.5 s, and the whole
+  clip stood in, its standing start and its stop included), where the window lies in the
+  piece and its own mean speed is at least half the piece's (a pause of the sneaking walks,
+  which stand still for a second between steps, is not a steady start); a trial shorter
+  than the window (the runs, 1.4 s) counts for the windows it holds.
 * **Not gaits**: ``sample_scenes/data/cmu/not_gaits`` (jumps, dance, boxing, punching, kicks,
   standing gestures, swings, cartwheels, mimed swimming), windows every ``STEP_S`` over the
   whole clip.
@@ -25,6 +28,7 @@ from core.gait import load_stock_library, observations_from_dofs
 from core.gait.checks import check_gait
 from core.gait.features import continuous_near
 from core.gait.segments import steady_segments
+from core.gait.stock import STOCK_LAG_RANGE
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
 from core.mocap.bvh import cmu_template_asf
 
@@ -52,7 +56,8 @@ def steady_windows(values, names, window):
     """Starts (frames) of the steady windows of a gait trial (module docstring)."""
     n = int(round(window * FPS))
     step = int(round(STEP_S * FPS))
-    pieces = steady_segments(values, names, FPS) or [(0, len(values))]
+    pieces = steady_segments(values, names, FPS, lag_range=STOCK_LAG_RANGE) \
+        or [(0, len(values))]
     speed = np.linalg.norm(np.gradient(values[:, :2], axis=0), axis=1) * FPS
     starts = []
     for a, b in pieces:

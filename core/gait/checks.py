@@ -49,16 +49,20 @@ after adapting, on the model's fit (issue 21):
    correlation must reach ``MIN_STRENGTH`` (0.3). A range too short for even the half-cycle
    comparison is predicted with a warning (its rhythm is not tested) when its legs alternate.
    *Shorter than the walker's cycle* (stop 44): a weak rhythm at a period the range holds
-   whole is not refused when the range is shorter than the walker's own cycle as the adapted
-   model reads it (:func:`walker_cycle`; the rhythm then compared periods the walker does not
-   walk at: the sneaking walks of CMU 120 stride every 2.05-2.53 s and the best period inside
-   1-1.67 s of them is the cadence prior's shortest), its first third travels at
+   whole is not refused when the range does not hold the walker's own cycle as the adapted
+   model reads it (:func:`walker_cycle`) whole, i.e. is shorter than that cycle plus the
+   ``MIN_OVERLAP_S`` a comparison a cycle later needs (stop 45; stop 44: shorter than the
+   cycle alone). The rhythm then compared periods the walker does not walk at: the sneaking
+   walks of CMU 120 stride every 2.05-2.53 s and the best period inside 1-1.67 s of them is
+   the cadence prior's shortest; 1 s of 139_32, a walker of a 0.97 s cycle, is compared a
+   cycle later at 0.8 s at most. Its first third travels at
    ``MIN_UNDER_WAY`` (a tenth) or more of its last third's speed (the kick 74_03's run-up from
    standing reads as a slow walker too: 0.016-0.038, the sneaks 0.24 and more) and its legs
    move at most ``MAX_LEG_HARMONICS`` (8) times as fast as that cycle (:func:`leg_frequency`:
    jitter that no step repeats reads as a slow walker too, about 20 times; the sneaks 2.4-3.3).
-   It is predicted with a warning that says the range is shorter than one of the walker's
-   step cycles and how long a range gives a surer prediction (check 9 still weighs its poses).
+   It is predicted with a warning that says the range is too short to see one of the
+   walker's step cycles repeat and how long a range gives a surer prediction (check 9 still
+   weighs its poses).
 6. **Arms by the body** (stop 42): the arms' pose by forward kinematics of the observed trunk,
    clavicle and arm angles on the CMU template skeleton, the root tilted as observed. An
    upper arm that goes above the horizontal (:func:`raised_arm`: :func:`arm_elevation` over
@@ -142,10 +146,11 @@ __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_LEG_P
            "MAX_MISFIT", "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
            "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG",
            "MIN_OVERLAP_S", "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "MIN_UNDER_WAY",
-           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
-           "backward_part", "body_part", "check_gait", "fit_score", "gait_channels", "kicking_leg",
-           "leg_frequency", "leg_posture", "legs_together", "pose_misfit", "raised_arm",
-           "regularity", "rhythm", "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
+           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
+           "arm_side_reach", "backward_part", "body_part", "check_gait", "fit_score",
+           "gait_channels", "kicking_leg", "leg_frequency", "leg_posture", "legs_together",
+           "overlap_frames", "pose_misfit", "raised_arm", "regularity", "rhythm",
+           "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -304,6 +309,13 @@ def fit_score(model, observations, result):
     return 1.0 - sse / sst if sst > 0 else float("-inf")
 
 
+def overlap_frames(fps):
+    """Frames of overlap a rhythm comparison needs at ``fps``: ``MIN_OVERLAP_S``, at least 4
+    (:func:`rhythm` compares a range with itself a cycle later wherever this much of it
+    remains)."""
+    return max(4, int(round(MIN_OVERLAP_S * fps)))
+
+
 def rhythm_inputs(model, observations, fps):
     """What :func:`rhythm` compares: the gait channels about their mean and the legs' pairs.
 
@@ -328,7 +340,7 @@ def rhythm_inputs(model, observations, fps):
     right = [position[b] for _, b in pairs]
     mirrored = x.copy()
     mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
-    overlap = max(4, int(round(MIN_OVERLAP_S * fps)))
+    overlap = overlap_frames(fps)
     periods = model.periods / model.fps * fps
     lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
     hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
@@ -811,10 +823,13 @@ def leg_frequency(model, observations, fps):
 
 
 def _within_its_cycle(obs, fps, cycle, first):
-    """Whether a range is shorter than the walker's cycle (``cycle``, seconds, or None when not
-    read) and has root travel to judge its start by (``first``: its first third's speed, m/s,
-    or None: :func:`_start_and_end_speeds`)."""
-    return cycle is not None and first is not None and len(obs) < cycle * fps
+    """Whether a range does not hold the walker's cycle (``cycle``, seconds, or None when not
+    read) whole, as :func:`rhythm` counts a whole cycle: fewer than :func:`overlap_frames` of
+    it would remain to compare a cycle later (``len(obs) − cycle·fps < overlap``; stop 44:
+    ``len(obs) < cycle·fps``), and has root travel to judge its start by (``first``: its first
+    third's speed, m/s, or None: :func:`_start_and_end_speeds`)."""
+    return (cycle is not None and first is not None
+            and len(obs) - cycle * fps < overlap_frames(fps))
 
 
 def _starts_from_standing(obs, fps, cycle, first, end):
@@ -826,14 +841,14 @@ def _starts_from_standing(obs, fps, cycle, first, end):
 
 def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
     """Check 5's exception (stop 44): a range whose rhythm is weak at a period whose whole
-    cycle it holds is not refused for it when it is shorter than the walker's own cycle
-    (``cycle``: :func:`walker_cycle`, seconds; the rhythm then compared periods the walker
-    does not walk at), it is under way from its start (its first third travels at
-    ``MIN_UNDER_WAY`` or more of its last third's speed, ``first`` and ``end`` in m/s: a run-up
-    from standing into a kick reads as a slow walker too) and its legs move no faster than
-    ``MAX_LEG_HARMONICS`` times that cycle (:func:`leg_frequency`: jittery motion that no step
-    repeats reads as a slow walker too). False without a cycle read or without root
-    travel."""
+    cycle it holds is not refused for it when it does not hold the walker's own cycle whole
+    (``cycle``: :func:`walker_cycle`, seconds; :func:`_within_its_cycle`; the rhythm then
+    compared periods the walker does not walk at), it is under way from its start (its first
+    third travels at ``MIN_UNDER_WAY`` or more of its last third's speed, ``first`` and
+    ``end`` in m/s: a run-up from standing into a kick reads as a slow walker too) and its
+    legs move no faster than ``MAX_LEG_HARMONICS`` times that cycle (:func:`leg_frequency`:
+    jittery motion that no step repeats reads as a slow walker too). False without a cycle
+    read or without root travel."""
     return (_within_its_cycle(obs, fps, cycle, first) and first >= MIN_UNDER_WAY * end
             and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
 
@@ -1025,13 +1040,14 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                         f"walk is under way predicts its pace")
     if strength is None:
         warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
-    elif cycle is not None:                   # whole, weak, shorter than the walker's cycle
+    elif cycle is not None:            # whole, weak, not holding the walker's cycle whole
+        longer = cycle + overlap_frames(fps) / fps
         warnings.append(f"in {what} the legs step in turn, but the range "
-                        f"({len(obs) / fps:.2f} s) is shorter than one of this walker's step "
-                        f"cycles (about {cycle:.1f} s, as the gait model reads its poses), so "
-                        f"its steps could not be seen to repeat (strength {strength:.2f}): the "
-                        f"prediction follows its poses alone; a range of {cycle:.1f} s or "
-                        f"more of the walk gives a surer one")
+                        f"({len(obs) / fps:.2f} s) is too short to see one of this walker's "
+                        f"step cycles (about {cycle:.1f} s, as the gait model reads its poses) "
+                        f"repeat (strength {strength:.2f}): the prediction follows its poses "
+                        f"alone; a range of {longer:.1f} s or more of the walk gives a surer "
+                        f"one")
     elif strength < MIN_STRENGTH:
         warnings.append(f"{what} is shorter than a step cycle and its steps repeat weakly "
                         f"(strength {strength:.2f}): check the result")
