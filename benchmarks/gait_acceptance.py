@@ -62,6 +62,14 @@ def steady_windows(values, names, window):
     return starts
 
 
+def window_starts(values, names, window, gait):
+    """Starts (frames) of a clip's windows of ``window`` seconds: a gait trial's steady ones
+    (:func:`steady_windows`), a non-gait clip's every ``STEP_S`` over the whole clip."""
+    n = int(round(window * FPS))
+    return steady_windows(values, names, window) if gait else \
+        list(range(0, len(values) - n + 1, int(round(STEP_S * FPS))))
+
+
 def accepts(model, obs):
     """Whether Predict Gait takes a window: its checks (the fit score after adapting only adds a
     warning, so the adaptation is left out here)."""
@@ -77,8 +85,7 @@ def clip_rows(model, path, gait):
     row = {}
     for window in WINDOWS:
         n = int(round(window * FPS))
-        starts = steady_windows(values, names, window) if gait else \
-            list(range(0, len(values) - n + 1, int(round(STEP_S * FPS))))
+        starts = window_starts(values, names, window, gait)
         if not starts:
             continue
         taken, reasons = 0, {}

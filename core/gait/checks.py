@@ -32,7 +32,15 @@ after adapting, on the model's fit (issue 21):
    dance 05_10, the kick 74_03) passed every other check. The forward share of every shipped
    gait's steady windows is 0.33 and more (a careful walk that curves, 139_31, at 0.5 s; 0.59
    and more from 0.75 s). Each velocity is measured in the heading of its own frame, so a
-   walk that curves stays forwards.
+   walk that curves stays forwards. *Part by part* (stop 45; :func:`backward_part`): no third
+   of the range (check 8's thirds: first, middle, last) may travel backwards (forward share
+   below ``MIN_FORWARD_SHARE``) at ``MIN_TRAVEL`` or more: the pitch 124_01 steps back
+   0.35 m/s (158° from the heading) and then forwards into the leg lift, forwards on average.
+   Every third of the shipped gaits' steady windows and of the leave-one-walker-out windows
+   that travels at ``MIN_TRAVEL`` or more goes forwards: its share 0.13 (82°) and more (the
+   first frames of 74_20; the careful walker 139_31 0.17, at 0.5 s). Checked last, after
+   check 9: a range it refuses is one every other check took (a non-gait window refused
+   anyway keeps the earlier check's words).
 5. **Rhythm over the whole range** (:func:`rhythm`): for every period the model's walkers walk
    at (their periods × 0.8 … 1.25, the cadence prior), the range is compared with itself one cycle
    later and, mirrored left for right, half a cycle later (the other leg's step), wherever the
@@ -125,10 +133,10 @@ __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_MISFI
            "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
            "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG",
            "MIN_OVERLAP_S", "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "MIN_UNDER_WAY",
-           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
-           "arm_side_reach", "body_part", "check_gait", "fit_score", "gait_channels",
-           "kicking_leg", "leg_frequency", "legs_together", "pose_misfit", "raised_arm",
-           "regularity", "rhythm", "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
+           "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side", "arm_side_reach",
+           "backward_part", "body_part", "check_gait", "fit_score", "gait_channels", "kicking_leg",
+           "leg_frequency", "legs_together", "pose_misfit", "raised_arm", "regularity", "rhythm",
+           "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -650,6 +658,44 @@ def _start_and_end_speeds(model, obs):
             float(np.linalg.norm(np.nanmean(speed[-k:], axis=0))))
 
 
+def backward_part(model, observations):
+    """The part of a range that travels backwards (check 4's *part by part*, stop 45): the
+    first of its thirds (the ``START_SHARE`` of check 8: first, middle, last) whose mean
+    horizontal velocity reaches ``MIN_TRAVEL`` and points backwards from where the hips face
+    (its forward share, the mean ``root.v_forward`` over the mean velocity's norm, below
+    ``MIN_FORWARD_SHARE``: more than 90° from the heading).
+
+    Parameters
+    ----------
+    model : GaitModel
+    observations : array_like, shape (N, D)
+        All model channels, physical units.
+
+    Returns
+    -------
+    tuple or None
+        ``(part, a, b, speed, angle)``: the third's name (``"first"``, ``"middle"``,
+        ``"last"``), its first and last row (0-based, inclusive), its mean horizontal speed
+        (m/s) and the angle of its mean velocity from the heading (degrees); None when no
+        third travels backwards, for a model without root travel or a range under 6 frames.
+    """
+    obs = np.asarray(observations, dtype=float)
+    if not model.root_travel or len(obs) < 6:
+        return None
+    velocity = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
+    k = max(2, int(round(START_SHARE * len(obs))))
+    for part, a, b in (("first", 0, k), ("middle", k, len(obs) - k),
+                       ("last", len(obs) - k, len(obs))):
+        if b <= a:
+            continue
+        mean = np.nanmean(velocity[a:b], axis=0)       # (forward, left), m/s
+        speed = float(np.linalg.norm(mean))
+        if speed >= MIN_TRAVEL and mean[0] / speed < MIN_FORWARD_SHARE:
+            angle = float(np.degrees(np.arccos(np.clip(mean[0] / speed, -1.0, 1.0))))
+            return part, a, b - 1, speed, angle
+    return None
+
+
 def _walks_at_end(model, obs, fps):
     """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 and 10 take it;
     not check 9, which would adapt the model to it: a hint and a warning depend on it)."""
@@ -764,8 +810,8 @@ def _rhythm_words(strength):
 
 def check_gait(model, observations, fps, result=None, what="the observed frames",
                first_frame=None, poses=True):
-    """Checks 1-6, 10 and 9 of the module docstring, and the fit score when ``result`` is
-    given (check 9 adapts the model to the range itself).
+    """Checks 1-6, 10, 9 and check 4's part by part of the module docstring, and the fit
+    score when ``result`` is given (check 9 adapts the model to the range itself).
 
     Parameters
     ----------
@@ -913,6 +959,18 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                      f"not learn from)" + _rhythm_words(strength) + ": a "
                                      f"kick, a throw or a dance step is not a walk or run the "
                                      f"gait model can continue")
+    back = backward_part(model, obs)
+    if back is not None:
+        part, a, b, speed, angle = back
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward, arm_deg=arm_deg, misfit=misfit,
+                         refusal=f"The walker steps backwards in {what} (its {part} third, "
+                                 f"{frames(a, b)}, travels {speed:.2f} m/s "
+                                 f"at {angle:.0f}° from where its hips face): a step back, "
+                                 f"as a pitcher's wind-up or a dancer's step, is not part of "
+                                 f"a walk or run the gait model can continue (it continues "
+                                 f"walks and runs that go forwards); start the range after "
+                                 f"the step back")
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "

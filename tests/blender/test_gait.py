@@ -1125,6 +1125,21 @@ def _import_not_gait(tmp_path, subject, trial, frames=200):
     return obj, values, model, cols, counts, keys
 
 
+def _refused_in_scene(obj, counts, keys, frame_start, frame_end, pattern):
+    """Predict Gait over the scene's frames ``frame_start``-``frame_end`` of ``obj`` refuses
+    with a message that matches ``pattern`` (a regex whose first group is the object's name)
+    and changes nothing (``counts``, ``keys``: before it ran): the match."""
+    with pytest.raises(RuntimeError) as refusal:
+        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=frame_start,
+                                              frame_end=frame_end, horizon=1.0)
+    found = re.search(pattern, str(refusal.value))
+    assert found, str(refusal.value)
+    assert found.group(1) == obj.name
+    assert datablock_counts() == counts
+    assert_keys_unchanged(obj, keys)
+    return found
+
+
 def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene, tmp_path):
     """Stop 42: frames 106-165 (1.75-2.75 s) of the golf set-up and swing CMU 64_06 pass every
     check of the legs and the root; Predict Gait refuses them for the arm swung above the
@@ -1135,17 +1150,13 @@ def test_an_arm_raised_above_the_shoulder_is_refused_in_the_scene_s_frames(scene
     obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "64", "06")
     side, a, b, _ = raised_arm(model, observations_from_dofs(model, values[105:165, cols],
                                                              model.dof_names, FPS))
-    with pytest.raises(RuntimeError) as refusal:
-        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=106,
-                                              frame_end=165, horizon=1.0)
-    found = re.search(r"An arm is raised above the shoulder in frames 106–165 of (\S+) \(the "
-                      r"(left|right) arm in frames (\d+)–(\d+), up to \d+° from hanging\): a "
-                      r"throw, a swing or a dance move", str(refusal.value))
-    assert found, str(refusal.value)
-    assert found.group(1) == obj.name and found.group(2) == side
+    found = _refused_in_scene(
+        obj, counts, keys, 106, 165,
+        r"An arm is raised above the shoulder in frames 106–165 of (\S+) \(the (left|right) "
+        r"arm in frames (\d+)–(\d+), up to \d+° from hanging\): a throw, a swing or a "
+        r"dance move")
+    assert found.group(2) == side
     assert abs(int(found.group(3)) - (106 + a)) <= 1 and abs(int(found.group(4)) - (106 + b)) <= 1
-    assert datablock_counts() == counts
-    assert_keys_unchanged(obj, keys)
 
 
 def test_a_kick_is_refused_in_the_scene_s_frames(scene, tmp_path):
@@ -1159,17 +1170,30 @@ def test_a_kick_is_refused_in_the_scene_s_frames(scene, tmp_path):
     obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "74", "03")
     side, a, b, _ = kicking_leg(model, observations_from_dofs(model, values[90:135, cols],
                                                               model.dof_names, FPS))
-    with pytest.raises(RuntimeError) as refusal:
-        bpy.ops.track_and_stride.predict_gait(range_mode="CUSTOM", frame_start=91,
-                                              frame_end=135, horizon=1.0)
-    found = re.search(r"A leg is swung up in front in frames 91–135 of (\S+) \(the "
-                      r"(left|right) leg in frames (\d+)–(\d+), its shin up to \d+° forward "
-                      r"of hanging\): a kick", str(refusal.value))
-    assert found, str(refusal.value)
-    assert found.group(1) == obj.name and found.group(2) == side
+    found = _refused_in_scene(
+        obj, counts, keys, 91, 135,
+        r"A leg is swung up in front in frames 91–135 of (\S+) \(the (left|right) leg in "
+        r"frames (\d+)–(\d+), its shin up to \d+° forward of hanging\): a kick")
+    assert found.group(2) == side
     assert abs(int(found.group(3)) - (91 + a)) <= 1 and abs(int(found.group(4)) - (91 + b)) <= 1
-    assert datablock_counts() == counts
-    assert_keys_unchanged(obj, keys)
+
+
+def test_a_step_back_is_refused_in_the_scene_s_frames(scene, tmp_path):
+    """Stop 45: frames 106-165 (1.75-2.75 s) of the baseball pitch CMU 124_01 step back, stop
+    and step forwards into the leg lift: forwards on average, they pass every other check;
+    Predict Gait refuses them for the step back in their first third, naming its frames in
+    the scene's numbering as the core's check of the same rows does, and changes nothing."""
+    from core.gait.checks import backward_part
+
+    obj, values, model, cols, counts, keys = _import_not_gait(tmp_path, "124", "01")
+    part, a, b, _, _ = backward_part(model, observations_from_dofs(
+        model, values[105:165, cols], model.dof_names, FPS))
+    assert part == "first"
+    found = _refused_in_scene(
+        obj, counts, keys, 106, 165,
+        r"The walker steps backwards in frames 106–165 of (\S+) \(its first third, frames "
+        r"(\d+)–(\d+), travels [0-9.]+ m/s at \d+° from where its hips face\): a step back")
+    assert abs(int(found.group(2)) - (106 + a)) <= 1 and abs(int(found.group(3)) - (106 + b)) <= 1
 
 
 def test_a_dance_no_walk_fits_is_refused_in_the_scene_s_frames(scene, tmp_path):

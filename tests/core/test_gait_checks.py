@@ -428,6 +428,8 @@ def test_a_measurement_equal_to_a_threshold_passes_it(monkeypatch):
     for name, value, beyond, refusal in cases:
         if name == "MIN_ALTERNATION_DEG":                # the walk travels level: no exception
             monkeypatch.setattr(checks, "MAX_LEVEL_RANGE", -1.0)
+        if name == "MIN_FORWARD_SHARE":     # its thirds' shares (stop 45): their own test
+            monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
         monkeypatch.setattr(checks, name, value)
         at = check_gait(model, obs, 60.0, res)
         assert at.refusal is None and at.warning is None, name
@@ -753,6 +755,8 @@ def test_non_gaits_that_raise_an_arm_above_the_shoulder_are_refused(clip, kind, 
     monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)   # the pitch's leg (stop 44) too
+    # The golf set-up's step (stop 45) too:
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     assert check_gait(model, obs, 60.0).refusal is None, kind
 
 
@@ -834,6 +838,7 @@ def test_the_arm_thresholds_are_met_at_their_value(monkeypatch):
     top = float(elevation.max())
     shipped = checks.MAX_ARM_ELEVATION_DEG
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)   # and stop 45's
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", top)
     assert check_gait(model, obs, 60.0).refusal is None
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.nextafter(top, -np.inf))
@@ -976,6 +981,8 @@ def test_non_gaits_whose_poses_no_walk_fits_are_refused(clip, kind, window, star
     obs = observe(model, values, names)[a:b]
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)                   # check 9 off
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check (stop 44) too
+    # The pitch's step back (stop 45) too:
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     other = check_gait(model, obs, 60.0)
     assert other.refusal is None and (other.strength is None or other.strength < 0.3), kind
     monkeypatch.undo()
@@ -1223,6 +1230,8 @@ def test_a_kick_that_swings_a_shin_up_in_front_is_refused(clip, window, start, m
         f"forward of hanging): a kick or a leg thrown out in front, not a walk or run")
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)           # the kick check off
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)                   # check 9 too
+    # And the step back after it (stop 45):
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     assert check_gait(model, obs, 60.0).refusal is None
 
 
@@ -1333,6 +1342,8 @@ def test_non_gaits_with_a_strong_rhythm_whose_poses_no_walk_fits_are_refused(
     obs = observe(model, values, names)[a:b]
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check refuses 74_03
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
+    # The kick's step back (stop 45) too:
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     other = check_gait(model, obs, 60.0)
     assert other.refusal is None and other.strength >= checks.MIN_STRENGTH, kind
     monkeypatch.setattr(checks, "MAX_MISFIT", MAX_MISFIT)
@@ -1346,3 +1357,92 @@ def test_non_gaits_with_a_strong_rhythm_whose_poses_no_walk_fits_are_refused(
         f"({MAX_MISFIT:g} at most for a walker it did not learn from), though its movement "
         f"repeats (strength {other.strength:.2f}): a kick, a throw or a dance step is not a "
         f"walk or run the gait model can continue"), kind
+
+
+# Stop 45: a part of the range that steps backwards (check 4, part by part). The pitch 124_01
+# steps back (1.2-1.9 s), stops and steps forwards into the leg lift: its window 1.75-2.75 s
+# travels forwards on average and passed every check on main 93ff328.
+STEP_BACK = [("124_01", "pitch", 1.0, 1.75)]
+
+
+@pytest.mark.parametrize("clip, kind, window, start", STEP_BACK)
+def test_a_step_back_inside_a_range_that_goes_forwards_is_refused(clip, kind, window, start,
+                                                                   monkeypatch):
+    """The root's world displacement, from the captured root positions and the pelvis'
+    facing (``walk_figures.foot_tracks``, not the observation channels), points backwards
+    over the window's first third and forwards over the whole window: check 4 alone takes
+    it, the part-by-part check refuses it naming the third and its frames; without that
+    check every other check takes it."""
+    from core.gait.walk_figures import _forward, foot_tracks
+    from core.mocap import asf_to_skeleton, read_asf
+
+    path = CMU / "not_gaits" / f"{clip}.amc"
+    values, names = load_clip(path)
+    skeleton = asf_to_skeleton(read_asf(path.parent / f"{clip.split('_')[0]}.asf"))
+    a, n = int(round(start * 60)), int(round(window * 60))
+    k = int(round(n / 3))
+    tracks = foot_tracks(skeleton, values[a:a + n], 60.0)
+    facing = _forward(tracks, tracks.heading)
+    assert np.dot(tracks.root[k - 1, :2] - tracks.root[0, :2], facing[:k].mean(axis=0)) < 0.0
+    assert np.dot(tracks.root[-1, :2] - tracks.root[0, :2], facing.mean(axis=0)) > 0.0
+    model = load_stock_library()
+    w = observe(model, values, names)[a:a + n]
+    check = check_gait(model, w, 60.0, what="the range", first_frame=a + 1)
+    assert check.refusal.startswith(f"The walker steps backwards in the range (its first "
+                                    f"third, frames {a + 1}–{a + k}, travels "), check.refusal
+    assert check.refusal.endswith("start the range after the step back")
+    assert check.forward > 0.0 and check.travel >= checks.MIN_TRAVEL     # check 4 takes it
+    part, first, last, speed, angle = checks.backward_part(model, w)
+    assert (part, first, last) == ("first", 0, k - 1) and speed >= checks.MIN_TRAVEL
+    assert angle > 90.0
+    monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
+    assert check_gait(model, w, 60.0).refusal is None, kind
+
+
+# The gait windows whose thirds come nearest to stepping backwards at walking pace (stop 45:
+# every third of the steady windows and the leave-one-walker-out windows that travels at
+# MIN_TRAVEL or more): the first frames of 74_20 (forward share 0.13) and the careful walker
+# 139_31 (0.17), both at 0.5 s (the leave-one-walker-out window nearest, 139_32's 0.14, is
+# refused by the legs check under the stock library).
+NEAR_BACKWARDS = [("74_20", "style walk", 0.5, 3), ("139_31", "careful walk", 0.5, 411)]
+
+
+@pytest.mark.parametrize("clip, kind, window, a", NEAR_BACKWARDS)
+def test_walks_whose_thirds_come_nearest_to_stepping_back_are_taken(clip, kind, window, a):
+    model = load_stock_library()
+    values, names = load_clip(CMU / f"{clip}.amc")
+    n = int(round(window * 60))
+    w = observe(model, values, names)[a:a + n]
+    velocity = w[:, model.channel_index(["root.v_forward", "root.v_left"])]
+    k = int(round(n / 3))
+    shares = []
+    for part in (velocity[:k], velocity[k:n - k], velocity[n - k:]):
+        mean = np.nanmean(part, axis=0)
+        if np.linalg.norm(mean) >= checks.MIN_TRAVEL:
+            shares.append(mean[0] / np.linalg.norm(mean))
+    assert 0.0 < min(shares) < 0.2, kind                 # within 80-90° of the heading
+    assert checks.backward_part(model, w) is None
+    assert check_gait(model, w, 60.0).refusal is None, kind
+
+
+def test_the_part_by_part_thresholds_are_met_at_their_value(monkeypatch):
+    """A third moving sideways (forward share exactly 0) is not backwards; one float step
+    behind is, in whichever third it lies; its speed must reach ``MIN_TRAVEL`` (set to the
+    very value measured: the same code on the same numbers, so exact)."""
+    model, obs = walk_range()                                       # 100 frames: thirds of 33
+    cols = model.channel_index(["root.v_forward", "root.v_left"])
+    for part, a, b in (("first", 0, 33), ("middle", 33, 67), ("last", 67, 100)):
+        w = obs.copy()
+        w[a:b, cols] = (0.0, 0.5)                                   # sideways, 0.5 m/s
+        assert checks.backward_part(model, w) is None, part
+        w[a:b, cols[0]] = -1e-9
+        found = checks.backward_part(model, w)
+        assert found[:3] == (part, a, b - 1) and found[4] > 90.0, part
+        monkeypatch.setattr(checks, "MIN_TRAVEL", found[3])
+        assert checks.backward_part(model, w)[:3] == (part, a, b - 1)
+        monkeypatch.setattr(checks, "MIN_TRAVEL", np.nextafter(found[3], np.inf))
+        assert checks.backward_part(model, w) is None, part
+        monkeypatch.undo()
+    assert checks.backward_part(model, obs[:5]) is None                   # under 6 frames
+    no_root = SimpleNamespace(root_travel=False)
+    assert checks.backward_part(no_root, obs) is None
