@@ -840,6 +840,7 @@ def test_the_arm_thresholds_are_met_at_their_value(monkeypatch):
     shipped = checks.MAX_ARM_ELEVATION_DEG
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)   # and stop 45's
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", np.inf)     # and check 11 (the knee)
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", top)
     assert check_gait(model, obs, 60.0).refusal is None
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.nextafter(top, -np.inf))
