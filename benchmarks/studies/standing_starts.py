@@ -1,6 +1,7 @@
 """Stop 45 (issue 21): the last non-gait windows Predict Gait takes — a start from standing
-whatever the rhythm, and what the others are (``docs/gait.md``, *Stop 45, a start from
-standing*).
+whatever the rhythm, and what the others are (``docs/gait.md``, *Stop 45, the last non-gait
+windows*; rule A on the bench's corrected window set, ``--rule-a``: *Stop 45, a range that
+starts from standing*).
 
 Every window of ``benchmarks/gait_acceptance.py`` (gaits from steady starts, the non-gait clips
 everywhere) is checked once with the checks of the code it runs on (``core.gait.checks``,
@@ -16,6 +17,7 @@ The rows are saved (``--out``) so that a rule is rescored in seconds (``--analys
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python benchmarks/studies/standing_starts.py \
         --scope build/standing.pkl                          # ~2 min: the standing-start rules
     .venv/bin/python benchmarks/studies/standing_starts.py --parts build/standing.pkl  # ~1 min
+    .venv/bin/python benchmarks/studies/standing_starts.py --rule-a build/standing.pkl  # 1 s
 
 The analysis prints, per cue, the gait windows' extreme (every subject, and leave one subject
 out: the other subjects' extreme as the threshold for the held-out one) and which non-gait

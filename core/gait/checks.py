@@ -969,6 +969,10 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"walk or run the gait model can continue (no walker it "
                                  f"learned from swings a shin more than about 30° forward)")
     misfit = None
+
+    def refuse(refusal):                # a refusal from check 9 on: every figure measured
+        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
+                         forward=forward, arm_deg=arm_deg, misfit=misfit, refusal=refusal)
     if poses:
         if adapted is None:                    # check 5 adapted a short range already
             adapted = adapt(model, obs, fps=fps)
@@ -980,37 +984,27 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
             worst = [body_part(model.channel_names[i])
                      for i in np.argsort(-np.nan_to_num(per_channel, nan=-1.0))]
             parts = list(dict.fromkeys(worst))[:2]
-            return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
-                             forward=forward, arm_deg=arm_deg, misfit=misfit,
-                             refusal=f"No walk or run moves like this in {what} (most "
-                                     f"in {frames(int(off[0]), int(off[-1]))}, at the "
-                                     f"{' and the '.join(parts)}): the gait model's closest "
-                                     f"walk misses its poses by {misfit:.1f} times the error "
-                                     f"it allows ({MAX_MISFIT:g} at most for a walker it did "
-                                     f"not learn from)" + _rhythm_words(strength) + ": a "
-                                     f"kick, a throw or a dance step is not a walk or run the "
-                                     f"gait model can continue")
+            return refuse(f"No walk or run moves like this in {what} (most in "
+                          f"{frames(int(off[0]), int(off[-1]))}, at the "
+                          f"{' and the '.join(parts)}): the gait model's closest walk misses "
+                          f"its poses by {misfit:.1f} times the error it allows "
+                          f"({MAX_MISFIT:g} at most for a walker it did not learn from)"
+                          + _rhythm_words(strength) + ": a kick, a throw or a dance step is "
+                          "not a walk or run the gait model can continue")
     back = backward_part(model, obs)
     if back is not None:
         part, a, b, speed, angle = back
-        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
-                         forward=forward, arm_deg=arm_deg, misfit=misfit,
-                         refusal=f"The walker steps backwards in {what} (its {part} third, "
-                                 f"{frames(a, b)}, travels {speed:.2f} m/s "
-                                 f"at {angle:.0f}° from where its hips face): a step back, "
-                                 f"as a pitcher's wind-up or a dancer's step, is not part of "
-                                 f"a walk or run the gait model can continue (it continues "
-                                 f"walks and runs that go forwards); start the range after "
-                                 f"the step back")
+        return refuse(f"The walker steps backwards in {what} (its {part} third, "
+                      f"{frames(a, b)}, travels {speed:.2f} m/s at {angle:.0f}° from where its "
+                      f"hips face): a step back, as a pitcher's wind-up or a dancer's step, is "
+                      f"not part of a walk or run the gait model can continue (it continues "
+                      f"walks and runs that go forwards); start the range after the step back")
     if _starts_from_standing(first, end):
         k = max(2, int(round(START_SHARE * len(obs))))
-        return GaitCheck(motion, period, strength, together, tilt_deg=tilt, travel=travel,
-                         forward=forward, arm_deg=arm_deg, misfit=misfit,
-                         refusal=f"The walker stands at the start of {what} (its first "
-                                 f"third, {frames(0, k - 1)}): the gait model continues a "
-                                 f"walk or run under way, and a range that starts from "
-                                 f"standing cannot tell a walk's first steps from a kick's "
-                                 f"run-up. " + _standing_words(first, end))
+        return refuse(f"The walker stands still at first in {what} (its first third, "
+                      f"{frames(0, k - 1)}): the gait model continues a walk or run under way, "
+                      f"and a range that starts from standing cannot tell a walk's first steps "
+                      f"from a kick's run-up. " + _standing_words(first, end))
     warnings = []
     if first is not None and first < MAX_START_RATIO * end and under_way():
         warnings.append(f"the walker speeds up in {what} ({first:.2f} m/s in its first "

@@ -1547,10 +1547,10 @@ def test_a_range_that_starts_from_standing_is_refused_whatever_its_rhythm(window
     k = int(round(n / 3))
     check = check_gait(model, w, 60.0, what=f"frames {a + 1}–{a + n} of Kicker",
                        first_frame=a + 1)
-    assert check.refusal.startswith(f"The walker stands at the start of frames {a + 1}–{a + n} "
-                                    f"of Kicker (its first third, frames {a + 1}–{a + k}): "
-                                    f"the gait model continues a walk or run under way"), \
-        check.refusal
+    assert check.refusal.startswith(f"The walker stands still at first in frames "
+                                    f"{a + 1}–{a + n} of Kicker (its first third, frames "
+                                    f"{a + 1}–{a + k}): the gait model continues a walk or "
+                                    f"run under way"), check.refusal
     first, end = (float(x) for x in STANDING.search(check.refusal).groups())
     assert first < checks.MIN_UNDER_WAY * end
     monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)                   # the check off
@@ -1572,7 +1572,7 @@ def test_a_walk_from_standing_is_taken_once_the_range_starts_where_the_walk_has_
     n = 180
     assert stands_first(values, 0, n) and not stands_first(values, begun, n)
     refusal = check_gait(model, obs[:n], 60.0, what="the range").refusal
-    assert refusal.startswith("The walker stands at the start of the range (its first third, "
-                              "frames 1–60 of the range)"), refusal
+    assert refusal.startswith("The walker stands still at first in the range (its first "
+                              "third, frames 1–60 of the range)"), refusal
     assert STANDING.search(refusal)
     assert check_gait(model, obs[begun:begun + n], 60.0).refusal is None
