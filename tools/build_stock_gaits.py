@@ -53,8 +53,10 @@ def load_trial(name, folder=CMU):
     return values, tuple(asf_to_skeleton(asf).dof_names())
 
 
-def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=()):
-    """(sequences, DOF names, style names, walker names) of the recipe's steady pieces."""
+def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=(),
+                    lag_range=STOCK_LAG_RANGE):
+    """(sequences, DOF names, style names, walker names) of the recipe's steady pieces
+    (``lag_range``: the segmentation's period search, seconds)."""
     seqs, styles, walkers = [], [], []
     names = None
     for style, trials in recipe.items():
@@ -63,7 +65,7 @@ def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=()):
             if subject in exclude_subjects or trial in exclude_trials:
                 continue
             values, names = load_trial(trial, folder)
-            for start, stop in steady_segments(values, names, FPS, lag_range=STOCK_LAG_RANGE):
+            for start, stop in steady_segments(values, names, FPS, lag_range=lag_range):
                 seqs.append(values[start:stop])
                 styles.append(style)
                 walkers.append(subject)
@@ -73,10 +75,11 @@ def training_pieces(recipe, folder=CMU, exclude_subjects=(), exclude_trials=()):
 def build_stock(recipe=STOCK_RECIPE, folder=CMU, exclude_subjects=(), exclude_trials=(),
                 **learn_kw):
     """The stock model of ``recipe`` (optionally without some subjects or trials: the
-    benchmark's folds); ``learn_kw`` go to ``learn_model``."""
-    seqs, names, styles, walkers = training_pieces(recipe, folder, exclude_subjects,
-                                                   exclude_trials)
+    benchmark's folds); ``learn_kw`` go to ``learn_model`` (its ``lag_range``, default
+    ``STOCK_LAG_RANGE``, also bounds the segmentation's period search)."""
     learn_kw.setdefault("lag_range", STOCK_LAG_RANGE)
+    seqs, names, styles, walkers = training_pieces(recipe, folder, exclude_subjects,
+                                                   exclude_trials, learn_kw["lag_range"])
     return learn_model(seqs, names, FPS, styles, walkers=walkers, notes=NOTES, **learn_kw)
 
 

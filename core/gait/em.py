@@ -57,6 +57,14 @@ RESIDUAL_REFINE = 2
 # the cells costs 13 ms less per Predict Gait; validated on LOWO, acceptance and restyle
 # (docs/gait.md, *Stop 41*).
 BATCH_GRID = (12, 18)
+# On a window shorter than this many of the model's typical cycles (the median training period)
+# the start grid scores every cell with the walker's posture offset, as its refinement scores
+# its points (initial_phase, *The offset in the grid*): without it a half-second window of a
+# 1.1 s walker started at 1.6-3 s strides with the v2 stock library. Chosen on nested
+# leave-one-walker-out folds (docs/gait.md, *Stop 45*): the inner folds took the offset at 0.5 s
+# (6 of 6 outer folds) and 1.0 s (5 of 6) and the plain grid at 1.67 s (5 of 6); the folds'
+# typical cycles are 1.19-1.41 s. 0: the plain grid always (main 93ff328).
+GRID_OFFSET_CYCLES = 1.0
 
 
 @dataclass(frozen=True)
@@ -250,7 +258,9 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
         likelihood is kept (1: the grid's best only).
     refine_start : bool
         Move the grid's best start down the continuous cost with the posture offset
-        (:func:`.grid_search`'s ``refine``; False: the grid cell itself, as before issue 21).
+        (:func:`.grid_search`'s ``refine``), on a window shorter than ``GRID_OFFSET_CYCLES``
+        typical cycles scoring the grid with the offset too (its ``offset``); False: the plain
+        grid cell itself, as before issue 21.
 
     Returns
     -------
@@ -259,8 +269,9 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio, offset)
     ys = scaled_observations(ctx, observations)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
+    short = k / ctx.fps < GRID_OFFSET_CYCLES * typical_period_s(model)
     grid = grid_search(ctx, ys[:k], n_phi=BATCH_GRID[1], n_omega=BATCH_GRID[0],
-                       refine=refine_start)
+                       refine=refine_start, offset=refine_start and short)
     fixed = style is not None
     if fixed:
         w = np.asarray(style, dtype=float)
@@ -291,6 +302,11 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
                        loglik_history=np.array(history), n_iter=n_iter, converged=converged,
                        fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels),
                        residual=table, offset=full_offset, last_observation=last)
+
+
+def typical_period_s(model):
+    """The model's typical cycle, seconds: the median of its training periods."""
+    return float(np.median(model.periods)) / model.fps
 
 
 def _em(ctx, ys, w, x0, p0, fixed, max_iter, tol):

@@ -31,6 +31,18 @@ degrees (a 0.003 rad offset in one channel moved the phase by 0.06 rad with the 
 library, whose wider period range makes the ω cells 8 % apart). The refined start moves
 continuously with the data while the best cell stays in the same valley of the cost, and an
 offset the prior allows hardly moves it (``tests/core/test_gait_em.py``).
+
+*The offset in the grid* (``offset=True``, what batch adaptation uses since stop 45): every cell
+is scored with the posture offset estimated too, the cost the refinement descends
+(:func:`_score_one`), so the refinement starts in the valley of its own cost. The plain grid
+must explain a walker's mean pose with the style alone; on a window shorter than a cycle the
+cheapest way is often a slow cadence whose phase hardly moves (a 1.1 s walker's 0.5 s window
+started at 1.6-3 s strides with the v2 stock library, whose periods reach 3 s; the refinement
+moves at most a cell or two). Per cell, with ``M = Σ_t μ(φ_t)`` (J, Dc), ``s = Σ_t y_t`` and
+``D = n/r + λ_b``: ``(A/r + Λ - M D⁻¹ Mᵀ/r²) w = B/r + Λw̄ - M D⁻¹ s/r²`` and the cost
+``||y - μw||²/r + (w - w̄)ᵀΛ(w - w̄) - ||(s - Mᵀw)/r||²_{D⁻¹}`` + the cadence term (the
+M-step's Schur complement, :mod:`.em`). ``M`` is summed as the other tables, through the GP's
+kernel rows (``μ = k α``). The online start keeps the plain cost.
 """
 
 from dataclasses import dataclass
@@ -153,6 +165,19 @@ def _upper_table(ctx, mtm, ok):
     return cached
 
 
+def _kernel_table(ctx):
+    """The GP kernel rows ``k`` on the table's phases, (N_TABLE, P), cached on the model: the
+    table ``μ = k α`` (``FilterContext.means``), so a sum of table rows is a sum of kernel rows
+    times ``α``."""
+    store = _model_tables(ctx)
+    cached = store.get("kernel")
+    if cached is None:
+        cached = ctx.kernel_rows(2.0 * np.pi * np.arange(N_TABLE) / N_TABLE)
+        cached.setflags(write=False)
+        store["kernel"] = cached
+    return cached
+
+
 def _parabola_vertex(before, centre, after):
     """Offset (in steps, within ±½) of the vertex of the parabola through three costs
     at -1, 0, +1 whose middle one is the smallest."""
@@ -172,7 +197,8 @@ def _cadence_prior(ctx, omegas):
     return zmin - 2.0 * np.log(np.mean(np.exp(-0.5 * (z**2 - zmin[:, None])), axis=1))
 
 
-def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=False):
+def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=False,
+                offset=False):
     """Score the (ω, φ₀) grid on a window and return the best candidate.
 
     Parameters
@@ -186,6 +212,10 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
     refine : bool
         Move the best candidate down the continuous cost (module docstring); ``costs`` stay
         the grid's.
+    offset : bool
+        Score every cell with the walker's posture offset estimated too (when ``ctx`` has an
+        offset prior), as the refinement scores its points (module docstring, *The offset in
+        the grid*); False: the plain cost (the online start).
 
     Returns
     -------
@@ -223,17 +253,27 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
     # gather the rows. More: a candidate visits each table phase some number of times, so the
     # sum is (visits per table phase) @ table, one matrix product for the whole grid, whatever
     # the window's length (gathering a 100-frame window's rows cost 20-40 ms of Predict Gait).
+    with_offset = offset and ctx.offset_prec is not None
     if k_frames < _GATHER_MAX_FRAMES:
         a_sum = mtm[idx].sum(axis=2)
+        if with_offset:
+            m_sum = mu[idx].sum(axis=2)                                    # (nω, nφ, J, Dc)
     else:
         cells = np.arange(n_omega * n_phi)[:, None] * N_TABLE
         visits = np.bincount((cells + idx.reshape(n_omega * n_phi, k_frames)).ravel(),
                              minlength=n_omega * n_phi * N_TABLE)
+        visits = visits.reshape(n_omega * n_phi, N_TABLE).astype(float)
+        if with_offset:
+            # Σ over frames of μ, (nω, nφ, J, Dc), the same way but through the kernel rows
+            # (μ = k α: (visits @ k) @ α costs a tenth of visits @ μ with P = 33 GP phases).
+            alpha = ctx.alpha_flat.reshape(-1, n_bases, ctx.n_channels)[:, :, ok]
+            m_sum = ((visits @ _kernel_table(ctx)) @ alpha.reshape(len(alpha), -1)) \
+                .reshape(n_omega, n_phi, n_bases, -1)
         # μμᵀ is symmetric (the same products summed in the same order for (j, k) and
         # (k, j)): the product is taken for the upper triangle's columns only and mirrored,
         # each column the product of the same two vectors as in the full product.
         upper, triangle = _upper_table(ctx, mtm, ok)
-        half = visits.reshape(n_omega * n_phi, N_TABLE).astype(float) @ upper
+        half = visits @ upper
         a_sum = np.empty((n_omega, n_phi, n_bases, n_bases))
         a_sum[:, :, triangle[0], triangle[1]] = half.reshape(n_omega, n_phi, -1)
         a_sum[:, :, triangle[1], triangle[0]] = half.reshape(n_omega, n_phi, -1)
@@ -250,12 +290,23 @@ def grid_search(ctx, ys, n_phi=DEFAULT_N_PHI, n_omega=DEFAULT_N_OMEGA, refine=Fa
     prec = ctx.w_prec
     lhs = a_sum / r + prec
     rhs = b_sum / r + prec @ ctx.w_mean
+    if with_offset:
+        # The posture offset b eliminated per cell as in _score_one (the M-step's Schur
+        # complement, core.gait.em): D = n/r + λ_b, lhs -= M D⁻¹ Mᵀ / r², rhs -= M D⁻¹ s / r².
+        y_sum = ys.sum(axis=0)
+        diag = k_frames / r + ctx.offset_prec[ok]
+        scaled = m_sum * (1.0 / (r * r * diag))                          # M D⁻¹ / r²
+        lhs = lhs - scaled @ np.swapaxes(m_sum, -1, -2)
+        rhs = rhs - scaled @ y_sum
     w = np.linalg.solve(lhs, rhs[..., None])[..., 0]
     resid = yy - 2.0 * np.einsum("...j,...j->...", w, b_sum) \
         + np.einsum("...j,...jk,...k->...", w, a_sum, w)
     dw = w - ctx.w_mean
     cost = np.maximum(resid, 0.0) / r + np.einsum("...j,jk,...k->...", dw, prec, dw) \
         + _cadence_prior(ctx, omegas)[:, None]
+    if with_offset:                                       # b = s / D, its cost -Σ s² / D
+        s = (y_sum - (w[..., None, :] @ m_sum)[..., 0, :]) / r
+        cost = cost - np.sum(s * s / diag, axis=-1)
     i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
     omega, phi0 = float(omegas[i]), float(phis[j])
     best = (w[i, j].copy(), float(cost[i, j]), float(max(resid[i, j], 0.0)),

@@ -90,6 +90,28 @@ def test_every_grid_cell_scores_as_the_single_candidate_does():
                 np.testing.assert_allclose(w, grid.styles[i, j], rtol=1e-8, atol=1e-10)
 
 
+@pytest.mark.parametrize("n", [12, 30, 100])
+def test_with_the_offset_every_grid_cell_scores_as_the_refinement_does(n):
+    """Batch adaptation's grid estimates the walker's posture offset in every cell (stop 45):
+    each cell's cost and style equal the single-candidate scoring with the offset prior, which
+    the refinement descends, and differ from the plain grid's (a 12-frame window summed from the
+    gathered rows, 30 and 100 frames from the visits; 30 frames: Predict Gait's 0.5 s)."""
+    model = small_model()
+    ctx = make_context(model)
+    assert ctx.offset_prec is not None
+    mu, mtm = phase_tables(ctx)
+    ys = observations("35_03")[:n] / ctx.scale
+    grid = grid_search(ctx, ys, n_omega=8, n_phi=12, offset=True)
+    plain = grid_search(ctx, ys, n_omega=8, n_phi=12)
+    yy = float(np.sum(ys * ys))
+    for i, omega in enumerate(grid.omegas):
+        for j, phi0 in enumerate(grid.phis):
+            w, cost, _, _, _ = _score_one(ctx, ys, mu, mtm, omega, phi0, yy, ctx.offset_prec)
+            np.testing.assert_allclose(cost, grid.costs[i, j], rtol=1e-9, atol=1e-9 * yy)
+            np.testing.assert_allclose(w, grid.styles[i, j], rtol=1e-8, atol=1e-10)
+    assert np.all(grid.costs < plain.costs)     # the offset can only lower each cell's cost
+
+
 def test_the_tables_are_shared_by_the_model_s_contexts_and_a_missing_channel_is_left_out():
     """The phase tables (and the grid's upper triangle of μμᵀ) are computed once per model
     and channel set and shared, read-only, by every context of it (stop 39: Predict Gait
@@ -337,3 +359,53 @@ def test_an_observation_frame_rate_outside_the_model_bounds_is_refused(fps):
     # The bounds themselves are accepted and give finite estimates.
     for edge in FPS_RANGE:
         assert np.all(np.isfinite(make_context(model, fps=edge).Q))
+
+
+def test_a_half_second_window_with_a_posture_offset_starts_at_the_walker_s_cadence():
+    """Stop 45: on a window shorter than a cycle batch adaptation's start grid scores the
+    posture offset too. A walker whose mean pose is off by one prior standard deviation per
+    channel (random signs) must start at the cadence of the same window without the offset;
+    the plain grid explained the offset with a slower cadence (35_07 at 0.5 s with the stock
+    library: a start at twice the walker's stride, and 10 % off in another case)."""
+    from core.gait import load_stock_library, observations_from_dofs
+    from tests.gait_data import trial
+
+    model = load_stock_library()
+    ctx = make_context(model)
+    sd = ctx.scale / np.sqrt(ctx.offset_prec)                            # physical units
+    shifts = []
+    for name in ("35_01", "35_03", "35_05", "35_07", "08_01"):
+        values, names = trial(name)
+        window = observations_from_dofs(model, values, names, 60.0)[100:130]     # 0.5 s
+        plain = adapt(model, window, fps=60.0)
+        for seed in range(3):
+            offset = np.random.default_rng(seed).normal(size=window.shape[1]) * sd
+            moved = adapt(model, window + offset, fps=60.0)
+            shifts.append(abs(np.log(moved.states[0, 0] / plain.states[0, 0])))
+    assert max(shifts) < 0.05, np.round(shifts, 3)
+
+
+def test_a_window_of_a_cycle_or_more_starts_from_the_plain_grid(monkeypatch):
+    """The offset enters the start grid only below ``GRID_OFFSET_CYCLES`` typical cycles: a
+    0.5 s window's grid scores it, a 1.67 s window adapts bit for bit as with the plain grid."""
+    from core.gait import em
+
+    model = small_model()
+    assert 0.5 < em.typical_period_s(model) < 1.67
+    asked = []
+
+    def spy(*args, **kwargs):
+        asked.append(kwargs["offset"])
+        return grid_search(*args, **kwargs)
+
+    monkeypatch.setattr(em, "grid_search", spy)
+    obs = observations("35_03")
+    long_new = adapt(model, obs[:100])
+    adapt(model, obs[:30])
+    assert asked == [False, True]
+    monkeypatch.setattr(em, "GRID_OFFSET_CYCLES", 0.0)
+    long_old = adapt(model, obs[:100])
+    adapt(model, obs[:30])
+    assert asked == [False, True, False, False]
+    np.testing.assert_array_equal(long_new.states, long_old.states)
+    np.testing.assert_array_equal(long_new.w, long_old.w)
