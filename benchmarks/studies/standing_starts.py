@@ -1,6 +1,7 @@
 """Stop 45 (issue 21): the last non-gait windows Predict Gait takes — a start from standing
-whatever the rhythm, and what the others are (``docs/gait.md``, *Stop 45, a start from
-standing*).
+whatever the rhythm, and what the others are (``docs/gait.md``, *Stop 45, the last non-gait
+windows*; rule A on the bench's corrected window set, ``--rule-a``: *Stop 45, a range that
+starts from standing*).
 
 Every window of ``benchmarks/gait_acceptance.py`` (gaits from steady starts, the non-gait clips
 everywhere) is checked once with the checks of the code it runs on (``core.gait.checks``,
@@ -16,6 +17,7 @@ The rows are saved (``--out``) so that a rule is rescored in seconds (``--analys
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python benchmarks/studies/standing_starts.py \
         --scope build/standing.pkl                          # ~2 min: the standing-start rules
     .venv/bin/python benchmarks/studies/standing_starts.py --parts build/standing.pkl  # ~1 min
+    .venv/bin/python benchmarks/studies/standing_starts.py --rule-a build/standing.pkl  # 1 s
 
 The analysis prints, per cue, the gait windows' extreme (every subject, and leave one subject
 out: the other subjects' extreme as the threshold for the held-out one) and which non-gait
@@ -274,6 +276,67 @@ def standing_gait_windows(rows):
           f"window, first third steady): {refused}")
 
 
+def rule_a(rows):
+    """Stop 45, issue 21 on the corrected window set (``docs/gait.md``, *Stop 45, a range
+    that starts from standing*): rule A (a range whose first third travels at less than
+    ``MIN_UNDER_WAY`` of its last third's speed, whatever the rhythm) on the rows of
+    ``--out``: the acceptance table before and after per window length (both columns), the
+    leave-one-walker-out windows it would refuse, and the bound's margin on both sides —
+    every subject's lowest ratio over the gait windows the checks take and the leave-one-
+    walker-out windows (held out: the bound ``MIN_UNDER_WAY`` against each subject's lowest,
+    and the other subjects' lowest as a learned bound against the held-out subject's), and
+    the highest ratio of the non-gait windows it refuses."""
+    bound = checks.MIN_UNDER_WAY
+
+    def refused(r):
+        return r["ratio"] is not None and r["ratio"] < bound
+
+    print(f"rule A: ratio < {bound:g}, whatever the rhythm")
+    print("window | gaits before -> after | non-gaits before -> after")
+    for lo, windows in [(w, (w,)) for w in A.WINDOWS] + \
+            [(None, tuple(w for w in A.WINDOWS if w >= A.HEADLINE_MIN_S))]:
+        cells = []
+        for kind in ("gaits", "not_gaits"):
+            rs = [r for r in rows if r["kind"] == kind and r["window"] in windows]
+            before = sum(r["accepted"] for r in rs)
+            after = sum(r["accepted"] and not refused(r) for r in rs)
+            cells.append(f"{100 * before / len(rs):.2f} -> {100 * after / len(rs):.2f} % "
+                         f"({before} -> {after} of {len(rs)})")
+        name = f"{lo:g} s" if lo is not None else f"from {A.HEADLINE_MIN_S:g} s"
+        print(f"  {name} | {cells[0]} | {cells[1]}")
+    for kind in ("gaits", "not_gaits"):
+        hit = [f"{r['clip']} {r['start']:.2f}+{r['window']:g} ({r['ratio']:.3f})"
+               for r in rows if r["kind"] == kind and r["accepted"] and refused(r)]
+        print(f"  {kind} taken that A refuses: {len(hit)}: {', '.join(hit)}")
+    lowo = [r for r in rows if r["kind"] == "lowo"]
+    for window in sorted({r["window"] for r in lowo}):
+        lw = [r for r in lowo if r["window"] == window]
+        print(f"  lowo {window:g} s: {sum(refused(r) for r in lw)} of {len(lw)} refused by A; "
+              f"lowest ratio {min(r['ratio'] for r in lw if r['ratio'] is not None):.3f}")
+    walks = [r for r in rows if r["ratio"] is not None and
+             (r["kind"] == "lowo" or (r["kind"] == "gaits" and r["accepted"]))]
+    lowest = {}
+    for r in walks:
+        if r["subject"] not in lowest or r["ratio"] < lowest[r["subject"]]["ratio"]:
+            lowest[r["subject"]] = r
+    print("  per subject, the lowest ratio of a walk window (margin over the bound; the other "
+          "subjects' lowest as a learned bound, and the held-out subject's margin over it):")
+    for s, r in sorted(lowest.items(), key=lambda kv: kv[1]["ratio"]):
+        others = min(o["ratio"] for t, o in lowest.items() if t != s)
+        print(f"    {s}: {r['ratio']:.3f} ({r['kind']} {r['clip']} {r['start']:.2f}+"
+              f"{r['window']:g} s) = {r['ratio'] / bound:.2f} x bound; others' lowest "
+              f"{others:.3f}, held out {r['ratio'] / others:.2f} x it")
+    kicks = [r for r in rows if r["kind"] == "not_gaits" and r["accepted"] and refused(r)]
+    if kicks:
+        top = max(kicks, key=lambda r: r["ratio"])
+        print(f"  non-gait side: the highest ratio A refuses {top['ratio']:.3f} ({top['clip']} "
+              f"{top['start']:.2f}+{top['window']:g} s) = bound / {bound / top['ratio']:.2f}")
+    near = sorted((r for r in rows if r["kind"] == "not_gaits" and r["accepted"]
+                   and not refused(r) and r["ratio"] is not None), key=lambda r: r["ratio"])[:5]
+    print("  non-gait windows taken just above the bound: " + ", ".join(
+        f"{r['clip']} {r['start']:.2f}+{r['window']:g} ({r['ratio']:.3f})" for r in near))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path)
@@ -282,7 +345,12 @@ def main(argv=None):
                         "A and B on the slow-starting windows (~2 min; prints them)")
     parser.add_argument("--parts", type=Path, help="rows of --out: check 4 part by part, the "
                         "thirds nearest to backwards (~1 min)")
+    parser.add_argument("--rule-a", type=Path, help="rows of --out: rule A on the window set "
+                        "of the code they were made with, its margins (seconds)")
     args = parser.parse_args(argv)
+    if args.rule_a:
+        with open(args.rule_a, "rb") as f:
+            rule_a(pickle.load(f))
     if args.parts:
         with open(args.parts, "rb") as f:
             rows = pickle.load(f)

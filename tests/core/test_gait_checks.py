@@ -4,6 +4,7 @@ the gait channels' variance."""
 
 from dataclasses import replace
 from pathlib import Path
+import re
 
 import numpy as np
 import pytest
@@ -758,6 +759,8 @@ def test_non_gaits_that_raise_an_arm_above_the_shoulder_are_refused(clip, kind, 
     monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", np.inf)  # a hip held unlike a walker's
     # (stop 45): golf, dance too; the golf set-up's step (stop 45) too:
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
+    # The start from standing (stop 45; check 5's exception for a short range only widens):
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
     assert check_gait(model, obs, 60.0).refusal is None, kind
 
 
@@ -892,6 +895,8 @@ def test_non_gaits_that_hold_an_arm_out_to_the_side_are_refused(clip, kind, wind
     assert checks.arm_side_reach(model, obs).max() == pytest.approx(reach.max(), abs=3.0)
     monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)              # the check off
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) may refuse it too
+    # The start from standing (stop 45; check 5's exception for a short range only widens):
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
     assert check_gait(model, obs, 60.0).refusal is None, kind
 
 
@@ -1303,6 +1308,8 @@ def test_a_kick_that_swings_a_shin_up_in_front_is_refused(clip, window, start, m
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)                   # check 9 too
     # And the step back after it (stop 45):
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
+    # The start from standing (stop 45; check 5's exception for a short range only widens):
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
     assert check_gait(model, obs, 60.0).refusal is None
 
 
@@ -1567,3 +1574,63 @@ def test_the_part_by_part_thresholds_are_met_at_their_value(monkeypatch):
     assert checks.backward_part(model, obs[:5]) is None                   # under 6 frames
     no_root = SimpleNamespace(root_travel=False)
     assert checks.backward_part(no_root, obs) is None
+
+
+# Stop 45 (issue 21): check 5's start from standing, whatever the rhythm. The windows of the
+# kick 74_03 that every other check took (its run-up: standing, one step into the bound and
+# the back-swing; docs/gait.md, *Stop 45, a range that starts from standing*).
+KICK_STANDING = [(0.75, 0.75), (1.0, 0.5), (1.0, 0.75)]
+STANDING = re.compile(r"It starts from standing \((\d+\.\d\d) m/s in its first third, "
+                      r"(\d+\.\d\d) m/s in its last\): start the range where the walk has "
+                      r"begun$")
+
+
+def stands_first(values, a, n):
+    """Whether the first third of ``n`` frames from ``a`` travels less than a tenth of the
+    last third's distance, on the clip's own root translation (metres, the AMC's ground
+    plane), not the observation channels."""
+    k = int(round(n / 3))
+    root = values[a:a + n, :2]
+    return np.linalg.norm(root[k] - root[0]) < 0.1 * np.linalg.norm(root[-1] - root[-1 - k])
+
+
+@pytest.mark.parametrize("window, start", KICK_STANDING)
+def test_a_range_that_starts_from_standing_is_refused_whatever_its_rhythm(window, start,
+                                                                         monkeypatch):
+    values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
+    model = load_stock_library()
+    a, n = int(round(start * 60)), int(round(window * 60))
+    w = observe(model, values, names)[a:a + n]
+    assert stands_first(values, a, n)
+    k = int(round(n / 3))
+    check = check_gait(model, w, 60.0, what=f"frames {a + 1}–{a + n} of Kicker",
+                       first_frame=a + 1)
+    assert check.refusal.startswith(f"The walker stands still at first in frames "
+                                    f"{a + 1}–{a + n} of Kicker (its first third, frames "
+                                    f"{a + 1}–{a + k}): the gait model continues a walk or "
+                                    f"run under way"), check.refusal
+    first, end = (float(x) for x in STANDING.search(check.refusal).groups())
+    assert first < checks.MIN_UNDER_WAY * end
+    monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)                   # the check off
+    assert check_gait(model, w, 60.0).refusal is None
+
+
+# Real walks that start from standing (their first steady piece, learning's segmentation,
+# starts after it): 3 s from the trial's first frame are refused with the hint; 3 s from where
+# the walk has begun are taken.
+@pytest.mark.parametrize("clip", ["120_10", "132_30"])
+def test_a_walk_from_standing_is_taken_once_the_range_starts_where_the_walk_has_begun(clip):
+    from core.gait.segments import steady_segments
+    from core.gait.stock import STOCK_LAG_RANGE
+
+    values, names = load_clip(CMU / f"{clip}.amc")
+    model = load_stock_library()
+    obs = observe(model, values, names)
+    begun = steady_segments(values, names, 60.0, lag_range=STOCK_LAG_RANGE)[0][0]
+    n = 180
+    assert stands_first(values, 0, n) and not stands_first(values, begun, n)
+    refusal = check_gait(model, obs[:n], 60.0, what="the range").refusal
+    assert refusal.startswith("The walker stands still at first in the range (its first "
+                              "third, frames 1–60 of the range)"), refusal
+    assert STANDING.search(refusal)
+    assert check_gait(model, obs[begun:begun + n], 60.0).refusal is None
