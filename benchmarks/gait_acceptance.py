@@ -26,6 +26,7 @@ import numpy as np
 
 from core.gait import load_stock_library, observations_from_dofs
 from core.gait.checks import check_gait
+from core.gait.features import continuous_near
 from core.gait.segments import steady_segments
 from core.gait.stock import STOCK_LAG_RANGE
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
@@ -82,11 +83,23 @@ def accepts(model, obs):
     return check.refusal is None, check
 
 
+def window_observations(model, obs, angles, start, n):
+    """The observations of frames ``start … start + n`` as Predict reads them from that range
+    alone: the clip's rows with the angles placed near the centre from the window's first frame
+    (``core.gait.features.continuous_near``; a channel the clip carried past the opposite side of
+    the centre before the window may lie a turn off in the clip's rows)."""
+    rows = obs[start:start + n].copy()
+    rows[:, :model.n_angles] = continuous_near(angles[start:start + n],
+                                               model.angle_centre[:model.n_angles])
+    return rows
+
+
 def clip_rows(model, path, gait):
     """{window: {'windows', 'accepted', 'accept_rate', 'refusals': {reason: count}}}."""
     values, names = load(path)
     cols = [names.index(n) for n in model.dof_names]
     obs = observations_from_dofs(model, values[:, cols], model.dof_names, FPS)
+    angles = values[:, [names.index(n) for n in model.angle_names]]
     row = {}
     for window in WINDOWS:
         n = int(round(window * FPS))
@@ -95,7 +108,7 @@ def clip_rows(model, path, gait):
             continue
         taken, reasons = 0, {}
         for s in starts:
-            ok, check = accepts(model, obs[s:s + n])
+            ok, check = accepts(model, window_observations(model, obs, angles, s, n))
             taken += ok
             if not ok:
                 key = check.refusal.split(" in ")[0]

@@ -126,6 +126,15 @@ after adapting, on the model's fit (issue 21):
    124_01 96°. The threshold is geometric (halfway from hanging to horizontal, like check 6's
    side reach), not learned: learned on the other subjects it refuses the held-out sneak.
    Checked after check 6, before check 9 (no adaptation needed).
+11. **No leg held unlike a walker's** (stop 45; :func:`leg_posture`): after check 9, a range
+   whose adapted posture offset holds a hip, knee or ankle angle more than
+   ``MAX_LEG_POSTURE_DEG`` (90°) from the walks the model knows is refused, naming the joint:
+   nearer the other Euler branch of that joint (half a turn) than the walkers' own. The
+   ballet CMU 05_10 turns its hips out, which the AMC writes in the other branch (right hip rx
+   150-165°): once its angles are observed continuous in time (stop 45), the offset takes the
+   branch up whole (163-193°) and check 9 no longer sees it, while walkers the model did not
+   learn from hold a hip, knee or ankle within 72° of it (the crouched sneak of 120 held out;
+   walks 15-48°). The bound is geometric, not learned (``docs/gait.md``, *Stop 45*).
 
 Refusals say why in plain words; nothing is changed by the caller then. Measured acceptance of
 every shipped gait and non-gait clip: ``make bench-gait`` (``acceptance``; ``docs/gait.md``).
@@ -141,15 +150,15 @@ from ..mocap import asf_to_skeleton, cmu_template_asf
 from .em import adapt
 from .segments import MIN_STRENGTH
 
-__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_MISFIT",
-           "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
+__all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_LEG_POSTURE_DEG",
+           "MAX_MISFIT", "MAX_LEG_HARMONICS", "MAX_SHIN_SWING_DEG", "MAX_SIDE_REACH_DEG", "MAX_TILT_DEG",
            "MIN_ALTERNATION_DEG", "MIN_ARM_MOTION_DEG", "MIN_FORWARD_SHARE", "MIN_MOTION_DEG",
            "MIN_OVERLAP_S", "MIN_SHIN_MOTION_DEG", "MIN_STRENGTH", "MIN_TRAVEL", "MIN_UNDER_WAY",
            "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
            "arm_side_reach", "backward_part", "body_part", "check_gait", "fit_score",
-           "gait_channels", "kicking_leg", "leg_frequency", "legs_together", "overlap_frames",
-           "pose_misfit", "raised_arm", "regularity", "rhythm", "rhythm_inputs", "shin_swing",
-           "walker_cycle", "with_fit"]
+           "gait_channels", "kicking_leg", "leg_frequency", "leg_posture", "legs_together",
+           "overlap_frames", "pose_misfit", "raised_arm", "regularity", "rhythm",
+           "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -181,6 +190,9 @@ ARMS = (("left", "lhumerus", "lradius", "lwrist"), ("right", "rhumerus", "rradiu
 MAX_SHIN_SWING_DEG = 45.0      # a shin swung forward of hanging by more: a kick (check 10)
 MIN_SHIN_MOTION_DEG = 20.0     # … while that shin moves this much (a leg held still: not)
 SHINS = (("left", "ltibia", "lfoot"), ("right", "rtibia", "rfoot"))
+MAX_LEG_POSTURE_DEG = 90.0     # a leg joint angle held this far from the walks' posture: nearer
+#                                the other Euler branch (half a turn) than theirs (check 11)
+POSTURE_JOINTS = ("femur", "tibia", "foot")    # the hips, knees and ankles (not the toes)
 
 
 @dataclass(frozen=True)
@@ -584,6 +596,34 @@ def kicking_leg(model, observations, swing=None):
     return None
 
 
+def leg_posture(model, result):
+    """The leg joint angle held furthest from the walks the model knows (check 11), or None:
+    ``(channel index, degrees)`` of the largest ``|b_k| · scale_k`` over the hips', knees' and
+    ankles' angle channels (``POSTURE_JOINTS``), ``b`` the adapted posture offset (scaled
+    units; :func:`core.gait.adapt`'s ``offset``, the walker's mean pose from the adapted
+    style's), ``scale_k`` the channel's scale (radians per scaled unit). None for a model
+    without an offset or without those channels."""
+    if result.offset is None:
+        return None
+    legs = [i for i, c in enumerate(model.channel_names[:model.n_angles])
+            if c[:1] in "lr" and c[1:].split(".")[0] in POSTURE_JOINTS]
+    if not legs:
+        return None
+    deg = np.degrees(np.abs(np.asarray(result.offset)[legs] * model.channel_scale[legs]))
+    k = int(np.argmax(deg))
+    return legs[k], float(deg[k])
+
+
+def _posture_words(model, channel, deg, what):
+    """Check 11's refusal: the joint of ``channel`` held ``deg`` degrees from the walks."""
+    name = model.channel_names[channel]
+    return (f"A leg is held unlike any walker's in {what} (the {body_part(name)} turned "
+            f"{deg:.0f}° about its {name[-1].upper()} axis from how the walks the gait model "
+            f"knows hold it): a turned-out or raised leg, a dance position, not a walk or run "
+            f"the gait model can continue (walkers it did not learn from hold a hip, knee or "
+            f"ankle within 72° of them)")
+
+
 PARTS = {"femur": "hip", "tibia": "knee", "foot": "foot", "toes": "toes",
          "clavicle": "shoulder", "humerus": "upper arm", "radius": "forearm", "wrist": "wrist",
          "hand": "hand", "fingers": "fingers", "thumb": "thumb"}
@@ -840,7 +880,7 @@ def _rhythm_words(strength):
 
 def check_gait(model, observations, fps, result=None, what="the observed frames",
                first_frame=None, poses=True):
-    """Checks 1-6, 10, 9, check 4's part by part and check 5's start from standing of the
+    """Checks 1-6, 10, 9, 11, check 4's part by part and check 5's start from standing of the
     module docstring, and the fit
     score when ``result`` is given (check 9 adapts the model to the range itself).
 
@@ -991,6 +1031,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                           f"({MAX_MISFIT:g} at most for a walker it did not learn from)"
                           + _rhythm_words(strength) + ": a kick, a throw or a dance step is "
                           "not a walk or run the gait model can continue")
+        held = leg_posture(model, adapted)
+        if held is not None and held[1] > MAX_LEG_POSTURE_DEG:
+            return refuse(_posture_words(model, *held, what))
     back = backward_part(model, obs)
     if back is not None:
         part, a, b, speed, angle = back

@@ -6,17 +6,31 @@ when the model has root travel, by the seven root features of :mod:`.root_travel
 come in the AMC/``Skeleton`` layout: ``(N, n_dofs)``, metres and radians, Z-up world, with their
 channel names (``'root.tx'``, ``'lfemur.rx'``, …).
 
-Angles are *wrapped near a centre* (the training data's circular mean per channel): a channel
-that a capture system reports 3 turns off (CMU 08_01 ``rthumb.rz`` jumps from -70° to -1150°
-mid-trial) is brought back within ±π of the centre, since the model is linear in the angles.
+Angles are *placed near a centre* (the training data's circular mean per channel) as a
+sequence, :func:`continuous_near`: the first frame within ±π of the centre, every later frame on
+the branch nearest its predecessor (continuous in time), unless that carries it more than
+:data:`CARRY_PAST_OPPOSITE` past the opposite side (centre ± π), where it is brought back within
+±π. A channel hovering at the opposite side stays on one side (wrapping each frame on its own
+tore CMU 05_10's right hip rx from 158.3° to -200.6° while the AMC goes 158.3 → 159.4°: 360°
+steps the posture offset and the outlier test then absorbed, docs/gait.md *Stop 45*), and a
+channel that a capture system spins whole turns (CMU 08_01 ``rthumb.rz`` goes from -70° to
+-1150° mid-trial) still comes back near the centre, since the model is linear in the angles.
 """
 
 import numpy as np
 
 from .root_travel import ROOT_DOF_NAMES, RootFrame, root_features
 
-__all__ = ["ObservationStream", "angle_channel_names", "channel_columns", "dof_observations",
-           "observations_from_dofs", "wrap_near"]
+__all__ = ["CARRY_PAST_OPPOSITE", "ObservationStream", "angle_channel_names", "channel_columns",
+           "continuous_near", "dof_observations", "observations_from_dofs", "wrap_near"]
+
+#: How far past the opposite side of the centre (radians beyond ±π) :func:`continuous_near`
+#: carries an angle on continuously before bringing it back within ±π. Wider than the swing of
+#: a channel hovering at the opposite side (05_10's right hip, 126_06's left shoulder), narrower
+#: than the whole turn of a spinning channel (08_01's and 91_27's right thumbs, which a margin of
+#: 160° carries off); a quarter turn. Every shipped gait clip gives ``wrap_near``'s observations
+#: for margins of 20° to 135° (docs/gait.md, *Stop 45*).
+CARRY_PAST_OPPOSITE = 0.5 * np.pi
 
 
 def channel_columns(channel_names, wanted, what="channels"):
@@ -55,6 +69,51 @@ def wrap_near(values, centre):
     return centre + np.mod(values - centre + np.pi, 2.0 * np.pi) - np.pi
 
 
+def _carry(previous, wrapped, centre):
+    """One frame of :func:`continuous_near`: ``wrapped`` (wrap_near of the frame) moved by the
+    whole turns that bring it nearest ``previous`` (the output of the frame before), unless that
+    lies more than π + CARRY_PAST_OPPOSITE from ``centre``. Elementwise; ``wrapped`` itself
+    (bit for bit) wherever it lies within π of ``previous``."""
+    turns = np.round((previous - wrapped) / (2.0 * np.pi))
+    carried = wrapped + 2.0 * np.pi * turns
+    return np.where(np.abs(carried - centre) <= np.pi + CARRY_PAST_OPPOSITE, carried, wrapped)
+
+
+def continuous_near(values, centre):
+    """Angle sequences placed near ``centre`` and continuous in time (module docstring).
+
+    ``out[0] = wrap_near(values[0], centre)``; ``out[t]`` is ``values[t]`` moved by whole turns
+    onto the branch nearest ``out[t-1]`` when that lies within π + :data:`CARRY_PAST_OPPOSITE`
+    of the centre, else ``wrap_near(values[t], centre)``. A channel whose wrapped steps all stay
+    within π is ``wrap_near``'s, bit for bit; :class:`ObservationStream` gives the same rows
+    frame by frame (the same arithmetic, :func:`_carry`).
+
+    Parameters
+    ----------
+    values : array_like, shape (N, K), radians
+    centre : array_like, shape (K,), radians
+
+    Returns
+    -------
+    ndarray, shape (N, K), radians
+    """
+    centre = np.asarray(centre, dtype=float)
+    out = wrap_near(values, centre)
+    if len(out) < 2:
+        return out
+    # Only channels where some wrapped step moves by a turn can leave wrap_near's values; before
+    # their first such step every frame is wrap_near's (the carry moves by zero turns).
+    moved = np.round((out[:-1] - out[1:]) / (2.0 * np.pi)) != 0
+    cols = np.flatnonzero(moved.any(axis=0))
+    if cols.size:
+        first = int(np.flatnonzero(moved[:, cols].any(axis=1))[0]) + 1
+        part, c = out[:, cols], centre[cols]
+        for t in range(first, len(out)):
+            part[t] = _carry(part[t - 1], part[t], c)
+        out[:, cols] = part
+    return out
+
+
 def _check_dofs(dofs, channel_names):
     dofs = np.asarray(dofs, dtype=float)
     if dofs.ndim == 1:
@@ -84,7 +143,8 @@ def dof_observations(dofs, channel_names, fps, angle_names, root_travel=True, ro
         Append the seven root features (needs the six root DOFs and N >= 2).
     root_frame : RootFrame, optional
     angle_centre : array_like, shape (len(angle_names),), optional
-        Wrap angles within ±π of these values (radians).
+        Place the angles near these values (radians), continuous in time
+        (:func:`continuous_near`).
 
     Returns
     -------
@@ -96,7 +156,7 @@ def dof_observations(dofs, channel_names, fps, angle_names, root_travel=True, ro
         raise ValueError("DOF values must be finite")
     angles = dofs[:, channel_columns(channel_names, angle_names, "joint-angle channels")]
     if angle_centre is not None:
-        angles = wrap_near(angles, angle_centre)
+        angles = continuous_near(angles, angle_centre)
     if not root_travel:
         return angles
     root = dofs[:, channel_columns(channel_names, ROOT_DOF_NAMES, "root DOF channels")]
@@ -120,7 +180,8 @@ def observations_from_dofs(model, dofs, channel_names, fps):
     Returns
     -------
     ndarray, shape (N, D)
-        Columns ``model.channel_names``; angles wrapped within ±π of the training centre.
+        Columns ``model.channel_names``; angles placed near the training centre, continuous
+        in time (:func:`continuous_near`).
     """
     return dof_observations(dofs, channel_names, fps, model.angle_names, model.root_travel,
                             model.root_frame, model.angle_centre[:model.n_angles])
@@ -130,7 +191,8 @@ class ObservationStream:
     """Frame-by-frame observations for online adaptation (causal root features).
 
     ``push(dof_row)`` returns the model observation of that frame, equal to the corresponding
-    row of :func:`dof_observations` on the whole sequence except on the very first frame, whose
+    row of :func:`dof_observations` on the whole sequence (angles bit for bit: the same
+    :func:`continuous_near` carry from the frame before) except on the very first frame, whose
     root rates (``root.v_forward``, ``root.v_left``, ``root.yaw_rate``) are unknown and returned
     as NaN: the filters treat NaN channels as *missing* (they are skipped).
 
@@ -153,10 +215,12 @@ class ObservationStream:
         self._fps = float(fps)
         self._model = model
         self._previous = None
+        self._angles = None
 
     def reset(self):
         """Forget the previous frame (the next push starts a new sequence)."""
         self._previous = None
+        self._angles = None
 
     def push(self, dof_row):
         """Observation (D,) of one DOF frame (n_dofs,)."""
@@ -164,7 +228,11 @@ class ObservationStream:
         if row.shape[0] != 1 or not np.all(np.isfinite(row)):
             raise ValueError("push() takes one finite DOF frame")
         model = self._model
-        angles = wrap_near(row[0, self._angle_cols], model.angle_centre[:model.n_angles])
+        centre = model.angle_centre[:model.n_angles]
+        angles = wrap_near(row[0, self._angle_cols], centre)
+        if self._angles is not None:
+            angles = _carry(self._angles, angles, centre)
+        self._angles = angles.copy()
         if self._root_cols is None:
             return angles
         root = row[:, self._root_cols]

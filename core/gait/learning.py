@@ -11,7 +11,7 @@ import numpy as np
 from ..mocap import resample
 from .alignment import ALIGNMENT_MODES, align_sequences, phase_shift, rotate_profile
 from .factorization import factorize, reconstruct
-from .features import angle_channel_names, dof_observations, wrap_near
+from .features import angle_channel_names, continuous_near, dof_observations
 from .gp import fit_phase_gp
 from .map_refinement import refine_map
 from .retiming import cadence_style_direction
@@ -148,7 +148,7 @@ def learn_model(sequences, channel_names, fps, names=None, *, n_styles=None,
     centre[:n_angles] = np.arctan2(np.sin(stacked[:, :n_angles]).mean(0),
                                    np.cos(stacked[:, :n_angles]).mean(0))
     for obs in observed:
-        obs[:, :n_angles] = wrap_near(obs[:, :n_angles], centre[:n_angles])
+        obs[:, :n_angles] = continuous_near(obs[:, :n_angles], centre[:n_angles])
     stacked = np.vstack(observed)
 
     channel = list(angle_names) + (list(ROOT_FEATURE_NAMES) if root_travel else [])

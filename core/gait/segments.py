@@ -27,7 +27,7 @@ Short clean trials (a CMU walk of 3 s, a run of 1.4 s) come back whole.
 import numpy as np
 
 from .alignment import periodicity
-from .features import angle_channel_names, channel_columns, wrap_near
+from .features import angle_channel_names, channel_columns, continuous_near
 from .root_travel import ROOT_DOF_NAMES, RootFrame, heading_angles, root_rotations
 
 __all__ = ["split_segments", "steady_segments"]
@@ -97,9 +97,11 @@ def steady_segments(dofs, channel_names, fps, *, root_frame=None, lag_range=(0.5
         return []
     root = dofs[:, channel_columns(names, ROOT_DOF_NAMES, "root DOF channels")]
     angles = dofs[:, channel_columns(names, angle_channel_names(names), "joint angles")]
-    # Within ±π of each channel's circular mean, as learning sees them (a channel reported
-    # whole turns off, CMU 08_01 rthumb.rz, would otherwise dominate the autocorrelation).
-    angles = wrap_near(angles, np.arctan2(np.sin(angles).mean(0), np.cos(angles).mean(0)))
+    # Near each channel's circular mean, continuous in time, as learning sees them (a channel
+    # reported whole turns off, CMU 08_01 rthumb.rz, would otherwise dominate the
+    # autocorrelation; one torn by 360° at the opposite side would add steps that are not there).
+    angles = continuous_near(angles, np.arctan2(np.sin(angles).mean(0),
+                                                np.cos(angles).mean(0)))
     width = round(smooth_s * fps)
     step = np.gradient(root[:, :2], axis=0) * fps
     speed = _moving_average(np.hypot(step[:, 0], step[:, 1]), width)

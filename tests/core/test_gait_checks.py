@@ -756,7 +756,8 @@ def test_non_gaits_that_raise_an_arm_above_the_shoulder_are_refused(clip, kind, 
     monkeypatch.setattr(checks, "MAX_SIDE_REACH_DEG", 90.0)
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)   # the pitch's leg (stop 44) too
-    # The golf set-up's step (stop 45) too:
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", np.inf)  # a hip held unlike a walker's
+    # (stop 45): golf, dance too; the golf set-up's step (stop 45) too:
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     # The start from standing (stop 45; check 5's exception for a short range only widens):
     monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
@@ -842,6 +843,7 @@ def test_the_arm_thresholds_are_met_at_their_value(monkeypatch):
     shipped = checks.MAX_ARM_ELEVATION_DEG
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)    # check 9 (stop 43) refuses it too
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)   # and stop 45's
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", np.inf)     # and check 11 (the knee)
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", top)
     assert check_gait(model, obs, 60.0).refusal is None
     monkeypatch.setattr(checks, "MAX_ARM_ELEVATION_DEG", np.nextafter(top, -np.inf))
@@ -923,7 +925,8 @@ def test_the_side_reach_threshold_is_met_at_its_value(monkeypatch):
 
 # ---------------------------------------------------------------------- stop 43: check 9, the
 # pose misfit where the rhythm does not vouch for a walk (docs/gait.md, *Stop 43*).
-from core.gait.checks import MAX_MISFIT, body_part, pose_misfit   # noqa: E402
+from core.gait.checks import MAX_LEG_POSTURE_DEG, MAX_MISFIT, body_part, \
+    leg_posture, pose_misfit  # noqa: E402
 
 
 def test_pose_misfit_is_the_mean_squared_difference_in_units_of_the_noise():
@@ -969,9 +972,10 @@ def test_body_parts_are_named_as_an_animator_would(channel, part):
 # Windows of non-gait clips that pass checks 1-6 with a weak rhythm (strength below 0.3, or not
 # tested) and whose poses no walk fits (the kick of 74_03 and its step into it, the dance's
 # arabesque, the throwing arm after the pitch); docs/gait.md, *Stop 43*.
+# (Stop 45: the dance's 1.25 s from 5.5 s misfit 1.6 once its right hip is observed continuous
+# rather than torn by 360°; check 11 refuses it, test_the_ballets_turned_out_hip_is_refused.)
 UNLIKE_A_WALK = [("74_03", "kick", 0.75, 1.5), ("74_03", "kick", 1.67, 1.0),
-                 ("74_03", "kick", 0.5, 1.75), ("05_10", "dance", 1.25, 5.5),
-                 ("124_01", "after the pitch", 0.75, 3.75)]
+                 ("74_03", "kick", 0.5, 1.75), ("124_01", "after the pitch", 0.75, 3.75)]
 
 
 @pytest.mark.parametrize("clip, kind, window, start", UNLIKE_A_WALK)
@@ -1106,7 +1110,9 @@ def taken_for_its_short_range(model, w, cycle, strength, monkeypatch):
 
 # The windows of the kick 74_03 that stop 43's variant (no rhythm refusal under the cadence
 # prior's longest cycle, 2.8 s) let through: its run-up from standing into the kick.
-KICK_RUN_UPS = [(1.25, 0.25), (1.25, 0.5), (1.67, 0.0), (1.67, 0.25), (1.67, 0.5)]
+# (Stop 45: 1.25 s from 0.5 s, its right foot observed continuous rather than torn by 360° at
+# 1.65-1.75 s, repeats best at 2.0 s, longer than itself: taken with warnings, docs/gait.md.)
+KICK_RUN_UPS = [(1.25, 0.25), (1.67, 0.0), (1.67, 0.25), (1.67, 0.5)]
 
 
 @pytest.mark.parametrize("window, start", KICK_RUN_UPS)
@@ -1133,7 +1139,7 @@ def test_a_kicks_run_up_from_standing_stays_refused(window, start, monkeypatch):
     monkeypatch.setattr(checks, "MIN_UNDER_WAY", 0.0)
     monkeypatch.setattr(checks, "MAX_LEG_HARMONICS", np.inf)
     off = check_gait(model, w, 60.0).refusal
-    # Check 5 passes it on then; checks 6, 10 and 9 take three of the five (the other two,
+    # Check 5 passes it on then; checks 6, 10, 9 and 11 take two of the four (the other two,
     # 1.67 s from 0.25 and 0.5 s, reach the kick's shin swing: check 10, stop 44).
     assert off is None or off.startswith("A leg is swung up in front"), off
 
@@ -1248,7 +1254,9 @@ def test_the_walker_cycle_is_two_pi_over_the_median_phase_rate():
 # ------------------------------------------------------- stop 44: a shin swung up in front (a kick)
 # Windows of the kick 74_03 that every other check took (stop 43 left them): the kicking leg's
 # shin swung 50° forward of hanging (docs/gait.md, *Stop 44*).
-KICKS = [("74_03", 0.75, 1.25), ("74_03", 1.0, 1.0), ("74_03", 1.25, 0.75), ("74_03", 1.25, 1.5)]
+# (Stop 45: 1.0 s from 1.0 s, its right foot observed continuous rather than torn by 360°, is
+# refused for its rhythm first, strength 0.09; 1.0 s from 1.25 s instead.)
+KICKS = [("74_03", 0.75, 1.25), ("74_03", 1.0, 1.25), ("74_03", 1.25, 0.75), ("74_03", 1.25, 1.5)]
 
 
 def world_shins(path, values, a, b):
@@ -1371,7 +1379,7 @@ def test_the_shin_thresholds_are_met_at_their_value(monkeypatch):
     the rule says, one float step beyond it decides the other way."""
     model = load_stock_library()
     values, names = load_clip(CMU / "not_gaits" / "74_03.amc")
-    obs = observe(model, values, names)[60:120]
+    obs = observe(model, values, names)[75:135]
     swing = checks.shin_swing(model, obs)
     top = float(swing.max())
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
@@ -1398,9 +1406,11 @@ def test_a_model_without_both_legs_has_no_kick_check():
 
 # ------------------------------------------- stop 44: check 9 over every range, rhythm or not
 # Windows of non-gait clips whose steps repeat (strength 0.3 or more, so stop 43's check 9 did
-# not measure them) and whose poses no walk fits: the dance's steps into the arabesque, the
-# kick (docs/gait.md, *Stop 44*).
-STRONG_UNLIKE = [("05_10", "dance", 1.0, 5.5), ("74_03", "kick", 1.25, 1.5)]
+# not measure them) and whose poses no walk fits: the kick (docs/gait.md, *Stop 44*; stop 45's
+# windows: stop 44's, the dance 05_10 at 5.5-6.5 s and the kick at 1.5-2.75 s, had a strong
+# rhythm or misfit only while a hip or foot was torn by 360° frame to frame; observed
+# continuous, the dance misfits 1.5 and check 11 refuses it, below, the kick's rhythm is 0.28).
+STRONG_UNLIKE = [("74_03", "kick", 1.0, 1.5), ("74_03", "kick", 1.67, 1.25)]
 
 
 @pytest.mark.parametrize("clip, kind, window, start", STRONG_UNLIKE)
@@ -1412,11 +1422,13 @@ def test_non_gaits_with_a_strong_rhythm_whose_poses_no_walk_fits_are_refused(
     obs = observe(model, values, names)[a:b]
     monkeypatch.setattr(checks, "MAX_SHIN_SWING_DEG", np.inf)  # the kick check refuses 74_03
     monkeypatch.setattr(checks, "MAX_MISFIT", np.inf)
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", np.inf)
     # The kick's step back (stop 45) too:
     monkeypatch.setattr(checks, "backward_part", lambda model_, obs_: None)
     other = check_gait(model, obs, 60.0)
     assert other.refusal is None and other.strength >= checks.MIN_STRENGTH, kind
     monkeypatch.setattr(checks, "MAX_MISFIT", MAX_MISFIT)
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", MAX_LEG_POSTURE_DEG)
     misfit = pose_misfit(model, obs, adapt(model, obs, fps=60.0))[0]
     assert misfit > MAX_MISFIT, kind
     check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
@@ -1427,6 +1439,52 @@ def test_non_gaits_with_a_strong_rhythm_whose_poses_no_walk_fits_are_refused(
         f"({MAX_MISFIT:g} at most for a walker it did not learn from), though its movement "
         f"repeats (strength {other.strength:.2f}): a kick, a throw or a dance step is not a "
         f"walk or run the gait model can continue"), kind
+
+
+# ------------------------------------ stop 45: check 11, a leg held unlike any walker's
+# The ballet 05_10's windows that checks 1-10 take once its angles are observed continuous in
+# time (docs/gait.md, *Stop 45*): its hips turned out, which the AMC writes in the other Euler
+# branch (right hip rx 150-165°), so the posture offset holds the right hip 163-193° from the
+# walks the model knows.
+BALLET_TAKEN = [(0.5, 6.0), (0.75, 5.5), (0.75, 6.0), (1.0, 5.75), (1.25, 5.5)]
+
+
+def ballet_window(window, start):
+    """(stock library, the window's observations as Predict reads the range alone, its first
+    frame)."""
+    values, names = load_clip(CMU / "not_gaits" / "05_10.amc")
+    model = load_stock_library()
+    a = int(round(start * 60))
+    return model, observe(model, values[a:a + int(round(window * 60))], names), a
+
+
+@pytest.mark.parametrize("window, start", BALLET_TAKEN)
+def test_the_ballets_turned_out_hip_is_refused(window, start, monkeypatch):
+    model, obs, a = ballet_window(window, start)
+    check = check_gait(model, obs, 60.0, what="the range", first_frame=a + 1)
+    assert check.refusal is not None
+    assert check.refusal.startswith("A leg is held unlike any walker's in the range (the right "
+                                    "hip turned "), check.refusal
+    channel, deg = leg_posture(model, adapt(model, obs, fps=60.0))
+    assert model.channel_names[channel].startswith("rfemur.") and deg > MAX_LEG_POSTURE_DEG
+    assert f"turned {deg:.0f}° about its {model.channel_names[channel][-1].upper()} axis" \
+        in check.refusal
+    assert check.misfit <= MAX_MISFIT                   # check 9 takes it: the offset does
+    monkeypatch.setattr(checks, "MAX_LEG_POSTURE_DEG", deg)          # the bound met at its value
+    assert check_gait(model, obs, 60.0).refusal is None
+
+
+def test_leg_posture_reads_the_hips_knees_and_ankles_in_degrees():
+    model = load_stock_library()
+    offset = np.zeros(model.n_channels)
+    names = list(model.channel_names)
+    for name, deg in (("ltibia.rx", 40.0), ("rfoot.rz", -75.0), ("ltoes.rx", 150.0),
+                      ("lhumerus.rx", 170.0)):
+        k = names.index(name)
+        offset[k] = np.radians(deg) / model.channel_scale[k]
+    channel, deg = leg_posture(model, SimpleNamespace(offset=offset))
+    assert names[channel] == "rfoot.rz" and deg == pytest.approx(75.0, abs=1e-9)
+    assert leg_posture(model, SimpleNamespace(offset=None)) is None
 
 
 # Stop 45: a part of the range that steps backwards (check 4, part by part). The pitch 124_01

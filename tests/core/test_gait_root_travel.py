@@ -1,11 +1,13 @@
 """core.gait.root_travel and core.gait.features: root features <-> root DOFs, observations."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from core.gait.features import ObservationStream, channel_columns, dof_observations, \
-    observations_from_dofs, wrap_near
+from core.gait.features import CARRY_PAST_OPPOSITE, ObservationStream, channel_columns, \
+    continuous_near, dof_observations, observations_from_dofs, wrap_near
 from core.gait.root_travel import ROOT_FEATURE_NAMES, RootFrame, heading_angles, \
     integrate_root, root_features, root_rotations
 from core.kinematics import euler_to_matrix
@@ -102,6 +104,77 @@ def test_wrap_near_brings_multi_turn_glitch_back():
     wrapped = wrap_near(thumb, np.radians(-70.0))
     assert np.abs(wrapped - np.radians(-70.0)).max() <= np.pi
     np.testing.assert_allclose(np.cos(wrapped), np.cos(thumb), atol=1e-9)
+    # Continuous in time, the spin still comes back near the centre (whole turns at a time).
+    placed = continuous_near(thumb[:, None], [np.radians(-70.0)])[:, 0]
+    assert np.abs(placed - np.radians(-70.0)).max() <= np.pi + CARRY_PAST_OPPOSITE
+    turns = (placed - thumb) / (2.0 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+
+
+def crossing_walk(model, names):
+    """35_04's DOFs with its right hip rx swinging ±0.2 rad about the opposite side of the
+    model's centre (centre + π): a continuous angle that crosses centre + π 11 times."""
+    values = np.array(trial("35_04")[0])
+    k = model.angle_names.index("rfemur.rx")
+    t = np.arange(len(values)) / 60.0
+    values[:, names.index("rfemur.rx")] = model.angle_centre[k] + np.pi \
+        + 0.2 * np.sin(2 * np.pi * 1.5 * t)
+    return values, k
+
+
+def test_an_angle_crossing_the_opposite_side_of_the_centre_does_not_jump_a_turn():
+    model = small_model()
+    names = trial("35_04")[1]
+    values, k = crossing_walk(model, names)
+    obs = observations_from_dofs(model, values, names, 60.0)
+    hip = obs[:, k]
+    # Every step is the captured one (at most 0.2 · 2π · 1.5 / 60 rad a frame), not a turn.
+    np.testing.assert_allclose(np.diff(hip), np.diff(values[:, names.index("rfemur.rx")]),
+                               atol=1e-12)
+    assert abs(hip[0] - model.angle_centre[k]) <= np.pi                 # placed at the start
+    # The other channels are wrap_near's, bit for bit (nothing of theirs crosses).
+    others = np.setdiff1d(np.arange(model.n_angles), [k])
+    cols = channel_columns(names, model.angle_names)
+    assert obs[:, others].tobytes() == wrap_near(
+        values[:, cols], model.angle_centre[:model.n_angles])[:, others].tobytes()
+
+
+def test_the_stream_carries_a_crossing_angle_as_the_batch_does():
+    model = small_model()
+    names = trial("35_04")[1]
+    values, k = crossing_walk(model, names)
+    batch = observations_from_dofs(model, values, names, 60.0)
+    stream = ObservationStream(model, names, 60.0)
+    rows = np.array([stream.push(v) for v in values])
+    assert rows[:, :model.n_angles].tobytes() == batch[:, :model.n_angles].tobytes()
+    assert np.abs(np.diff(rows[:, k])).max() < 0.05
+    stream.reset()                                         # a new sequence is placed anew
+    np.testing.assert_array_equal(stream.push(values[40])[:model.n_angles],
+                                  observations_from_dofs(model, values[40:42], names,
+                                                         60.0)[0, :model.n_angles])
+
+
+def test_the_ballets_right_hip_is_observed_as_captured():
+    """CMU 05_10 (sample_scenes/data/cmu/not_gaits): the right hip rx goes 158.3 → 159.4°
+    between frames 354 and 355 (60 Hz), the opposite side of the stock centre; wrapped frame by
+    frame it went to -200.6° (stop 44)."""
+    from core.gait import load_stock_library
+    from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
+
+    folder = Path(__file__).resolve().parents[2] / "sample_scenes" / "data" / "cmu" / "not_gaits"
+    asf = read_asf(folder / "05.asf")
+    raw = read_amc(folder / "05_10.amc", asf).values
+    values = resample(raw, 120.0, 60.0, np.arange(3, raw.shape[1]))
+    names = asf_to_skeleton(asf).dof_names()
+    model = load_stock_library()
+    k = model.angle_names.index("rfemur.rx")
+    obs = observations_from_dofs(model, values[:, [names.index(n) for n in model.dof_names]],
+                                 model.dof_names, 60.0)
+    np.testing.assert_allclose(np.degrees(obs[354:356, k]), [158.3, 159.4], atol=0.05)
+    hips = [model.angle_names.index(n) for n in ("rfemur.rx", "rfemur.ry", "rfemur.rz")]
+    captured = values[:, [names.index(model.angle_names[h]) for h in hips]]
+    steps = np.abs(np.diff(obs[:, hips], axis=0) - np.diff(captured, axis=0))
+    assert steps.max() < 1e-9                                # every step as captured
 
 
 def test_observations_layout_and_errors():
