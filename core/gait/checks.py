@@ -707,13 +707,18 @@ def _root_figures(model, obs):
     return tilt_deg, travel, (float(mean[0]) / travel if travel > 0 else None)
 
 
+def _share_frames(n):
+    """Frames (>= 2) in a range's first or last ``START_SHARE`` (its thirds: checks 4, 5, 8)."""
+    return max(2, int(round(START_SHARE * n)))
+
+
 def _start_and_end_speeds(model, obs):
     """Mean horizontal root speed (m/s) over the range's first and last ``START_SHARE``
     (check 8), or (None, None) for a model without root travel or a range under 6 frames."""
     if not model.root_travel or len(obs) < 6:
         return None, None
     speed = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
-    k = max(2, int(round(START_SHARE * len(obs))))
+    k = _share_frames(len(obs))
     return (float(np.linalg.norm(np.nanmean(speed[:k], axis=0))),
             float(np.linalg.norm(np.nanmean(speed[-k:], axis=0))))
 
@@ -743,7 +748,7 @@ def backward_part(model, observations):
     if not model.root_travel or len(obs) < 6:
         return None
     velocity = obs[:, model.channel_index(["root.v_forward", "root.v_left"])]
-    k = max(2, int(round(START_SHARE * len(obs))))
+    k = _share_frames(len(obs))
     for part, a, b in (("first", 0, k), ("middle", k, len(obs) - k),
                        ("last", len(obs) - k, len(obs))):
         if b <= a:
@@ -759,7 +764,7 @@ def backward_part(model, observations):
 def _walks_at_end(model, obs, fps):
     """Whether the range's last ``START_SHARE`` alone is a gait (checks 1-6 and 10 take it;
     not check 9, which would adapt the model to it: a hint and a warning depend on it)."""
-    k = max(2, int(round(START_SHARE * len(obs))))
+    k = _share_frames(len(obs))
     return check_gait(model, obs[-k:], fps, poses=False).refusal is None
 
 
@@ -1043,7 +1048,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                       f"not part of a walk or run the gait model can continue (it continues "
                       f"walks and runs that go forwards); start the range after the step back")
     if _starts_from_standing(first, end):
-        k = max(2, int(round(START_SHARE * len(obs))))
+        k = _share_frames(len(obs))
         return refuse(f"The walker stands still at first in {what} (its first third, "
                       f"{frames(0, k - 1)}): the gait model continues a walk or run under way, "
                       f"and a range that starts from standing cannot tell a walk's first steps "
