@@ -114,7 +114,9 @@ def main(argv=None):
     ap.add_argument("--analyse", help="analyse the rows of this pickle")
     args = ap.parse_args(argv)
     if args.out:
-        Path(args.out).write_bytes(pickle.dumps(collect()))
+        rows = collect()
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_bytes(pickle.dumps(rows))
     for path in filter(None, (args.out, args.analyse)):
         analyse(pickle.loads(Path(path).read_bytes()))
 
