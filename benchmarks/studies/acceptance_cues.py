@@ -845,11 +845,10 @@ LEGS = (("left", "lfemur", "ltibia", "lfoot", "ltoes"), ("right", "rfemur", "rti
                                                           "rtoes"))
 
 
-def leg_points(model, obs):
-    """World positions of each leg's hip, knee, ankle and ball {joint: (N, 3)} by forward
-    kinematics of the observed leg angles on the CMU template skeleton, the root at the origin
-    tilted as observed and turned to the rest's heading (as ``checks._arm_points`` poses the
-    arms), and the rest's forward and left (2,)."""
+def template_pose(model, obs):
+    """The observed angles on the CMU template skeleton: ``(skeleton, DOF rows (N, n_dofs),
+    root rotation (N, 3, 3))``, the root tilted as observed and turned to the rest's heading
+    (as ``checks._template_points`` poses it), for forward kinematics of any joint."""
     skel = checks._template_skeleton()
     names = list(skel.dof_names())
     angles = [c for c in model.channel_names[:model.n_angles] if c in names]
@@ -858,6 +857,15 @@ def leg_points(model, obs):
     root = np.broadcast_to(skel.rest_rotations[0], (len(obs), 3, 3))
     root = checks.exp_so3(obs[:, model.channel_index(["root.tilt_x", "root.tilt_y",
                                                       "root.tilt_z"])]) @ root
+    return skel, dofs, root
+
+
+def leg_points(model, obs):
+    """World positions of each leg's hip, knee, ankle and ball {joint: (N, 3)} by forward
+    kinematics of the observed leg angles on the CMU template skeleton, the root at the origin
+    tilted as observed and turned to the rest's heading (as ``checks._arm_points`` poses the
+    arms), and the rest's forward and left (2,)."""
+    skel, dofs, root = template_pose(model, obs)
     joints = [skel.index(j) for leg in LEGS for j in leg[1:]]
     heads, _ = chain_kinematics(skel, dofs, joints, known={0: (root, np.zeros((len(obs), 3)))})
     rest = skel.rest_rotations[0]
