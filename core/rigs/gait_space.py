@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics import (Skeleton, axis_rotation, forward_kinematics,
+from ..kinematics import (Skeleton, alternate_euler, axis_rotation, forward_kinematics,
                           local_rotations_from_dofs, make_euler_continuous, matrix_to_euler,
                           rest_pose)
 from ..mocap import asf_to_skeleton, cmu_template_asf
@@ -358,7 +358,7 @@ def _decompose(sk, targets, through, root_world, hinges=None, held=None):
             parent = built[:, p]
         else:
             local = sk.rest_rotations[i].T @ np.swapaxes(parent, -1, -2) @ target
-            euler = _euler(local, _order(axes))
+            euler = _euler(local, _order(axes), kept=axes, bone=sk.tails[i])
         out[:, cols[i]] = euler[:, list(axes)]
         built[:, i] = parent @ sk.rest_rotations[i] @ _local(sk, i, out[:, cols[i]])
     return out
@@ -398,11 +398,43 @@ def _order(axes):
     return twist + list(axes) + [x for x in (0, 2) if x not in axes]
 
 
-def _euler(matrices, axes):
+def _euler(matrices, axes, kept=None, bone=None):
     """Euler angles (N, 3, stored by axis) of rotations, ``axes`` applied in that order,
-    continuous in time."""
+    continuous in time (``make_euler_continuous``: each frame on the triple nearest the
+    frame before's).
+
+    A joint that keeps only some axes (``kept``: the CMU knee and elbow their bend, X) starts
+    on the triple whose kept angles point its ``bone`` (tail, joint frame) where the rotation
+    does (:func:`_first_branch`): ``matrix_to_euler`` puts the middle angle in [−90°, 90°], so
+    a knee bent past 90° at the first frame came as its other triple ``(π, 180° − bend, π)``
+    -- a bend of 180° − bend and a half turn the knee cannot hold -- and every later frame
+    followed it (``docs/gait_rigs.md``, *Stop 46, a knee bent past 90° at the first frame*)."""
     order = "".join("XYZ"[x] for x in axes)
-    return make_euler_continuous(matrix_to_euler(matrices, order), order)
+    angles = matrix_to_euler(matrices, order)
+    if kept is not None and len(kept) < 3 and len(angles):
+        angles[0] = _first_branch(matrices[0], angles[0], order, kept, bone)
+    return make_euler_continuous(angles, order)
+
+
+def _first_branch(matrix, angles, order, kept, bone=None):
+    """Of the two Euler triples of ``matrix`` (3, 3) -- ``angles`` (3,) and its
+    :func:`~core.kinematics.alternate_euler` -- the one whose ``kept`` axes alone (applied in
+    ``order``) turn the bone direction (``bone``, default Y) nearest to where ``matrix`` turns
+    it: the dropped angles then move the bone least. ``angles`` itself on a tie."""
+    y = np.array([0.0, 1.0, 0.0]) if bone is None or not np.linalg.norm(bone) > 0 else \
+        np.asarray(bone, dtype=float) / np.linalg.norm(bone)
+    want = matrix @ y
+    other = alternate_euler(angles, order)
+
+    def miss(triple):
+        m = np.eye(3)
+        for letter in order:
+            axis = "XYZ".index(letter)
+            if axis in kept:
+                m = axis_rotation(axis, triple[axis]) @ m
+        return np.linalg.norm(m @ y - want)
+
+    return other if miss(other) < miss(angles) else angles
 
 
 def _local(sk, joint, angles):
