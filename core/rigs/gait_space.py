@@ -20,9 +20,13 @@ The gait model (``core.gait``) reads and predicts the DOF rows of a CMU Acclaim 
 * **Reading** (:meth:`GaitSpace.dofs`): CMU joints are decomposed parent first against the
   parent *as reconstructed from its DOFs*, so what a joint cannot hold (a twist of the forearm:
   CMU's ``radius`` only bends) passes on to its child; a twist about the bone (the CMU bones'
-  Y axis) is taken as applied first, so that dropping it leaves the bone's direction exact. A CMU joint that no rig bone is but that
-  sits between two that are, with the axes its child lacks (``wrist``: the forearm's twist,
-  between ``radius`` and ``hand``), is solved together with that child. Other CMU joints
+  Y axis) is taken as applied first, so that dropping it leaves the bone's direction exact;
+  of the two Euler triples of a joint that drops axes, the first frame takes the one whose
+  kept angles point the bone where the rig does (a knee bent past 90°: its bend, not
+  180° − bend and a half turn; stop 46), the later frames follow it continuously. A CMU
+  joint that no rig bone is but that sits between two that are, with the axes its child
+  lacks (``wrist``: the forearm's twist, between ``radius`` and ``hand``), is solved
+  together with that child. Other CMU joints
   without a rig bone (fingers and thumbs, missing toes, clavicles or spine pieces) are held
   rigid with their parent: their DOF columns are *unobserved* (:attr:`GaitSpace.observed`).
 * **Writing** (:meth:`GaitSpace.rig_pose`): each rig chain joint takes its CMU joint's frame
@@ -369,6 +373,11 @@ def _decompose(sk, targets, through, root_world, hinges=None, held=None):
 HINGE_FADE = np.radians(15.0)
 
 
+#: Distance (unit bone directions) within which :func:`_first_branch` takes the two Euler
+#: triples as equally near (rounding is about 1e-16; a knee 1° past 90° is 0.035 apart).
+BRANCH_TIE = 1e-9
+
+
 def _hinge_twist(upper, lower, lower_tail):
     """Twists (N, 3, 3) about the upper bone's axis (Y) that put the lower bone's direction in
     the plane its hinge (X) can reach: the elbow or knee then sits where the rig's is, and
@@ -420,7 +429,9 @@ def _first_branch(matrix, angles, order, kept, bone=None):
     """Of the two Euler triples of ``matrix`` (3, 3) -- ``angles`` (3,) and its
     :func:`~core.kinematics.alternate_euler` -- the one whose ``kept`` axes alone (applied in
     ``order``) turn the bone direction (``bone``, default Y) nearest to where ``matrix`` turns
-    it: the dropped angles then move the bone least. ``angles`` itself on a tie."""
+    it: the dropped angles then move the bone least. ``angles`` itself unless the other is
+    nearer by more than :data:`BRANCH_TIE` (a foot drops only its twist, which moves the bone
+    not at all on either triple: rounding must not choose)."""
     y = np.array([0.0, 1.0, 0.0]) if bone is None or not np.linalg.norm(bone) > 0 else \
         np.asarray(bone, dtype=float) / np.linalg.norm(bone)
     want = matrix @ y
@@ -434,7 +445,7 @@ def _first_branch(matrix, angles, order, kept, bone=None):
                 m = axis_rotation(axis, triple[axis]) @ m
         return np.linalg.norm(m @ y - want)
 
-    return other if miss(other) < miss(angles) else angles
+    return other if miss(other) < miss(angles) - BRANCH_TIE else angles
 
 
 def _local(sk, joint, angles):
