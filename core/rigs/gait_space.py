@@ -374,7 +374,7 @@ HINGE_FADE = np.radians(15.0)
 
 
 #: Distance (unit bone directions) within which :func:`_first_branch` takes the two Euler
-#: triples as equally near (rounding is about 1e-16; a knee 1° past 90° is 0.035 apart).
+#: triples as equally near (rounding is about 1e-15; a knee 1° past 90° is 0.035 apart).
 BRANCH_TIE = 1e-9
 
 
@@ -430,8 +430,12 @@ def _first_branch(matrix, angles, order, kept, bone=None):
     :func:`~core.kinematics.alternate_euler` -- the one whose ``kept`` axes alone (applied in
     ``order``) turn the bone direction (``bone``, default Y) nearest to where ``matrix`` turns
     it: the dropped angles then move the bone least. ``angles`` itself unless the other is
-    nearer by more than :data:`BRANCH_TIE` (a foot drops only its twist, which moves the bone
-    not at all on either triple: rounding must not choose)."""
+    nearer by more than :data:`BRANCH_TIE` (where both are as near -- a knee at 90° keeps the
+    same bend on both -- rounding must not choose).
+
+    The CMU foot's bone is not along its twist axis (Y; 12° off on the template), so the twist
+    its triple drops moves it too: a foot pitched past 90° from its rest (a kick) starts on
+    the triple that points it where the rig does, as a knee past 90° does."""
     y = np.array([0.0, 1.0, 0.0]) if bone is None or not np.linalg.norm(bone) > 0 else \
         np.asarray(bone, dtype=float) / np.linalg.norm(bone)
     want = matrix @ y

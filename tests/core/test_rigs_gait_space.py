@@ -382,6 +382,28 @@ def test_a_knee_or_elbow_bent_past_90_degrees_at_the_first_frame_is_read_bent():
         assert np.abs(diff).max() < 1e-6, t
 
 
+def test_a_foot_pitched_past_90_degrees_at_the_first_frame_is_read_as_pitched():
+    """A kick (CMU 74_03) read from a frame where the right foot is pitched past 90° from its
+    rest (rx 199°): the CMU foot's bone is 12° off its twist axis, so the principal Euler
+    triple, whose dropped twist is a half turn, pointed it elsewhere and rolled it (rz −160°);
+    read from there the feet and toes turn as the kick's."""
+    asf74 = read_asf(CMU / "not_gaits" / "74.asf")
+    values = read_amc(CMU / "not_gaits" / "74_03.amc", asf74).values[205:230]
+    rig = SyntheticRig(values=values, rng=np.random.default_rng(74))
+    assert tuple(asf_to_skeleton(asf74).dof_names()) == tuple(rig.cmu.dof_names())
+    space = rig.space()
+    names = space.dof_names
+    feet = [names.index(n) for n in ("rfoot.rx", "rfoot.rz", "rtoes.rx", "lfoot.rx", "lfoot.rz")]
+    assert abs(np.degrees(values[0, names.index("rfoot.rx")]) - 180.0) < 90.0   # the data
+    dofs = space.dofs(rig.root_translation, rig.local)
+    diff = (dofs[:, feet] - values[:, feet] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-6
+    got_rot, _ = cmu_world(space.skeleton, dofs)
+    want_rot, _ = cmu_world(rig.cmu, values)
+    joints = observed_joints(space)
+    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
+
+
 def test_what_the_dofs_cannot_hold_of_a_rigs_convention_is_given_back_by_its_residual():
     """A rig carrying a walk retargeted with another subject's rest directions (subject 35's
     walk with 35's skeleton, as the test rigs are keyed) read through the CMU template
