@@ -16,14 +16,17 @@ each frame shown alone (``read_current``). So every window is read on its own, h
 * **Acceptance** (``benchmarks/gait_acceptance.py``'s windows, the stock library): per window
   whether Predict's checks take it read from the mocap (the bench's rows), read by the rig
   before the fix and after; the hinges' largest read error against the mocap's angle.
-* **Predictions** (``benchmarks/gait_lowo.py``'s test cases, windows 0.5 / 1.0 / 1.67 s, the
-  fold library without the case's subject, what Predict keys: ``gait_lowo.keyed_prediction``
-  on the rig's proportions, ``GaitSpace.skeleton``): RMS error of the 56 angles against the
-  mocap's future, read from the rig before and after, for the windows whose read changed (a
-  window whose read is the same bit for bit predicts the same).
+* **Leave one walker out** (``benchmarks/gait_lowo.py``'s test cases, windows 0.5 / 1.0 /
+  1.67 s): the cases whose window starts with a hinge past 90°, predicted from the rig's
+  read before and after (``gait_lowo.keyed_prediction``, the fold library without the case's
+  subject); a window whose read is the same bit for bit predicts the same.
+* **Predictions of the changed windows** (``--predict``, from the rows written before): what
+  Predict keys from every changed gait acceptance window of 0.5 / 1.0 / 1.67 s
+  (:func:`changed_predictions`).
 * **Single frames**: the share of every clip's frames (60 Hz) a Live Preview read gets wrong.
 
-Run (about 10 min on 2 shared cores; the fold libraries are cached in ``build/folds``)::
+Run (about 24 min on 2 shared cores at load 8-10, and 6 min for ``--predict``; the fold
+libraries are cached in ``build/folds``; conclusions: ``docs/gait_rigs.md``, *Stop 46*)::
 
     OPENBLAS_NUM_THREADS=1 nice -n 5 .venv/bin/python benchmarks/studies/hinge_first_frame.py \\
         --out build/hinge46/rows.json
