@@ -69,13 +69,13 @@ bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
 
 # ONLY=restyle (or offline,online,lowo,restyle): a quick run of some parts while iterating.
-# Runs under the CPU pin of tools/cpu_pin.py (the same figures on every x86-64 CPU; its speed
-# block on this CPU's own kernels); PIN=none runs everything on this CPU's own kernels.
+# Runs under the CPU pin of tools/cpu_pin.py (x86-64-v3: the same figures on every CPU with
+# AVX2/FMA; its speed block on this CPU's own kernels); PIN=none: all on this CPU's own kernels.
 bench-gait: $(STAMP)
 	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json $(if $(ONLY),--only $(ONLY)) $(if $(PIN),--pin $(PIN))
 
-# Rebuild the stock gait library shipped in core/gait/data (1-2.5 min; under the CPU pin of
-# tools/cpu_pin.py: the same file, bit for bit, on every x86-64 CPU: docs/gait.md).
+# Rebuild the stock gait library shipped in core/gait/data (1-2 min; under the CPU pin of
+# tools/cpu_pin.py: the same file, bit for bit, on every CPU with AVX2/FMA: docs/gait.md).
 stock-gaits: $(STAMP)
 	$(PY) tools/build_stock_gaits.py --output core/gait/data/stock_gaits.npz
 
@@ -138,10 +138,10 @@ mutate: $(MUTATE_STAMP)
 
 # The core tests on other CPU paths (docs/testing.md): NumPy's SIMD dispatch off, OpenBLAS's
 # oldest x86-64 kernels, one thread -- exact comparisons that hold only by luck fail here.
-# The core tests under the CPU pin of tools/cpu_pin.py: every SIMD feature NumPy dispatches off
-# (AVX-512 included), OpenBLAS's oldest kernels, libm's FMA/AVX2 variants off, one BLAS thread.
+# The core tests under the x86-64-baseline pin of tools/cpu_pin.py: every SIMD feature NumPy
+# dispatches off (AVX-512 included), OpenBLAS's oldest kernels, libm's FMA variants off.
 test-portability: $(STAMP)
-	$(PY) tools/cpu_pin.py $(PY) -m pytest $(PYTEST_ARGS) tests/core
+	$(PY) tools/cpu_pin.py --pin x86-64-baseline $(PY) -m pytest $(PYTEST_ARGS) tests/core
 
 clean:
 	rm -rf build .pytest_cache

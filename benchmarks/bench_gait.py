@@ -38,10 +38,11 @@ sys.path.insert(0, str(ROOT))
 from tools import cpu_pin  # noqa: E402
 
 if __name__ == "__main__":
-    # The CPU pin of `tools/build_stock_gaits.py` (the same recipe as the shipped library): the
-    # figures are the same on every x86-64 CPU (EM amplifies rounding: LOWO read 8.58 / 6.23 /
-    # 5.63° on one machine and 8.67 / 6.25 / 5.61° on another, main 93ff328, stop 45).
-    # `--pin none` measures this CPU's own kernels; the speed block always does (see main).
+    # The CPU pin of `tools/build_stock_gaits.py` (x86-64-v3; the folds learn the shipped
+    # library's recipe): the figures are the same on every CPU with AVX2/FMA (EM amplifies
+    # rounding: LOWO read 8.58 / 6.23 / 5.63° on one machine and 8.67 / 6.25 / 5.61° on another,
+    # main 93ff328, stop 45). `--pin none` measures this CPU's own kernels; the speed block
+    # always does (see main).
     cpu_pin.pin_from_command_line()
 
 # One BLAS thread (also without the pin): with OpenBLAS's default threads the sums of products
@@ -581,7 +582,7 @@ def main(argv=None):
             report["offline"] = run_offline(data)
         if "online" in parts:
             report["online"], report["speed"] = run_online(data)
-            if cpu_pin.is_pinned():
+            if cpu_pin.describe():
                 report["speed"] = unpinned_speed(output)
     if "lowo" in parts:
         report["leave_one_walker_out"] = run_lowo()

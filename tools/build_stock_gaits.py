@@ -8,12 +8,14 @@ resamples them to 60 Hz, cuts each into steady pieces (``core.gait.segments``), 
 model with the default settings: every piece is a training sequence named after its style (the
 pieces of a style become one named style), the CMU subject is the walker (posture-offset prior).
 The same recipe, without the held-out subject, is what ``make bench-gait`` evaluates leave one
-walker out. Reproducible on every x86-64 CPU: the script re-executes itself under the CPU pin of
-``tools/cpu_pin.py`` (one BLAS thread, OpenBLAS's oldest kernels, NumPy's and libm's CPU
-dispatch off), and the file is written without timestamps, so a rebuild is the same file, bit for
-bit, on any x86-64 CPU with the same venv and glibc (``make check-stock-gaits`` rebuilds into
-build/ and compares). ``--pin none`` runs on the machine's own kernels (faster; the bytes then
-follow the CPU). Takes about N minutes on the 2-core development machine.
+walker out. Reproducible across CPUs: the script re-executes itself under the CPU pin of
+``tools/cpu_pin.py`` (default ``x86-64-v3``: one BLAS thread, OpenBLAS's Haswell kernels,
+NumPy's loops up to AVX2/FMA3, no AVX-512) and the file is written without timestamps, so a
+rebuild is the shipped file, bit for bit, on every CPU with AVX2 and FMA with the same venv and
+glibc (``make check-stock-gaits`` rebuilds into build/ and compares). ``--pin none``: this CPU's
+own kernels (the bytes then follow the CPU); ``--pin x86-64-baseline``: the same bytes on every
+x86-64 CPU, but another library (docs/gait.md, Stop 46). About 12 s of CPU time (1-2 min on the
+shared 2-core development machine).
 """
 
 import argparse
@@ -28,8 +30,8 @@ sys.path.insert(0, str(ROOT))
 from tools.cpu_pin import PIN_VAR, add_pin_argument, pin_from_command_line  # noqa: E402
 
 if __name__ == "__main__":
-    # The CPU pin before NumPy computes anything: the same bytes on every x86-64 CPU (glibc
-    # reads its tunables when a process starts, hence a re-execution).
+    # The CPU pin before NumPy computes anything: the same bytes on every CPU the pin runs on
+    # (glibc reads its tunables when a process starts, hence a re-execution).
     pin_from_command_line()
 
 # One BLAS thread (also without the pin): sums of products then round the same way on every
