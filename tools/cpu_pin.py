@@ -26,12 +26,12 @@ Two pins (``PINS``):
   Haswell kernels (which OpenBLAS also runs on AMD Zen), NumPy's loops up to AVX2/FMA3, libm's
   FMA variants. The same bits on every CPU with AVX2 and FMA (Intel since 2013, AMD since
   2017); on an older CPU it refuses, by name. The shipped stock library was built on such a
-  machine (an AMD EPYC) and this pin rebuilds it bit for bit on an AVX-512 Xeon.
+  machine, and this pin rebuilds it bit for bit on an AVX-512 Xeon.
 * ``x86-64-baseline``: the same bits on every x86-64 CPU — OpenBLAS's oldest kernels
   (``Prescott``, reported as Katmai: SSE2/SSE3), NumPy's baseline loops, libm's SSE2 variants.
-  It learns another stock library (a different discrete choice in learning, Stop 46 in
-  docs/gait.md), so it is not the default; ``make test-portability`` runs the core tests under
-  it.
+  It learns another stock library (learning's refinement lands elsewhere along a nearly flat
+  direction: Stop 46 in docs/gait.md), so it is not the default; ``make test-portability`` runs
+  the core tests under it.
 
 Bit-identical results also need the same software: the venv's NumPy (and its OpenBLAS) and the
 same glibc. ``reexec_pinned()`` re-executes the running script under a pinned environment (the
