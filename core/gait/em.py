@@ -33,7 +33,7 @@ with the table changed nothing on validation). :func:`.predict` adds the table w
 ``residual=result.residual``.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,6 +65,12 @@ BATCH_GRID = (12, 18)
 # (6 of 6 outer folds) and 1.0 s (5 of 6) and the plain grid at 1.67 s (5 of 6); the folds'
 # typical cycles are 1.19-1.41 s. 0: the plain grid always (main 93ff328).
 GRID_OFFSET_CYCLES = 1.0
+# On a window of c < 1 typical cycles the posture-offset prior's precision is multiplied by
+# c^-OFFSET_PRIOR_POWER (the between-walker variance by c^p): less than a cycle averages a
+# part of the stride, not the walker's mean pose, so the offset would absorb what the style
+# and phase should carry (docs/gait.md, *Stop 46, the half-second window's posture*). A
+# cycle or more: unchanged. 0: the prior of main 61c1d78 on every window.
+OFFSET_PRIOR_POWER = 2.0
 
 
 @dataclass(frozen=True)
@@ -268,6 +274,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     """
     ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio, offset)
     ys = scaled_observations(ctx, observations)
+    ctx = short_window_context(ctx, len(ys) / ctx.fps)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
     short = k / ctx.fps < GRID_OFFSET_CYCLES * typical_period_s(model)
     grid = grid_search(ctx, ys[:k], n_phi=BATCH_GRID[1], n_omega=BATCH_GRID[0],
@@ -302,6 +309,31 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
                        loglik_history=np.array(history), n_iter=n_iter, converged=converged,
                        fps=ctx.fps, channels=tuple(model.channel_names[i] for i in ctx.channels),
                        residual=table, offset=full_offset, last_observation=last)
+
+
+def short_window_context(ctx, seconds, power=None):
+    """The context with the posture-offset prior tightened on a window shorter than a cycle.
+
+    Parameters
+    ----------
+    ctx : FilterContext
+    seconds : float
+        Length of the observed window.
+    power : float, optional
+        p of the tightening (default ``OFFSET_PRIOR_POWER``).
+
+    Returns
+    -------
+    FilterContext
+        ``ctx`` itself when it has no offset prior or the window spans ``c ≥ 1`` typical cycles
+        (:func:`typical_period_s`); otherwise a copy whose ``offset_prec`` is multiplied by
+        ``c^-p``.
+    """
+    power = OFFSET_PRIOR_POWER if power is None else float(power)
+    cycles = seconds / typical_period_s(ctx.model)
+    if ctx.offset_prec is None or power == 0 or not 0 < cycles < 1:
+        return ctx
+    return replace(ctx, offset_prec=ctx.offset_prec * cycles ** -power)
 
 
 def typical_period_s(model):
