@@ -20,7 +20,9 @@ The b-block of the normal equations is diagonal (``n_d / r + λ_d`` per channel,
 that observe channel d), so ``b`` is eliminated (Schur complement) and only a J × J system is
 solved: ``(A/r + Λ - M D⁻¹ Mᵀ / r²) w = B/r + Λw̄ - M D⁻¹ s / r²`` with ``M = Σ_t μ_t`` (J, Dc),
 ``s = Σ_t y_t``, ``D = diag(n/r + λ)``, then ``b = D⁻¹ (s - Mᵀ w) / r``. The E-step filters
-``y - b``.
+``y - b``. On a window shorter than a cycle of the model the prior is tightened
+(:func:`short_window_context`: precision × ``c^-OFFSET_PRIOR_POWER``, c the window in typical
+cycles): part of a stride averages to a pose that is not the walker's mean one.
 
 Start: the (ω₀, φ₀) grid of :mod:`.initial_phase` on the first ``init_window`` seconds.
 
@@ -42,7 +44,7 @@ from .initial_phase import grid_search
 from .residual import DEFAULT_RESIDUAL_RATIO, residual_table, residual_weights
 
 __all__ = ["AdaptResult", "adapt", "m_step", "m_step_offset", "offset_statistics",
-           "scaled_observations", "sufficient_statistics"]
+           "scaled_observations", "short_window_context", "sufficient_statistics"]
 
 # Seconds scored by the initial (ω, φ) grid: the whole window up to 1.7 s (leave-one-walker-out
 # inner folds: 1.0 s observed 6.47° → 6.18° against 0.5 s of grid, docs/gait.md).
