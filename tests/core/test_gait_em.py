@@ -413,13 +413,13 @@ def test_a_window_of_a_cycle_or_more_starts_from_the_plain_grid(monkeypatch):
 
 def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(monkeypatch):
     """Stop 46: on a window of c < 1 typical cycles the M-step's posture-offset prior has
-    precision λ c^-p (p = ``OFFSET_PRIOR_POWER``), λ the model's between-walker prior; on a
-    window of a cycle or more it is λ itself, and the adaptation is bit for bit the one
-    without the tightening."""
+    precision λ c^-p (p = ``OFFSET_PRIOR_POWER``, set to 2 here), λ the model's between-walker
+    prior; on a window of a cycle or more it is λ itself, and the adaptation is bit for bit the
+    one without the tightening; with p = 0 (the default) the context is the plain one."""
     from core.gait import em
 
     model = small_model()
-    assert em.OFFSET_PRIOR_POWER > 0
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)     # off by default (docs/gait.md)
     base = make_context(model).offset_prec              # the between-walker prior, λ
     period_s = float(np.median(model.periods)) / model.fps
     seen = []
@@ -451,3 +451,5 @@ def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(m
     short_new = adapt(model, obs[:30], residual=False)
     # The tighter prior shrinks the short window's offset.
     assert np.linalg.norm(short_new.offset) < np.linalg.norm(short_old.offset)
+    ctx = make_context(model)
+    assert em.short_window_context(ctx, 0.5, power=0.0) is ctx
