@@ -3,6 +3,7 @@
 from .rotations import (
     AXIS_INDEX,
     EULER_ORDERS,
+    alternate_euler,
     axis_rotation,
     euler_to_matrix,
     exp_so3,
@@ -21,6 +22,7 @@ __all__ = [
     "AXIS_INDEX",
     "EULER_ORDERS",
     "Skeleton",
+    "alternate_euler",
     "axis_rotation",
     "bone_tails",
     "chain_kinematics",

@@ -142,6 +142,34 @@ def matrix_to_euler(matrix, order="XYZ"):
     return out
 
 
+def alternate_euler(angles, order="XYZ"):
+    """The other Euler triple of the same rotations: ``(a + π, π − b, c + π)`` for the first,
+    middle and last applied axes (stored by axis).
+
+    ``R_k(c + π) R_j(π − b) R_i(a + π) = R_k(c) R_j(b) R_i(a)``: turning by π about the last
+    and the first axis flips the middle one's sense (Shoemake 1994, *Euler angle conversion*,
+    Graphics Gems IV: the two solutions of a non-degenerate decomposition).
+    :func:`matrix_to_euler` gives the one whose middle angle is in [−π/2, π/2].
+
+    Parameters
+    ----------
+    angles : array_like, shape (..., 3), radians
+    order : str
+
+    Returns
+    -------
+    ndarray, shape (..., 3), radians
+    """
+    i, j, k = _order_axes(order)
+    alternate = np.array(angles, dtype=float)
+    if alternate.shape[-1:] != (3,):
+        raise ValueError(f"Expected shape (..., 3), got {alternate.shape}")
+    alternate[..., i] += np.pi
+    alternate[..., j] = np.pi - alternate[..., j]
+    alternate[..., k] += np.pi
+    return alternate
+
+
 def make_euler_continuous(angles, order="XYZ"):
     """Pick, frame by frame, the Euler representation closest to the previous frame.
 
@@ -172,11 +200,7 @@ def make_euler_continuous(angles, order="XYZ"):
     angles = np.array(angles, dtype=float)
     if angles.ndim < 2 or angles.shape[-1] != 3:
         raise ValueError(f"Expected shape (N, 3), got {angles.shape}")
-    i, j, k = _order_axes(order)
-    alternate = angles.copy()
-    alternate[..., i] += np.pi
-    alternate[..., j] = np.pi - alternate[..., j]
-    alternate[..., k] += np.pi
+    alternate = alternate_euler(angles, order)
     if angles.shape[-2] < 2:
         return angles
     triples = (angles, alternate)

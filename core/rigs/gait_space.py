@@ -20,9 +20,13 @@ The gait model (``core.gait``) reads and predicts the DOF rows of a CMU Acclaim 
 * **Reading** (:meth:`GaitSpace.dofs`): CMU joints are decomposed parent first against the
   parent *as reconstructed from its DOFs*, so what a joint cannot hold (a twist of the forearm:
   CMU's ``radius`` only bends) passes on to its child; a twist about the bone (the CMU bones'
-  Y axis) is taken as applied first, so that dropping it leaves the bone's direction exact. A CMU joint that no rig bone is but that
-  sits between two that are, with the axes its child lacks (``wrist``: the forearm's twist,
-  between ``radius`` and ``hand``), is solved together with that child. Other CMU joints
+  Y axis) is taken as applied first, so that dropping it leaves the bone's direction exact;
+  of the two Euler triples of a joint that drops axes, the first frame takes the one whose
+  kept angles point the bone where the rig does (a knee bent past 90°: its bend, not
+  180° − bend and a half turn; stop 46), the later frames follow it continuously. A CMU
+  joint that no rig bone is but that sits between two that are, with the axes its child
+  lacks (``wrist``: the forearm's twist, between ``radius`` and ``hand``), is solved
+  together with that child. Other CMU joints
   without a rig bone (fingers and thumbs, missing toes, clavicles or spine pieces) are held
   rigid with their parent: their DOF columns are *unobserved* (:attr:`GaitSpace.observed`).
 * **Writing** (:meth:`GaitSpace.rig_pose`): each rig chain joint takes its CMU joint's frame
@@ -49,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics import (Skeleton, axis_rotation, forward_kinematics,
+from ..kinematics import (Skeleton, alternate_euler, axis_rotation, forward_kinematics,
                           local_rotations_from_dofs, make_euler_continuous, matrix_to_euler,
                           rest_pose)
 from ..mocap import asf_to_skeleton, cmu_template_asf
@@ -358,7 +362,7 @@ def _decompose(sk, targets, through, root_world, hinges=None, held=None):
             parent = built[:, p]
         else:
             local = sk.rest_rotations[i].T @ np.swapaxes(parent, -1, -2) @ target
-            euler = _euler(local, _order(axes))
+            euler = _euler(local, _order(axes), kept=axes, bone=sk.tails[i])
         out[:, cols[i]] = euler[:, list(axes)]
         built[:, i] = parent @ sk.rest_rotations[i] @ _local(sk, i, out[:, cols[i]])
     return out
@@ -367,6 +371,11 @@ def _decompose(sk, targets, through, root_world, hinges=None, held=None):
 #: Bend (radians) below which a limb's plane is too ill-defined to twist its upper bone
 #: fully towards it (the twist fades in from 0 at a straight limb).
 HINGE_FADE = np.radians(15.0)
+
+
+#: Distance (unit bone directions) within which :func:`_first_branch` takes the two Euler
+#: triples as equally near (rounding is about 1e-15; a knee 1° past 90° is 0.035 apart).
+BRANCH_TIE = 1e-9
 
 
 def _hinge_twist(upper, lower, lower_tail):
@@ -398,11 +407,49 @@ def _order(axes):
     return twist + list(axes) + [x for x in (0, 2) if x not in axes]
 
 
-def _euler(matrices, axes):
+def _euler(matrices, axes, kept=None, bone=None):
     """Euler angles (N, 3, stored by axis) of rotations, ``axes`` applied in that order,
-    continuous in time."""
+    continuous in time (``make_euler_continuous``: each frame on the triple nearest the
+    frame before's).
+
+    A joint that keeps only some axes (``kept``: the CMU knee and elbow their bend, X) starts
+    on the triple whose kept angles point its ``bone`` (tail, joint frame) where the rotation
+    does (:func:`_first_branch`): ``matrix_to_euler`` puts the middle angle in [−90°, 90°], so
+    a knee bent past 90° at the first frame came as its other triple ``(π, 180° − bend, π)``
+    -- a bend of 180° − bend and a half turn the knee cannot hold -- and every later frame
+    followed it (``docs/gait_rigs.md``, *Stop 46, a knee bent past 90° at the first frame*)."""
     order = "".join("XYZ"[x] for x in axes)
-    return make_euler_continuous(matrix_to_euler(matrices, order), order)
+    angles = matrix_to_euler(matrices, order)
+    if kept is not None and len(kept) < 3 and len(angles):
+        angles[0] = _first_branch(matrices[0], angles[0], order, kept, bone)
+    return make_euler_continuous(angles, order)
+
+
+def _first_branch(matrix, angles, order, kept, bone=None):
+    """Of the two Euler triples of ``matrix`` (3, 3) -- ``angles`` (3,) and its
+    :func:`~core.kinematics.alternate_euler` -- the one whose ``kept`` axes alone (applied in
+    ``order``) turn the bone direction (``bone``, default Y) nearest to where ``matrix`` turns
+    it: the dropped angles then move the bone least. ``angles`` itself unless the other is
+    nearer by more than :data:`BRANCH_TIE` (where both are as near -- a knee at 90° keeps the
+    same bend on both -- rounding must not choose).
+
+    The CMU foot's bone is not along its twist axis (Y; 12° off on the template), so the twist
+    its triple drops moves it too: a foot pitched past 90° from its rest (a kick) starts on
+    the triple that points it where the rig does, as a knee past 90° does."""
+    y = np.array([0.0, 1.0, 0.0]) if bone is None or not np.linalg.norm(bone) > 0 else \
+        np.asarray(bone, dtype=float) / np.linalg.norm(bone)
+    want = matrix @ y
+    other = alternate_euler(angles, order)
+
+    def miss(triple):
+        m = np.eye(3)
+        for letter in order:
+            axis = "XYZ".index(letter)
+            if axis in kept:
+                m = axis_rotation(axis, triple[axis]) @ m
+        return np.linalg.norm(m @ y - want)
+
+    return other if miss(other) < miss(angles) - BRANCH_TIE else angles
 
 
 def _local(sk, joint, angles):

@@ -65,13 +65,16 @@ class SyntheticRig:
     onto it (module docstring). World = armature space unless ``armature2world`` is given."""
 
     def __init__(self, asf="08", trial="08_01", frames=90, scale=1.0, armature2world=None,
-                 rng=None, **part_options):
+                 rng=None, values=None, **part_options):
+        """``asf``: a subject of the data folder or an ASF; ``values``: DOF rows to walk
+        (default: the trial's first ``frames`` rows)."""
         rng = RNG if rng is None else rng    # a test's own generator: draws independent of order
-        asf = read_asf(CMU / f"{asf}.asf")
+        asf = read_asf(CMU / f"{asf}.asf") if isinstance(asf, str) else asf
         self.cmu = asf_to_skeleton(asf)
         names = list(self.cmu.names)
         index = {n: i for i, n in enumerate(names)}
-        values = read_amc(CMU / f"{trial}.amc", asf).values[:frames]
+        values = read_amc(CMU / f"{trial}.amc", asf).values[:frames] if values is None \
+            else np.asarray(values, dtype=float)
         self.cmu_dofs = values
         # The rig's rest: the CMU skeleton in a pose of its own (arms down, knees bent...).
         rest_dofs = np.zeros((1, self.cmu.n_dofs))
@@ -349,6 +352,56 @@ def test_a_knee_bending_in_its_own_plane_keeps_the_ankle_where_the_rig_has_it():
         world[:, rig.names.index("thigh.L"), :, 1] * world[:, rig.names.index("shin.L"), :, 1],
         axis=-1), -1, 1)))
     assert np.linalg.norm(got[:, ankle] - want[:, ankle], axis=-1)[bend_l > 15].max() < 1e-6
+
+
+def test_a_knee_or_elbow_bent_past_90_degrees_at_the_first_frame_is_read_bent():
+    """A run (CMU 35_17) from its first frame, where the left knee and both elbows are bent
+    past 90°: read from the first frame, and each frame read alone (Live Preview reads one),
+    the knees and elbows bend as the run's (the Euler decomposition's principal triple would
+    give 180° − bend and a half turn, and the frames after followed it: docs/gait_rigs.md,
+    *Stop 46*), and every joint the rig has turns as the run's."""
+    asf35 = read_asf(CMU / "35.asf")
+    values = read_amc(CMU / "35_17.amc", asf35).values[:60]
+    rig = SyntheticRig(values=values, rng=np.random.default_rng(46))
+    assert tuple(asf_to_skeleton(asf35).dof_names()) == tuple(rig.cmu.dof_names())
+    space = rig.space()
+    names = space.dof_names
+    hinges = [names.index(n) for n in ("ltibia.rx", "rtibia.rx", "lradius.rx", "rradius.rx")]
+    past = np.degrees(values[0, hinges]) > 90.0
+    assert past.sum() >= 3                      # the data: left knee, both elbows
+    dofs = space.dofs(rig.root_translation, rig.local)
+    diff = (dofs[:, hinges] - values[:, hinges] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-6
+    got_rot, _ = cmu_world(space.skeleton, dofs)
+    want_rot, _ = cmu_world(rig.cmu, values)
+    joints = observed_joints(space)
+    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
+    for t in (0, 17, 41):
+        alone = space.dofs(rig.root_translation[t:t + 1], rig.local[t:t + 1])
+        diff = (alone[0, hinges] - values[t, hinges] + np.pi) % (2 * np.pi) - np.pi
+        assert np.abs(diff).max() < 1e-6, t
+
+
+def test_a_foot_pitched_past_90_degrees_at_the_first_frame_is_read_as_pitched():
+    """A kick (CMU 74_03) read from a frame where the right foot is pitched past 90° from its
+    rest (rx 199°): the CMU foot's bone is 12° off its twist axis, so the principal Euler
+    triple, whose dropped twist is a half turn, pointed it elsewhere and rolled it (rz −160°);
+    read from there the feet and toes turn as the kick's."""
+    asf74 = read_asf(CMU / "not_gaits" / "74.asf")
+    values = read_amc(CMU / "not_gaits" / "74_03.amc", asf74).values[205:230]
+    rig = SyntheticRig(values=values, rng=np.random.default_rng(74))
+    assert tuple(asf_to_skeleton(asf74).dof_names()) == tuple(rig.cmu.dof_names())
+    space = rig.space()
+    names = space.dof_names
+    feet = [names.index(n) for n in ("rfoot.rx", "rfoot.rz", "rtoes.rx", "lfoot.rx", "lfoot.rz")]
+    assert abs(np.degrees(values[0, names.index("rfoot.rx")]) - 180.0) < 90.0   # the data
+    dofs = space.dofs(rig.root_translation, rig.local)
+    diff = (dofs[:, feet] - values[:, feet] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-6
+    got_rot, _ = cmu_world(space.skeleton, dofs)
+    want_rot, _ = cmu_world(rig.cmu, values)
+    joints = observed_joints(space)
+    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
 
 
 def test_what_the_dofs_cannot_hold_of_a_rigs_convention_is_given_back_by_its_residual():

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from core.kinematics import (EULER_ORDERS, axis_rotation, euler_to_matrix, exp_so3, log_so3,
-                             make_euler_continuous, matrix_to_euler, skew)
+from core.kinematics import (EULER_ORDERS, alternate_euler, axis_rotation, euler_to_matrix,
+                             exp_so3, log_so3, make_euler_continuous, matrix_to_euler, skew)
 
 
 @pytest.mark.parametrize("order", EULER_ORDERS)
@@ -35,6 +35,24 @@ def test_matrix_to_euler_gimbal_lock_reproduces_matrix(order, middle):
     rots = euler_to_matrix(angles, order)
     back = matrix_to_euler(rots, order)
     np.testing.assert_allclose(euler_to_matrix(back, order), rots, atol=1e-12)
+
+
+@pytest.mark.parametrize("order", EULER_ORDERS)
+def test_the_alternate_euler_triple_is_the_same_rotation_on_the_other_side(order):
+    """``alternate_euler`` gives the same rotations (against SciPy's composition), with the
+    middle angle beyond ±π/2 where matrix_to_euler's is within; twice is the triple moved by
+    whole turns."""
+    rots = Rotation.random(200, random_state=3).as_matrix()
+    angles = matrix_to_euler(rots, order)
+    other = alternate_euler(angles, order)
+    by_order = other[:, ["XYZ".index(c) for c in order]]
+    np.testing.assert_allclose(Rotation.from_euler(order.lower(), by_order).as_matrix(), rots,
+                               atol=1e-12)
+    middle = "XYZ".index(order[1])
+    wrapped = (other[:, middle] + np.pi) % (2 * np.pi) - np.pi
+    assert np.all(np.abs(wrapped) >= np.pi / 2 - 1e-12)
+    turns = (alternate_euler(other, order) - angles) / (2 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-12)
 
 
 def test_make_euler_continuous_removes_flips_and_keeps_rotations():
