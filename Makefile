@@ -30,7 +30,7 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP := build/track_and_stride-$(VERSION).zip
 PYTEST_ARGS ?=
 
-.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real bench-rigs bench-memory mutate test-portability stock-gaits clean
+.PHONY: venv demo test test-core test-blender extension bench bench-import bench-gait bench-gait-blender bench-tracking bench-track-blender bench-real bench-rigs bench-memory mutate test-portability stock-gaits check-stock-gaits clean
 
 venv: $(STAMP)
 
@@ -69,13 +69,22 @@ bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
 
 # ONLY=restyle (or offline,online,lowo,restyle): a quick run of some parts while iterating.
+# Runs under the CPU pin of tools/cpu_pin.py (x86-64-v3: the same figures on every CPU with
+# AVX2/FMA; its speed block on this CPU's own kernels); PIN=none: all on this CPU's own kernels.
 bench-gait: $(STAMP)
-	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json $(if $(ONLY),--only $(ONLY))
+	$(PY) benchmarks/bench_gait.py --output build/bench/gait.json $(if $(ONLY),--only $(ONLY)) $(if $(PIN),--pin $(PIN))
 
-# Rebuild the stock gait library shipped in core/gait/data (1.5-2.5 min; the same file, bit for
-# bit, on a rebuild: docs/gait.md).
+# Rebuild the stock gait library shipped in core/gait/data (1-2 min; under the CPU pin of
+# tools/cpu_pin.py: the same file, bit for bit, on every CPU with AVX2/FMA: docs/gait.md).
 stock-gaits: $(STAMP)
 	$(PY) tools/build_stock_gaits.py --output core/gait/data/stock_gaits.npz
+
+# Rebuild it into build/ and compare with the shipped file (fails naming the first byte that
+# differs).
+check-stock-gaits: $(STAMP)
+	$(PY) tools/build_stock_gaits.py --output build/stock_gaits_check.npz
+	cmp build/stock_gaits_check.npz core/gait/data/stock_gaits.npz && \
+	echo "build/stock_gaits_check.npz: the shipped stock library, bit for bit"
 
 bench-gait-blender: extension
 	$(PY) benchmarks/bench_gait_blender.py --extension $(ZIP) --output build/bench/gait_blender.json
@@ -129,9 +138,10 @@ mutate: $(MUTATE_STAMP)
 
 # The core tests on other CPU paths (docs/testing.md): NumPy's SIMD dispatch off, OpenBLAS's
 # oldest x86-64 kernels, one thread -- exact comparisons that hold only by luck fail here.
+# The core tests under the x86-64-baseline pin of tools/cpu_pin.py: every SIMD feature NumPy
+# dispatches off (AVX-512 included), OpenBLAS's oldest kernels, libm's FMA variants off.
 test-portability: $(STAMP)
-	NPY_DISABLE_CPU_FEATURES="AVX2 FMA3 F16C AVX SSE42 SSE41 POPCNT SSSE3" \
-	OPENBLAS_CORETYPE=Nehalem OPENBLAS_NUM_THREADS=1 $(PY) -m pytest $(PYTEST_ARGS) tests/core
+	$(PY) tools/cpu_pin.py --pin x86-64-baseline $(PY) -m pytest $(PYTEST_ARGS) tests/core
 
 clean:
 	rm -rf build .pytest_cache

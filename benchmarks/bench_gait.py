@@ -27,21 +27,32 @@ import argparse
 import json
 import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
 
-# One BLAS thread, as `tools/build_stock_gaits.py`: with OpenBLAS's default threads the sums of
-# products round differently, and learning amplifies that. The leave-one-walker-out table read
-# 9.14 / 6.35 / 5.62° with the default threads and 9.15 / 6.29 / 5.62° with one, on the same
-# commit and machine (stop 35, docs/gait.md). Figures must not depend on the core count.
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from tools import cpu_pin  # noqa: E402
+
+if __name__ == "__main__":
+    # The CPU pin of `tools/build_stock_gaits.py` (x86-64-v3; the folds learn the shipped
+    # library's recipe): the figures are the same on every CPU with AVX2/FMA (EM amplifies
+    # rounding: LOWO read 8.58 / 6.23 / 5.63° on one machine and 8.67 / 6.25 / 5.61° on another,
+    # main 93ff328, stop 45). `--pin none` measures this CPU's own kernels; the speed block
+    # always does (see main).
+    cpu_pin.pin_from_command_line()
+
+# One BLAS thread (also without the pin): with OpenBLAS's default threads the sums of products
+# round differently, and learning amplifies that. The leave-one-walker-out table read 9.14 /
+# 6.35 / 5.62° with the default threads and 9.15 / 6.29 / 5.62° with one, on the same commit and
+# machine (stop 35, docs/gait.md). Figures must not depend on the core count.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 from core.gait import OnlineEM, adapt, estimate_period, learn_model, observations_from_dofs, \
     predict  # noqa: E402
@@ -550,6 +561,7 @@ def main(argv=None):
     parser.add_argument("--only", default=",".join(PARTS),
                         help="comma-separated parts to run while iterating (default: all of "
                              f"{', '.join(PARTS)}); the JSON then holds only those")
+    cpu_pin.add_pin_argument(parser)
     args = parser.parse_args(argv)
     parts = [p.strip() for p in args.only.split(",") if p.strip()]
     unknown = sorted(set(parts) - set(PARTS))
@@ -560,7 +572,8 @@ def main(argv=None):
     t_start = time.perf_counter()
     report = {"goals": GOALS,
               "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                          "platform": platform.platform(), "processor": platform.processor()},
+                          "platform": platform.platform(), "processor": platform.processor(),
+                          "cpu_pin": cpu_pin.describe()},
               "benchmark_s": None}
     if "offline" in parts or "online" in parts:
         data = {name: load(name) for name in sorted(set(OFFLINE_TRAIN + OFFLINE_TEST
@@ -569,6 +582,8 @@ def main(argv=None):
             report["offline"] = run_offline(data)
         if "online" in parts:
             report["online"], report["speed"] = run_online(data)
+            if cpu_pin.describe():
+                report["speed"] = unpinned_speed(output)
     if "lowo" in parts:
         report["leave_one_walker_out"] = run_lowo()
     if "restyle" in parts:
@@ -599,6 +614,22 @@ def main(argv=None):
               f"{GOALS['online_step_us']:.0f})")
     print(f"\nwrote {output}{' and ' + str(png) if png else ''} in "
           f"{report['benchmark_s']:.1f} s")
+
+
+def unpinned_speed(output):
+    """The speed block measured on this CPU's own kernels (what Predict Gait runs in users'
+    Blender: the pin is for figures that must not depend on the CPU, and it slows NumPy).
+
+    Runs ``--pin none --only online`` in a child process with the environment from before the
+    pin, next to ``output`` in ``unpinned/``, and returns its ``speed`` block (its online
+    errors, on this CPU's rounding, are not used).
+    """
+    child = output.parent / "unpinned" / output.name
+    subprocess.run([sys.executable, __file__, "--pin", "none", "--only", "online", "--output",
+                    str(child)], check=True, env=cpu_pin.unpinned_env(), stdout=subprocess.DEVNULL)
+    speed = json.loads(child.read_text())["speed"]
+    speed["cpu_pin"] = "none"
+    return speed
 
 
 def _plain(value):

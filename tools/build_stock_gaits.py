@@ -8,9 +8,14 @@ resamples them to 60 Hz, cuts each into steady pieces (``core.gait.segments``), 
 model with the default settings: every piece is a training sequence named after its style (the
 pieces of a style become one named style), the CMU subject is the walker (posture-offset prior).
 The same recipe, without the held-out subject, is what ``make bench-gait`` evaluates leave one
-walker out. Reproducible: one BLAS thread and a timestamp-free file make a rebuild on the same
-machine byte-identical (a rebuild on another CPU may still differ in the last digits, and then in
-the checksum). Takes 2-7 minutes on the 2-core development machine.
+walker out. Reproducible across CPUs: the script re-executes itself under the CPU pin of
+``tools/cpu_pin.py`` (default ``x86-64-v3``: one BLAS thread, OpenBLAS's Haswell kernels,
+NumPy's loops up to AVX2/FMA3, no AVX-512) and the file is written without timestamps, so a
+rebuild is the shipped file, bit for bit, on every CPU with AVX2 and FMA with the same venv and
+glibc (``make check-stock-gaits`` rebuilds into build/ and compares). ``--pin none``: this CPU's
+own kernels (the bytes then follow the CPU); ``--pin x86-64-baseline``: the same bytes on every
+x86-64 CPU, but another library (docs/gait.md, Stop 46). About 12 s of CPU time (1-2 min on the
+shared 2-core development machine).
 """
 
 import argparse
@@ -19,15 +24,22 @@ import sys
 import time
 from pathlib import Path
 
-# One BLAS thread: sums of products then round the same way on every run, so the rebuild is
-# byte-identical (with two threads the last digits, and the file's checksum, can differ).
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from tools.cpu_pin import PIN_VAR, add_pin_argument, pin_from_command_line  # noqa: E402
+
+if __name__ == "__main__":
+    # The CPU pin before NumPy computes anything: the same bytes on every CPU the pin runs on
+    # (glibc reads its tunables when a process starts, hence a re-execution).
+    pin_from_command_line()
+
+# One BLAS thread (also without the pin): sums of products then round the same way on every
+# run, so a rebuild on the same machine is byte-identical.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 from core.gait import learn_model  # noqa: E402
 from core.gait.segments import steady_segments  # noqa: E402
@@ -86,6 +98,7 @@ def build_stock(recipe=STOCK_RECIPE, folder=CMU, exclude_subjects=(), exclude_tr
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default=str(STOCK_PATH))
+    add_pin_argument(parser)
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     model = build_stock()
@@ -94,7 +107,8 @@ def main(argv=None):
     model.save(output)
     size = output.stat().st_size
     print(f"wrote {output} ({size / 1024:.0f} KiB) in {time.perf_counter() - t0:.1f} s: "
-          f"J={model.n_bases}, styles {', '.join(model.style_names)}")
+          f"J={model.n_bases}, styles {', '.join(model.style_names)}; CPU pin: "
+          f"{os.environ.get(PIN_VAR, 'none')}")
 
 
 if __name__ == "__main__":

@@ -409,3 +409,47 @@ def test_a_window_of_a_cycle_or_more_starts_from_the_plain_grid(monkeypatch):
     assert asked == [False, True, False, False]
     np.testing.assert_array_equal(long_new.states, long_old.states)
     np.testing.assert_array_equal(long_new.w, long_old.w)
+
+
+def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(monkeypatch):
+    """Stop 46: on a window of c < 1 typical cycles the M-step's posture-offset prior has
+    precision λ c^-p (p = ``OFFSET_PRIOR_POWER``, set to 2 here), λ the model's between-walker
+    prior; on a window of a cycle or more it is λ itself, and the adaptation is bit for bit the
+    one without the tightening; with p = 0 (the default) the context is the plain one."""
+    from core.gait import em
+
+    model = small_model()
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)     # off by default (docs/gait.md)
+    base = make_context(model).offset_prec              # the between-walker prior, λ
+    period_s = float(np.median(model.periods)) / model.fps
+    seen = []
+
+    def spy(ctx, stats, style=None):
+        seen.append(ctx.offset_prec.copy())
+        return m_step_offset(ctx, stats, style)
+
+    monkeypatch.setattr(em, "m_step_offset", spy)
+    obs = observations("35_03")
+    for n in (20, 30, 45):
+        seen.clear()
+        adapt(model, obs[:n], residual=False)
+        c = n / model.fps / period_s
+        assert c < 1 and seen
+        for prec in seen:
+            np.testing.assert_allclose(prec, base * c ** -em.OFFSET_PRIOR_POWER, rtol=1e-12)
+    seen.clear()
+    long_new = adapt(model, obs[:100])
+    assert 100 / model.fps > period_s
+    for prec in seen:
+        np.testing.assert_allclose(prec, base, rtol=1e-12)
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 0.0)
+    long_old = adapt(model, obs[:100])
+    np.testing.assert_array_equal(long_new.states, long_old.states)
+    np.testing.assert_array_equal(long_new.offset, long_old.offset)
+    short_old = adapt(model, obs[:30], residual=False)
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)
+    short_new = adapt(model, obs[:30], residual=False)
+    # The tighter prior shrinks the short window's offset.
+    assert np.linalg.norm(short_new.offset) < np.linalg.norm(short_old.offset)
+    ctx = make_context(model)
+    assert em.short_window_context(ctx, 0.5, power=0.0) is ctx
