@@ -45,11 +45,17 @@ after adapting, on the model's fit (issue 21):
    at (their periods × 0.8 … 1.25, the cadence prior), the range is compared with itself one cycle
    later and, mirrored left for right, half a cycle later (the other leg's step), wherever the
    range is long enough for ``MIN_OVERLAP_S`` (0.2 s) of overlap: a walk observed for 0.75 s
-   (less than a cycle) already shows one leg repeating the other's step. The best pooled
-   correlation must reach ``MIN_STRENGTH`` (0.3). A range too short for even the half-cycle
-   comparison is predicted with a warning (its rhythm is not tested) when its legs alternate.
-   *Shorter than the walker's cycle* (stop 44): a weak rhythm at a period the range holds
-   whole is not refused when the range does not hold the walker's own cycle as the adapted
+   (less than a cycle) already shows one leg repeating the other's step. Mirrored with each
+   pair's sign (stop 46, :func:`mirror_signs`, from the model's mean cycle): a hip's abduction
+   (``femur.rz``) flips sign from left to right in the CMU axes, and compared as itself it
+   counted against every walk's rhythm (a walker circling at 0.5 m radius, 139_32, 1.25 s:
+   0.29 → 0.32). The best pooled correlation must reach ``MIN_STRENGTH`` (0.3). A range too
+   short for even the half-cycle comparison is predicted with a warning (its rhythm is not
+   tested) when its legs alternate, and so is one whose best period is weak but compared only
+   half a cycle later when the range is too short for any whole cycle (shorter than the
+   cadence prior's shortest and the overlap: :func:`period_range`). *Shorter than the
+   walker's cycle* (stop 44): a weak rhythm at a period the range holds whole is not refused
+   when the range does not hold the walker's own cycle as the adapted
    model reads it (:func:`walker_cycle`) whole, i.e. is shorter than that cycle plus the
    ``MIN_OVERLAP_S`` a comparison a cycle later needs (stop 45; stop 44: shorter than the
    cycle alone). The rhythm then compared periods the walker does not walk at: the sneaking
@@ -62,7 +68,13 @@ after adapting, on the model's fit (issue 21):
    jitter that no step repeats reads as a slow walker too, about 20 times; the sneaks 2.4-3.3).
    It is predicted with a warning that says the range is too short to see one of the
    walker's step cycles repeat and how long a range gives a surer prediction (check 9 still
-   weighs its poses). *A start from standing, whatever the rhythm* (stop 45;
+   weighs its poses). *A weak best period not held whole* (stop 46;
+   :func:`_short_of_its_cycle`) in a range long enough to hold the cadence prior's shortest
+   cycle whole meets the same exception, but for its start (a start from standing is refused
+   below whatever the rhythm): the signs made the half-cycle comparison the best one in
+   ranges where the whole ones are weaker, and jitter must not pass for that (a 2.5 s range of
+   it: 0.14 at 2.77 s, half a cycle; its legs move many times its cycle). *A start from
+   standing, whatever the rhythm* (stop 45;
    :func:`_starts_from_standing`): a range whose first third travels at less than
    ``MIN_UNDER_WAY`` of its last third's speed is refused, naming the first third's frames,
    with the hint above: start the range where the walk has begun. The kick 74_03's run-up
@@ -157,8 +169,8 @@ __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_LEG_P
            "WARN_FIT", "alternation_deg", "arm_elevation", "arm_out_to_the_side",
            "arm_side_reach", "backward_part", "body_part", "check_gait", "fit_score",
            "gait_channels", "kicking_leg", "leg_frequency", "leg_posture", "legs_together",
-           "overlap_frames", "pose_misfit", "raised_arm", "regularity", "rhythm",
-           "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
+           "mirror_signs", "overlap_frames", "period_range", "pose_misfit", "raised_arm",
+           "regularity", "rhythm", "rhythm_inputs", "shin_swing", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -324,6 +336,32 @@ def overlap_frames(fps):
     return max(4, int(round(MIN_OVERLAP_S * fps)))
 
 
+def mirror_signs(model, pairs):
+    """How each left/right pair mirrors from one step to the next, ±1 per pair (p,): the sign
+    of the correlation of the model's mean cycle's left channel with its right channel half a
+    cycle later, ``sign(Σ_φ l(φ) r(φ + π))`` over the cycle's phase samples, ``l`` and ``r``
+    about their means.
+    A flexion (``rx``) mirrors as itself (+1); a hip's abduction (``femur.rz``) flips sign
+    from left to right in the CMU skeleton's axes (−1): one leg's step is the other's with
+    that channel negated.
+
+    Parameters
+    ----------
+    model : GaitModel
+    pairs : list of (int, int)
+        (left, right) channel indices (:func:`_leg_pairs`).
+
+    Returns
+    -------
+    ndarray, shape (p,)
+        +1.0 or −1.0 (+1 for a pair whose correlation is 0).
+    """
+    cycle = np.einsum("j,jcd->cd", model.style_mean, model.bases)[:-1]      # (P, D), one cycle
+    cycle = cycle - cycle.mean(axis=0)
+    half = np.roll(cycle, -(len(cycle) // 2), axis=0)                       # half a cycle later
+    return np.array([-1.0 if np.sum(cycle[:, a] * half[:, b]) < 0 else 1.0 for a, b in pairs])
+
+
 def rhythm_inputs(model, observations, fps):
     """What :func:`rhythm` compares: the gait channels about their mean and the legs' pairs.
 
@@ -332,7 +370,8 @@ def rhythm_inputs(model, observations, fps):
     x : ndarray, shape (n, c)
         The gait channels (and the right side of every leg pair) minus their mean.
     legs_mirrored, legs : ndarray, shape (n, 2p)
-        The legs' paired channels, left for right swapped and as observed (p pairs).
+        The legs' paired channels, left for right swapped, each pair times its
+        :func:`mirror_signs` (stop 46), and as observed (p pairs).
     overlap : int
         Frames of overlap a comparison needs (``MIN_OVERLAP_S``, at least 4).
     periods : (int, int)
@@ -346,13 +385,19 @@ def rhythm_inputs(model, observations, fps):
     position = {c: k for k, c in enumerate(cols)}
     left = [position[a] for a, _ in pairs]
     right = [position[b] for _, b in pairs]
+    signs = mirror_signs(model, pairs)
     mirrored = x.copy()
-    mirrored[:, left], mirrored[:, right] = x[:, right], x[:, left]
-    overlap = overlap_frames(fps)
+    mirrored[:, left], mirrored[:, right] = x[:, right] * signs, x[:, left] * signs
+    return x, mirrored[:, left + right], x[:, left + right], overlap_frames(fps), \
+        period_range(model, fps)
+
+
+def period_range(model, fps):
+    """The shortest and longest period :func:`rhythm` compares, frames at ``fps``: the
+    model's periods widened by ``CADENCE_SPREAD`` (the cadence prior), never under 4."""
     periods = model.periods / model.fps * fps
-    lo = max(4, int(np.floor(periods.min() / CADENCE_SPREAD)))
-    hi = int(np.ceil(periods.max() * CADENCE_SPREAD))
-    return x, mirrored[:, left + right], x[:, left + right], overlap, (lo, hi)
+    return (max(4, int(np.floor(periods.min() / CADENCE_SPREAD))),
+            int(np.ceil(periods.max() * CADENCE_SPREAD)))
 
 
 def rhythm(model, observations, fps):
@@ -873,6 +918,16 @@ def _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
             and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
 
 
+def _short_of_its_cycle(model, obs, fps, cycle, first):
+    """Check 5's exception for a weak rhythm at a period the range does not hold whole (stop
+    46): the range does not hold the walker's cycle whole either (:func:`_within_its_cycle`)
+    and its legs move no faster than ``MAX_LEG_HARMONICS`` times that cycle
+    (:func:`leg_frequency`). A start from standing is left to its own refusal after the
+    later checks (:func:`_starts_from_standing`), which refuses it whatever the rhythm."""
+    return (_within_its_cycle(obs, fps, cycle, first)
+            and leg_frequency(model, obs, fps) * cycle <= MAX_LEG_HARMONICS)
+
+
 def _rhythm_words(strength):
     """What check 9's refusal says of the range's rhythm: a weak or untested one does not
     vouch for a walk; a strong one (stop 44) repeats, but not as a walk's poses do."""
@@ -962,11 +1017,13 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                                  f"and runs that go forwards")
     period, strength, whole = rhythm(model, obs, fps)
     adapted = cycle = None
-    if whole and strength < MIN_STRENGTH:
+    if strength is not None and strength < MIN_STRENGTH and (
+            whole or (poses and len(obs) - period_range(model, fps)[0] >= overlap_frames(fps))):
         if poses:
             adapted = adapt(model, obs, fps=fps)
             cycle = walker_cycle(adapted, fps)
-        if not _shorter_than_its_cycle(model, obs, fps, cycle, first, end):
+        if not (_shorter_than_its_cycle(model, obs, fps, cycle, first, end) if whole
+                else _short_of_its_cycle(model, obs, fps, cycle, first)):
             hint = (". " + _standing_words(first, end)
                     if _within_its_cycle(obs, fps, cycle, first)
                     and _starts_from_standing(first, end) else "")
@@ -1062,7 +1119,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                         f"walk is under way predicts its pace")
     if strength is None:
         warnings.append(f"{what} is shorter than a step: its rhythm was not tested")
-    elif cycle is not None:            # whole, weak, not holding the walker's cycle whole
+    elif cycle is not None:            # weak, not holding the walker's cycle whole
         longer = cycle + overlap_frames(fps) / fps
         warnings.append(f"in {what} the legs step in turn, but the range "
                         f"({len(obs) / fps:.2f} s) is too short to see one of this walker's "
