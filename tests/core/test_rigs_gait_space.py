@@ -354,6 +354,18 @@ def test_a_knee_bending_in_its_own_plane_keeps_the_ankle_where_the_rig_has_it():
     assert np.linalg.norm(got[:, ankle] - want[:, ankle], axis=-1)[bend_l > 15].max() < 1e-6
 
 
+def _assert_read_as_cmu(space, rig, values, columns):
+    """The rig's range read back gives the CMU values on ``columns`` (modulo a turn) and every
+    observed joint's world rotation of the CMU skeleton."""
+    dofs = space.dofs(rig.root_translation, rig.local)
+    diff = (dofs[:, columns] - values[:, columns] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-6
+    got_rot, _ = cmu_world(space.skeleton, dofs)
+    want_rot, _ = cmu_world(rig.cmu, values)
+    joints = observed_joints(space)
+    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
+
+
 def test_a_knee_or_elbow_bent_past_90_degrees_at_the_first_frame_is_read_bent():
     """A run (CMU 35_17) from its first frame, where the left knee and both elbows are bent
     past 90°: read from the first frame, and each frame read alone (Live Preview reads one),
@@ -369,13 +381,7 @@ def test_a_knee_or_elbow_bent_past_90_degrees_at_the_first_frame_is_read_bent():
     hinges = [names.index(n) for n in ("ltibia.rx", "rtibia.rx", "lradius.rx", "rradius.rx")]
     past = np.degrees(values[0, hinges]) > 90.0
     assert past.sum() >= 3                      # the data: left knee, both elbows
-    dofs = space.dofs(rig.root_translation, rig.local)
-    diff = (dofs[:, hinges] - values[:, hinges] + np.pi) % (2 * np.pi) - np.pi
-    assert np.abs(diff).max() < 1e-6
-    got_rot, _ = cmu_world(space.skeleton, dofs)
-    want_rot, _ = cmu_world(rig.cmu, values)
-    joints = observed_joints(space)
-    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
+    _assert_read_as_cmu(space, rig, values, hinges)
     for t in (0, 17, 41):
         alone = space.dofs(rig.root_translation[t:t + 1], rig.local[t:t + 1])
         diff = (alone[0, hinges] - values[t, hinges] + np.pi) % (2 * np.pi) - np.pi
@@ -395,13 +401,7 @@ def test_a_foot_pitched_past_90_degrees_at_the_first_frame_is_read_as_pitched():
     names = space.dof_names
     feet = [names.index(n) for n in ("rfoot.rx", "rfoot.rz", "rtoes.rx", "lfoot.rx", "lfoot.rz")]
     assert abs(np.degrees(values[0, names.index("rfoot.rx")]) - 180.0) < 90.0   # the data
-    dofs = space.dofs(rig.root_translation, rig.local)
-    diff = (dofs[:, feet] - values[:, feet] + np.pi) % (2 * np.pi) - np.pi
-    assert np.abs(diff).max() < 1e-6
-    got_rot, _ = cmu_world(space.skeleton, dofs)
-    want_rot, _ = cmu_world(rig.cmu, values)
-    joints = observed_joints(space)
-    assert angle_deg(got_rot[:, joints], want_rot[:, joints]).max() < 1e-5
+    _assert_read_as_cmu(space, rig, values, feet)
 
 
 def test_what_the_dofs_cannot_hold_of_a_rigs_convention_is_given_back_by_its_residual():
