@@ -63,7 +63,7 @@ def reading_offset(asf_path, amc_path, model, seed=47):
     raised arm, is a few frames, not an offset)."""
     asf = read_asf(asf_path)
     values = read_amc(amc_path, asf).values[:FRAMES]
-    rig = SyntheticRig(asf, values=values, rng=np.random.default_rng(seed))
+    rig = SyntheticRig(asf, values=values, rng=np.random.default_rng(seed), two_neck=True)
     space = rig.space()
     dofs = space.dofs(rig.root_translation, rig.local)
     names = list(rig.cmu.dof_names())

@@ -131,7 +131,7 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
     assert angle[start][:, legs].mean() < first, angle[start][:, legs].mean()
     assert angle[:, legs].mean() < 4.0 and angle[:, legs].max() < 20.0, angle[:, legs].max()
     # The arms: 2.8-3.0° on average before stop 47 (the clavicles' offset held at zero by the
-    # walkers' prior, the upper arms' twist half taken), 0.38-0.81° with the reading offset's
+    # walkers' prior, the upper arms' twist half taken), 0.37-0.74° with the reading offset's
     # prior (core.rigs.reading_offset).
     assert angle[:, arms].mean() < 1.5, angle[:, arms].mean()
     assert angle[:, arms].max() < 25.0, angle[:, arms].max()
@@ -157,7 +157,8 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
 #: fd65bdc: 0.71 and 0.91): the walker's offset prior tightened on a window under a cycle
 #: (``core.gait.em.OFFSET_PRIOR_POWER`` = 2) took them to 1.17 and 1.12 -- the rig's reading
 #: offset went into the style and phase -- and with the reading offset's own prior, not
-#: tightened (``core.rigs.reading_offset``), 0.74 and 0.65.
+#: tightened (``core.rigs.reading_offset``), 0.60 and 0.58 (0.59 and 0.53 with subject 35,
+#: whose walk the test rigs carry, left out of that prior's table).
 IK_LEGS_DEG = 1.0
 
 

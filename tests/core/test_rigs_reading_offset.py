@@ -17,7 +17,8 @@ def test_the_shipped_table_is_the_spread_of_the_subjects_reading_offsets():
     """Each subject with its own ASF walked on a synthetic rig and read through the template:
     the root mean square over the subjects of the per-channel offsets is the shipped table
     (to its rounding), the hips and knees read with no offset (a leg's bones point as the
-    walk's), and the largest are where the CMU ASFs' rest conventions differ (arms, head)."""
+    walk's), and the largest are where the CMU ASFs' rest conventions differ most (the
+    clavicles and upper arms)."""
     import reading_offset as study
 
     model = load_stock_library()
@@ -32,7 +33,8 @@ def test_the_shipped_table_is_the_spread_of_the_subjects_reading_offsets():
         assert abs(READING_OFFSET_SD[name] - value) <= 0.005 + 1e-9, (name, value)
     for name in ("lfemur.rx", "rfemur.rz", "ltibia.rx", "rtibia.rx"):
         assert measured[name] < 0.01
-    assert max(measured, key=measured.get) == "head.rx"
+    arms = [n for n in measured if n[1:].split(".")[0] in ("clavicle", "humerus")]
+    assert max(measured, key=measured.get) in arms
     assert min(measured[n] for n in ("rhumerus.ry", "lclavicle.ry", "rclavicle.rz")) > 5.0
 
 
