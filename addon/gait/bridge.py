@@ -291,10 +291,11 @@ class Adapted:
 
 
 def reading_variance(model, grig):
-    """The offset variance a rig's reading adds (``core.rigs.reading_offset``): a mapped rig
-    or a CMU BVH conversion is read through the CMU template, whose rest convention is not
-    the keyed walk's; an Acclaim import is read on its own skeleton (None)."""
-    return None if grig.kind == "ACCLAIM" else reading_offset_variance(model)
+    """The offset variance a rig's reading adds (``core.rigs.reading_offset``): a mapped rig is
+    read through the CMU template's rest directions, which are not those of the skeleton its
+    walk was made on. None for an Acclaim import (read on its own skeleton) and a CMU BVH
+    conversion (its joints' local rotations are the subject's own, read as they are)."""
+    return reading_offset_variance(model) if grig.kind == "MAPPED" else None
 
 
 def _adapt(model, obs, fps, mode, dofs, known=None, reading_var=None):

@@ -1,8 +1,8 @@
 """The reading offset of a rig read through the CMU template (NumPy only; ``docs/gait.md``,
 *Stop 47, the rig's reading offset*).
 
-A mapped rig (and a CMU BVH conversion) is read into the gait model's joint space through the
-CMU template's rest directions and axes (:mod:`.gait_space`; the template is subject 08's ASF).
+A mapped rig is read into the gait model's joint space through the CMU template's rest
+directions and axes (:mod:`.gait_space`; the template is subject 08's ASF).
 A walk keyed on the rig was made on some other skeleton -- the test rigs carry subject 35's
 walk, retargeted bone direction by bone direction -- whose rest convention differs from the
 template's: read through the template, every frame of it carries a constant difference in the
