@@ -75,7 +75,8 @@ GRID_OFFSET_CYCLES = 1.0
 # c^-OFFSET_PRIOR_POWER (the between-walker variance by c^p): less than a cycle averages a
 # part of the stride, not the walker's mean pose, so the offset would absorb what the style
 # and phase should carry (docs/gait.md, *Stop 46, the half-second window's posture*). A
-# cycle or more: unchanged. p = 2, the nested folds' choice (LOWO at 0.5 s 8.26 -> 8.00 deg).
+# cycle or more: unchanged. p = 2, the nested folds' choice (LOWO at 0.5 s 8.27 -> 8.05 deg
+# on main fd65bdc under the bench's CPU pin).
 # It shipped off in stop 46: a rig read through the CMU template carries a reading offset the
 # tightened prior handed to the style and phase (issue 19's IK rigs left the CMU skeleton's
 # prediction); the reading's own variance (adapt's reading_var) is not tightened (*Stop 47,
@@ -280,8 +281,8 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
         grid cell itself, as before issue 21.
     reading_var : array_like, shape (D,), optional
         Variance (scaled units², all model channels) of an offset the reading adds to the
-        walker's (a rig read through the CMU template:
-        ``core.rigs.reading_offset_variance``), added to the offset prior's variance after
+        walker's (a mapped rig read through the CMU template:
+        ``core.rigs.reading_offset.reading_offset_variance``), added to the prior's variance after
         the short-window tightening (:func:`short_window_context`). None: none (a walker read
         on its own skeleton, as the model's walkers were).
 
