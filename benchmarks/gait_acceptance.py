@@ -87,10 +87,11 @@ def window_starts(values, names, window, gait):
         list(range(0, len(values) - n + 1, int(round(STEP_S * FPS))))
 
 
-def accepts(model, obs):
+def accepts(model, obs, **check_options):
     """Whether Predict Gait takes a window: its checks (the fit score after adapting only adds a
-    warning, so the adaptation is left out here)."""
-    check = check_gait(model, obs, FPS)
+    warning, so the adaptation is left out here); ``check_options``: keywords of
+    ``check_gait`` for the read (:func:`rig_check_options`)."""
+    check = check_gait(model, obs, FPS, **check_options)
     return check.refusal is None, check
 
 
@@ -145,9 +146,15 @@ def rig_reader(model, rig):
     return read
 
 
-def clip_decisions(model, values, names, gait, read):
+def rig_check_options(model):
+    """The keywords Predict passes ``check_gait`` for a rig's read (none yet: where Predict
+    gives a rig's read its own, the bench gives them here too)."""
+    return {}
+
+
+def clip_decisions(model, values, names, gait, read, **check_options):
     """{window: [(start frame, accepted, refusal's first words or None), …]} of a clip, each
-    window's observations from ``read(start, n)``."""
+    window's observations from ``read(start, n)``, checked with ``check_options``."""
     out = {}
     for window in WINDOWS:
         n = int(round(window * FPS))
@@ -156,7 +163,7 @@ def clip_decisions(model, values, names, gait, read):
             continue
         rows = []
         for s in starts:
-            ok, check = accepts(model, read(s, n))
+            ok, check = accepts(model, read(s, n), **check_options)
             rows.append((s, bool(ok), None if ok else check.refusal.split(" in ")[0]))
         out[f"{window:g}"] = rows
     return out
@@ -232,7 +239,8 @@ def run_acceptance(model=None, rig=False):
                 continue
             t0 = time.perf_counter()
             read = rig_reader(model, synthetic_rig(path, values))
-            decided = clip_decisions(model, values, names, gait, read)
+            decided = clip_decisions(model, values, names, gait, read,
+                                     **rig_check_options(model))
             through["rig_s"] += time.perf_counter() - t0
             rig_clips[path.stem] = decision_rows(decided)
             differ = disagreements(mocap, decided)
