@@ -52,12 +52,16 @@ STEP_S = 0.25
 RIG_SEED = 46
 
 
-def load(path):
-    """(DOFs at 60 Hz, DOF names) of an AMC file (its subject's .asf beside it, else the CMU
-    template)."""
+def clip_asf(path):
+    """The skeleton of an AMC file: its subject's .asf beside it, else the CMU template."""
     path = Path(path)
     asf_path = path.parent / f"{path.stem.split('_')[0]}.asf"
-    asf = read_asf(asf_path) if asf_path.exists() else cmu_template_asf()
+    return read_asf(asf_path) if asf_path.exists() else cmu_template_asf()
+
+
+def load(path):
+    """(DOFs at 60 Hz, DOF names) of an AMC file (:func:`clip_asf`)."""
+    asf = clip_asf(path)
     values = read_amc(path, asf).values
     return resample(values, 120.0, FPS, np.arange(3, values.shape[1])), \
         tuple(asf_to_skeleton(asf).dof_names())
@@ -121,10 +125,7 @@ def synthetic_rig(path, values):
     subject's .asf, else the CMU template), its rest pose, rolls and proportions drawn from
     ``RIG_SEED``."""
     from tests.core.test_rigs_gait_space import SyntheticRig
-    path = Path(path)
-    asf_path = path.parent / f"{path.stem.split('_')[0]}.asf"
-    asf = read_asf(asf_path) if asf_path.exists() else cmu_template_asf()
-    return SyntheticRig(asf, values=values, rng=np.random.default_rng(RIG_SEED))
+    return SyntheticRig(clip_asf(path), values=values, rng=np.random.default_rng(RIG_SEED))
 
 
 def rig_reader(model, rig):
