@@ -68,7 +68,8 @@ bench: bench-import bench-gait bench-gait-blender bench-tracking bench-track-ble
 bench-import: extension
 	$(PY) benchmarks/bench_import.py --extension $(ZIP) --output build/bench/import.json
 
-# ONLY=restyle (or offline,online,lowo,restyle): a quick run of some parts while iterating.
+# ONLY=restyle (or offline,online,lowo,restyle,acceptance,acceptance_rig): a quick run of some
+# parts while iterating (acceptance_rig: the acceptance table read through a rig too, ~5 min).
 # Runs under the CPU pin of tools/cpu_pin.py (x86-64-v3: the same figures on every CPU with
 # AVX2/FMA; its speed block on this CPU's own kernels); PIN=none: all on this CPU's own kernels.
 bench-gait: $(STAMP)

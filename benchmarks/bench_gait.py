@@ -21,6 +21,9 @@ is the method without the residual table. The leave-one-walker-out block (issue 
 the residual table (in-sample), the share of 08_01's error due to the glitch (``glitch_bound``),
 per online segment a hindsight reference (the segment's style known in advance) scored with the
 same formulas, and 08_01 scored for a prediction that is exact except for the glitch channel.
+The acceptance blocks (issue 21, ``benchmarks/gait_acceptance.py``): ``acceptance``, which windows
+Predict's checks take read from the mocap, and ``acceptance_rig``, the same windows read as
+Predict reads an animator's rig, with the windows where the two reads disagree.
 """
 
 import argparse
@@ -552,7 +555,7 @@ def print_table(report):
           f"(goal <= {GOALS['train_s']:.0f})")
 
 
-PARTS = ("offline", "online", "lowo", "restyle", "acceptance")
+PARTS = ("offline", "online", "lowo", "restyle", "acceptance", "acceptance_rig")
 
 
 def main(argv=None):
@@ -588,7 +591,10 @@ def main(argv=None):
         report["leave_one_walker_out"] = run_lowo()
     if "restyle" in parts:
         report["restyle"] = gait_restyle.run_restyle()
-    if "acceptance" in parts:
+    if "acceptance_rig" in parts:       # the mocap's rows too: the windows the reads disagree
+        report["acceptance"], report["acceptance_rig"] = \
+            gait_acceptance.run_acceptance(rig=True)
+    elif "acceptance" in parts:
         report["acceptance"] = gait_acceptance.run_acceptance()
     png = None
     if "online" in parts:
@@ -602,8 +608,10 @@ def main(argv=None):
         print_lowo(report["leave_one_walker_out"])
     if "restyle" in parts:
         gait_restyle.print_restyle(report["restyle"])
-    if "acceptance" in parts:
+    if "acceptance" in report:
         gait_acceptance.print_acceptance(report["acceptance"])
+    if "acceptance_rig" in report:
+        gait_acceptance.print_acceptance_rig(report["acceptance_rig"])
     if "online" in parts:
         speed = report["speed"]
         print(f"reference workload {speed['reference_workload_us']:.1f} us; online step = "
