@@ -40,6 +40,7 @@ from core.gait.segments import steady_segments
 from core.gait.stock import STOCK_LAG_RANGE
 from core.mocap import asf_to_skeleton, read_amc, read_asf, resample
 from core.mocap.bvh import cmu_template_asf
+from core.rigs.reading_offset import reading_offset_variance
 
 ROOT = Path(__file__).resolve().parent.parent
 CMU = ROOT / "sample_scenes" / "data" / "cmu"
@@ -148,9 +149,9 @@ def rig_reader(model, rig):
 
 
 def rig_check_options(model):
-    """The keywords Predict passes ``check_gait`` for a rig's read (none yet: where Predict
-    gives a rig's read its own, the bench gives them here too)."""
-    return {}
+    """The keywords Predict passes ``check_gait`` for a mapped rig's read: the reading offset's
+    variance (``core.rigs.reading_offset``; ``addon/gait/bridge.reading_variance``)."""
+    return {"reading_var": reading_offset_variance(model)}
 
 
 def clip_decisions(model, values, names, gait, read, **check_options):

@@ -27,6 +27,7 @@ from ...core.gait import keyed as keyed_reading
 from ...core.gait.leg_travel import fit_leg_travel
 from ...core.gait.walk import WalkRequest, predict_walk
 from ...core.rigs import plain_list
+from ...core.rigs.reading_offset import reading_offset_variance
 from ...core.mocap import MocapParseError, asf_to_skeleton, read_amc, read_asf
 from ..mocap.acclaim_bridge import find_asf_beside, scene_fps
 from ..common.fcurves import (channelbag, ensure_action, keyframe_state, locked_channels,
@@ -289,10 +290,19 @@ class Adapted:
     result: object = None
 
 
-def _adapt(model, obs, fps, mode, dofs, known=None):
+def reading_variance(model, grig):
+    """The offset variance a rig's reading adds (``core.rigs.reading_offset``): a mapped rig is
+    read through the CMU template's rest directions, which are not those of the skeleton its
+    walk was made on. None for an Acclaim import (read on its own skeleton) and a CMU BVH
+    conversion (its joints' local rotations are the subject's own, read as they are)."""
+    return reading_offset_variance(model) if grig.kind == "MAPPED" else None
+
+
+def _adapt(model, obs, fps, mode, dofs, known=None, reading_var=None):
     """The observed walker (:class:`Adapted`); only batch EM estimates the residual table
     (``core.gait.residual``). ``known``: the batch adaptation already made by the same call
-    (``check_gait``'s check 9, ``GaitCheck.adapted``), reused."""
+    (``check_gait``'s check 9, ``GaitCheck.adapted``), reused. ``reading_var``: the reading's
+    offset variance (:func:`reading_variance`)."""
     if mode == "ONLINE":
         stream = ObservationStream(model, model.dof_names, fps)
         online = OnlineEM(model, fps=fps)
@@ -301,7 +311,7 @@ def _adapt(model, obs, fps, mode, dofs, known=None):
             online.step(last)
         return Adapted(np.array([online.omega, online.phase]), online.w, online.state.b, None,
                        last)
-    res = known if known is not None else adapt(model, obs, fps=fps)
+    res = known if known is not None else adapt(model, obs, fps=fps, reading_var=reading_var)
     return Adapted(res.state, res.w, res.offset, res.residual, res.last_observation, res)
 
 
@@ -610,7 +620,8 @@ def predict_gait(context, obj, options):
     model_dofs = dofs[:, cols]
     obs = observations_from_dofs(model, model_dofs, model.dof_names, fps)
     what = f"frames {first}–{last} of {obj.name}"
-    check = check_gait(model, obs, fps, what=what, first_frame=first)
+    reading = reading_variance(model, grig)
+    check = check_gait(model, obs, fps, what=what, first_frame=first, reading_var=reading)
     if check.refusal:
         raise GaitError(check.refusal)
     # A sparsely keyed range (a few poses the animator keyed): the batch adaptation observes
@@ -620,7 +631,7 @@ def predict_gait(context, obj, options):
     sparse = options.adaptation != "ONLINE" and keyed_reading.sparsely_keyed(keyed, fps)
     seen = keyed_reading.keyed_observations(obs, keyed) if sparse else obs
     walker = _adapt(model, seen, fps, options.adaptation, model_dofs,
-                    None if sparse else check.adapted)
+                    None if sparse else check.adapted, reading)
     if sparse and not keyed[-1]:  # the continuation starts from the last frame Blender shows
         walker.last = np.array(obs[-1], dtype=float)
     # What the rig's pose holds beyond the model's DOFs (its rest convention against the CMU

@@ -25,7 +25,7 @@ from ...core.armature import dofs_to_channels
 from ...core.gait import LookaheadPredictor, adapt, observations_from_dofs
 from ...core.gait.checks import check_gait, with_fit
 from ..mocap.acclaim_bridge import scene_fps
-from .bridge import active_model, frame_range, gait_settings, model_hold
+from .bridge import active_model, frame_range, gait_settings, model_hold, reading_variance
 from .rigs import GaitError, _bvh_channels, gait_rig, read_current, read_dofs
 
 PROP_GHOST = "track_and_stride_ghost"   # on the ghost: name of the armature it previews
@@ -215,11 +215,14 @@ def start_preview(context, obj):
     if len(dofs) >= 2:
         what = f"the keyed frames {first_checked}–{last} of {obj.name}"
         obs = observations_from_dofs(model, dofs, model.dof_names, fps)
-        check = check_gait(model, obs, fps, what=what, first_frame=first_checked)
+        reading = reading_variance(model, grig)
+        check = check_gait(model, obs, fps, what=what, first_frame=first_checked,
+                           reading_var=reading)
         if check.refusal:
             raise GaitError(check.refusal)
         if len(dofs) >= round(0.5 * fps):
-            fitted = check.adapted if check.adapted is not None else adapt(model, obs, fps=fps)
+            fitted = check.adapted if check.adapted is not None else \
+                adapt(model, obs, fps=fps, reading_var=reading)
             warning = with_fit(check, model, obs, fitted, what).warning
     stop_preview()
     _remove_stale_ghosts(obj.name)

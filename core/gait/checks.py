@@ -999,7 +999,7 @@ def _rhythm_words(strength):
 
 
 def check_gait(model, observations, fps, result=None, what="the observed frames",
-               first_frame=None, poses=True):
+               first_frame=None, poses=True, reading_var=None):
     """Checks 1-6, 10, 9, 11, check 4's part by part and check 5's start from standing of the
     module docstring, and the fit
     score when ``result`` is given (check 9 adapts the model to the range itself).
@@ -1018,6 +1018,9 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
         range number them so (else they count the range's rows from 1).
     poses : bool
         Whether to run check 9 (False: checks 1-6 and 10 only, no adaptation).
+    reading_var : array_like, shape (D,), optional
+        The reading's offset variance, passed to check 9's adaptation
+        (:func:`core.gait.adapt`'s ``reading_var``: a rig read through the CMU template).
 
     Returns
     -------
@@ -1080,7 +1083,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     if strength is not None and strength < MIN_STRENGTH and (
             whole or (poses and len(obs) - period_range(model, fps)[0] >= overlap_frames(fps))):
         if poses:
-            adapted = adapt(model, obs, fps=fps)
+            adapted = adapt(model, obs, fps=fps, reading_var=reading_var)
             cycle = walker_cycle(adapted, fps, model)
         if not (_shorter_than_its_cycle(model, obs, fps, cycle, first, end) if whole
                 else _short_of_its_cycle(model, obs, fps, cycle, first)):
@@ -1137,7 +1140,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
                          forward=forward, arm_deg=arm_deg, misfit=misfit, refusal=refusal)
     if poses:
         if adapted is None:                    # check 5 adapted a short range already
-            adapted = adapt(model, obs, fps=fps)
+            adapted = adapt(model, obs, fps=fps, reading_var=reading_var)
         misfit, per_frame, per_channel = pose_misfit(model, obs, adapted)
         if misfit > MAX_MISFIT:
             off = np.flatnonzero(per_frame > MAX_MISFIT)

@@ -22,7 +22,11 @@ solved: ``(A/r + Λ - M D⁻¹ Mᵀ / r²) w = B/r + Λw̄ - M D⁻¹ s / r²`` 
 ``s = Σ_t y_t``, ``D = diag(n/r + λ)``, then ``b = D⁻¹ (s - Mᵀ w) / r``. The E-step filters
 ``y - b``. On a window shorter than a cycle of the model the prior can be tightened
 (:func:`short_window_context`: precision × ``c^-OFFSET_PRIOR_POWER``, c the window in typical
-cycles; off by default): part of a stride averages to a pose that is not the walker's mean one.
+cycles; ``OFFSET_PRIOR_POWER`` = 2): part of a stride averages to a pose that is not the walker's
+mean one. A reading that adds an offset of its own (a rig read through the CMU template,
+``core.rigs.reading_offset``) passes its variance ``reading_var``: the prior is then
+``b ~ N(0, diag(offset_var · c^p + reading_var))``, the walker's part tightened, the reading's
+not.
 
 Start: the (ω₀, φ₀) grid of :mod:`.initial_phase` on the first ``init_window`` seconds.
 
@@ -71,11 +75,13 @@ GRID_OFFSET_CYCLES = 1.0
 # c^-OFFSET_PRIOR_POWER (the between-walker variance by c^p): less than a cycle averages a
 # part of the stride, not the walker's mean pose, so the offset would absorb what the style
 # and phase should carry (docs/gait.md, *Stop 46, the half-second window's posture*). A
-# cycle or more: unchanged. Off (0, the prior of main 61c1d78 on every window): p = 2, the
-# nested folds' choice, takes LOWO at 0.5 s from 8.26 to 8.00 deg but moves the IK rigs'
-# 0.67 s Predict off the CMU skeleton's beyond issue 19's bound (tests/blender/
-# test_gait_rigs.py, IK_LEGS_DEG; p = 1 and 1.5 too): left to the lead.
-OFFSET_PRIOR_POWER = 0.0
+# cycle or more: unchanged. p = 2, the nested folds' choice (LOWO at 0.5 s 8.27 -> 8.05 deg
+# on main fd65bdc under the bench's CPU pin).
+# It shipped off in stop 46: a rig read through the CMU template carries a reading offset the
+# tightened prior handed to the style and phase (issue 19's IK rigs left the CMU skeleton's
+# prediction); the reading's own variance (adapt's reading_var) is not tightened (*Stop 47,
+# the rig's reading offset*).
+OFFSET_PRIOR_POWER = 2.0
 
 
 @dataclass(frozen=True)
@@ -229,7 +235,8 @@ def m_step_offset(ctx, stats, style=None):
 def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50, tol=1e-6,
           init_window=DEFAULT_INIT_WINDOW, style_prior_scale=DEFAULT_STYLE_PRIOR_SCALE,
           residual=True, residual_ratio=DEFAULT_RESIDUAL_RATIO,
-          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True, n_starts=1, refine_start=True):
+          outlier_ratio=DEFAULT_OUTLIER_RATIO, offset=True, n_starts=1, refine_start=True,
+          reading_var=None):
     """Batch EM: estimate phase state and style of a new walker from an observed window.
 
     Parameters
@@ -272,6 +279,12 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
         (:func:`.grid_search`'s ``refine``), on a window shorter than ``GRID_OFFSET_CYCLES``
         typical cycles scoring the grid with the offset too (its ``offset``); False: the plain
         grid cell itself, as before issue 21.
+    reading_var : array_like, shape (D,), optional
+        Variance (scaled units², all model channels) of an offset the reading adds to the
+        walker's (a mapped rig read through the CMU template:
+        ``core.rigs.reading_offset.reading_offset_variance``), added to the prior's variance after
+        the short-window tightening (:func:`short_window_context`). None: none (a walker read
+        on its own skeleton, as the model's walkers were).
 
     Returns
     -------
@@ -279,7 +292,7 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
     """
     ctx = make_context(model, fps, channels, style_prior_scale, outlier_ratio, offset)
     ys = scaled_observations(ctx, observations)
-    ctx = short_window_context(ctx, len(ys) / ctx.fps)
+    ctx = short_window_context(ctx, len(ys) / ctx.fps, reading_var=reading_var)
     k = int(min(len(ys), max(1, round(init_window * ctx.fps))))
     short = k / ctx.fps < GRID_OFFSET_CYCLES * typical_period_s(model)
     grid = grid_search(ctx, ys[:k], n_phi=BATCH_GRID[1], n_omega=BATCH_GRID[0],
@@ -316,8 +329,9 @@ def adapt(model, observations, fps=None, channels=None, style=None, max_iter=50,
                        residual=table, offset=full_offset, last_observation=last)
 
 
-def short_window_context(ctx, seconds, power=None):
-    """The context with the posture-offset prior tightened on a window shorter than a cycle.
+def short_window_context(ctx, seconds, power=None, reading_var=None):
+    """The context with the posture-offset prior tightened on a window shorter than a cycle,
+    and widened by the reading's own offset.
 
     Parameters
     ----------
@@ -326,19 +340,31 @@ def short_window_context(ctx, seconds, power=None):
         Length of the observed window.
     power : float, optional
         p of the tightening (default ``OFFSET_PRIOR_POWER``).
+    reading_var : array_like, shape (D,), optional
+        Variance of the reading's offset (scaled units², all model channels; :func:`adapt`).
 
     Returns
     -------
     FilterContext
-        ``ctx`` itself when it has no offset prior or the window spans ``c ≥ 1`` typical cycles
-        (:func:`typical_period_s`); otherwise a copy whose ``offset_prec`` is multiplied by
-        ``c^-p``.
+        ``ctx`` itself when it has no offset prior, or when the window spans ``c ≥ 1`` typical
+        cycles (:func:`typical_period_s`) and no reading variance is given; otherwise a copy
+        whose offset prior has the variance ``offset_var · c^p + reading_var`` (``c^p`` = 1
+        from a cycle on): ``offset_prec`` is ``1 / that``.
     """
     power = OFFSET_PRIOR_POWER if power is None else float(power)
     cycles = seconds / typical_period_s(ctx.model)
-    if ctx.offset_prec is None or power == 0 or not 0 < cycles < 1:
+    if ctx.offset_prec is None:
         return ctx
-    return replace(ctx, offset_prec=ctx.offset_prec * cycles ** -power)
+    prec = ctx.offset_prec
+    if power != 0 and 0 < cycles < 1:
+        prec = prec * cycles ** -power
+    if reading_var is not None:
+        extra = np.asarray(reading_var, dtype=float)
+        if extra.shape != (ctx.model.n_channels,) or not np.all(extra >= 0):
+            raise ValueError(f"reading_var must be {ctx.model.n_channels} values >= 0")
+        if np.any(extra[ctx.channels] > 0):
+            prec = 1.0 / (1.0 / prec + extra[ctx.channels])
+    return ctx if prec is ctx.offset_prec else replace(ctx, offset_prec=prec)
 
 
 def typical_period_s(model):

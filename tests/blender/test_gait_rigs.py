@@ -120,8 +120,9 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
     arms = [k for k in range(len(parts)) if k not in legs]
     # From 0.67 s of reference, the two predictions drift apart in timing over the second
     # (the rig is read through the CMU template's rest directions, which differ from subject
-    # 35's, the walk's, by up to 17° at the clavicles and 7° at the feet: the posture offset
-    # takes it, not exactly); the first steps are the same walk.
+    # 35's, the walk's, by up to 16° at the upper arms' twist, 14° at the clavicles and 6.6°
+    # at the feet: the posture offset takes it, with the reading offset's own prior since
+    # stop 47, core.rigs.reading_offset); the first steps are the same walk.
     start = slice(0, 5)
     # (Rigify's IK stretches: its knees bend a few degrees off the captured walk. Rigify IK
     # 1.43° on main after stop 41's coarser batch-EM start grid, 1.31 with the rigid reading
@@ -129,7 +130,11 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
     first = 2.5 if kind == "rigify_ik" else 1.0
     assert angle[start][:, legs].mean() < first, angle[start][:, legs].mean()
     assert angle[:, legs].mean() < 4.0 and angle[:, legs].max() < 20.0, angle[:, legs].max()
-    assert angle[:, arms].mean() < 6.0 and angle[:, arms].max() < 25.0, angle[:, arms].max()
+    # The arms: 2.8-3.0° on average before stop 47 (the clavicles' offset held at zero by the
+    # walkers' prior, the upper arms' twist half taken), 0.37-0.74° with the reading offset's
+    # prior (core.rigs.reading_offset).
+    assert angle[:, arms].mean() < 1.5, angle[:, arms].mean()
+    assert angle[:, arms].max() < 25.0, angle[:, arms].max()
     # The hips travel as the CMU skeleton's do (the stride is planted on the rig's own legs,
     # fitted to subject 35's since stop 40; read through the template, not exactly as fast).
     mid = hip_mid(spec, truth)
@@ -148,7 +153,12 @@ def test_predict_keys_the_rigs_controls_with_the_cmu_skeletons_walk(kind, cmu_pr
 #: skeleton's prediction keyed on the same rig by the test rigs' own retargeting. Rigify's IK
 #: (stretch 0.1) read as it bends made its prediction ask for knees its own IK then bent
 #: again: 1.55° on the test clip before stop 41's rigid reading (1.68 before the batch EM's
-#: coarser start grid), 0.87 since (0.50 before that grid); the IK legs 0.48.
+#: coarser start grid), 0.87 since (0.50 before that grid); the IK legs 0.48. Stop 47 (main
+#: fd65bdc: 0.71 and 0.91): the walker's offset prior tightened on a window under a cycle
+#: (``core.gait.em.OFFSET_PRIOR_POWER`` = 2) took them to 1.17 and 1.12 -- the rig's reading
+#: offset went into the style and phase -- and with the reading offset's own prior, not
+#: tightened (``core.rigs.reading_offset``), 0.60 and 0.58 (0.59 and 0.53 with subject 35,
+#: whose walk the test rigs carry, left out of that prior's table).
 IK_LEGS_DEG = 1.0
 
 

@@ -1314,8 +1314,13 @@ def test_the_circling_walker_reads_its_stride_and_one_second_of_it_is_taken(monk
     """The cycle check 5 reads (the phase turn over the strides it holds) is within 10 % of
     the stride the knees show (0.82 s); the phase turn alone is three of them. The rhythm
     finds the stride too (within 10 %), strong enough with the same leg a cycle later alone,
-    and the range is taken. Pooled only (main before stop 47) it is weak and, read as one
-    stride a turn, the legs move over ``MAX_LEG_HARMONICS`` times that cycle: refused."""
+    and the range is taken. Pooled only (main before stop 47, whose walker's offset prior was
+    not tightened on a window under a cycle: ``em.OFFSET_PRIOR_POWER`` 0) it is weak and, read
+    as one stride a turn, the legs move over ``MAX_LEG_HARMONICS`` times that cycle: refused.
+    (With the tightened prior the turn reads 2.32 s, the legs 7.99 times it: p = 2 alone took
+    this window, docs/gait.md *Stop 46, the half-second window's posture*.)"""
+    from core.gait import em
+
     values, names = load_clip(CMU / "139_32.amc")
     model = load_stock_library()
     stride = circling_stride_s(values, names, model)
@@ -1331,8 +1336,9 @@ def test_the_circling_walker_reads_its_stride_and_one_second_of_it_is_taken(monk
     assert period == pytest.approx(stride, rel=0.1)
     assert check_gait(model, w, 60.0).refusal is None
     monkeypatch.setattr(checks, "SAME_LEG_ALONE", False)
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 0.0)
     assert checks.rhythm(model, w, 60.0)[1] < checks.MIN_STRENGTH
-    turn = checks.walker_cycle(result, 60.0)
+    turn = checks.walker_cycle(adapt(model, w, fps=60.0), 60.0)
     assert checks.leg_frequency(model, w, 60.0) * turn > checks.MAX_LEG_HARMONICS
     monkeypatch.setattr(checks, "walker_cycle", lambda result_, fps, model_=None: turn)
     assert check_gait(model, w, 60.0).refusal.startswith("No steady rhythm")

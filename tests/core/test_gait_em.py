@@ -415,11 +415,11 @@ def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(m
     """Stop 46: on a window of c < 1 typical cycles the M-step's posture-offset prior has
     precision λ c^-p (p = ``OFFSET_PRIOR_POWER``, set to 2 here), λ the model's between-walker
     prior; on a window of a cycle or more it is λ itself, and the adaptation is bit for bit the
-    one without the tightening; with p = 0 (the default) the context is the plain one."""
+    one without the tightening; with p = 0 the context is the plain one."""
     from core.gait import em
 
     model = small_model()
-    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)     # off by default (docs/gait.md)
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)     # the default since stop 47
     base = make_context(model).offset_prec              # the between-walker prior, λ
     period_s = float(np.median(model.periods)) / model.fps
     seen = []
@@ -453,3 +453,67 @@ def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(m
     assert np.linalg.norm(short_new.offset) < np.linalg.norm(short_old.offset)
     ctx = make_context(model)
     assert em.short_window_context(ctx, 0.5, power=0.0) is ctx
+
+
+def test_a_readings_offset_variance_is_added_to_the_prior_and_not_tightened(monkeypatch):
+    """Stop 47: a reading that adds an offset of its own (a rig read through the CMU template)
+    passes its variance v; the M-step's offset prior then has the variance ``(1/λ) c^p + v``
+    on a window of c < 1 typical cycles and ``1/λ + v`` on a longer one: the walker's part is
+    tightened, the reading's is not; channels with v = 0 keep the walker's prior exactly."""
+    from core.gait import em
+
+    model = small_model()
+    monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)
+    base = make_context(model).offset_prec
+    period_s = float(np.median(model.periods)) / model.fps
+    reading = np.zeros(model.n_channels)
+    reading[: model.n_angles: 3] = np.linspace(0.01, 0.3, len(reading[: model.n_angles: 3]))
+    seen = []
+
+    def spy(ctx, stats, style=None):
+        seen.append(ctx.offset_prec.copy())
+        return m_step_offset(ctx, stats, style)
+
+    monkeypatch.setattr(em, "m_step_offset", spy)
+    obs = observations("35_03")
+    for n in (30, 100):
+        seen.clear()
+        adapt(model, obs[:n], residual=False, reading_var=reading)
+        c = min(1.0, n / model.fps / period_s)
+        assert seen
+        for prec in seen:
+            np.testing.assert_allclose(1.0 / prec, c**2 / base + reading, rtol=1e-12)
+            kept = reading == 0
+            np.testing.assert_allclose(prec[kept], base[kept] * c**-2, rtol=1e-12)
+    with pytest.raises(ValueError):
+        adapt(model, obs[:30], reading_var=-reading)
+
+
+def test_a_constant_reading_offset_of_unbounded_variance_is_taken_by_the_offset_alone():
+    """The identity behind the reading's variance: a constant added to some channels of every
+    frame (a rest convention the reading adds), with an unbounded prior variance in those
+    channels, is absorbed by the posture offset: EM from the same start finds the phase and
+    style of the unshifted frames, and the shifted channels' offsets move by the constant
+    (to the EM's tolerance). With the walker's prior alone part of it goes into the style and
+    phase. (The start grid is the plain one here: its cells are scored without the offset on a
+    window this long for the small model.)"""
+    model = small_model()
+    obs = observations("35_03")[:30]                   # less than a cycle: the prior tightened
+    cols = [model.channel_names.index(n) for n in model.channel_names[: model.n_angles]
+            if n.split(".")[0][1:] in ("humerus", "clavicle", "foot")]
+    assert cols
+    shift = np.zeros(model.n_channels)
+    shift[cols] = np.radians(np.linspace(-12.0, 15.0, len(cols)))
+    reading = np.zeros(model.n_channels)
+    reading[cols] = 1e12
+
+    def moved(reading_var):
+        a, b = (adapt(model, y, residual=False, refine_start=False, reading_var=reading_var)
+                for y in (obs, obs + shift))
+        return (np.abs(b.states - a.states).max(), np.abs(b.w - a.w).max(),
+                np.abs(b.offset - a.offset - shift / model.channel_scale).max())
+
+    with_reading = moved(reading)
+    assert max(with_reading) < 1e-4, with_reading
+    plain = moved(None)
+    assert min(plain) > 1e-2, plain

@@ -25,13 +25,15 @@ RNG = np.random.default_rng(19)
 SIDE = {"left": "l", "right": "r"}
 
 
-def _part_bones(one_spine=False, clavicles=True, toes=True):
+def _part_bones(one_spine=False, clavicles=True, toes=True, two_neck=False):
     parts = {"hips": [("pelvis", "root", "lowerback", "root")],
              "spine": ([("spine", "lowerback", "thorax", "lowerback")] if one_spine else
                        [("spine", "lowerback", "upperback", "lowerback"),
                         ("spine.001", "upperback", "thorax", "upperback")]),
              "chest": [("chest", "thorax", "lowerneck", "thorax")],
-             "neck": [("neck", "lowerneck", "head", "lowerneck")],
+             "neck": ([("neck", "lowerneck", "upperneck", "lowerneck"),
+                       ("neck.001", "upperneck", "head", "upperneck")] if two_neck else
+                      [("neck", "lowerneck", "head", "lowerneck")]),
              "head": [("head", "head", None, "head")]}
     for side, c in SIDE.items():
         s = side[0].upper()
