@@ -411,6 +411,21 @@ def test_a_window_of_a_cycle_or_more_starts_from_the_plain_grid(monkeypatch):
     np.testing.assert_array_equal(long_new.w, long_old.w)
 
 
+def spy_offset_prior(monkeypatch):
+    """Record the posture-offset prior's precision each M-step of ``adapt`` uses (a list that
+    fills as ``em.m_step_offset`` is called)."""
+    from core.gait import em
+
+    seen = []
+
+    def spy(ctx, stats, style=None):
+        seen.append(ctx.offset_prec.copy())
+        return m_step_offset(ctx, stats, style)
+
+    monkeypatch.setattr(em, "m_step_offset", spy)
+    return seen
+
+
 def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(monkeypatch):
     """Stop 46: on a window of c < 1 typical cycles the M-step's posture-offset prior has
     precision λ c^-p (p = ``OFFSET_PRIOR_POWER``, set to 2 here), λ the model's between-walker
@@ -422,13 +437,7 @@ def test_a_window_shorter_than_a_cycle_tightens_the_offset_prior_by_its_cycles(m
     monkeypatch.setattr(em, "OFFSET_PRIOR_POWER", 2.0)     # the default since stop 47
     base = make_context(model).offset_prec              # the between-walker prior, λ
     period_s = float(np.median(model.periods)) / model.fps
-    seen = []
-
-    def spy(ctx, stats, style=None):
-        seen.append(ctx.offset_prec.copy())
-        return m_step_offset(ctx, stats, style)
-
-    monkeypatch.setattr(em, "m_step_offset", spy)
+    seen = spy_offset_prior(monkeypatch)
     obs = observations("35_03")
     for n in (20, 30, 45):
         seen.clear()
@@ -468,13 +477,7 @@ def test_a_readings_offset_variance_is_added_to_the_prior_and_not_tightened(monk
     period_s = float(np.median(model.periods)) / model.fps
     reading = np.zeros(model.n_channels)
     reading[: model.n_angles: 3] = np.linspace(0.01, 0.3, len(reading[: model.n_angles: 3]))
-    seen = []
-
-    def spy(ctx, stats, style=None):
-        seen.append(ctx.offset_prec.copy())
-        return m_step_offset(ctx, stats, style)
-
-    monkeypatch.setattr(em, "m_step_offset", spy)
+    seen = spy_offset_prior(monkeypatch)
     obs = observations("35_03")
     for n in (30, 100):
         seen.clear()
