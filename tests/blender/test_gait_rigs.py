@@ -376,7 +376,11 @@ def test_a_walk_read_from_a_rig_and_keyed_back_is_the_rigs_walk(kind):
     grig = rigs.gait_rig(obj)
     assert grig.kind == "MAPPED"
     dofs, residual = rigs.read_dofs(grig, frames, residual=True)
-    np.testing.assert_array_equal(dofs, rigs.read_dofs(grig, frames))  # the model's rows
+    # The model's rows are the same with or without the residual. Not compared bit for bit:
+    # each read steps the scene through the frames again, and Blender's evaluated pose can
+    # differ in the last bit between two evaluations of a frame (bpy 4.5.15 in a full run,
+    # stop 47: 4e-16 rad on 24 of 682 values; equal when the test runs alone).
+    np.testing.assert_allclose(dofs, rigs.read_dofs(grig, frames), rtol=0, atol=1e-12)
     obj.animation_data.action = None
     want = fp.matrices[frames - 1]
     angles = {}
