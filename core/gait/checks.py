@@ -178,7 +178,7 @@ __all__ = ["GaitCheck", "MAX_ARM_ELEVATION_DEG", "MAX_LEGS_TOGETHER", "MAX_LEG_P
            "gait_channels", "kicking_leg", "leg_frequency", "leg_posture", "legs_together",
            "mirror_signs", "overlap_frames", "period_range", "pose_misfit", "raised_arm",
            "regularity", "rhythm", "rhythm_inputs", "shin_swing", "strides_per_cycle",
-           "walker_cycle", "with_fit"]
+           "style_cycle", "walker_cycle", "with_fit"]
 
 MIN_MOTION_DEG = 1.0
 MAX_TILT_DEG = 60.0
@@ -271,9 +271,27 @@ class GaitCheck:
     adapted: object = field(default=None, compare=False, repr=False)
 
 
+def style_cycle(model, w=None):
+    """One cycle of a style's mean curve ``μ(φ) w`` at the model's phase samples (the last
+    sample, the first again, dropped), model units.
+
+    Parameters
+    ----------
+    model : GaitModel
+    w : array_like, shape (J,), optional
+        The style (default: the model's mean style).
+
+    Returns
+    -------
+    ndarray, shape (P, D)
+    """
+    w = model.style_mean if w is None else np.asarray(w, dtype=float)
+    return np.einsum("j,jcd->cd", w, model.bases)[:-1]
+
+
 def gait_channels(model, count=N_GAIT_CHANNELS):
     """Indices of the ``count`` joint-angle channels that move most in the model's mean cycle."""
-    cycle = np.einsum("j,jcd->cd", model.style_mean, model.bases)[:-1, :model.n_angles]
+    cycle = style_cycle(model)[:, :model.n_angles]
     return np.sort(np.argsort(-cycle.var(axis=0))[:count])
 
 
@@ -369,7 +387,7 @@ def mirror_signs(model, pairs):
     ndarray, shape (p,)
         +1.0 or −1.0 (+1 for a pair whose correlation is 0).
     """
-    cycle = np.einsum("j,jcd->cd", model.style_mean, model.bases)[:-1]      # (P, D), one cycle
+    cycle = style_cycle(model)                                              # (P, D), one cycle
     cycle = cycle - cycle.mean(axis=0)
     half = np.roll(cycle, -(len(cycle) // 2), axis=0)                       # half a cycle later
     return np.array([-1.0 if np.sum(cycle[:, a] * half[:, b]) < 0 else 1.0 for a, b in pairs])
@@ -903,7 +921,7 @@ def strides_per_cycle(model, result):
     """
     if not all(c in model.channel_names for c in HIP_FLEXION):
         return 1
-    cycle = np.einsum("j,jcd->cd", np.asarray(result.w, dtype=float), model.bases)[:-1]
+    cycle = style_cycle(model, result.w)
     hips = cycle[:, [model.channel_names.index(c) for c in HIP_FLEXION]]
     power = np.sum(np.abs(np.fft.rfft(hips - hips.mean(axis=0), axis=0)) ** 2, axis=1)
     return int(np.argmax(power[1:MAX_STRIDES_PER_CYCLE + 1])) + 1
@@ -1047,8 +1065,7 @@ def check_gait(model, observations, fps, result=None, what="the observed frames"
     if pairs:
         together = legs_together(obs, pairs)
         stepping = alternation_deg(obs, pairs)
-        alternate = legs_together(np.einsum("j,jcd->cd", model.style_mean,
-                                            model.bases)[:-1], pairs) < 0
+        alternate = legs_together(style_cycle(model), pairs) < 0
         if (alternate and stepping < MIN_ALTERNATION_DEG
                 and not _level_travel(model, obs, fps, travel)):
             return GaitCheck(motion, legs_together=together, tilt_deg=tilt, travel=travel,
